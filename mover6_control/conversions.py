@@ -1,0 +1,215 @@
+"""Conversion between ROS messages and the core's plain numpy values: the one place that does it.
+
+Every ``*_from_msg`` function validates and raises ``InvalidInputError`` with a reason a person can
+read; the nodes log that reason and drop the message. Every ``make_*`` function builds a message.
+"""
+
+import math
+
+from control_msgs.msg import JointJog
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Pose
+from mover6_control.errors import InvalidInputError
+from mover6_control.rotations import matrix_to_quaternion, quaternion_to_matrix
+import numpy as np
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float32MultiArray, MultiArrayDimension
+
+STATUS_LEVELS = {
+    'OK': DiagnosticStatus.OK,
+    'WARN': DiagnosticStatus.WARN,
+    'ERROR': DiagnosticStatus.ERROR,
+    'STALE': DiagnosticStatus.STALE,
+}
+
+
+def stamp_to_seconds(stamp):
+    """Return a ``builtin_interfaces/Time`` as float seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+# --- /joint_states -------------------------------------------------------------------------
+
+def joint_state_from_msg(msg, joint_names):
+    """Return ``(q, qd)`` (6,) [rad], [rad/s] from a JointState, mapped by name.
+
+    ``qd`` is None when the message carries no velocities. Raises when a joint is missing, the
+    arrays disagree in length, or a value is not finite.
+    """
+    names = list(msg.name)
+    if len(msg.position) != len(names):
+        raise InvalidInputError(
+            f'joint_states has {len(names)} names but {len(msg.position)} positions')
+    has_velocity = len(msg.velocity) > 0
+    if has_velocity and len(msg.velocity) != len(names):
+        raise InvalidInputError(
+            f'joint_states has {len(names)} names but {len(msg.velocity)} velocities')
+    index = {name: i for i, name in enumerate(names)}
+    missing = [name for name in joint_names if name not in index]
+    if missing:
+        raise InvalidInputError(f'joint_states lacks joints {missing} (has {names})')
+    q = np.array([msg.position[index[n]] for n in joint_names], dtype=float)
+    qd = (np.array([msg.velocity[index[n]] for n in joint_names], dtype=float)
+          if has_velocity else None)
+    if not np.all(np.isfinite(q)) or (qd is not None and not np.all(np.isfinite(qd))):
+        raise InvalidInputError('joint_states has non-finite values')
+    return q, qd
+
+
+def make_joint_state(joint_names, q, qd=None, effort=None, stamp=None):
+    """Build a JointState from arrays (6,) [rad], [rad/s], [N m]."""
+    msg = JointState()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.name = list(joint_names)
+    msg.position = [float(x) for x in q]
+    if qd is not None:
+        msg.velocity = [float(x) for x in qd]
+    if effort is not None:
+        msg.effort = [float(x) for x in effort]
+    return msg
+
+
+# --- /joint_demands ------------------------------------------------------------------------
+
+def demands_from_msg(msg, n_joints=6):
+    """Return the waypoints (n, n_joints) [rad] of a Float32MultiArray.
+
+    Accepts the layout of design.md (dim[0] waypoints, dim[1] joints) or a flat array with no
+    layout whose length is a multiple of ``n_joints`` (the seed's MATLAB and terminal usage).
+    """
+    data = np.asarray(msg.data, dtype=float)
+    dims = list(msg.layout.dim)
+    if data.size == 0:
+        raise InvalidInputError('joint demands are empty')
+    if dims:
+        if len(dims) != 2:
+            raise InvalidInputError(f'joint demands layout must have 2 dims, got {len(dims)}')
+        n, m = dims[0].size, dims[1].size
+        if m != n_joints:
+            raise InvalidInputError(f'joint demands have {m} joints per row, expected {n_joints}')
+        if n * m != data.size - msg.layout.data_offset:
+            raise InvalidInputError(
+                f'joint demands layout says {n} x {m} but data has {data.size} values')
+        data = data[msg.layout.data_offset:]
+    elif data.size % n_joints != 0:
+        raise InvalidInputError(
+            f'joint demands length {data.size} is not a multiple of {n_joints}')
+    if not np.all(np.isfinite(data)):
+        raise InvalidInputError('joint demands have non-finite values')
+    return data.reshape(-1, n_joints)
+
+
+def make_demands(Q):
+    """Build a Float32MultiArray (with layout) from waypoints (n, 6) [rad]."""
+    Q = np.asarray(Q, dtype=float)
+    n, m = Q.shape
+    msg = Float32MultiArray()
+    msg.layout.dim = [
+        MultiArrayDimension(label='waypoints', size=n, stride=n * m),
+        MultiArrayDimension(label='joints', size=m, stride=m),
+    ]
+    msg.data = [float(x) for x in Q.ravel()]
+    return msg
+
+
+# --- poses ---------------------------------------------------------------------------------
+
+def pose_to_matrix(pose):
+    """Return ``T`` (4, 4) of a geometry_msgs/Pose; raises on a bad quaternion or position."""
+    p, o = pose.position, pose.orientation
+    position = np.array([p.x, p.y, p.z], dtype=float)
+    if not np.all(np.isfinite(position)):
+        raise InvalidInputError(f'pose position has non-finite values: {position.tolist()}')
+    T = np.eye(4)
+    T[:3, :3] = quaternion_to_matrix([o.x, o.y, o.z, o.w])
+    T[:3, 3] = position
+    return T
+
+
+def matrix_to_pose(T):
+    """Build a geometry_msgs/Pose from ``T`` (4, 4)."""
+    T = np.asarray(T, dtype=float)
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in T[:3, 3])
+    q = matrix_to_quaternion(T[:3, :3])
+    pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (
+        float(v) for v in q)
+    return pose
+
+
+def check_frame(header, expected_frame):
+    """Raise when a header's frame is not ``expected_frame`` (an empty frame is accepted)."""
+    frame = header.frame_id.lstrip('/')
+    if frame and frame != expected_frame:
+        raise InvalidInputError(
+            f'goal frame is "{header.frame_id}", expected "{expected_frame}" '
+            '(no TF lookup is done: send goals in the base frame)')
+
+
+def pose_stamped_to_matrix(msg, expected_frame='base_link'):
+    """Return ``T_base_tool`` (4, 4) of a PoseStamped after checking its frame."""
+    check_frame(msg.header, expected_frame)
+    return pose_to_matrix(msg.pose)
+
+
+def pose_array_to_matrices(msg, expected_frame='base_link'):
+    """Return the poses (n, 4, 4) of a PoseArray after checking its frame."""
+    check_frame(msg.header, expected_frame)
+    if not msg.poses:
+        raise InvalidInputError('path goal has no poses')
+    return np.stack([pose_to_matrix(p) for p in msg.poses])
+
+
+# --- /JointJog -----------------------------------------------------------------------------
+
+def make_joint_jog(joint_names, velocities, stamp=None):
+    """Build a JointJog carrying ``velocities`` (6,) for all joints, ``displacements`` empty."""
+    msg = JointJog()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.joint_names = list(joint_names)
+    msg.velocities = [float(v) for v in velocities]
+    return msg
+
+
+def joint_jog_from_msg(msg):
+    """Return ``(names, velocities)`` of a JointJog; raises on length mismatch or non-finite."""
+    names = list(msg.joint_names)
+    velocities = [float(v) for v in msg.velocities]
+    if not names:
+        raise InvalidInputError('JointJog names no joints')
+    if len(velocities) != len(names):
+        raise InvalidInputError(
+            f'JointJog has {len(names)} joint names but {len(velocities)} velocities')
+    if len(set(names)) != len(names):
+        raise InvalidInputError(f'JointJog names a joint twice: {names}')
+    if not all(math.isfinite(v) for v in velocities):
+        raise InvalidInputError(f'JointJog has non-finite velocities: {velocities}')
+    return names, np.array(velocities)
+
+
+# --- status --------------------------------------------------------------------------------
+
+def make_status(name, level, message, values=None, hardware_id='mover6'):
+    """Build a DiagnosticStatus; ``level`` is 'OK', 'WARN', 'ERROR' or 'STALE'."""
+    msg = DiagnosticStatus()
+    msg.level = STATUS_LEVELS[level]
+    msg.name = name
+    msg.message = message
+    msg.hardware_id = hardware_id
+    msg.values = [KeyValue(key=str(k), value=str(v)) for k, v in (values or {}).items()]
+    return msg
+
+
+def status_values(msg):
+    """Return the key/value pairs of a DiagnosticStatus as a dict of strings."""
+    return {kv.key: kv.value for kv in msg.values}
+
+
+def status_level_name(msg):
+    """Return the level of a DiagnosticStatus as 'OK', 'WARN', 'ERROR' or 'STALE'."""
+    for name, level in STATUS_LEVELS.items():
+        if msg.level == level:
+            return name
+    return str(msg.level)

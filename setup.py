@@ -1,0 +1,35 @@
+"""Install the mover6_control ament_python package."""
+
+from glob import glob
+import os
+
+from setuptools import find_packages, setup
+
+package_name = 'mover6_control'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*', 'bench']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        (os.path.join('share', package_name, 'config'), glob('config/*')),
+        (os.path.join('share', package_name, 'scripts'), glob('scripts/*.sh')),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='mover6_control developers',
+    maintainer_email='dev@mover6-control.invalid',
+    description='Pose-goal planner, JointJog controller and MuJoCo bridge for the Mover6 arm.',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            'planner = mover6_control.planner_node:main',
+            'controller = mover6_control.controller_node:main',
+            'sim_bridge = sim_bridge.node:main',
+            'goal = mover6_control.goal_cli:main',
+        ],
+    },
+)
