@@ -1,4 +1,5 @@
-"""The arm model: a serial chain of revolute joints with limits, loaded from URDF or DH.
+"""
+The arm model: a serial chain of revolute joints with limits, loaded from URDF or DH.
 
 A joint i sits at ``origins[i]`` (4, 4), the fixed transform from the previous joint's frame (the
 base for joint 0) to joint i's frame at q = 0, and turns about ``axes[i]`` (3,), a unit vector in
@@ -102,7 +103,7 @@ class ArmModel:
 
 
 def transform_from_xyz_rpy(xyz, rpy):
-    """Return the 4x4 transform of a URDF origin: translation xyz [m], fixed-axis roll-pitch-yaw."""
+    """Return the 4x4 transform of a URDF origin: xyz [m], fixed-axis roll-pitch-yaw [rad]."""
     T = np.eye(4)
     T[:3, :3] = Rotation.from_euler('xyz', rpy).as_matrix()
     T[:3, 3] = xyz
@@ -110,7 +111,8 @@ def transform_from_xyz_rpy(xyz, rpy):
 
 
 def load_urdf(path, base_link='base_link', tip_link=None, name=None):
-    """Load the revolute chain from ``base_link`` to ``tip_link`` of a URDF file.
+    """
+    Load the revolute chain from ``base_link`` to ``tip_link`` of a URDF file.
 
     Fixed joints on the way are folded into the next joint's origin (or into ``tool``).
     ``tip_link`` defaults to the single leaf link of the tree. Only revolute (and continuous)
@@ -182,7 +184,8 @@ LIMIT_SETS = ('seed', 'hardware')
 
 
 def mover6(limit_set='seed', urdf_path=None):
-    """Return the Mover6 model from the shipped URDF.
+    """
+    Return the Mover6 model from the shipped URDF.
 
     ``limit_set`` 'seed' keeps every joint in [-1.571, 1.571] rad as seed 000 does; 'hardware'
     uses the vendor's software limits. Velocity limits are the vendor's speeds in both.

@@ -1,4 +1,5 @@
-"""Conversion between ROS messages and the core's plain numpy values: the one place that does it.
+"""
+Conversion between ROS messages and the core's plain numpy values: the one place that does it.
 
 Every ``*_from_msg`` function validates and raises ``InvalidInputError`` with a reason a person can
 read; the nodes log that reason and drop the message. Every ``make_*`` function builds a message.
@@ -31,7 +32,8 @@ def stamp_to_seconds(stamp):
 # --- /joint_states -------------------------------------------------------------------------
 
 def joint_state_from_msg(msg, joint_names):
-    """Return ``(q, qd)`` (6,) [rad], [rad/s] from a JointState, mapped by name.
+    """
+    Return ``(q, qd)`` (6,) [rad], [rad/s] from a JointState, mapped by name.
 
     ``qd`` is None when the message carries no velocities. Raises when a joint is missing, the
     arrays disagree in length, or a value is not finite.
@@ -73,7 +75,8 @@ def make_joint_state(joint_names, q, qd=None, effort=None, stamp=None):
 # --- /joint_demands ------------------------------------------------------------------------
 
 def demands_from_msg(msg, n_joints=6):
-    """Return the waypoints (n, n_joints) [rad] of a Float32MultiArray.
+    """
+    Return the waypoints (n, n_joints) [rad] of a Float32MultiArray.
 
     Accepts the layout of design.md (dim[0] waypoints, dim[1] joints) or a flat array with no
     layout whose length is a multiple of ``n_joints`` (the seed's MATLAB and terminal usage).

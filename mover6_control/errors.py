@@ -1,4 +1,5 @@
-"""Exceptions shared by the ROS-free core.
+"""
+Exceptions shared by the ROS-free core.
 
 Every error raised by the core on bad input is a ``ValueError`` subclass, so callers (the nodes)
 can catch one type, log ``str(err)`` and drop the input.

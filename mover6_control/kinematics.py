@@ -18,7 +18,8 @@ def axis_rotations(axes, q):
 
 
 def fk_frames_batch(arm, Q):
-    """Return the frame of every joint and the tip, (m, n + 1, 4, 4), for configurations (m, n).
+    """
+    Return the frame of every joint and the tip, (m, n + 1, 4, 4), for configurations (m, n).
 
     Frame i (i < n) is joint i's frame after its rotation; frame n is the tip link.
     """

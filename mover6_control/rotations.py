@@ -1,4 +1,5 @@
-"""Rotations and homogeneous transforms: validation and conversions.
+"""
+Rotations and homogeneous transforms: validation and conversions.
 
 Conventions:
 - A pose is a 4x4 homogeneous transform ``T_base_tool`` [m].
@@ -7,16 +8,16 @@ Conventions:
 - Quaternions are in ROS order ``(x, y, z, w)``.
 """
 
+from mover6_control.errors import InvalidInputError
 import numpy as np
 from scipy.spatial.transform import Rotation
-
-from mover6_control.errors import InvalidInputError
 
 ORTHONORMAL_TOL = 1e-6
 
 
 def as_finite_array(value, shape, name):
-    """Return ``value`` as a float array of ``shape`` or raise a helpful error.
+    """
+    Return ``value`` as a float array of ``shape`` or raise a helpful error.
 
     ``shape`` may hold ``None`` for an axis of any length.
     """
@@ -75,7 +76,8 @@ def matrix_to_euler_zyx(R):
 
 
 def quaternion_to_matrix(q_xyzw):
-    """Return the rotation matrix of a quaternion ``(x, y, z, w)``; rejects a zero quaternion.
+    """
+    Return the rotation matrix of a quaternion ``(x, y, z, w)``; rejects a zero quaternion.
 
     A quaternion whose norm is off 1 by more than 1e-3 is rejected too, because a sender that
     means a rotation normalises it; silently normalising would hide a bug upstream.
