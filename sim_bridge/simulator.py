@@ -1,0 +1,374 @@
+"""
+The simulated arm: MuJoCo physics behind the same command interface as the real drives.
+
+ROS-free and clock-free: the caller steps the physics, passes the receive time of every command
+(on the simulator's own clock, ``Simulator.time``) and paces against wall time with
+``steps_due``. Two command modes:
+
+``'rad_per_s'`` (ROS standard, MoveIt Servo with unitless scaling off)
+    A command gives joint velocities [rad/s] by joint name; joints it does not name get zero.
+    Speeds above a joint's limit are clamped to it (the command reports a warning). A command
+    older than ``command_timeout`` (by receive time) halts the joints: the last physics step
+    that uses it starts at most ``command_timeout`` after its receipt. Positions are never
+    driven past the joint limits. ``state()`` reads the physics: q, qd, motor torque.
+
+``'vendor_driver'`` (the Mover6's own cpr_robot driver, design.md)
+    A command gives fractions of each joint's maximum speed (clamped to [-1, 1]); joints it does
+    not name keep their last fraction, and the last command is held with no timeout (send zeros
+    to stop). Every ``vendor_cycle`` (50 ms, 20 Hz) the driver reads the encoders (positions in
+    whole ticks; velocity = position difference over the cycle; effort 0, as the driver
+    reports) and moves each joint's target by ``trunc(fraction * max_speed * speed_override *
+    cycle / tick)`` whole encoder ticks, clamped to the joint limits. The joint servo follows the
+    target in a straight line over the next cycle. Steps below one tick per cycle are lost, so
+    J5 and J6 (2 pi / 1024 rad per tick) stand still under about 7 deg/s.
+
+Encoder ticks of the Mover6: the vendor driver (cpr_robot, CPRMover6.cpp) sets gear ratios 528.2,
+528.2, 528.2, 499.1, 1, 1 and 1440, 1440, 1440, 1440, 1024, 1024 encoder ticks per motor turn,
+so one tick is 2 pi / (gear * ticks) of the joint: 8.26e-6 rad for J1 to J3, 8.74e-6 rad for J4
+and 6.14e-3 rad (0.352 deg) for J5 and J6. The J5/J6 figures are consistent with the 7 deg/s
+threshold design.md reports (0.352 deg / 0.05 s = 7.0 deg/s).
+"""
+
+from dataclasses import dataclass, field
+import math
+
+from mover6_control.errors import InvalidInputError
+import mujoco
+import numpy as np
+from sim_bridge.model import (build_model, joint_dof_addresses, joint_qpos_addresses,
+                              ModelOptions)
+
+MODES = ('rad_per_s', 'vendor_driver')
+
+MOVER6_GEAR_RATIOS = (528.2, 528.2, 528.2, 499.1, 1.0, 1.0)
+MOVER6_TICKS_PER_MOTOR_TURN = (1440, 1440, 1440, 1440, 1024, 1024)
+MOVER6_TICK_SIZE = tuple(2.0 * math.pi / (g * t) for g, t in
+                         zip(MOVER6_GEAR_RATIOS, MOVER6_TICKS_PER_MOTOR_TURN))
+
+_EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """How the simulated arm behaves; units in brackets."""
+
+    mode: str = 'rad_per_s'
+    command_timeout: float = 0.2                # [s], 'rad_per_s' only
+    speed_override: float = 0.25                # 'vendor_driver' only, in (0, 1]
+    vendor_cycle: float = 0.05                  # [s], 'vendor_driver' only
+    tick_size: tuple = MOVER6_TICK_SIZE         # (n,) [rad], 'vendor_driver' only
+    tracking_gain: float = 50.0                 # [1/s] vendor target tracking
+    model: ModelOptions = field(default_factory=ModelOptions)
+
+    def __post_init__(self):
+        """Check the mode and every number."""
+        if self.mode not in MODES:
+            raise InvalidInputError(f'unknown mode "{self.mode}", expected one of {MODES}')
+        if not (math.isfinite(self.command_timeout) and self.command_timeout > 0.0):
+            raise InvalidInputError(
+                f'command_timeout must be positive, got {self.command_timeout}')
+        if not (math.isfinite(self.speed_override) and 0.0 < self.speed_override <= 1.0):
+            raise InvalidInputError(
+                f'speed_override must be in (0, 1], got {self.speed_override}')
+        if not (math.isfinite(self.vendor_cycle) and self.vendor_cycle > 0.0):
+            raise InvalidInputError(f'vendor_cycle must be positive, got {self.vendor_cycle}')
+        if self.vendor_cycle < self.model.physics_dt:
+            raise InvalidInputError(
+                f'vendor_cycle {self.vendor_cycle} s is shorter than physics_dt '
+                f'{self.model.physics_dt} s')
+        ticks = np.asarray(self.tick_size, dtype=float)
+        if ticks.ndim != 1 or not np.all(np.isfinite(ticks)) or np.any(ticks <= 0.0):
+            raise InvalidInputError(f'tick_size must be positive values, got {self.tick_size}')
+        object.__setattr__(self, 'tick_size', tuple(float(t) for t in ticks))
+        if not (math.isfinite(self.tracking_gain) and self.tracking_gain > 0.0):
+            raise InvalidInputError(
+                f'tracking_gain must be positive, got {self.tracking_gain}')
+
+    @property
+    def physics_dt(self):
+        """Return the physics step [s]."""
+        return self.model.physics_dt
+
+
+@dataclass(frozen=True)
+class JointReading:
+    """What the arm reports at ``time`` [s]: q [rad], qd [rad/s], effort [N m], each (n,)."""
+
+    time: float
+    q: np.ndarray
+    qd: np.ndarray
+    effort: np.ndarray
+
+
+def steps_due(sim_elapsed, wall_elapsed, real_time_factor, physics_dt, max_steps=1000):
+    """
+    Return how many physics steps to run now to keep sim time at ``real_time_factor`` x wall.
+
+    ``sim_elapsed`` and ``wall_elapsed`` [s] are counted from the same anchor. A factor of 0
+    means as fast as possible: ``max_steps`` every call. The result is in [0, max_steps]; a
+    caller that gets ``max_steps`` while pacing has fallen behind and should re-anchor.
+    """
+    if not (math.isfinite(real_time_factor) and real_time_factor >= 0.0):
+        raise InvalidInputError(f'real_time_factor must be >= 0, got {real_time_factor}')
+    if real_time_factor == 0.0:
+        return int(max_steps)
+    behind = wall_elapsed * real_time_factor - sim_elapsed
+    n = math.floor(behind / physics_dt + _EPS) + 1 if behind >= -_EPS else 0
+    return int(min(max(n, 0), max_steps))
+
+
+def wall_time_of(sim_elapsed, real_time_factor):
+    """Return the wall time [s] since the anchor at which sim time reaches ``sim_elapsed``."""
+    if not (math.isfinite(real_time_factor) and real_time_factor > 0.0):
+        raise InvalidInputError(f'real_time_factor must be > 0, got {real_time_factor}')
+    return sim_elapsed / real_time_factor
+
+
+class Simulator:
+    """
+    One simulated arm: MuJoCo model and data, the command state and the mode's drive logic.
+
+    Not thread-safe: a caller that commands from one thread and steps from another holds a lock.
+    """
+
+    def __init__(self, arm, config=None, home_q=None):
+        """Build the model of ``arm`` and start at rest at ``home_q`` (n,) [rad] (zeros)."""
+        self.arm = arm
+        self.config = config or SimConfig()
+        n = arm.n_joints
+        if len(self.config.tick_size) != n:
+            raise InvalidInputError(
+                f'tick_size has {len(self.config.tick_size)} values for {n} joints')
+        self.home_q = self._check_q(np.zeros(n) if home_q is None else home_q, 'home_q')
+        self.model = build_model(arm, self.config.model)
+        self.data = mujoco.MjData(self.model)
+        self._qadr = joint_qpos_addresses(self.model, arm.joint_names)
+        self._dadr = joint_dof_addresses(self.model, arm.joint_names)
+        self._index = {name: i for i, name in enumerate(arm.joint_names)}
+        self._ticks = np.array(self.config.tick_size)
+        self._vmax = np.array(arm.velocity_limits)
+        self.step_count = 0
+        self.command_count = 0       # commands accepted since construction
+        self.applied_count = 0       # the last command_count that a physics step used
+        self._reset_state(self.home_q)
+
+    # --- state ---------------------------------------------------------------------------
+
+    @property
+    def time(self):
+        """Return the simulated time [s]; monotonic, also across resets."""
+        return float(self.data.time)
+
+    @property
+    def q(self):
+        """Return the joint positions (n,) [rad] of the physics."""
+        return self.data.qpos[self._qadr].copy()
+
+    @property
+    def qd(self):
+        """Return the joint velocities (n,) [rad/s] of the physics."""
+        return self.data.qvel[self._dadr].copy()
+
+    @property
+    def effort(self):
+        """Return the motor torques (n,) [N m], gravity load included."""
+        return self.data.qfrc_actuator[self._dadr].copy()
+
+    @property
+    def ctrl(self):
+        """Return the velocity (n,) [rad/s] the joint servos were last asked for."""
+        return self._demand.copy()
+
+    @property
+    def held_command(self):
+        """Return the held command (n,): [rad/s] or fractions, by mode."""
+        return self._cmd.copy()
+
+    @property
+    def control_period(self):
+        """Return the drive's own cycle [s]: the vendor cycle, or one physics step."""
+        if self.config.mode == 'vendor_driver':
+            return self.config.vendor_cycle
+        return self.config.physics_dt
+
+    def is_stale(self):
+        """Return True when no command is active ('rad_per_s': none yet or timed out)."""
+        if self.config.mode == 'vendor_driver':
+            return False
+        return self._cmd_time is None or (
+            self.time - self._cmd_time > self.config.command_timeout + _EPS)
+
+    def state(self):
+        """Return the ``JointReading`` the arm reports now (the driver's view in vendor mode)."""
+        if self.config.mode == 'vendor_driver':
+            return JointReading(self._read_time, self._read_q.copy(), self._read_qd.copy(),
+                                np.zeros(self.arm.n_joints))
+        return JointReading(self.time, self.q, self.qd, self.effort)
+
+    # --- commands ------------------------------------------------------------------------
+
+    def set_command(self, names, velocities, receive_time):
+        """
+        Take a velocity command by joint name, received at ``receive_time`` [s] (sim clock).
+
+        ``velocities`` are [rad/s] in 'rad_per_s' mode and fractions of each joint's maximum
+        speed in 'vendor_driver' mode. Raises ``InvalidInputError`` (and changes nothing) on
+        unknown or repeated names, mismatched lengths or non-finite values. Returns a list of
+        warnings (str) about values that were clamped.
+        """
+        names = [str(n) for n in names]
+        try:
+            values = np.array(velocities, dtype=float).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise InvalidInputError(f'velocities are not numbers: {exc}') from exc
+        if not names:
+            raise InvalidInputError('the command names no joints')
+        if len(values) != len(names):
+            raise InvalidInputError(
+                f'the command has {len(names)} joint names but {len(values)} velocities')
+        if len(set(names)) != len(names):
+            raise InvalidInputError(f'the command names a joint twice: {names}')
+        unknown = [n for n in names if n not in self._index]
+        if unknown:
+            raise InvalidInputError(
+                f'unknown joints {unknown}; this arm has {list(self.arm.joint_names)}')
+        if not np.all(np.isfinite(values)):
+            raise InvalidInputError(f'the command has non-finite velocities: {values.tolist()}')
+        if not math.isfinite(receive_time):
+            raise InvalidInputError(f'receive_time must be finite, got {receive_time}')
+        vendor = self.config.mode == 'vendor_driver'
+        cmd = self._cmd.copy() if vendor else np.zeros(self.arm.n_joints)
+        warnings = []
+        for name, value in zip(names, values):
+            i = self._index[name]
+            limit = 1.0 if vendor else self._vmax[i]
+            if abs(value) > limit:
+                unit = 'of max speed' if vendor else 'rad/s'
+                warnings.append(f'{name}: {value:.4g} clamped to {math.copysign(limit, value):.4g}'
+                                f' {unit}')
+                value = math.copysign(limit, value)
+            cmd[i] = value
+        self._cmd = cmd
+        self._cmd_time = float(receive_time)
+        self.command_count += 1
+        return warnings
+
+    def halt(self):
+        """Drop the command: zero velocity (also the held command in vendor mode)."""
+        self._cmd = np.zeros(self.arm.n_joints)
+        self._cmd_time = None
+
+    # --- stepping ------------------------------------------------------------------------
+
+    def step(self, n_steps=1):
+        """Advance the physics by ``n_steps`` steps of ``physics_dt``."""
+        for _ in range(int(n_steps)):
+            if self.config.mode == 'vendor_driver':
+                self._vendor_control()
+            else:
+                self._servo_control()
+            mujoco.mj_step(self.model, self.data)
+            self.step_count += 1
+
+    def run_for(self, duration):
+        """Advance the physics by ``duration`` [s] (rounded to whole steps)."""
+        self.step(int(round(duration / self.config.physics_dt)))
+
+    def _servo_control(self):
+        """Set the servo velocities for one 'rad_per_s' step."""
+        if self.is_stale():
+            v = np.zeros(self.arm.n_joints)
+        else:
+            v = self._cmd
+            self.applied_count = self.command_count
+        self._set_servo(self._limit_guard(v))
+
+    def _set_servo(self, v):
+        """
+        Ask the joint servos for velocity ``v`` (n,) [rad/s].
+
+        The demand is scaled by (kv + damping) / kv, the drive's feed-forward of the joint's
+        viscous damping, so that the steady velocity equals ``v`` exactly.
+        """
+        opt = self.config.model
+        self._demand = np.array(v, dtype=float)
+        self.data.ctrl[:self.arm.n_joints] = self._demand * ((opt.kv + opt.damping) / opt.kv)
+
+    def _limit_guard(self, v):
+        """Return ``v`` [rad/s] reduced so that no joint runs past its limit within one step."""
+        q = self.q
+        dt = self.config.physics_dt
+        hi = np.maximum((self.arm.upper - q) / dt, 0.0)
+        lo = np.minimum((self.arm.lower - q) / dt, 0.0)
+        return np.clip(v, lo, hi)
+
+    def _vendor_control(self):
+        """Run the driver's 20 Hz cycle when due, then set the servo to follow the target."""
+        cfg = self.config
+        if self.time >= self._next_cycle - _EPS:
+            self._vendor_cycle()
+        ramp = min(max((self.time - self._cycle_start) / cfg.vendor_cycle, 0.0), 1.0)
+        target = self._target_ticks * self._ticks
+        ref = self._prev_target + (target - self._prev_target) * ramp
+        v_ff = (target - self._prev_target) / cfg.vendor_cycle if ramp < 1.0 else 0.0
+        v = v_ff + cfg.tracking_gain * (ref - self.q)
+        self._set_servo(np.clip(v, -self._vmax, self._vmax))
+
+    def _vendor_cycle(self):
+        """One cycle of the vendor driver: read encoders, then move the targets in ticks."""
+        cfg = self.config
+        now = self.time
+        q_read = np.round(self.q / self._ticks) * self._ticks
+        if now > self._read_time:
+            self._read_qd = (q_read - self._read_q) / (now - self._read_time)
+        self._read_q, self._read_time = q_read, now
+        self._prev_target = self._target_ticks * self._ticks
+        step = self._cmd * self._vmax * cfg.speed_override * cfg.vendor_cycle
+        ticks = np.trunc(step / self._ticks + np.copysign(_EPS, step))
+        lo = np.ceil(self.arm.lower / self._ticks - _EPS)
+        hi = np.floor(self.arm.upper / self._ticks + _EPS)
+        self._target_ticks = np.clip(self._target_ticks + ticks, lo, hi)
+        if np.any(self._cmd != 0.0):
+            self.applied_count = self.command_count
+        self._cycle_start = now
+        self._next_cycle = now + cfg.vendor_cycle
+
+    # --- reset ---------------------------------------------------------------------------
+
+    def reset(self, q=None):
+        """
+        Put the arm at rest at ``q`` (n,) [rad] (default ``home_q``) and drop every command.
+
+        Sim time keeps running forward (a /clock must not jump back); the drive state (vendor
+        targets and cycle phase) starts afresh, so what follows a reset is exactly what follows
+        a new simulator at that configuration.
+        """
+        q = self.home_q if q is None else self._check_q(q, 'q')
+        self._reset_state(q)
+
+    def _reset_state(self, q):
+        """Reset MuJoCo data and the drive state to rest at ``q``, keeping the time."""
+        t = float(self.data.time)
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.time = t
+        self.data.qpos[self._qadr] = q
+        mujoco.mj_forward(self.model, self.data)
+        n = self.arm.n_joints
+        self._cmd = np.zeros(n)
+        self._cmd_time = None
+        self._demand = np.zeros(n)
+        self._target_ticks = np.round(q / self._ticks)
+        self._prev_target = self._target_ticks * self._ticks
+        self._cycle_start = t
+        self._next_cycle = t
+        self._read_q = np.round(q / self._ticks) * self._ticks
+        self._read_qd = np.zeros(n)
+        self._read_time = t
+
+    def _check_q(self, q, name):
+        """Return ``q`` as a finite (n,) array inside the joint limits, or raise."""
+        q = self.arm.check_q(q, name)
+        bad = self.arm.limit_violations(q, tol=1e-6)
+        if bad:
+            raise InvalidInputError(f'{name} is outside the joint limits: {"; ".join(bad)}')
+        return q
