@@ -1,0 +1,337 @@
+"""
+The controller without ROS: joint states and demands in, one velocity command per tick out.
+
+``ControllerCore`` owns the state machine (``state_machine``), the running ``Plan``
+(``velocity_laws``) and the safety checks. The node calls ``on_joint_states``,
+``on_invalid_states``, ``on_demands``, ``request_stop`` and ``reset`` from its callbacks and
+``tick(now)`` from its timer, and publishes what comes back. Time is always an argument [s], so
+tests drive it with synthetic time and no sleeps.
+
+Safety, per tick: joint states older than ``state_timeout``, or reported incomplete or
+non-finite, give a zero command and the fault state at once; a fresh valid state recovers to
+idle. Entering idle, finishing a stop and entering fault give an explicit zero command (the
+vendor driver keeps the last command forever). A demand that is empty, non-finite or outside
+the joint limits raises ``InvalidInputError`` and leaves the running motion untouched; a valid
+one while moving replaces the motion, starting from the present reference and its velocity, so
+the command does not jump. No joint is commanded further past a limit.
+"""
+
+from dataclasses import dataclass, field
+
+from mover6_control import state_machine as sm
+from mover6_control.errors import InvalidInputError
+from mover6_control.velocity_laws import (closed_loop_command, driver_velocity_limits,
+                                          guard_position_limits, JOG_UNITS, LawConfig,
+                                          plan_motion, plan_stop, to_jog_units)
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """
+    The controller's settings (the node's parameters).
+
+    ``goal_tolerance`` [rad] (scalar or (n,)): settled when every joint is this close.
+    ``state_timeout`` [s]: joint states older than this are stale. ``position_gain`` [1/s]: the
+    closed-loop gain on the position error. ``settle_timeout`` [s]: give up settling (result
+    'aborted'). ``path_tolerance`` [rad]: a tracking error above it aborts the motion with a
+    controlled stop. ``rate`` [Hz]: the tick rate, for the position-limit guard.
+    ``jog_units``: 'rad_per_s' or 'fraction_of_max' (the vendor driver, which moves at
+    ``value * max speed * speed_override``).
+    """
+
+    law: LawConfig = field(default_factory=LawConfig)
+    goal_tolerance: object = 0.002
+    state_timeout: float = 0.25
+    position_gain: float = 2.0
+    settle_timeout: float = 3.0
+    path_tolerance: float = 0.3
+    rate: float = 100.0
+    jog_units: str = 'rad_per_s'
+    speed_override: float = 0.25
+
+    def __post_init__(self):
+        """Check every setting."""
+        for name in ('state_timeout', 'settle_timeout', 'path_tolerance', 'rate'):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0.0):
+                raise InvalidInputError(f'{name} must be positive, got {value}')
+        if not (np.isfinite(self.position_gain) and self.position_gain >= 0.0):
+            raise InvalidInputError(f'position_gain must be >= 0, got {self.position_gain}')
+        tol = np.asarray(self.goal_tolerance, dtype=float)
+        if not np.all(np.isfinite(tol)) or np.any(tol <= 0.0):
+            raise InvalidInputError(f'goal_tolerance must be positive, got {tol.tolist()}')
+        if self.jog_units not in JOG_UNITS:
+            raise InvalidInputError(f'jog_units must be one of {JOG_UNITS}, got '
+                                    f'"{self.jog_units}"')
+        if not (0.0 < self.speed_override <= 1.0):
+            raise InvalidInputError(f'speed_override must be in (0, 1], got '
+                                    f'{self.speed_override}')
+
+
+@dataclass(frozen=True)
+class Status:
+    """What goes out on /controller/status: state, level, human message, named values."""
+
+    state: str
+    level: str
+    message: str
+    values: dict
+
+
+@dataclass(frozen=True, eq=False)
+class TickOutput:
+    """
+    One tick's result.
+
+    ``qd`` (n,) [rad/s] is the command; ``jog`` (n,) the same in the configured JointJog units;
+    ``status_changed`` says the state, result or motion changed since the last tick.
+    """
+
+    qd: np.ndarray
+    jog: np.ndarray
+    state: str
+    status_changed: bool
+
+
+class ControllerCore:
+    """The controller's logic for one arm; see the module docstring."""
+
+    def __init__(self, arm, config=None):
+        """Make a controller for ``arm`` (an ``ArmModel``) with ``config``."""
+        self.arm = arm
+        self.config = ControllerConfig() if config is None else config
+        n = arm.n_joints
+        self._tol = np.broadcast_to(np.asarray(self.config.goal_tolerance, float), (n,)).copy()
+        self._vlim = driver_velocity_limits(arm.velocity_limits, self.config.jog_units,
+                                            self.config.speed_override)
+        self._dt = 1.0 / self.config.rate
+        self._state = sm.WAITING_FOR_STATES
+        self._q = None
+        self._t_states = None
+        self._bad_states = None          # reason why the latest states were rejected
+        self._t_fault = None
+        self._plan = None
+        self._t_plan = 0.0
+        self._ref = None                 # (q_ref, qd_ref) of the last tick
+        self._qd_cmd = np.zeros(n)
+        self._motion_id = 0
+        self._waypoints_total = 0
+        self._waypoint = 0
+        self._t_settle = 0.0
+        self._error = np.zeros(n)
+        self._message = 'waiting for /joint_states'
+        self._level = 'WARN'
+        self._result = {}
+        self._changed = True
+
+    # --- inputs -------------------------------------------------------------------------------
+
+    @property
+    def state(self):
+        """Return the current state name (``state_machine.STATES``)."""
+        return self._state
+
+    @property
+    def motion_id(self):
+        """Return the id of the latest accepted demand (0 before any)."""
+        return self._motion_id
+
+    @property
+    def plan(self):
+        """Return the running ``Plan`` (None when none)."""
+        return self._plan
+
+    def on_joint_states(self, now, q, qd=None):
+        """Take valid measured positions (n,) [rad] received at ``now`` [s]."""
+        q = self.arm.check_q(q, 'joint_states position')
+        self._q = q
+        self._t_states = now
+        self._bad_states = None
+
+    def on_invalid_states(self, now, reason):
+        """Note joint states rejected at ``now`` [s] (missing joints, non-finite): fault."""
+        self._bad_states = str(reason)
+
+    def on_demands(self, now, waypoints):
+        """
+        Accept waypoints (N, n) [rad] at ``now`` [s] and return the new motion id.
+
+        Raises ``InvalidInputError`` (the running motion untouched) when the demand is empty,
+        has the wrong shape, non-finite values or values outside the joint limits, or when the
+        controller cannot take a demand now (no joint states, fault, stopping).
+        """
+        n = self.arm.n_joints
+        Q = np.asarray(waypoints, dtype=float)
+        if Q.size == 0:
+            raise InvalidInputError('demand is empty')
+        if Q.ndim == 1:
+            if Q.size % n:
+                raise InvalidInputError(f'demand length {Q.size} is not a multiple of {n}')
+            Q = Q.reshape(-1, n)
+        if Q.ndim != 2 or Q.shape[1] != n:
+            raise InvalidInputError(f'demand must have shape (N, {n}), got {Q.shape}')
+        if not np.all(np.isfinite(Q)):
+            raise InvalidInputError('demand has non-finite values')
+        bad = [f'waypoint {k}: ' + ', '.join(self.arm.limit_violations(row, tol=1e-6))
+               for k, row in enumerate(Q) if not self.arm.within_limits(row, tol=1e-6)]
+        if bad:
+            raise InvalidInputError('demand outside joint limits: ' + '; '.join(bad))
+        if self._state not in sm.ACCEPTS_DEMANDS:
+            raise InvalidInputError(f'cannot take a demand while {self._state}: '
+                                    f'{self._message}')
+        Q = np.clip(Q, self.arm.lower, self.arm.upper)   # float32 rounding at a limit
+        if self._state == sm.IDLE or self._ref is None:
+            q_start, qd_start = self._q, None
+        else:
+            q_start, qd_start = self._ref
+        plan = plan_motion(self.config.law, q_start, Q, self._vlim, qd_start)
+        self._plan, self._t_plan = plan, now
+        self._motion_id += 1
+        self._waypoints_total, self._waypoint = len(Q), 0
+        self._result = {}
+        self._set(sm.DEMAND, 'OK', f'motion {self._motion_id}: {len(Q)} waypoint(s), '
+                                   f'{self.config.law.profile}, {plan.duration:.2f} s')
+        return self._motion_id
+
+    def request_stop(self, now):
+        """Decelerate to rest and hold; return ``(True, message)`` or why nothing moved."""
+        if self._state not in (sm.EXECUTING, sm.SETTLING):
+            return True, f'not moving ({self._state}); command is zero'
+        q_ref, qd_ref = self._ref if self._ref is not None else (self._q, self._qd_cmd)
+        self._plan, self._t_plan = plan_stop(q_ref, qd_ref, self.config.law.a_max), now
+        self._result = {'result': 'stopped', 'reason': 'stop requested'}
+        self._set(sm.STOP, 'OK', f'stopping motion {self._motion_id} on request')
+        return True, f'stopping within {self._plan.duration:.2f} s'
+
+    def reset(self, now):
+        """Leave fault: wait for fresh joint states again."""
+        if self._state == sm.FAULT:
+            self._q = None
+            self._set(sm.RESET, 'WARN', 'reset: waiting for /joint_states')
+
+    # --- the tick -----------------------------------------------------------------------------
+
+    def tick(self, now):
+        """Return the ``TickOutput`` at ``now`` [s]: check the states, run the law."""
+        self._check_states(now)
+        state = self._state
+        qd = None
+        if state == sm.EXECUTING:
+            qd = self._tick_executing(now)
+        elif state == sm.SETTLING:
+            qd = self._tick_settling(now)
+        elif state == sm.STOPPING:
+            qd = self._tick_stopping(now)
+        if qd is None or self._state not in sm.MOVING_STATES:
+            qd = np.zeros(self.arm.n_joints)
+            self._ref = None
+        else:
+            qd = guard_position_limits(qd, self._q, self.arm.lower, self.arm.upper, self._dt)
+        self._qd_cmd = qd
+        jog = to_jog_units(qd, self.arm.velocity_limits, self.config.jog_units,
+                           self.config.speed_override)
+        changed, self._changed = self._changed, False
+        return TickOutput(qd, jog, self._state, changed)
+
+    def _check_states(self, now):
+        if self._q is None:
+            return
+        if self._bad_states is not None:
+            reason = f'invalid /joint_states: {self._bad_states}'
+        elif now - self._t_states > self.config.state_timeout:
+            reason = (f'/joint_states stale: last valid {now - self._t_states:.3f} s ago '
+                      f'(timeout {self.config.state_timeout} s)')
+        else:
+            reason = None
+        if reason is not None:
+            if self._state != sm.FAULT and sm.accepts(self._state, sm.STATES_INVALID):
+                if self._state in sm.MOVING_STATES:
+                    self._result = {'result': 'fault', 'reason': reason}
+                self._plan = None
+                self._t_fault = now
+                self._set(sm.STATES_INVALID, 'ERROR', reason)
+            return
+        if self._state == sm.WAITING_FOR_STATES:
+            self._set(sm.STATES_VALID, 'OK', 'joint states received; idle')
+        elif self._state == sm.FAULT and self._t_states > self._t_fault:
+            self._set(sm.STATES_VALID, 'OK', 'valid joint states again; idle')
+
+    def _tick_executing(self, now):
+        t = now - self._t_plan
+        q_ref, qd_ref = self._plan.sample(t)
+        self._ref = (q_ref, qd_ref)
+        self._waypoint = self._plan.waypoints_reached(t)
+        self._error = q_ref - self._q
+        worst = float(np.max(np.abs(self._error)))
+        if worst > self.config.path_tolerance:
+            self._plan, self._t_plan = plan_stop(q_ref, qd_ref, self.config.law.a_max), now
+            reason = (f'tracking error {worst:.3f} rad above path tolerance '
+                      f'{self.config.path_tolerance} rad')
+            self._result = {'result': 'aborted', 'reason': reason}
+            self._set(sm.PATH_ERROR, 'WARN', f'aborting motion {self._motion_id}: {reason}')
+            return self._tick_stopping(now)
+        if t >= self._plan.duration:
+            self._t_settle = now
+            self._set(sm.REFERENCE_DONE, 'OK', f'motion {self._motion_id}: settling')
+            return self._tick_settling(now)
+        return closed_loop_command(q_ref, qd_ref, self._q, self.config.position_gain,
+                                   self._vlim)
+
+    def _tick_settling(self, now):
+        goal = self._plan.q_goal
+        self._ref = (goal, np.zeros_like(goal))
+        self._waypoint = self._waypoints_total
+        self._error = goal - self._q
+        worst = float(np.max(np.abs(self._error)))
+        if np.all(np.abs(self._error) <= self._tol):
+            self._result = {'result': 'arrived', 'final_joint_error': f'{worst:.6f}'}
+            self._set(sm.SETTLED, 'OK', f'motion {self._motion_id} arrived '
+                                        f'(max joint error {worst:.4f} rad)')
+            return None
+        if now - self._t_settle > self.config.settle_timeout:
+            reason = (f'not within goal tolerance after {self.config.settle_timeout} s '
+                      f'(max joint error {worst:.4f} rad)')
+            self._result = {'result': 'aborted', 'reason': reason,
+                            'final_joint_error': f'{worst:.6f}'}
+            self._set(sm.SETTLE_TIMEOUT, 'WARN', f'motion {self._motion_id}: {reason}')
+            return None
+        return closed_loop_command(goal, np.zeros_like(goal), self._q,
+                                   self.config.position_gain, self._vlim)
+
+    def _tick_stopping(self, now):
+        t = now - self._t_plan
+        q_ref, qd_ref = self._plan.sample(t)
+        self._ref = (q_ref, qd_ref)
+        self._error = q_ref - self._q
+        if t >= self._plan.duration:
+            self._plan = None
+            result = self._result.get('result', 'stopped')
+            self._set(sm.AT_REST, 'OK' if result == 'stopped' else 'WARN',
+                      f'motion {self._motion_id} {result}: at rest, holding')
+            return None
+        return qd_ref.copy()
+
+    def _set(self, event, level, message):
+        self._state = sm.step(self._state, event)
+        self._level, self._message = level, message
+        self._changed = True
+
+    # --- status -------------------------------------------------------------------------------
+
+    def status(self):
+        """Return the ``Status`` to publish now (state, level, reason, figures)."""
+        moving = self._state in sm.MOVING_STATES
+        error = self._error if moving else np.zeros(self.arm.n_joints)
+        values = {
+            'state': self._state,
+            'motion_id': self._motion_id,
+            'waypoint': self._waypoint,
+            'waypoints': self._waypoints_total,
+            'tracking_error': f'{float(np.linalg.norm(error)):.6f}',
+            'max_joint_error': f'{float(np.max(np.abs(error))):.6f}',
+            'profile': self.config.law.profile,
+            'jog_units': self.config.jog_units,
+        }
+        values.update(self._result)
+        return Status(self._state, self._level, self._message, values)

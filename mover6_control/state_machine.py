@@ -1,0 +1,84 @@
+"""
+The controller's states and the table of transitions between them, with a pure step function.
+
+::
+
+    waiting_for_states --states_valid--> idle --demand--> executing --reference_done--> settling
+    settling --settled | settle_timeout--> idle
+    executing | settling --stop | path_error--> stopping --at_rest--> idle
+    executing --demand--> executing (the new motion replaces the running one)
+    idle | executing | settling | stopping --states_invalid--> fault
+    fault --states_valid | reset--> idle | waiting_for_states
+
+Any (state, event) pair not in ``TRANSITIONS`` leaves the state unchanged: that is deliberate
+(for example a stop request while idle, or a stale-state event while already in fault).
+"""
+
+WAITING_FOR_STATES = 'waiting_for_states'
+IDLE = 'idle'
+EXECUTING = 'executing'
+SETTLING = 'settling'
+STOPPING = 'stopping'
+FAULT = 'fault'
+STATES = (WAITING_FOR_STATES, IDLE, EXECUTING, SETTLING, STOPPING, FAULT)
+
+STATES_VALID = 'states_valid'          # fresh, complete, finite joint states arrived
+STATES_INVALID = 'states_invalid'      # joint states stale, incomplete or non-finite
+DEMAND = 'demand'                      # a valid demand was accepted
+REFERENCE_DONE = 'reference_done'      # the planned reference has reached its end
+SETTLED = 'settled'                    # every joint within its goal tolerance
+SETTLE_TIMEOUT = 'settle_timeout'      # not within tolerance in time
+STOP = 'stop'                          # stop requested (service)
+PATH_ERROR = 'path_error'              # tracking error above the path tolerance
+AT_REST = 'at_rest'                    # the stopping ramp has ended
+RESET = 'reset'                        # reset requested
+EVENTS = (STATES_VALID, STATES_INVALID, DEMAND, REFERENCE_DONE, SETTLED, SETTLE_TIMEOUT, STOP,
+          PATH_ERROR, AT_REST, RESET)
+
+TRANSITIONS = {
+    (WAITING_FOR_STATES, STATES_VALID): IDLE,
+
+    (IDLE, DEMAND): EXECUTING,
+    (IDLE, STATES_INVALID): FAULT,
+
+    (EXECUTING, DEMAND): EXECUTING,
+    (EXECUTING, REFERENCE_DONE): SETTLING,
+    (EXECUTING, STOP): STOPPING,
+    (EXECUTING, PATH_ERROR): STOPPING,
+    (EXECUTING, STATES_INVALID): FAULT,
+
+    (SETTLING, SETTLED): IDLE,
+    (SETTLING, SETTLE_TIMEOUT): IDLE,
+    (SETTLING, DEMAND): EXECUTING,
+    (SETTLING, STOP): STOPPING,
+    (SETTLING, STATES_INVALID): FAULT,
+
+    (STOPPING, AT_REST): IDLE,
+    (STOPPING, STATES_INVALID): FAULT,
+
+    (FAULT, STATES_VALID): IDLE,
+    (FAULT, RESET): WAITING_FOR_STATES,
+}
+
+# States in which the arm may be commanded to move; in the others the command is zero.
+MOVING_STATES = frozenset({EXECUTING, SETTLING, STOPPING})
+# States that accept a new demand.
+ACCEPTS_DEMANDS = frozenset(state for state, event in TRANSITIONS if event == DEMAND)
+
+
+def step(state, event):
+    """
+    Return the state after ``event`` in ``state`` (unchanged when the table has no entry).
+
+    Raises ``ValueError`` for an unknown state or event, so a typo cannot pass silently.
+    """
+    if state not in STATES:
+        raise ValueError(f'unknown state "{state}"; states are {STATES}')
+    if event not in EVENTS:
+        raise ValueError(f'unknown event "{event}"; events are {EVENTS}')
+    return TRANSITIONS.get((state, event), state)
+
+
+def accepts(state, event):
+    """Return True when ``event`` has a transition out of ``state`` in the table."""
+    return (state, event) in TRANSITIONS

@@ -1,0 +1,422 @@
+"""
+The controller's velocity laws behind one small interface, plus closed loop and limits.
+
+A law turns the start state and the waypoints (N, n) [rad] into a ``Plan``: a reference
+``sample(t) -> (q_ref, qd_ref)`` over ``[0, duration]`` [s]. The four laws:
+
+- ``synchronised``: seed 000 eq. 1-2. Per waypoint, the joint with the furthest to go moves at
+  ``lambda_max`` and sets ``t_max``; every joint moves at ``(q_k - q_{k-1}) / t_max`` so all
+  arrive together; the arm stops at each waypoint.
+- ``trapezoidal``: seed 000 eq. 16-18 per waypoint: ``V_max = |dq| / (t_max - t_blend)``,
+  ramps of ``t_blend`` (default ``t_max / 4``); stops at each waypoint.
+- ``jerk_limited``: ruckig, rest to rest per waypoint, within velocity, ``a_max`` and ``j_max``.
+- ``continuous``: the motion library's time-parameterised trajectory through all waypoints,
+  without stopping at each (``mover6_control.timing.time_parameterize``).
+
+Every law respects the joints' velocity limits by one common factor that stretches time (so the
+direction of motion and the synchronised arrival are kept). A plan started while the arm moves
+begins from the present commanded velocity: the two seed laws first decelerate from it (common
+factor, ``a_max``), ruckig and the continuous law start from it directly. So replacing a motion
+never makes the command jump.
+
+The command of every tick is ``closed_loop_command``: ``qd_ref + kp (q_ref - q)`` (the closed-loop
+correction on the measured position), scaled by one common factor into the velocity limits,
+then ``guard_position_limits`` so no joint is driven further past a limit.
+"""
+
+import bisect
+from dataclasses import dataclass
+
+from mover6_control.errors import InvalidInputError
+from mover6_control.joint import check_trapezoid_times
+import numpy as np
+
+PROFILES = ('synchronised', 'trapezoidal', 'jerk_limited', 'continuous')
+JOG_UNITS = ('rad_per_s', 'fraction_of_max')
+
+
+@dataclass(frozen=True)
+class LawConfig:
+    """
+    Which law and its parameters.
+
+    ``lambda_max`` [rad/s] (synchronised), ``t_max`` [s] and ``t_blend`` [s] (trapezoidal; None
+    means ``t_max / 4``), ``a_max`` [rad/s^2] and ``j_max`` [rad/s^3] (jerk-limited, continuous,
+    and the deceleration of every law when stopping or replacing a motion).
+    """
+
+    profile: str = 'synchronised'
+    lambda_max: float = 0.5
+    t_max: float = 1.0
+    t_blend: float = None
+    a_max: float = 1.0
+    j_max: float = 5.0
+
+    def __post_init__(self):
+        """Check the profile name and that every parameter is a positive number."""
+        if self.profile not in PROFILES:
+            raise InvalidInputError(f'profile must be one of {PROFILES}, got "{self.profile}"')
+        for name in ('lambda_max', 't_max', 'a_max', 'j_max'):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0.0):
+                raise InvalidInputError(f'{name} must be positive, got {value}')
+        check_trapezoid_times(self.t_max, self.blend)
+
+    @property
+    def blend(self):
+        """Return ``t_blend`` [s], defaulting to ``t_max / 4`` (seed 000)."""
+        return self.t_max / 4.0 if self.t_blend in (None, 0.0) else float(self.t_blend)
+
+
+# --- segments: one piece of reference, sampled at tau in [0, duration] ----------------------
+
+@dataclass(frozen=True, eq=False)
+class ConstantVelocitySegment:
+    """Straight line in joint space at constant velocity (seed 000 eq. 2)."""
+
+    q0: np.ndarray
+    q1: np.ndarray
+    duration: float
+
+    def sample(self, tau):
+        """Return ``(q, qd)`` at ``tau`` [s] into the segment."""
+        if self.duration <= 0.0:
+            return self.q1, np.zeros_like(self.q1)
+        qd = (self.q1 - self.q0) / self.duration
+        return self.q0 + qd * tau, qd
+
+
+@dataclass(frozen=True, eq=False)
+class TrapezoidSegment:
+    """Seed 000 eq. 16-18 for every joint over the common ``duration`` (t_max) and ``blend``."""
+
+    q0: np.ndarray
+    q1: np.ndarray
+    duration: float
+    blend: float
+
+    @property
+    def v_max(self):
+        """Return the signed plateau velocities (n,) [rad/s] of eq. 16."""
+        return (self.q1 - self.q0) / (self.duration - self.blend)
+
+    def sample(self, tau):
+        """Return ``(q, qd)`` at ``tau`` [s]: eq. 18 and its integral (eq. 19)."""
+        T, tb, v = self.duration, self.blend, self.v_max
+        if tau < tb:
+            return self.q0 + v * tau * tau / (2.0 * tb), v * (tau / tb)
+        if tau < T - tb:
+            return self.q0 + v * (tau - tb / 2.0), v
+        if tau < T:
+            rest = T - tau
+            return self.q1 - v * rest * rest / (2.0 * tb), v * (rest / tb)
+        return self.q1, np.zeros_like(self.q1)
+
+
+@dataclass(frozen=True, eq=False)
+class DecelerationSegment:
+    """Linear ramp of the velocity from ``qd0`` to zero over ``duration`` (direction kept)."""
+
+    q0: np.ndarray
+    qd0: np.ndarray
+    duration: float
+
+    @property
+    def q1(self):
+        """Return the position [rad] where the ramp comes to rest."""
+        return self.q0 + self.qd0 * self.duration / 2.0
+
+    def sample(self, tau):
+        """Return ``(q, qd)`` at ``tau`` [s]."""
+        if tau >= self.duration:
+            return self.q1, np.zeros_like(self.q0)
+        return (self.q0 + self.qd0 * (tau - tau * tau / (2.0 * self.duration)),
+                self.qd0 * (1.0 - tau / self.duration))
+
+
+@dataclass(frozen=True, eq=False)
+class TrajectorySegment:
+    """A trajectory object with ``duration`` and ``sample(t) -> (q, qd, ...)`` or ruckig's."""
+
+    trajectory: object
+    duration: float
+    q1: np.ndarray
+
+    def sample(self, tau):
+        """Return ``(q, qd)`` at ``tau`` [s]."""
+        if tau >= self.duration:
+            return self.q1, np.zeros_like(self.q1)
+        if hasattr(self.trajectory, 'at_time'):      # ruckig.Trajectory
+            q, qd, _ = self.trajectory.at_time(tau)
+        else:                                        # mover6_control JointTrajectory
+            q, qd = self.trajectory.sample(tau)[:2]
+        return np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
+
+
+# --- the plan: segments in a row ------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """
+    A reference made of segments in a row, and when each waypoint is reached.
+
+    ``waypoints`` (N, n) [rad] are the demanded positions; ``waypoint_times`` (N,) [s] the times
+    at which the reference reaches each. ``sample(t)`` holds the last waypoint after the end.
+    """
+
+    segments: tuple
+    waypoints: np.ndarray
+    waypoint_times: np.ndarray
+
+    def __post_init__(self):
+        """Compute the start time of each segment."""
+        starts, t = [], 0.0
+        for seg in self.segments:
+            starts.append(t)
+            t += seg.duration
+        object.__setattr__(self, '_starts', starts)
+        object.__setattr__(self, '_duration', t)
+
+    @property
+    def duration(self):
+        """Return the total duration [s]."""
+        return self._duration
+
+    @property
+    def q_goal(self):
+        """Return the last waypoint (n,) [rad]."""
+        return self.waypoints[-1]
+
+    def sample(self, t):
+        """Return ``(q_ref, qd_ref)`` (n,) [rad], [rad/s] at ``t`` [s] after the start."""
+        if t >= self._duration or not self.segments:
+            return self.q_goal.copy(), np.zeros_like(self.q_goal)
+        i = max(0, bisect.bisect_right(self._starts, t) - 1)
+        return self.segments[i].sample(max(0.0, t - self._starts[i]))
+
+    def waypoints_reached(self, t):
+        """Return how many waypoints the reference has reached at ``t`` [s] (0..N)."""
+        return int(np.searchsorted(self.waypoint_times, t, side='right'))
+
+
+# --- limits ---------------------------------------------------------------------------------
+
+def common_scale(qd, velocity_limits):
+    """Return the factor >= 1 by which ``qd`` (n,) must be divided to respect the limits."""
+    ratio = np.max(np.abs(qd) / velocity_limits)
+    return max(1.0, float(ratio))
+
+
+def scale_to_limits(qd, velocity_limits):
+    """
+    Return ``qd`` (n,) [rad/s] divided by one common factor so every ``|qd_i| <= limit_i``.
+
+    The direction of motion in joint space is kept (unlike clipping each joint).
+    """
+    return qd / common_scale(qd, velocity_limits)
+
+
+def guard_position_limits(qd, q, lower, upper, dt):
+    """
+    Return ``qd`` (n,) with no joint driven further past a limit, nor across it within ``dt``.
+
+    A joint at or beyond a limit may only move back inside; a joint inside may move at most to
+    the limit in one tick of ``dt`` [s]. This acts per joint: safety before direction.
+    """
+    qd = np.array(qd, dtype=float)
+    room_up = np.maximum(upper - q, 0.0) / dt
+    room_down = np.minimum(lower - q, 0.0) / dt
+    return np.clip(qd, room_down, room_up)
+
+
+def closed_loop_command(q_ref, qd_ref, q, gain, velocity_limits):
+    """
+    Return the velocity command (n,) [rad/s]: feedforward plus correction, within the limits.
+
+    ``qd = qd_ref + gain (q_ref - q)`` with ``gain`` [1/s] on the measured ``q`` [rad], then one
+    common factor so no joint exceeds ``velocity_limits`` (n,) [rad/s].
+    """
+    return scale_to_limits(qd_ref + gain * (q_ref - q), velocity_limits)
+
+
+def to_jog_units(qd, velocity_limits, units='rad_per_s', speed_override=0.25):
+    """
+    Return the JointJog velocities for ``qd`` (n,) [rad/s] in the driver's ``units``.
+
+    ``rad_per_s``: unchanged (ROS standard). ``fraction_of_max``: the vendor driver's reading,
+    where it moves at ``value * velocity_limit * speed_override``; clipped to [-1, 1].
+    """
+    if units == 'rad_per_s':
+        return np.asarray(qd, dtype=float)
+    if units == 'fraction_of_max':
+        return np.clip(np.asarray(qd) / (np.asarray(velocity_limits) * speed_override), -1.0, 1.0)
+    raise InvalidInputError(f'jog_units must be one of {JOG_UNITS}, got "{units}"')
+
+
+def driver_velocity_limits(velocity_limits, units='rad_per_s', speed_override=0.25):
+    """Return the speeds (n,) [rad/s] the driver can reach in ``units`` (override applied)."""
+    velocity_limits = np.asarray(velocity_limits, dtype=float)
+    if units == 'fraction_of_max':
+        return velocity_limits * speed_override
+    return velocity_limits
+
+
+# --- laws -----------------------------------------------------------------------------------
+
+def _as_vector(value, n, name):
+    arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
+        raise InvalidInputError(f'{name} must be positive, got {arr.tolist()}')
+    return arr
+
+
+def _check_inputs(q_start, waypoints, velocity_limits, qd_start):
+    q_start = np.asarray(q_start, dtype=float)
+    n = q_start.shape[0] if q_start.ndim == 1 else -1
+    waypoints = np.asarray(waypoints, dtype=float)
+    if q_start.ndim != 1 or waypoints.ndim != 2 or waypoints.shape[1] != n or not len(waypoints):
+        raise InvalidInputError(
+            f'need q_start (n,) and waypoints (N, n), got {q_start.shape} and {waypoints.shape}')
+    if not (np.all(np.isfinite(q_start)) and np.all(np.isfinite(waypoints))):
+        raise InvalidInputError('q_start and waypoints must be finite')
+    qd_start = np.zeros(n) if qd_start is None else np.asarray(qd_start, dtype=float)
+    if qd_start.shape != (n,) or not np.all(np.isfinite(qd_start)):
+        raise InvalidInputError(f'qd_start must be a finite ({n},) array')
+    return q_start, waypoints, _as_vector(velocity_limits, n, 'velocity_limits'), qd_start
+
+
+def stop_segment(q_start, qd_start, a_max):
+    """
+    Return the ramp from ``qd_start`` (n,) [rad/s] to rest within ``a_max`` [rad/s^2].
+
+    One common duration ``max_i |qd_i| / a_max_i`` for all joints, so the direction is kept.
+    """
+    q_start = np.asarray(q_start, dtype=float)
+    qd_start = np.asarray(qd_start, dtype=float)
+    a_max = _as_vector(a_max, q_start.shape[0], 'a_max')
+    duration = float(np.max(np.abs(qd_start) / a_max))
+    return DecelerationSegment(q_start, qd_start, duration)
+
+
+def plan_stop(q_start, qd_start, a_max):
+    """Return a ``Plan`` that brings the arm from ``qd_start`` to rest within ``a_max``."""
+    seg = stop_segment(q_start, qd_start, a_max)
+    return Plan((seg,), seg.q1[None, :], np.array([seg.duration]))
+
+
+def synchronised_segment(q0, q1, lambda_max, velocity_limits):
+    """
+    Return the constant-velocity segment of seed 000 eq. 1-2 from ``q0`` to ``q1``.
+
+    ``t_max = max |q1 - q0| / lambda_max`` (eq. 1), stretched by one common factor when a
+    joint's speed ``(q1 - q0) / t_max`` (eq. 2) would exceed its velocity limit.
+    """
+    delta = q1 - q0
+    t_max = float(np.max(np.abs(delta))) / lambda_max
+    if t_max > 0.0:
+        t_max *= common_scale(delta / t_max, velocity_limits)
+    return ConstantVelocitySegment(q0, q1, t_max)
+
+
+def trapezoid_segment(q0, q1, t_max, t_blend, velocity_limits):
+    """
+    Return the trapezoid of seed 000 eq. 16-18 from ``q0`` to ``q1`` over ``t_max`` [s].
+
+    When a joint's ``V_max`` (eq. 16) exceeds its velocity limit, ``t_max`` and ``t_blend`` are
+    stretched by one common factor (the shape and synchronised arrival are kept). A move of
+    zero length takes no time.
+    """
+    delta = q1 - q0
+    if not np.any(delta):
+        return TrapezoidSegment(q0, q1, 0.0, 0.0)
+    scale = common_scale(delta / (t_max - t_blend), velocity_limits)
+    return TrapezoidSegment(q0, q1, t_max * scale, t_blend * scale)
+
+
+def ruckig_segment(q0, q1, velocity_limits, a_max, j_max, qd0=None):
+    """Return a ruckig (jerk-limited, time-optimal, synchronised) segment from ``q0`` to rest."""
+    from ruckig import InputParameter, Result, Ruckig, Trajectory
+
+    n = q0.shape[0]
+    inp = InputParameter(n)
+    inp.current_position = q0.tolist()
+    inp.current_velocity = (np.zeros(n) if qd0 is None else qd0).tolist()
+    inp.target_position = q1.tolist()
+    inp.max_velocity = velocity_limits.tolist()
+    inp.max_acceleration = _as_vector(a_max, n, 'a_max').tolist()
+    inp.max_jerk = _as_vector(j_max, n, 'j_max').tolist()
+    trajectory = Trajectory(n)
+    result = Ruckig(n).calculate(inp, trajectory)
+    if result not in (Result.Working, Result.Finished):
+        raise InvalidInputError(f'ruckig could not plan the move: {result}')
+    return TrajectorySegment(trajectory, float(trajectory.duration), q1.copy())
+
+
+def _per_waypoint(q_start, waypoints, make, first=()):
+    segments, times, q0 = list(first), [], q_start
+    t = sum(s.duration for s in segments)
+    for q1 in waypoints:
+        seg = make(q0, q1)
+        segments.append(seg)
+        t += seg.duration
+        times.append(t)
+        q0 = q1
+    return Plan(tuple(segments), waypoints, np.array(times))
+
+
+def _continuous_plan(q_start, waypoints, velocity_limits, config, qd_start):
+    from mover6_control import timing
+
+    path = np.vstack([q_start, waypoints])
+    keep = np.concatenate([[True], np.any(np.abs(np.diff(path, axis=0)) > 1e-12, axis=1)])
+    path = path[keep]
+    if len(path) < 2:
+        return Plan((), waypoints, np.zeros(len(waypoints)))
+    n = q_start.shape[0]
+    trajectory = timing.time_parameterize(
+        path, velocity_limits, _as_vector(config.a_max, n, 'a_max'),
+        j_max=_as_vector(config.j_max, n, 'j_max'), qd_start=qd_start)
+    duration = float(trajectory.duration)
+    # When does the reference pass each waypoint? Closest approach, in order, on a fine grid.
+    ts = np.linspace(0.0, duration, 400)
+    qs = np.array([trajectory.sample(t)[0] for t in ts])
+    times, lo = [], 0
+    for q in waypoints:
+        dist = np.max(np.abs(qs[lo:] - q), axis=1)
+        lo += int(np.argmin(dist))
+        times.append(ts[lo])
+    times[-1] = duration
+    return Plan((TrajectorySegment(trajectory, duration, waypoints[-1].copy()),), waypoints,
+                np.array(times))
+
+
+def plan_motion(config, q_start, waypoints, velocity_limits, qd_start=None):
+    """
+    Return the ``Plan`` of ``config.profile`` from ``q_start`` (n,) through ``waypoints`` (N, n).
+
+    ``velocity_limits`` (n,) [rad/s]; ``qd_start`` (n,) [rad/s] is the velocity commanded now
+    (None: at rest). The seed laws decelerate from it first; ruckig and the continuous law
+    start from it. Waypoints are not checked against position limits here (the caller does).
+    """
+    q_start, waypoints, velocity_limits, qd_start = _check_inputs(
+        q_start, waypoints, velocity_limits, qd_start)
+    if config.profile == 'continuous':
+        return _continuous_plan(q_start, waypoints, velocity_limits, config, qd_start)
+    if config.profile == 'jerk_limited':
+        segments, times, q0, qd0, t = [], [], q_start, qd_start, 0.0
+        for q1 in waypoints:
+            seg = ruckig_segment(q0, q1, velocity_limits, config.a_max, config.j_max, qd0)
+            segments.append(seg)
+            t += seg.duration
+            times.append(t)
+            q0, qd0 = q1, None
+        return Plan(tuple(segments), waypoints, np.array(times))
+    first = ()
+    if np.any(qd_start):
+        first = (stop_segment(q_start, qd_start, config.a_max),)
+        q_start = first[0].q1
+    if config.profile == 'synchronised':
+        return _per_waypoint(q_start, waypoints, lambda a, b: synchronised_segment(
+            a, b, config.lambda_max, velocity_limits), first)
+    return _per_waypoint(q_start, waypoints, lambda a, b: trapezoid_segment(
+        a, b, config.t_max, config.blend, velocity_limits), first)
