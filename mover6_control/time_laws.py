@@ -1,0 +1,196 @@
+"""
+Time laws: normalised progress ``s(tau)`` from 0 to 1 over normalised time ``tau`` in [0, 1].
+
+A time law turns a straight joint move into a trajectory (seed 002 eq. 29-32)::
+
+    q(t)    = q_i + (q_f - q_i) s(tau),   tau = t / T
+    qd(t)   = (q_f - q_i) s'(tau) / T
+    qdd(t)  = (q_f - q_i) s''(tau) / T**2
+    qddd(t) = (q_f - q_i) s'''(tau) / T**3
+
+Laws here: the cubic ``-2 tau^3 + 3 tau^2``, the quintic 3-4-5, the septic 4-5-6-7, the seed 000
+trapezoid with a blend time (eq. 16-18), the sharp trapezoid of seed 002 (three equal thirds) and
+seed 002's via-point polynomial of degree 6 through ``s(tau_via) = S``.
+"""
+
+from dataclasses import dataclass
+
+from mover6_control.errors import InvalidInputError
+import numpy as np
+
+
+def _as_tau(tau):
+    tau = np.asarray(tau, dtype=float)
+    if not np.all(np.isfinite(tau)):
+        raise InvalidInputError(f'tau has non-finite values: {tau.tolist()}')
+    return np.clip(tau, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class PolynomialTimeLaw:
+    """
+    A polynomial time law ``s(tau) = sum_k coefficients[k] tau^k`` (ascending powers).
+
+    Outside [0, 1] ``tau`` is clamped: the law holds its start and end.
+    """
+
+    name: str
+    coefficients: tuple
+
+    def __post_init__(self):
+        """Validate and freeze the coefficients."""
+        c = np.asarray(self.coefficients, dtype=float)
+        if c.ndim != 1 or c.size < 2 or not np.all(np.isfinite(c)):
+            raise InvalidInputError(f'coefficients must be finite, 1-D, length >= 2: {c}')
+        object.__setattr__(self, 'coefficients', tuple(float(x) for x in c))
+
+    def evaluate(self, tau, derivative=0):
+        """Return ``d^k s / d tau^k`` at ``tau`` (scalar or array) for ``derivative`` k."""
+        tau = _as_tau(tau)
+        poly = np.polynomial.Polynomial(self.coefficients)
+        return poly.deriv(derivative)(tau) if derivative else poly(tau)
+
+    def __call__(self, tau):
+        """Return ``s(tau)``."""
+        return self.evaluate(tau)
+
+
+@dataclass(frozen=True)
+class TrapezoidalTimeLaw:
+    """
+    Trapezoidal velocity law: ramp up for ``blend`` of the time, cruise, ramp down.
+
+    ``blend`` = t_blend / t_max in (0, 0.5). Seed 000 eq. 16: the cruise speed
+    ``s' = 1 / (1 - blend)`` makes the area under the trapezoid exactly 1 (eq. 19).
+    """
+
+    name: str
+    blend: float
+
+    def __post_init__(self):
+        """Check that the blend fraction leaves a symmetric trapezoid."""
+        b = float(self.blend)
+        if not np.isfinite(b) or not 0.0 < b < 0.5:
+            raise InvalidInputError(
+                f't_blend must satisfy 0 < t_blend < t_max / 2 (blend fraction {b})')
+        object.__setattr__(self, 'blend', b)
+
+    @property
+    def peak_rate(self):
+        """Return the cruise value of ``s'`` (seed 000 eq. 16 with t_max = 1)."""
+        return 1.0 / (1.0 - self.blend)
+
+    def evaluate(self, tau, derivative=0):
+        """Return ``d^k s / d tau^k`` at ``tau`` for k in 0..3 (jerk is 0 between corners)."""
+        tau = _as_tau(tau)
+        b, v = self.blend, self.peak_rate
+        a = v / b
+        up = tau < b
+        down = tau > 1.0 - b
+        td = 1.0 - tau
+        if derivative == 0:
+            mid = v * (tau - 0.5 * b)
+            return np.where(up, 0.5 * a * tau ** 2, np.where(down, 1.0 - 0.5 * a * td ** 2, mid))
+        if derivative == 1:
+            return np.where(up, a * tau, np.where(down, a * td, v))
+        if derivative == 2:
+            return np.where(up, a, np.where(down, -a, 0.0)) * (tau < 1.0)
+        if derivative == 3:
+            return np.zeros_like(tau)
+        raise InvalidInputError(f'derivative must be 0..3, got {derivative}')
+
+    def __call__(self, tau):
+        """Return ``s(tau)``."""
+        return self.evaluate(tau)
+
+
+def cubic():
+    """Return the cubic law ``3 tau^2 - 2 tau^3`` (seed 002's 'trapezoidal polynomial')."""
+    return PolynomialTimeLaw('cubic', (0.0, 0.0, 3.0, -2.0))
+
+
+def quintic():
+    """Return the 3-4-5 law ``10 tau^3 - 15 tau^4 + 6 tau^5`` (zero end acceleration)."""
+    return PolynomialTimeLaw('quintic_345', (0.0, 0.0, 0.0, 10.0, -15.0, 6.0))
+
+
+def septic():
+    """Return the 4-5-6-7 law ``35 tau^4 - 84 tau^5 + 70 tau^6 - 20 tau^7`` (zero end jerk)."""
+    return PolynomialTimeLaw('septic_4567', (0.0, 0.0, 0.0, 0.0, 35.0, -84.0, 70.0, -20.0))
+
+
+def trapezoidal(t_max=1.0, t_blend=None):
+    """
+    Return seed 000's trapezoid for a move of ``t_max`` [s] with blend time ``t_blend`` [s].
+
+    ``t_blend`` defaults to ``t_max / 4`` (the seed's choice); ``0 < t_blend < t_max / 2`` is
+    enforced (seed 000 section 2.2.4).
+    """
+    t_max = float(t_max)
+    if not np.isfinite(t_max) or t_max <= 0.0:
+        raise InvalidInputError(f't_max must be positive and finite, got {t_max}')
+    if t_blend is None:
+        t_blend = t_max / 4.0
+    t_blend = float(t_blend)
+    if not np.isfinite(t_blend) or not 0.0 < t_blend < t_max / 2.0:
+        raise InvalidInputError(
+            f't_blend must satisfy 0 < t_blend < t_max / 2 = {t_max / 2.0}, got {t_blend}')
+    return TrapezoidalTimeLaw('trapezoidal', t_blend / t_max)
+
+
+def sharp_trapezoid():
+    """Return seed 002's sharp trapezoid: accelerate, cruise, decelerate in equal thirds."""
+    return TrapezoidalTimeLaw('sharp_trapezoid', 1.0 / 3.0)
+
+
+def via_fraction(theta_start, theta_via, theta_goal):
+    """
+    Return ``S`` with ``theta_via = theta_start + (theta_goal - theta_start) S`` (seed 002).
+
+    Seed 002's example: ``via_fraction(83.14, 90, 173.37)`` = 0.0760279.
+    """
+    vals = np.asarray([theta_start, theta_via, theta_goal], dtype=float)
+    if not np.all(np.isfinite(vals)):
+        raise InvalidInputError(f'angles must be finite: {vals.tolist()}')
+    span = vals[2] - vals[0]
+    if abs(span) < 1e-12:
+        raise InvalidInputError('start and goal coincide: the via fraction is undefined')
+    return float((vals[1] - vals[0]) / span)
+
+
+def via_point_polynomial(s_via, tau_via=0.5):
+    """
+    Return seed 002's degree-6 law through ``s(tau_via) = s_via``.
+
+    Seven conditions: s(0) = s'(0) = s''(0) = 0, s(1) = 1, s'(1) = s''(1) = 0 and the via
+    point. With ``s_via = 0.0760279`` at ``tau_via = 0.5`` the solution is seed 002's
+    ``27.13 tau^6 - 75.40 tau^5 + 66.40 tau^4 - 17.13 tau^3``.
+    """
+    s_via = float(s_via)
+    tau_via = float(tau_via)
+    if not np.isfinite(s_via):
+        raise InvalidInputError(f's_via must be finite, got {s_via}')
+    if not np.isfinite(tau_via) or not 0.0 < tau_via < 1.0:
+        raise InvalidInputError(f'tau_via must lie strictly inside (0, 1), got {tau_via}')
+    powers = np.arange(7)
+    rows = [
+        (powers == 0).astype(float),                       # s(0)
+        (powers == 1).astype(float),                       # s'(0)
+        2.0 * (powers == 2),                               # s''(0)
+        np.ones(7),                                        # s(1)
+        powers.astype(float),                              # s'(1)
+        powers * (powers - 1.0),                           # s''(1)
+        tau_via ** powers,                                 # s(tau_via)
+    ]
+    rhs = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, s_via])
+    coefficients = np.linalg.solve(np.array(rows, dtype=float), rhs)
+    return PolynomialTimeLaw('via_point', coefficients)
+
+
+def by_name(name, **kwargs):
+    """Return a time law by name: cubic, quintic, septic, trapezoidal, sharp_trapezoid."""
+    table = {'cubic': cubic, 'quintic': quintic, 'septic': septic,
+             'trapezoidal': trapezoidal, 'sharp_trapezoid': sharp_trapezoid}
+    if name not in table:
+        raise InvalidInputError(f'unknown time law {name!r}; choose from {sorted(table)}')
+    return table[name](**kwargs)
