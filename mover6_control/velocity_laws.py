@@ -367,15 +367,22 @@ def _per_waypoint(q_start, waypoints, make, first=()):
 def _continuous_plan(q_start, waypoints, velocity_limits, config, qd_start):
     from mover6_control import timing
 
+    n = q_start.shape[0]
+    a_max = _as_vector(config.a_max, n, 'a_max')
+    first = ()
     path = np.vstack([q_start, waypoints])
     keep = np.concatenate([[True], np.any(np.abs(np.diff(path, axis=0)) > 1e-12, axis=1)])
-    path = path[keep]
-    if len(path) < 2:
+    if keep.sum() < 2:
         return Plan((), waypoints, np.zeros(len(waypoints)))
-    n = q_start.shape[0]
-    trajectory = timing.time_parameterize(
-        path, velocity_limits, _as_vector(config.a_max, n, 'a_max'),
-        j_max=_as_vector(config.j_max, n, 'j_max'), qd_start=qd_start)
+    trajectory = timing.time_parameterize(path[keep], velocity_limits, a_max, qd_start=qd_start)
+    # The library keeps only the part of qd_start along the path; when the rest is more than
+    # one small step, decelerate first (common factor) and start the path from rest.
+    if np.max(np.abs(np.asarray(trajectory.sample(0.0)[1]) - qd_start)) > 1e-3 * np.min(a_max):
+        first = (stop_segment(q_start, qd_start, a_max),)
+        path[0] = first[0].q1
+        keep = np.concatenate([[True], np.any(np.abs(np.diff(path, axis=0)) > 1e-12, axis=1)])
+        trajectory = timing.time_parameterize(path[keep], velocity_limits, a_max)
+    t0 = first[0].duration if first else 0.0
     duration = float(trajectory.duration)
     # When does the reference pass each waypoint? Closest approach, in order, on a fine grid.
     ts = np.linspace(0.0, duration, 400)
@@ -384,10 +391,10 @@ def _continuous_plan(q_start, waypoints, velocity_limits, config, qd_start):
     for q in waypoints:
         dist = np.max(np.abs(qs[lo:] - q), axis=1)
         lo += int(np.argmin(dist))
-        times.append(ts[lo])
-    times[-1] = duration
-    return Plan((TrajectorySegment(trajectory, duration, waypoints[-1].copy()),), waypoints,
-                np.array(times))
+        times.append(t0 + ts[lo])
+    times[-1] = t0 + duration
+    segment = TrajectorySegment(trajectory, duration, waypoints[-1].copy())
+    return Plan(first + (segment,), waypoints, np.array(times))
 
 
 def plan_motion(config, q_start, waypoints, velocity_limits, qd_start=None):

@@ -1,0 +1,167 @@
+"""The four velocity laws, common-factor limiting, closed loop and the position-limit guard."""
+
+import importlib.util
+
+from hypothesis import given, settings
+import hypothesis.strategies as st
+from mover6_control.arm import mover6
+from mover6_control.errors import InvalidInputError
+from mover6_control.robot import Robot
+from mover6_control.velocity_laws import (closed_loop_command, guard_position_limits, LawConfig,
+                                          plan_motion, plan_stop, scale_to_limits, to_jog_units)
+import numpy as np
+import pytest
+
+ARM = mover6('hardware')
+VLIM = ARM.velocity_limits
+DT = 0.01
+HAS_TIMING = importlib.util.find_spec('mover6_control.timing') is not None
+PROFILES = ['synchronised', 'trapezoidal', 'jerk_limited'] + (
+    ['continuous'] if HAS_TIMING else [])
+
+angle = st.floats(-0.8, 0.8, allow_nan=False)
+config6 = st.lists(angle, min_size=6, max_size=6).map(np.array)
+
+
+def sample_grid(plan, dt=DT, extra=0.2):
+    ts = np.arange(0.0, plan.duration + extra, dt)
+    out = [plan.sample(t) for t in ts]
+    return ts, np.array([o[0] for o in out]), np.array([o[1] for o in out])
+
+
+@pytest.mark.parametrize('profile', PROFILES)
+def test_every_law_reaches_every_waypoint_within_limits(profile):
+    Q = np.array([[0.3, -0.2, 0.1, 0.5, -0.3, 0.8], [-0.2, 0.1, 0.4, 0.0, 0.2, -0.5]])
+    plan = plan_motion(LawConfig(profile=profile), np.zeros(6), Q, VLIM)
+    ts, q, qd = sample_grid(plan)
+    np.testing.assert_allclose(q[-1], Q[-1], atol=1e-9)
+    np.testing.assert_allclose(qd[-1], 0.0, atol=1e-12)
+    assert np.all(np.abs(qd) <= VLIM * (1 + 1e-6))
+    for k, t_k in enumerate(plan.waypoint_times):
+        q_k, _ = plan.sample(t_k)
+        tol = 0.05 if profile == 'continuous' else 1e-6
+        np.testing.assert_allclose(q_k, Q[k], atol=tol)
+        assert plan.waypoints_reached(t_k) == k + 1
+    assert plan.waypoints_reached(0.0) == 0
+    # Integrating the velocity gives the position (the reference is self-consistent).
+    np.testing.assert_allclose(np.cumsum(qd[:-1], axis=0)[-1] * DT, Q[-1], atol=0.02)
+
+
+@settings(max_examples=30, deadline=None)
+@given(config6, config6, st.floats(0.1, 2.0))
+def test_synchronised_arrival_is_common(q0, q1, lam):
+    """Seed 000 eq. 1-2: every moving joint stops within one tick of the others."""
+    plan = plan_motion(LawConfig(profile='synchronised', lambda_max=lam), q0, q1[None], VLIM)
+    ts, q, qd = sample_grid(plan)
+    moving = np.abs(q1 - q0) > 1e-6
+    if not moving.any():
+        assert plan.duration <= 1e-6 / lam
+        return
+    last = [np.nonzero(np.abs(qd[:, i]) > 0)[0].max() for i in np.nonzero(moving)[0]]
+    assert max(last) - min(last) <= 1
+    speeds = np.abs(q1 - q0) / plan.duration
+    # the furthest joint at lambda_max unless a velocity limit forced one common slow-down
+    scale = max(1.0, np.max(np.abs(q1 - q0) / max(np.max(np.abs(q1 - q0)) / lam, 1e-12) / VLIM))
+    assert np.max(np.abs(q1 - q0)) / plan.duration == pytest.approx(lam / scale)
+    assert np.all(speeds <= VLIM * (1 + 1e-9))
+
+
+def test_trapezoid_matches_seed_eq16_to_19_and_the_joint_class():
+    q0 = np.array([0.2, 0.0, 0.1, 0.0, -0.1, 0.0])
+    q1 = np.array([-0.1, 0.2, 0.1, 0.3, 0.05, -0.3])
+    law = LawConfig(profile='trapezoidal', t_max=1.0)           # seed: t_blend = t_max / 4
+    plan = plan_motion(law, q0, q1[None], VLIM)
+    assert plan.duration == pytest.approx(1.0)
+    ts, q, qd = sample_grid(plan, dt=1e-3)
+    v_max = np.abs(q1 - q0) / (1.0 - 0.25)                      # eq. 16
+    np.testing.assert_allclose(np.max(np.abs(qd), axis=0), v_max, rtol=1e-9)
+    np.testing.assert_allclose(q[-1], q1, atol=1e-12)          # eq. 19
+    robot = Robot.from_arm(ARM).with_measurement(q0).with_demand(q1)
+    for t in (0.05, 0.2, 0.5, 0.8, 0.95):                       # eq. 18, both implementations
+        np.testing.assert_allclose(plan.sample(t)[1], robot.trapezoidal_velocities(t, 1.0),
+                                   atol=1e-12)
+
+
+def test_trapezoid_too_fast_is_stretched_by_one_factor():
+    q1 = np.array([1.0, 0.5, 0.0, 0.0, 0.0, 0.0])               # V_max 1.33 > 0.524 rad/s
+    plan = plan_motion(LawConfig(profile='trapezoidal', t_max=1.0), np.zeros(6), q1[None], VLIM)
+    _, _, qd = sample_grid(plan, dt=1e-3)
+    peak = np.max(np.abs(qd), axis=0)
+    assert peak[0] == pytest.approx(VLIM[0])
+    assert peak[1] / peak[0] == pytest.approx(0.5)              # direction kept
+    assert plan.duration == pytest.approx(1.0 * (1.0 / 0.75) / VLIM[0])
+
+
+def test_bad_law_settings_are_rejected():
+    with pytest.raises(InvalidInputError, match='profile'):
+        LawConfig(profile='teleport')
+    with pytest.raises(InvalidInputError, match='t_blend'):
+        LawConfig(profile='trapezoidal', t_max=1.0, t_blend=0.6)
+    with pytest.raises(InvalidInputError, match='lambda_max'):
+        LawConfig(lambda_max=0.0)
+    with pytest.raises(InvalidInputError, match='waypoints'):
+        plan_motion(LawConfig(), np.zeros(6), np.zeros((0, 6)), VLIM)
+
+
+@pytest.mark.parametrize('profile', PROFILES)
+def test_starting_while_moving_does_not_jump(profile):
+    qd0 = np.array([0.3, -0.2, 0.1, 0.0, 0.2, 0.4])
+    law = LawConfig(profile=profile, a_max=1.0, j_max=20.0)
+    plan = plan_motion(law, np.zeros(6), np.array([[-0.3, 0.2, 0.0, 0.1, -0.2, 0.0]]), VLIM,
+                       qd_start=qd0)
+    np.testing.assert_allclose(plan.sample(0.0)[1], qd0, atol=1e-9)
+    step = np.max(np.abs(plan.sample(DT)[1] - qd0))
+    assert step <= law.a_max * DT * 1.01
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(-5, 5), min_size=6, max_size=6).map(np.array))
+def test_common_factor_keeps_direction(qd):
+    out = scale_to_limits(qd, VLIM)
+    assert np.all(np.abs(out) <= VLIM * (1 + 1e-12))
+    if np.any(np.abs(qd) > VLIM):
+        assert np.isclose(np.max(np.abs(out) / VLIM), 1.0)
+    np.testing.assert_allclose(np.cross(out[:3], qd[:3]), 0.0, atol=1e-9)
+    assert np.all(out * qd >= 0.0)
+    k = np.argmax(np.abs(qd))
+    if abs(qd[k]) > 0:
+        np.testing.assert_allclose(out / out[k] if out[k] else out, qd / qd[k] if out[k] else out)
+
+
+def test_closed_loop_corrects_drift():
+    q_ref, qd_ref = np.full(6, 0.5), np.full(6, 0.1)
+    q = q_ref - np.array([0.01, -0.01, 0, 0, 0, 0])
+    np.testing.assert_allclose(closed_loop_command(q_ref, qd_ref, q, 2.0, VLIM),
+                               [0.12, 0.08, 0.1, 0.1, 0.1, 0.1])
+
+
+def test_guard_never_drives_past_a_limit():
+    lower, upper = ARM.lower, ARM.upper
+    q = np.array([upper[0] + 0.01, lower[1] - 0.01, upper[2] - 0.001, 0.0, 0.0, 0.0])
+    qd = np.array([0.5, -0.5, 0.5, 0.5, -0.5, -0.2])
+    out = guard_position_limits(qd, q, lower, upper, DT)
+    assert out[0] == 0.0 and out[1] == 0.0                       # already past: no further
+    assert q[2] + out[2] * DT <= upper[2] + 1e-12                # would cross: only up to it
+    np.testing.assert_allclose(out[3:], qd[3:])
+    back = guard_position_limits(-qd, q, lower, upper, DT)       # moving back inside is allowed
+    np.testing.assert_allclose(back[:2], -qd[:2])
+
+
+def test_stop_ramp_keeps_direction_and_respects_a_max():
+    qd0 = np.array([0.4, -0.2, 0.0, 0.1, 0.0, 0.0])
+    plan = plan_stop(np.zeros(6), qd0, 2.0)
+    assert plan.duration == pytest.approx(0.2)
+    _, q, qd = sample_grid(plan, dt=1e-3)
+    assert np.max(np.abs(np.diff(qd, axis=0))) <= 2.0 * 1e-3 * 1.001
+    for row in qd:
+        np.testing.assert_allclose(np.cross(row[:3], qd0[:3]), 0.0, atol=1e-12)
+    np.testing.assert_allclose(q[-1], qd0 * 0.2 / 2)
+
+
+def test_jog_units():
+    qd = np.array([0.1, -0.1, 0.0, 0.0, 0.0, 0.2])
+    np.testing.assert_allclose(to_jog_units(qd, VLIM), qd)
+    np.testing.assert_allclose(to_jog_units(qd, VLIM, 'fraction_of_max', 0.25),
+                               qd / (VLIM * 0.25))
+    with pytest.raises(InvalidInputError, match='jog_units'):
+        to_jog_units(qd, VLIM, 'deg_per_s')
