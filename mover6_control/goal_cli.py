@@ -1,0 +1,414 @@
+"""
+The goal command line: send a goal, follow the motion, exit 0 only when the arm arrived.
+
+Examples (poses in base_link; X Y Z [m] then A B C [rad], ZYX Euler as seed 000:
+R = Rz(A) Ry(B) Rx(C), so A is yaw, B pitch, C roll)::
+
+    goal 0.40 0.05 0.35 0 1.5708 0                    # linear move (planner's default)
+    goal pose 0.40 0.05 0.35 0 1.5708 0 --motion parabolic --peak-height 0.05
+    goal pose --quat 0.40 0.05 0.35 0 0.7071068 0 0.7071068
+    goal path --shape spline --via 0.38 0.05 0.40 0 1.5708 0 0.35 0.10 0.35 0 1.5708 0
+    goal path --shape arc --via 0.38 0.05 0.40 0 1.5708 0 0.35 0.10 0.35 0 1.5708 0
+    goal joints 0.2 0.1 0.3 0 0.4 0                   # straight to /joint_demands
+    goal stop                                         # the controller's ~/stop service
+
+Exit codes: 0 arrived, 1 motion failed (fault, aborted, stopped, timed out), 2 goal refused or
+malformed, 3 nodes not found.
+"""
+
+import argparse
+import math
+import sys
+import time
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseArray, PoseStamped
+from mover6_control import conversions
+from mover6_control.arm import mover6
+from mover6_control.errors import Mover6Error
+from mover6_control.kinematics import fk
+from mover6_control.rotations import make_transform, pose_from_xyzabc, quaternion_to_matrix
+import numpy as np
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float32MultiArray
+from std_srvs.srv import Trigger
+
+STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+EXIT_ARRIVED, EXIT_FAILED, EXIT_REFUSED, EXIT_NO_NODES = 0, 1, 2, 3
+FINAL_RESULTS = ('arrived', 'fault', 'aborted', 'stopped')
+
+
+class Outcome:
+    """What became of one goal."""
+
+    def __init__(self, code, text, **figures):
+        self.code = code
+        self.text = text
+        self.figures = figures
+
+    @property
+    def arrived(self):
+        """Return True when the arm arrived."""
+        return self.code == EXIT_ARRIVED
+
+    def __repr__(self):
+        """Return a one-line description."""
+        return f'Outcome({self.code}, {self.text!r}, {self.figures})'
+
+
+class GoalClient(Node):
+    """A node that sends goals and follows the planner's and controller's status."""
+
+    def __init__(self, name='goal_client', planner_node='planner', controller_node='controller'):
+        super().__init__(name)
+        self.arm = mover6()
+        self.planner_status = None
+        self.controller_status = None
+        self.q = None
+        self.last_demands = None
+        self.pose_pub = self.create_publisher(PoseStamped, 'pose_goal', 10)
+        self.path_pub = self.create_publisher(PoseArray, 'path_goal', 10)
+        self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
+        self.create_subscription(DiagnosticStatus, 'planner/status', self.on_planner, STATUS_QOS)
+        self.create_subscription(DiagnosticStatus, 'controller/status', self.on_controller,
+                                 STATUS_QOS)
+        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
+        self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
+        self.planner_params = AsyncParameterClient(self, planner_node)
+        self.stop_client = self.create_client(Trigger, f'{controller_node}/stop')
+
+    # --- subscriptions ---------------------------------------------------------------------
+
+    def on_planner(self, msg):
+        """Keep the planner's latest status."""
+        self.planner_status = msg
+
+    def on_controller(self, msg):
+        """Keep the controller's latest status."""
+        self.controller_status = msg
+
+    def on_joint_states(self, msg):
+        """Keep the latest joint positions."""
+        try:
+            self.q, _ = conversions.joint_state_from_msg(msg, self.arm.joint_names)
+        except Mover6Error:
+            pass
+
+    def on_demands(self, msg):
+        """Keep the latest joint demands (the planner's output)."""
+        try:
+            self.last_demands = conversions.demands_from_msg(msg)
+        except Mover6Error:
+            pass
+
+    # --- helpers ---------------------------------------------------------------------------
+
+    def spin_until(self, predicate, timeout, tick=None):
+        """Spin until ``predicate()`` is true or ``timeout`` [s] passes; return the predicate."""
+        deadline = time.monotonic() + timeout
+        while rclpy.ok() and not predicate():
+            if time.monotonic() > deadline:
+                return False
+            rclpy.spin_once(self, timeout_sec=0.05)
+            if tick is not None:
+                tick()
+        return bool(predicate())
+
+    @staticmethod
+    def values(msg):
+        """Return a status message's values as a dict (empty for None)."""
+        return conversions.status_values(msg) if msg is not None else {}
+
+    def wait_ready(self, timeout=30.0, need_planner=True):
+        """Wait for joint states, the controller's status and (optionally) the planner's."""
+        checks = [('/joint_states (is the sim bridge or robot driver running?)',
+                   lambda: self.q is not None),
+                  ('/controller/status (is the controller running?)',
+                   lambda: self.controller_status is not None)]
+        if need_planner:
+            checks += [('/planner/status (is the planner running?)',
+                        lambda: self.planner_status is not None),
+                       ('a subscriber on /pose_goal',
+                        lambda: self.pose_pub.get_subscription_count() > 0)]
+        for what, check in checks:
+            if not self.spin_until(check, timeout):
+                return f'no {what} within {timeout:.0f} s'
+        return None
+
+    def set_planner_parameters(self, params, timeout=10.0):
+        """Set planner parameters (e.g. motion); return an error text or None."""
+        if not params:
+            return None
+        if not self.planner_params.wait_for_services(timeout_sec=timeout):
+            return 'the planner parameter service is not available'
+        future = self.planner_params.set_parameters(
+            [Parameter(name, value=value) for name, value in params.items()])
+        if not self.spin_until(future.done, timeout):
+            return 'setting planner parameters timed out'
+        for name, result in zip(params, future.result().results):
+            if not result.successful:
+                return f'planner refused parameter {name}: {result.reason}'
+        return None
+
+    def stop(self, timeout=10.0):
+        """Call the controller's ~/stop service; return its message."""
+        if not self.stop_client.wait_for_service(timeout_sec=timeout):
+            return False, 'the controller stop service is not available'
+        future = self.stop_client.call_async(Trigger.Request())
+        if not self.spin_until(future.done, timeout):
+            return False, 'stop service call timed out'
+        return future.result().success, future.result().message
+
+    # --- goals -----------------------------------------------------------------------------
+
+    def run_goal(self, publish, T_goal=None, planned=True, timeout=60.0, progress=None):
+        """
+        Publish a goal with ``publish()``, then follow it to its end.
+
+        ``planned`` goals go through the planner (its status says planned or refused); others go
+        straight to /joint_demands. ``T_goal`` (4, 4), when given, yields the tool position error.
+        ``progress(text)`` is called about twice a second while the arm moves.
+        """
+        seq0 = int(self.values(self.planner_status).get('goal_seq', 0))
+        motion0 = int(self.values(self.controller_status).get('motion_id', 0))
+        self.last_demands = None
+        t0 = time.monotonic()
+        publish()
+        demands = None
+        if planned:
+            if not self.spin_until(
+                    lambda: int(self.values(self.planner_status).get('goal_seq', 0)) > seq0,
+                    15.0):
+                return Outcome(EXIT_FAILED, 'the planner did not answer within 15 s')
+            status = self.planner_status
+            if status.level != DiagnosticStatus.OK:
+                return Outcome(EXIT_REFUSED, status.message, **self.values(status))
+            self.spin_until(lambda: self.last_demands is not None, 5.0)
+            demands = self.last_demands
+
+        def motion_done():
+            v = self.values(self.controller_status)
+            return int(v.get('motion_id', 0)) > motion0 and v.get('result') in FINAL_RESULTS
+
+        last_print = [0.0]
+
+        def tick():
+            if progress is None or time.monotonic() - last_print[0] < 0.5:
+                return
+            last_print[0] = time.monotonic()
+            v = self.values(self.controller_status)
+            text = (f'{v.get("state", "?")}: waypoint {v.get("waypoint", "?")} of '
+                    f'{v.get("waypoints", "?")}')
+            if T_goal is not None and self.q is not None:
+                left = np.linalg.norm(fk(self.arm, self.q)[:3, 3] - T_goal[:3, 3])
+                text += f', {left * 1e3:.1f} mm to go'
+            progress(text)
+
+        if not self.spin_until(motion_done, timeout, tick):
+            return Outcome(EXIT_FAILED, f'the motion did not finish within {timeout:.0f} s')
+        v = self.values(self.controller_status)
+        # Let one fresh /joint_states arrive after the end so the figures are of the final pose.
+        stamp = [self.q]
+        self.spin_until(lambda: self.q is not stamp[0], 2.0)
+        figures = {'duration': time.monotonic() - t0, 'result': v.get('result')}
+        if demands is None and self.last_demands is not None:
+            demands = self.last_demands
+        if demands is not None and self.q is not None:
+            figures['final_joint_error'] = float(np.abs(self.q - demands[-1]).max())
+        if T_goal is not None and self.q is not None:
+            figures['final_position_error'] = float(
+                np.linalg.norm(fk(self.arm, self.q)[:3, 3] - T_goal[:3, 3]))
+        if v.get('result') != 'arrived':
+            return Outcome(EXIT_FAILED, self.controller_status.message, **figures)
+        return Outcome(EXIT_ARRIVED, 'arrived', **figures)
+
+    def send_pose(self, T_goal, frame_id='base_link', **kwargs):
+        """Send a /pose_goal and follow it; see ``run_goal``."""
+        msg = PoseStamped()
+        msg.header.frame_id = frame_id
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.pose = conversions.matrix_to_pose(T_goal)
+        return self.run_goal(lambda: self.pose_pub.publish(msg), T_goal=T_goal, **kwargs)
+
+    def send_path(self, poses, frame_id='base_link', **kwargs):
+        """Send a /path_goal (via poses then the goal, (k, 4, 4)) and follow it."""
+        msg = PoseArray()
+        msg.header.frame_id = frame_id
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.poses = [conversions.matrix_to_pose(T) for T in poses]
+        return self.run_goal(lambda: self.path_pub.publish(msg), T_goal=poses[-1], **kwargs)
+
+    def send_joints(self, Q, **kwargs):
+        """Send joint waypoints (n, 6) straight to /joint_demands and follow them."""
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        msg = conversions.make_demands(Q)
+        if not self.spin_until(lambda: self.demands_pub.get_subscription_count() > 0, 10.0):
+            return Outcome(EXIT_NO_NODES, 'no subscriber on /joint_demands')
+        return self.run_goal(lambda: self.demands_pub.publish(msg), planned=False,
+                             T_goal=fk(self.arm, Q[-1]), **kwargs)
+
+
+# --- command line ----------------------------------------------------------------------------
+
+def poses_from_numbers(numbers, quat):
+    """Return poses (k, 4, 4) from groups of 6 numbers (X Y Z A B C) or 7 (X Y Z qx qy qz qw)."""
+    size = 7 if quat else 6
+    if len(numbers) == 0 or len(numbers) % size:
+        form = 'X Y Z QX QY QZ QW' if quat else 'X Y Z A B C'
+        raise Mover6Error(f'a pose is {size} numbers ({form}); got {len(numbers)} numbers')
+    if not all(math.isfinite(v) for v in numbers):
+        raise Mover6Error(f'pose numbers must be finite, got {numbers}')
+    out = []
+    for i in range(0, len(numbers), size):
+        group = numbers[i:i + size]
+        if quat:
+            out.append(make_transform(group[:3], quaternion_to_matrix(group[3:])))
+        else:
+            out.append(pose_from_xyzabc(*group))
+    return np.stack(out)
+
+
+def build_parser():
+    """Return the argument parser of the goal command."""
+    parser = argparse.ArgumentParser(
+        prog='goal', description=__doc__.split('\n\n')[0],
+        epilog='Poses: X Y Z [m] in base_link, then A B C [rad] with R = Rz(A) Ry(B) Rx(C) '
+               '(seed 000 / MATLAB ZYX: A yaw, B pitch, C roll), or with --quat a quaternion '
+               'QX QY QZ QW.', formatter_class=argparse.RawDescriptionHelpFormatter)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument('--timeout', type=float, default=60.0,
+                        help='seconds to wait for the motion to finish (default 60)')
+    common.add_argument('--frame', default='base_link', help='frame of the goal (base_link)')
+    common.add_argument('--quiet', action='store_true', help='print only the result line')
+    sub = parser.add_subparsers(dest='command')
+    pose = sub.add_parser('pose', parents=[common], help='move the tool to a pose (/pose_goal)')
+    pose.add_argument('numbers', type=float, nargs='+', metavar='N',
+                      help='X Y Z A B C, or X Y Z QX QY QZ QW with --quat')
+    pose.add_argument('--quat', action='store_true', help='orientation as a quaternion')
+    pose.add_argument('--motion', choices=('linear', 'parabolic', 'joint'),
+                      help="set the planner's motion shape first")
+    pose.add_argument('--peak-height', type=float, help='parabolic peak height [m]')
+    path = sub.add_parser('path', parents=[common],
+                          help='move through via poses to the last pose (/path_goal)')
+    path.add_argument('numbers', type=float, nargs='+', metavar='N',
+                      help='poses one after another; the last one is the goal')
+    path.add_argument('--via', type=float, nargs='+', default=[], metavar='N',
+                      help='via poses (alternative spelling: put them before the goal)')
+    path.add_argument('--quat', action='store_true', help='orientations as quaternions')
+    path.add_argument('--shape', choices=('spline', 'arc'), help="set the planner's path shape")
+    joints = sub.add_parser('joints', parents=[common],
+                            help='send joint waypoints straight to /joint_demands')
+    joints.add_argument('numbers', type=float, nargs='+', metavar='Q',
+                        help='6 joint angles [rad] per waypoint')
+    sub.add_parser('stop', parents=[common],
+                   help='decelerate and hold (the controller ~/stop service)')
+    return parser
+
+
+def run(argv, client=None, out=print):
+    """Run the command line ``argv``; return the exit code."""
+    if argv and argv[0] not in ('pose', 'path', 'joints', 'stop', '-h', '--help'):
+        argv = ['pose'] + list(argv)  # the plain form: goal X Y Z A B C
+    args = build_parser().parse_args(argv)
+    if args.command is None:
+        build_parser().print_help()
+        return EXIT_REFUSED
+    say = (lambda text: None) if args.quiet else out
+    try:
+        if args.command == 'pose':
+            targets = poses_from_numbers(args.numbers, args.quat)
+            if len(targets) != 1:
+                raise Mover6Error('pose takes exactly one pose')
+        elif args.command == 'path':
+            targets = poses_from_numbers(args.via + args.numbers, args.quat)
+        elif args.command == 'joints':
+            if len(args.numbers) % 6:
+                raise Mover6Error(f'joints takes 6 angles per waypoint, got {len(args.numbers)}')
+            targets = np.asarray(args.numbers).reshape(-1, 6)
+    except Mover6Error as err:
+        out(f'RESULT refused: {err}')
+        return EXIT_REFUSED
+    except ValueError as err:
+        out(f'RESULT refused: {err}')
+        return EXIT_REFUSED
+
+    if args.command == 'stop':
+        ok, text = client.stop()
+        out(f'RESULT {"stopped" if ok else "failed"}: {text}')
+        return EXIT_ARRIVED if ok else EXIT_FAILED
+
+    problem = client.wait_ready(timeout=30.0, need_planner=args.command != 'joints')
+    if problem:
+        out(f'RESULT failed: {problem}')
+        return EXIT_NO_NODES
+    params = {}
+    if args.command == 'pose' and args.motion:
+        params['motion'] = args.motion
+    if args.command == 'pose' and args.peak_height is not None:
+        params['peak_height'] = args.peak_height
+    if args.command == 'path' and args.shape:
+        params['path_motion'] = args.shape
+    problem = client.set_planner_parameters(params)
+    if problem:
+        out(f'RESULT failed: {problem}')
+        return EXIT_NO_NODES
+
+    kwargs = {'timeout': args.timeout, 'progress': say}
+    if args.command == 'pose':
+        say(f'sending pose goal {np.round(targets[0][:3, 3], 4).tolist()} m')
+        outcome = client.send_pose(targets[0], frame_id=args.frame, **kwargs)
+    elif args.command == 'path':
+        say(f'sending path goal with {len(targets) - 1} via poses')
+        outcome = client.send_path(targets, frame_id=args.frame, **kwargs)
+    else:
+        say(f'sending {len(targets)} joint waypoints')
+        outcome = client.send_joints(targets, **kwargs)
+    out(format_outcome(outcome))
+    return outcome.code
+
+
+def format_outcome(outcome):
+    """Return the one result line of an outcome."""
+    f = outcome.figures
+    parts = []
+    if 'final_joint_error' in f:
+        parts.append(f'final joint error {f["final_joint_error"]:.4f} rad')
+    if 'final_position_error' in f:
+        parts.append(f'final tool position error {f["final_position_error"] * 1e3:.2f} mm')
+    if 'duration' in f:
+        parts.append(f'{f["duration"]:.2f} s')
+    word = {EXIT_ARRIVED: 'arrived', EXIT_REFUSED: 'refused'}.get(outcome.code, 'failed')
+    text = '' if outcome.arrived else f' {outcome.text}'
+    return f'RESULT {word}:{text}' + (' (' + ', '.join(parts) + ')' if parts else '')
+
+
+def main(args=None):
+    """Entry point of ``ros2 run mover6_control goal``."""
+    argv = sys.argv[1:] if args is None else list(args)
+    ros_args = []
+    if '--ros-args' in argv:
+        idx = argv.index('--ros-args')
+        argv, ros_args = argv[:idx], argv[idx:]
+    rclpy.init(args=['goal'] + ros_args)
+    client = None
+    code = EXIT_FAILED
+    try:
+        client = GoalClient()
+        code = run(argv, client)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        code = EXIT_FAILED
+    finally:
+        if client is not None:
+            client.destroy_node()
+        rclpy.try_shutdown()
+    sys.exit(code)
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,198 @@
+"""
+The planner node: pose goals in, joint waypoints (N x 6) out on /joint_demands.
+
+Subscribes /pose_goal (geometry_msgs/PoseStamped), /path_goal (geometry_msgs/PoseArray) and
+/joint_states; publishes /joint_demands (std_msgs/Float32MultiArray) and /planner/status
+(diagnostic_msgs/DiagnosticStatus, transient local). All the planning is in
+``mover6_control.planning``; this node converts, calls it and reports.
+"""
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseArray, PoseStamped
+from mover6_control import conversions
+from mover6_control.arm import LIMIT_SETS, mover6
+from mover6_control.errors import Mover6Error, UnreachableError
+from mover6_control.planning import (PATH_MOTIONS, plan_path_goal, plan_pose_goal,
+                                     PlannerSettings, POSE_MOTIONS)
+from mover6_control.rotations import matrix_to_euler_zyx
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float32MultiArray
+
+STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+PARAMETERS = (
+    # name, default, type, description
+    ('motion', 'linear', ParameterType.PARAMETER_STRING,
+     'shape of /pose_goal moves: ' + ', '.join(POSE_MOTIONS)),
+    ('path_motion', 'spline', ParameterType.PARAMETER_STRING,
+     'shape of /path_goal moves: ' + ', '.join(PATH_MOTIONS)),
+    ('n_waypoints', 20, ParameterType.PARAMETER_INTEGER,
+     'poses sampled along a Cartesian path (when max_step and max_angle_step are 0)'),
+    ('max_step', 0.0, ParameterType.PARAMETER_DOUBLE,
+     'largest Cartesian step between waypoints [m]; 0 = use n_waypoints'),
+    ('max_angle_step', 0.0, ParameterType.PARAMETER_DOUBLE,
+     'largest orientation step between waypoints [rad]; 0 = use n_waypoints'),
+    ('peak_height', 0.05, ParameterType.PARAMETER_DOUBLE,
+     'height of the parabolic path peak above the straight line mid-point, along base z [m]'),
+    ('max_joint_step', 0.35, ParameterType.PARAMETER_DOUBLE,
+     'largest joint jump between neighbouring waypoints before a path is refused [rad]'),
+    ('max_condition', 1000.0, ParameterType.PARAMETER_DOUBLE,
+     'largest Jacobian condition number allowed along the path (singularity margin)'),
+    ('position_tolerance', 0.001, ParameterType.PARAMETER_DOUBLE,
+     'largest position error of any waypoint, the last included [m]'),
+    ('orientation_tolerance', 0.01, ParameterType.PARAMETER_DOUBLE,
+     'largest orientation error of any waypoint, the last included [rad]'),
+    ('limit_set', 'seed', ParameterType.PARAMETER_STRING,
+     'joint limits: seed ([-pi/2, pi/2] as seed 000) or hardware (vendor limits)'),
+    ('frame_id', 'base_link', ParameterType.PARAMETER_STRING,
+     'the only frame goals are accepted in'),
+    ('state_timeout', 1.0, ParameterType.PARAMETER_DOUBLE,
+     '/joint_states older than this are too old to plan from [s]'),
+)
+
+
+class PlannerNode(Node):
+    """Plan pose and path goals into joint waypoints, refuse what cannot be reached."""
+
+    def __init__(self):
+        super().__init__('planner')
+        for name, default, ptype, text in PARAMETERS:
+            self.declare_parameter(name, default, ParameterDescriptor(type=ptype,
+                                                                      description=text))
+        limit_set = self.get_parameter('limit_set').value
+        if limit_set not in LIMIT_SETS:
+            raise ValueError(f'limit_set must be one of {LIMIT_SETS}, got {limit_set!r}')
+        self.arm = mover6(limit_set)
+        self.q = None
+        self.q_time = None
+        self.goal_seq = 0
+        self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
+        self.status_pub = self.create_publisher(DiagnosticStatus, 'planner/status', STATUS_QOS)
+        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
+        self.create_subscription(PoseStamped, 'pose_goal', self.on_pose_goal, 10)
+        self.create_subscription(PoseArray, 'path_goal', self.on_path_goal, 10)
+        self.publish_status('OK', 'waiting for goals', {'result': 'ready'})
+        self.get_logger().info(
+            f'planner ready: motion={self.get_parameter("motion").value}, '
+            f'limit_set={limit_set}, frame={self.get_parameter("frame_id").value}')
+
+    # --- inputs ----------------------------------------------------------------------------
+
+    def on_joint_states(self, msg):
+        """Keep the latest valid joint positions; drop malformed states with a warning."""
+        try:
+            q, _ = conversions.joint_state_from_msg(msg, self.arm.joint_names)
+        except Mover6Error as err:
+            self.get_logger().warn(f'dropped /joint_states: {err}', throttle_duration_sec=2.0)
+            return
+        self.q = q
+        self.q_time = self.get_clock().now()
+
+    def on_pose_goal(self, msg):
+        """Plan a /pose_goal with the shape of the ``motion`` parameter."""
+        motion = self.get_parameter('motion').value
+        self.handle_goal(motion, lambda q, settings: plan_pose_goal(
+            self.arm, q, conversions.pose_stamped_to_matrix(msg, self.frame_id()), motion,
+            settings))
+
+    def on_path_goal(self, msg):
+        """Plan a /path_goal (via poses then the goal) with the ``path_motion`` shape."""
+        motion = self.get_parameter('path_motion').value
+
+        def plan(q, settings):
+            poses = conversions.pose_array_to_matrices(msg, self.frame_id())
+            return plan_path_goal(self.arm, q, poses[:-1], poses[-1], motion, settings)
+        self.handle_goal(motion, plan)
+
+    # --- planning --------------------------------------------------------------------------
+
+    def frame_id(self):
+        """Return the frame goals must be given in."""
+        return self.get_parameter('frame_id').value
+
+    def settings(self):
+        """Return the planner settings from the current parameters."""
+        p = {name: self.get_parameter(name).value for name, *_ in PARAMETERS}
+        return PlannerSettings(
+            n_waypoints=p['n_waypoints'], max_step=p['max_step'],
+            max_angle_step=p['max_angle_step'], peak_height=p['peak_height'],
+            max_joint_step=p['max_joint_step'], max_condition=p['max_condition'],
+            position_tolerance=p['position_tolerance'],
+            orientation_tolerance=p['orientation_tolerance'])
+
+    def current_q(self):
+        """Return the latest joint positions, or raise when there are none or they are old."""
+        if self.q is None:
+            raise Mover6Error('no /joint_states received yet: the current pose is unknown')
+        age = (self.get_clock().now() - self.q_time).nanoseconds * 1e-9
+        timeout = self.get_parameter('state_timeout').value
+        if age > timeout:
+            raise Mover6Error(f'/joint_states are {age:.2f} s old (limit {timeout:.2f} s): '
+                              'the current pose is uncertain')
+        return self.q.copy()
+
+    def handle_goal(self, motion, plan_fn):
+        """Plan, then publish the waypoints and OK, or nothing and ERROR with the reason."""
+        self.goal_seq += 1
+        try:
+            plan = plan_fn(self.current_q(), self.settings())
+        except UnreachableError as err:
+            self.refuse(motion, str(err), err.reason, err.details)
+            return
+        except (Mover6Error, ValueError) as err:
+            self.refuse(motion, str(err), 'invalid_goal', {})
+            return
+        self.demands_pub.publish(conversions.make_demands(plan.q))
+        values = {'result': 'planned', 'motion': motion, 'waypoints': plan.n_waypoints,
+                  'path_length': f'{plan.path_length:.6f}',
+                  'predicted_duration': f'{plan.predicted_duration:.3f}',
+                  'position_error': f'{plan.final_position_error:.3e}',
+                  'orientation_error': f'{plan.final_orientation_error:.3e}'}
+        text = (f'planned {motion} move: {plan.n_waypoints} waypoints, '
+                f'{plan.path_length * 1e3:.1f} mm, about {plan.predicted_duration:.2f} s')
+        self.get_logger().info(f'goal {self.goal_seq}: {text}')
+        self.publish_status('OK', text, values)
+
+    def refuse(self, motion, text, reason, details):
+        """Report a refused goal on /planner/status and in the log; publish no demands."""
+        values = {'result': 'refused', 'motion': motion, 'reason': reason}
+        for key in ('waypoint', 'position_error', 'orientation_error'):
+            if key in details:
+                values[key] = details[key]
+        closest = details.get('closest_pose')
+        if closest is not None:
+            T = np.asarray(closest)
+            values['closest_pose_xyzabc'] = ' '.join(
+                f'{v:.4f}' for v in list(T[:3, 3]) + list(matrix_to_euler_zyx(T[:3, :3])))
+        self.get_logger().error(f'goal {self.goal_seq} refused ({reason}): {text}')
+        self.publish_status('ERROR', f'goal refused ({reason}): {text}', values)
+
+    def publish_status(self, level, text, values):
+        """Publish /planner/status with the goal counter added to the values."""
+        values = dict(values, goal_seq=self.goal_seq)
+        self.status_pub.publish(conversions.make_status('planner', level, text, values))
+
+
+def main(args=None):
+    """Run the planner node until Ctrl-C or shutdown."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = PlannerNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,195 @@
+"""
+Goal planning: from the current configuration and a goal to joint waypoints (n, 6).
+
+The planner node is a thin shell around ``plan_pose_goal`` and ``plan_path_goal``: it converts
+messages, calls these, and publishes the result or the refusal. Everything here is ROS-free and
+clock-free.
+"""
+
+from dataclasses import dataclass
+
+from mover6_control import paths
+from mover6_control.errors import InvalidInputError, UnreachableError
+from mover6_control.ik import ik_closed_form
+from mover6_control.kinematics import fk, fk_batch
+from mover6_control.path_ik import solve_path
+from mover6_control.rotations import pose_error, validate_transform
+import numpy as np
+
+POSE_MOTIONS = ('linear', 'parabolic', 'joint')
+PATH_MOTIONS = ('spline', 'arc')
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """
+    Settings of a plan; defaults are the planner node's parameter defaults.
+
+    ``max_step`` [m] and ``max_angle_step`` [rad] sample the Cartesian path by step when > 0;
+    otherwise ``n_waypoints`` poses are used.
+    """
+
+    n_waypoints: int = 20
+    max_step: float = 0.0
+    max_angle_step: float = 0.0
+    peak_height: float = 0.05
+    max_joint_step: float = 0.35
+    max_condition: float = 1000.0
+    position_tolerance: float = 1e-3
+    orientation_tolerance: float = 0.01
+    velocity_scale: float = 1.0
+
+    def __post_init__(self):
+        """Reject settings that cannot make a plan."""
+        if int(self.n_waypoints) < 2:
+            raise InvalidInputError(f'n_waypoints must be >= 2, got {self.n_waypoints}')
+        for name in ('max_step', 'max_angle_step'):
+            if not np.isfinite(getattr(self, name)) or getattr(self, name) < 0.0:
+                raise InvalidInputError(f'{name} must be >= 0, got {getattr(self, name)}')
+        for name in ('max_joint_step', 'max_condition', 'position_tolerance',
+                     'orientation_tolerance', 'velocity_scale'):
+            value = getattr(self, name)
+            if not np.isfinite(value) or value <= 0.0:
+                raise InvalidInputError(f'{name} must be > 0, got {value}')
+
+    def sampling(self):
+        """Return the keyword arguments that sample a path (by count or by step)."""
+        if self.max_step > 0.0 or self.max_angle_step > 0.0:
+            return {'max_step': self.max_step or None,
+                    'max_angle_step': self.max_angle_step or None}
+        return {'n': int(self.n_waypoints)}
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A planned motion: joint waypoints (n, 6) [rad] and the figures reported with it."""
+
+    motion: str
+    q: np.ndarray             # (n, 6) [rad]
+    poses: np.ndarray         # (n, 4, 4) the intended tool poses (FK of q for joint moves)
+    path_length: float        # [m] of the intended tool path
+    predicted_duration: float  # [s] at the arm's velocity limits, synchronised per segment
+    final_position_error: float     # [m] FK of the last waypoint against the goal
+    final_orientation_error: float  # [rad]
+
+    @property
+    def n_waypoints(self):
+        """Return the number of waypoints."""
+        return int(self.q.shape[0])
+
+
+def polyline_length(points):
+    """Return the length [m] of a polyline (n, 3)."""
+    points = np.asarray(points, dtype=float)
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+
+def predicted_duration(arm, q, velocity_scale=1.0):
+    """Return the time [s] to visit waypoints (n, 6), each segment at the slowest joint's pace."""
+    steps = np.abs(np.diff(np.asarray(q, dtype=float), axis=0))
+    return float((steps / (arm.velocity_limits * velocity_scale)).max(axis=1).sum())
+
+
+def _finish(arm, motion, q, poses, T_goal, settings):
+    q = np.asarray(q, dtype=float)
+    T_end = fk(arm, q[-1])
+    pos_err, rot_err = pose_error(T_end, T_goal)
+    if pos_err > settings.position_tolerance or rot_err > settings.orientation_tolerance:
+        raise UnreachableError(
+            f'the last waypoint misses the goal by {pos_err * 1e3:.2f} mm and {rot_err:.4f} rad '
+            f'(tolerance {settings.position_tolerance * 1e3:.2f} mm, '
+            f'{settings.orientation_tolerance:.4f} rad)',
+            reason='out_of_reach',
+            details={'waypoint': len(q) - 1, 'position_error': pos_err,
+                     'orientation_error': rot_err, 'closest_q': q[-1], 'closest_pose': T_end})
+    return Plan(motion=motion, q=q, poses=np.asarray(poses),
+                path_length=polyline_length(np.asarray(poses)[:, :3, 3]),
+                predicted_duration=predicted_duration(arm, q, settings.velocity_scale),
+                final_position_error=pos_err, final_orientation_error=rot_err)
+
+
+def _solve(arm, poses, q_current, settings):
+    return solve_path(arm, poses, q_current, max_joint_step=settings.max_joint_step,
+                      max_condition=settings.max_condition,
+                      position_tol=settings.position_tolerance,
+                      orientation_tol=settings.orientation_tolerance)
+
+
+def plan_joint_move(arm, q_current, T_goal, settings):
+    """Plan a straight line in joint space to the IK solution closest to ``q_current``."""
+    solutions = ik_closed_form(arm, T_goal, within_limits=True)
+    if len(solutions) == 0:
+        all_solutions = ik_closed_form(arm, T_goal, within_limits=False)
+        if len(all_solutions) > 0:
+            best = all_solutions[np.argmin(np.abs(all_solutions - q_current).max(axis=1))]
+            raise UnreachableError(
+                'the goal is reachable only outside the joint limits: '
+                + '; '.join(arm.limit_violations(best)),
+                reason='joint_limits',
+                details={'waypoint': 0, 'position_error': 0.0, 'orientation_error': 0.0,
+                         'closest_q': best, 'closest_pose': fk(arm, best)})
+        raise UnreachableError('no inverse kinematics solution: the goal is out of reach',
+                               reason='out_of_reach', details={'waypoint': 0})
+    q_goal = solutions[np.argmin(np.abs(solutions - q_current).max(axis=1))]
+    n = max(2, int(np.ceil(np.abs(q_goal - q_current).max() / settings.max_joint_step)) + 1,
+            int(settings.n_waypoints))
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    q = q_current + s * (q_goal - q_current)
+    return _finish(arm, 'joint', q, fk_batch(arm, q), T_goal, settings)
+
+
+def plan_pose_goal(arm, q_current, T_goal, motion='linear', settings=PlannerSettings()):
+    """
+    Plan a move of the tool from FK(``q_current``) to ``T_goal`` (4, 4).
+
+    ``motion`` is 'linear' (straight line, SLERPed orientation), 'parabolic' (through a peak
+    ``settings.peak_height`` [m] above the mid-point, along base z) or 'joint' (straight in joint
+    space). Raises ``UnreachableError`` (with ``reason`` and ``details``) or
+    ``InvalidInputError``.
+    """
+    q_current = arm.check_q(q_current, 'current joint positions')
+    T_goal = validate_transform(T_goal, 'goal pose')
+    if motion not in POSE_MOTIONS:
+        raise InvalidInputError(f'unknown motion "{motion}", expected one of {POSE_MOTIONS}')
+    if motion == 'joint':
+        return plan_joint_move(arm, q_current, T_goal, settings)
+    T_start = fk(arm, q_current)
+    pos_err, rot_err = pose_error(T_start, T_goal)
+    if pos_err < 1e-6 and rot_err < 1e-6:
+        # Already there: a two-row hold lets the controller report arrival at once.
+        return _finish(arm, motion, np.stack([q_current, q_current]),
+                       np.stack([T_start, T_start]), T_goal, settings)
+    if motion == 'linear':
+        poses = paths.linear_path(T_start, T_goal, **settings.sampling())
+    else:
+        poses = paths.parabolic_path(T_start, T_goal, settings.peak_height,
+                                     **settings.sampling())
+    solution = _solve(arm, poses, q_current, settings)
+    return _finish(arm, motion, solution.q, poses, T_goal, settings)
+
+
+def plan_path_goal(arm, q_current, T_vias, T_goal, motion='spline', settings=PlannerSettings()):
+    """
+    Plan a move through via poses (k, 4, 4) to ``T_goal``: 'spline' or 'arc' (one via pose).
+
+    Raises ``UnreachableError`` or ``InvalidInputError`` as ``plan_pose_goal`` does.
+    """
+    q_current = arm.check_q(q_current, 'current joint positions')
+    T_goal = validate_transform(T_goal, 'goal pose')
+    T_vias = np.asarray(T_vias, dtype=float).reshape(-1, 4, 4)
+    for i, T in enumerate(T_vias):
+        validate_transform(T, f'via pose {i}')
+    if motion not in PATH_MOTIONS:
+        raise InvalidInputError(f'unknown path motion "{motion}", expected one of {PATH_MOTIONS}')
+    T_start = fk(arm, q_current)
+    if motion == 'arc':
+        if len(T_vias) != 1:
+            raise InvalidInputError(f'an arc needs exactly one via pose, got {len(T_vias)}')
+        poses = paths.arc_path(T_start, T_vias[0], T_goal, **settings.sampling())
+    else:
+        if len(T_vias) == 0:
+            poses = paths.linear_path(T_start, T_goal, **settings.sampling())
+        else:
+            poses = paths.spline_path(T_start, T_vias, T_goal, **settings.sampling())
+    solution = _solve(arm, poses, q_current, settings)
+    return _finish(arm, motion, solution.q, poses, T_goal, settings)

@@ -1,0 +1,93 @@
+#!/usr/bin/env bash
+# Start the three mover6_control nodes (sim_bridge, controller, planner) and keep them running
+# until Ctrl-C. Stops all of them on exit, on Ctrl-C / SIGTERM, and as soon as one dies.
+#
+# Usage: scripts/launch.sh [--no-sim] [--log-dir DIR]
+#   --no-sim        do not start the MuJoCo bridge (drive a real arm's driver instead)
+#   --log-dir DIR   also write each node's output to DIR/<node>.log
+# Extra ROS arguments per node: MOVER6_SIM_ARGS, MOVER6_CONTROLLER_ARGS, MOVER6_PLANNER_ARGS,
+# e.g. MOVER6_CONTROLLER_ARGS="-p profile:=trapezoidal". Parameter files: config/<node>.yaml.
+#
+# Needs an environment where the package is built and sourced (./run.sh launch does that).
+set -uo pipefail
+
+# DDS discovery stays on this machine unless the user chose otherwise (robot network).
+export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
+
+with_sim=1
+log_dir=''
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --no-sim) with_sim=0 ;;
+        --log-dir) log_dir=$2; shift ;;
+        -h | --help) sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        *) echo "launch.sh: unknown argument '$1'" >&2; exit 2 ;;
+    esac
+    shift
+done
+
+prefix=$(python3 -c 'from ament_index_python.packages import get_package_prefix as p; print(p("mover6_control"))' 2>/dev/null) || {
+    echo 'launch.sh: package mover6_control not found: build and source it (./run.sh launch)' >&2
+    exit 1
+}
+bin="$prefix/lib/mover6_control"
+share="$prefix/share/mover6_control/config"
+[ -n "$log_dir" ] && mkdir -p "$log_dir"
+
+pids=()
+names=()
+start() {
+    # start NAME EXECUTABLE [ros args...]
+    local name=$1 exe=$2
+    shift 2
+    local params=()
+    [ -f "$share/$name.yaml" ] && params=(--params-file "$share/$name.yaml")
+    if [ -n "$log_dir" ]; then
+        "$bin/$exe" --ros-args "${params[@]}" "$@" > >(tee "$log_dir/$name.log") 2>&1 &
+    else
+        "$bin/$exe" --ros-args "${params[@]}" "$@" &
+    fi
+    pids+=($!)
+    names+=("$name")
+    echo "launch.sh: started $name (pid $!)" >&2
+}
+
+stopping=0
+stop_all() {
+    [ "$stopping" = 1 ] && return
+    stopping=1
+    local pid
+    for pid in "${pids[@]}"; do kill -INT "$pid" 2>/dev/null; done
+    # Give the nodes 5 s to send their last zero command and shut down, then insist.
+    for _ in $(seq 50); do
+        local alive=0
+        for pid in "${pids[@]}"; do kill -0 "$pid" 2>/dev/null && alive=1; done
+        [ "$alive" = 0 ] && break
+        sleep 0.1
+    done
+    for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null; done
+    wait 2>/dev/null
+    echo 'launch.sh: all nodes stopped' >&2
+}
+trap 'stop_all; exit 130' INT
+trap 'stop_all; exit 143' TERM
+trap 'stop_all' EXIT
+
+# shellcheck disable=SC2086
+[ "$with_sim" = 1 ] && start sim_bridge sim_bridge ${MOVER6_SIM_ARGS:-}
+# shellcheck disable=SC2086
+start controller controller ${MOVER6_CONTROLLER_ARGS:-}
+# shellcheck disable=SC2086
+start planner planner ${MOVER6_PLANNER_ARGS:-}
+
+# Wait until any node exits; then stop the rest and report which one it was.
+wait -n "${pids[@]}"
+rc=$?
+for i in "${!pids[@]}"; do
+    if ! kill -0 "${pids[$i]}" 2>/dev/null; then
+        echo "launch.sh: ${names[$i]} exited (code $rc); stopping the others" >&2
+        break
+    fi
+done
+stop_all
+exit $(( rc == 0 ? 1 : rc ))
