@@ -1,0 +1,55 @@
+"""
+Run every benchmark in turn: ``./run.sh bench [--quick] [name ...]``.
+
+Each benchmark is a module ``bench.bench_<name>`` that prints its table and writes
+``bench/results/<name>.json``; this runner starts each in its own process (so one cannot disturb
+the next), then writes ``bench/results/summary.json`` with every result.
+"""
+
+import glob
+import json
+import os
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+RESULTS = os.path.join(HERE, 'results')
+
+
+def available():
+    """Return the names of the benchmark modules, in a fixed order."""
+    return sorted(os.path.basename(p)[len('bench_'):-3]
+                  for p in glob.glob(os.path.join(HERE, 'bench_*.py')))
+
+
+def main(argv):
+    """Run the benchmarks named in ``argv`` (all by default); return the exit code."""
+    flags = [a for a in argv if a.startswith('-')]
+    names = [a for a in argv if not a.startswith('-')] or available()
+    unknown = sorted(set(names) - set(available()))
+    if unknown:
+        print(f'unknown benchmarks {unknown}; available: {available()}', file=sys.stderr)
+        return 2
+    os.makedirs(RESULTS, exist_ok=True)
+    summary, failed = {}, []
+    for name in names:
+        print(f'\n=== bench_{name} {" ".join(flags)}', flush=True)
+        t0 = time.monotonic()
+        rc = subprocess.call([sys.executable, '-m', f'bench.bench_{name}'] + flags,
+                             cwd=os.path.dirname(HERE))
+        path = os.path.join(RESULTS, f'{name}.json')
+        if rc != 0:
+            failed.append(name)
+        if os.path.exists(path):
+            with open(path) as f:
+                summary[name] = json.load(f)
+        print(f'=== bench_{name}: exit {rc}, {time.monotonic() - t0:.1f} s', flush=True)
+    with open(os.path.join(RESULTS, 'summary.json'), 'w') as f:
+        json.dump(summary, f, indent=2)
+    print(f'\nresults: {RESULTS}/ (summary.json)' + (f'; FAILED: {failed}' if failed else ''))
+    return 1 if failed else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv[1:]))

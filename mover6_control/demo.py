@@ -1,0 +1,242 @@
+"""
+The showcase a new user runs first (``./run.sh demo``).
+
+Starts the three nodes headless through ``scripts/launch.sh``, sends a linear move, a parabolic
+move, a spline through via poses, a joint move and one unreachable goal through the real nodes,
+records /joint_states, and writes a report folder: plots of what ran, an animation of the arm and
+a metrics table (Markdown and JSON). Exits 0 only when every move arrived within tolerance and
+the unreachable goal was refused.
+"""
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from mover6_control.arm import mover6
+from mover6_control.goal_cli import EXIT_REFUSED, format_outcome, GoalClient
+from mover6_control.kinematics import fk_batch
+from mover6_control.rotations import pose_from_xyzabc
+import numpy as np
+import rclpy
+from sensor_msgs.msg import JointState
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HALF_PI = np.pi / 2
+
+# Each step: (name, kind, planner parameters, poses as X Y Z A B C; the last one is the goal).
+SHOWCASE = (
+    ('linear', 'pose', {'motion': 'linear'}, [(0.30, 0.05, 0.36, 0.0, HALF_PI, 0.0)]),
+    ('parabolic', 'pose', {'motion': 'parabolic', 'peak_height': 0.04},
+     [(0.30, -0.08, 0.32, 0.0, HALF_PI, 0.0)]),
+    ('spline', 'path', {'path_motion': 'spline'},
+     [(0.33, -0.02, 0.38, 0.0, HALF_PI, 0.0), (0.31, 0.06, 0.34, 0.0, HALF_PI, 0.0),
+      (0.28, 0.10, 0.36, 0.0, HALF_PI, 0.0)]),
+    ('joint', 'pose', {'motion': 'joint'}, [(0.345, 0.0, 0.4425, 0.0, HALF_PI, 0.0)]),
+    ('unreachable', 'pose', {'motion': 'linear'}, [(0.10, 0.10, 0.20, 0.0, 1.5708, 0.0)]),
+)
+QUICK = SHOWCASE[:1] + SHOWCASE[-1:]
+JOINT_TOLERANCE = 0.01     # [rad] the demo's pass mark for the final joint error
+
+
+class Recorder:
+    """Record /joint_states (time [s], q (6,), qd (6,)) into lists."""
+
+    def __init__(self, node, joint_names):
+        self.joint_names = joint_names
+        self.t, self.q, self.qd = [], [], []
+        node.create_subscription(JointState, 'joint_states', self.on_msg, 100)
+
+    def on_msg(self, msg):
+        """Store one sample, mapped by name."""
+        index = {n: i for i, n in enumerate(msg.name)}
+        try:
+            self.q.append([msg.position[index[n]] for n in self.joint_names])
+            self.qd.append([msg.velocity[index[n]] if msg.velocity else 0.0
+                            for n in self.joint_names])
+            self.t.append(time.monotonic())
+        except (KeyError, IndexError):
+            pass
+
+    def segment(self, t0, t1):
+        """Return (t - t0, q, qd) arrays of the samples between t0 and t1."""
+        t = np.asarray(self.t)
+        mask = (t >= t0) & (t <= t1)
+        return t[mask] - t0, np.asarray(self.q)[mask], np.asarray(self.qd)[mask]
+
+
+def start_stack(log_dir, env):
+    """Start scripts/launch.sh (all three nodes) in its own process group."""
+    cmd = ['bash', os.path.join(ROOT, 'scripts', 'launch.sh'), '--log-dir', log_dir]
+    return subprocess.Popen(cmd, env=env, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def stop_stack(proc):
+    """Stop launch.sh by its pid (it stops its nodes); insist after 15 s."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(15.0)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(5.0)
+
+
+def deviation_from_polyline(points, polyline):
+    """Return the largest distance [m] of ``points`` (m, 3) from a polyline (k, 3)."""
+    from mover6_control.metrics import max_deviation_from_polyline
+    return max_deviation_from_polyline(points, polyline)
+
+
+def run_step(client, recorder, arm, step, say):
+    """Run one showcase step; return its metrics row."""
+    name, kind, params, poses = step
+    Ts = np.stack([pose_from_xyzabc(*p) for p in poses])
+    problem = client.set_planner_parameters(params)
+    if problem:
+        return {'motion': name, 'result': 'failed', 'reason': problem}
+    say(f'--- {name}: goal {np.round(Ts[-1][:3, 3], 3).tolist()} m')
+    t0 = time.monotonic()
+    if kind == 'pose':
+        outcome = client.send_pose(Ts[-1], timeout=60.0, progress=lambda s: say('  ' + s))
+    else:
+        outcome = client.send_path(Ts, timeout=60.0, progress=lambda s: say('  ' + s))
+    t1 = time.monotonic()
+    say('  ' + format_outcome(outcome))
+    row = {'motion': name, 'result': outcome.figures.get('result') or (
+        'refused' if outcome.code == EXIT_REFUSED else 'failed')}
+    if outcome.code == EXIT_REFUSED:
+        row['reason'] = outcome.text
+        return row
+    row.update({k: outcome.figures[k] for k in
+                ('duration', 'final_joint_error', 'final_position_error')
+                if k in outcome.figures})
+    t, q, qd = recorder.segment(t0, t1)
+    row['samples'] = {'t': t.tolist(), 'q': q.tolist(), 'qd': qd.tolist()}
+    if client.last_demands is not None and len(q):
+        planned = fk_batch(arm, client.last_demands)[:, :3, 3]
+        realised = fk_batch(arm, q)[:, :3, 3]
+        row['planned_path'] = planned.tolist()
+        row['max_path_deviation'] = deviation_from_polyline(realised, planned)
+    return row
+
+
+def write_report(report_dir, rows, arm):
+    """Write metrics.json, metrics.md and the plots; return the list of files written."""
+    from mover6_control import plots
+    files = []
+    for row in rows:
+        if 'samples' not in row or not row['samples']['t']:
+            continue
+        s = row['samples']
+        t, q, qd = (np.asarray(s[k]) for k in ('t', 'q', 'qd'))
+        realised = fk_batch(arm, q)[:, :3, 3]
+        base = os.path.join(report_dir, row['motion'])
+        files.append(plots.plot_path_3d(np.asarray(row['planned_path']), realised,
+                                        base + '_path3d.png'))
+        files.append(plots.plot_joint_trajectories(t, q, arm.lower, arm.upper,
+                                                   base + '_joints.png'))
+        files.append(plots.plot_joint_velocities(t, qd, arm.velocity_limits,
+                                                 base + '_velocities.png'))
+    table = [{k: v for k, v in row.items() if k not in ('samples', 'planned_path')}
+             for row in rows]
+    with open(os.path.join(report_dir, 'metrics.json'), 'w') as f:
+        json.dump(table, f, indent=2)
+    lines = ['| motion | result | duration [s] | final joint error [rad] | '
+             'final tool position error [mm] | max deviation from planned path [mm] |',
+             '|---|---|---|---|---|---|']
+    for row in table:
+        def num(key, scale=1.0, fmt='.4f'):
+            return format(row[key] * scale, fmt) if key in row else '-'
+        lines.append(f'| {row["motion"]} | {row["result"]} | {num("duration", fmt=".2f")} | '
+                     f'{num("final_joint_error")} | {num("final_position_error", 1e3, ".2f")} | '
+                     f'{num("max_path_deviation", 1e3, ".2f")} |')
+    with open(os.path.join(report_dir, 'metrics.md'), 'w') as f:
+        f.write('\n'.join(lines) + '\n')
+    files += [os.path.join(report_dir, 'metrics.json'), os.path.join(report_dir, 'metrics.md')]
+    return files
+
+
+def render_animation(report_dir, rows, arm):
+    """Render the recorded motion of every step into one animated GIF; return its path."""
+    from sim_bridge import render
+    q = [np.asarray(r['samples']['q']) for r in rows if r.get('samples', {}).get('q')]
+    t = [np.asarray(r['samples']['t']) for r in rows if r.get('samples', {}).get('q')]
+    if not q:
+        return None
+    offset, times = 0.0, []
+    for seg in t:
+        times.append(seg + offset)
+        offset = times[-1][-1] + 0.5
+    return render.render_gif(arm, np.concatenate(times), np.concatenate(q),
+                             os.path.join(report_dir, 'motion.gif'))
+
+
+def passed(rows, steps):
+    """Return True when every move arrived within tolerance and the refusal was refused."""
+    for row, step in zip(rows, steps):
+        if step[0] == 'unreachable':
+            if row['result'] != 'refused':
+                return False
+        elif row['result'] != 'arrived' or row.get('final_joint_error', 1.0) > JOINT_TOLERANCE:
+            return False
+    return len(rows) == len(steps)
+
+
+def main(argv=None):
+    """Run the showcase; exit 0 only when everything behaved."""
+    parser = argparse.ArgumentParser(prog='demo', description=__doc__.split('\n\n')[0])
+    parser.add_argument('--report', default=os.path.join(os.getcwd(), 'report'),
+                        help='folder for plots, animation and metrics (default ./report)')
+    parser.add_argument('--quick', action='store_true',
+                        help='only the linear move and the refused goal')
+    parser.add_argument('--no-render', action='store_true', help='skip the animation')
+    args = parser.parse_args(argv)
+    steps = QUICK if args.quick else SHOWCASE
+    report_dir = os.path.abspath(args.report)
+    os.makedirs(os.path.join(report_dir, 'logs'), exist_ok=True)
+    env = dict(os.environ)
+    env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+
+    def say(text):
+        print(text, flush=True)
+
+    t_start = time.monotonic()
+    say(f'starting sim_bridge, controller and planner (ROS_DOMAIN_ID='
+        f'{env.get("ROS_DOMAIN_ID", "0")}, logs in {report_dir}/logs)')
+    stack = start_stack(os.path.join(report_dir, 'logs'), env)
+    rows = []
+    arm = mover6()
+    rclpy.init()
+    client = GoalClient(name='demo')
+    try:
+        recorder = Recorder(client, arm.joint_names)
+        problem = client.wait_ready(timeout=60.0)
+        if problem:
+            say(f'RESULT failed: {problem} (see {report_dir}/logs)')
+            return 1
+        for step in steps:
+            rows.append(run_step(client, recorder, arm, step, say))
+    finally:
+        client.destroy_node()
+        rclpy.try_shutdown()
+        stop_stack(stack)
+    files = write_report(report_dir, rows, arm)
+    if not args.no_render:
+        gif = render_animation(report_dir, rows, arm)
+        if gif:
+            files.append(gif)
+    ok = passed(rows, steps)
+    with open(os.path.join(report_dir, 'metrics.md')) as f:
+        say('\n' + f.read())
+    say(f'report: {report_dir} ({len(files)} files)')
+    say(f'DEMO {"PASSED" if ok else "FAILED"} in {time.monotonic() - t_start:.1f} s')
+    return 0 if ok else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
