@@ -200,3 +200,124 @@ def mover6(limit_set='seed', urdf_path=None):
         return arm.with_limits(lower=np.radians(lim['lower']), upper=np.radians(lim['upper']),
                                velocity_limits=velocity)
     raise InvalidInputError(f'unknown limit set "{limit_set}", expected one of {LIMIT_SETS}')
+
+
+LENGTH_UNITS = {'m': 1.0, 'cm': 0.01, 'mm': 0.001}
+ANGLE_UNITS = {'rad': 1.0, 'deg': np.pi / 180.0}
+
+
+def _rot_z(theta):
+    """Return the 4x4 rotation about z by ``theta`` [rad]."""
+    c, s = np.cos(theta), np.sin(theta)
+    T = np.eye(4)
+    T[:2, :2] = [[c, -s], [s, c]]
+    return T
+
+
+def dh_link_transform(a, alpha, d):
+    """Return ``Tz(d) Tx(a) Rx(alpha)`` (4, 4), the fixed part of a standard DH row."""
+    c, s = np.cos(alpha), np.sin(alpha)
+    return np.array([[1.0, 0.0, 0.0, a],
+                     [0.0, c, -s, 0.0],
+                     [0.0, s, c, d],
+                     [0.0, 0.0, 0.0, 1.0]])
+
+
+def from_dh(a, alpha, d, offset=None, *, length_unit='m', angle_unit='rad', lower=None,
+            upper=None, velocity_limits=None, name='dh_arm', joint_names=None,
+            base_link='base_link', tip_link=None, tool=None):
+    """
+    Build an ``ArmModel`` from a standard (distal) Denavit-Hartenberg table.
+
+    Row i is ``A_i = Rz(q_i + offset_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``, so joint i turns about
+    the z axis of frame i - 1 and ``q = 0`` means the table's theta equals ``offset``.
+    ``a`` and ``d`` are in ``length_unit`` ('m', 'cm' or 'mm'); ``alpha``, ``offset``, ``lower``
+    and ``upper`` in ``angle_unit`` ('rad' or 'deg'); ``velocity_limits`` in ``angle_unit``
+    per second. The model is always in metres and radians. Limits default to [-pi, pi] [rad]
+    and velocity limits to 1 [rad/s]. ``tool`` (4, 4) [m] is an extra transform after the
+    last DH frame.
+    """
+    if length_unit not in LENGTH_UNITS:
+        raise InvalidInputError(
+            f'unknown length unit "{length_unit}", expected one of {sorted(LENGTH_UNITS)}')
+    if angle_unit not in ANGLE_UNITS:
+        raise InvalidInputError(
+            f'unknown angle unit "{angle_unit}", expected one of {sorted(ANGLE_UNITS)}')
+    to_m, to_rad = LENGTH_UNITS[length_unit], ANGLE_UNITS[angle_unit]
+    columns = {}
+    for key, value in (('a', a), ('alpha', alpha), ('d', d)):
+        arr = np.asarray(value, dtype=float)
+        if arr.ndim != 1 or arr.size == 0:
+            raise InvalidInputError(f'DH column {key} must be a non-empty list, got {value!r}')
+        if not np.all(np.isfinite(arr)):
+            raise InvalidInputError(f'DH column {key} has non-finite values: {arr.tolist()}')
+        columns[key] = arr
+    n = columns['a'].size
+    if columns['alpha'].size != n or columns['d'].size != n:
+        raise InvalidInputError(
+            f'DH columns differ in length: a {n}, alpha {columns["alpha"].size}, '
+            f'd {columns["d"].size}')
+
+    def column(value, default, scale, key):
+        arr = np.full(n, default, dtype=float) if value is None else np.asarray(
+            value, dtype=float) * scale
+        if arr.shape != (n,):
+            raise InvalidInputError(f'{key} must have {n} values, got shape {arr.shape}')
+        return arr
+
+    offset = column(offset, 0.0, to_rad, 'offset')
+    if not np.all(np.isfinite(offset)):
+        raise InvalidInputError(f'DH offsets have non-finite values: {offset.tolist()}')
+    lower = column(lower, -np.pi, to_rad, 'lower')
+    upper = column(upper, np.pi, to_rad, 'upper')
+    velocity_limits = column(velocity_limits, 1.0, to_rad, 'velocity_limits')
+    links = [dh_link_transform(columns['a'][i] * to_m, columns['alpha'][i] * to_rad,
+                               columns['d'][i] * to_m) for i in range(n)]
+    origins = [_rot_z(offset[0])]
+    for i in range(1, n):
+        origins.append(links[i - 1] @ _rot_z(offset[i]))
+    extra = np.eye(4) if tool is None else np.asarray(tool, dtype=float)
+    if extra.shape != (4, 4):
+        raise InvalidInputError(f'tool must have shape (4, 4), got {extra.shape}')
+    joint_names = joint_names or tuple(f'joint{i + 1}' for i in range(n))
+    if len(joint_names) != n:
+        raise InvalidInputError(f'{len(joint_names)} joint names for {n} DH rows')
+    return ArmModel(name=name, joint_names=tuple(joint_names), origins=np.array(origins),
+                    axes=np.tile([0.0, 0.0, 1.0], (n, 1)), tool=links[-1] @ extra,
+                    lower=lower, upper=upper, velocity_limits=velocity_limits,
+                    base_link=base_link, tip_link=tip_link or f'link{n}')
+
+
+DH_KEYS = ('name', 'length_unit', 'angle_unit', 'a', 'alpha', 'd', 'offset', 'lower', 'upper',
+           'velocity_limits', 'joint_names', 'base_link', 'tip_link')
+
+
+def load_dh_yaml(path):
+    """
+    Load an arm from a YAML DH table (keys as ``from_dh``'s arguments, see minibot_dh.yaml).
+
+    Unknown keys raise, so a typo does not pass silently.
+    """
+    import yaml  # local import: only config loading needs it
+
+    if not os.path.isfile(path):
+        raise InvalidInputError(f'DH file not found: {path}')
+    with open(path, encoding='utf-8') as stream:
+        spec = yaml.safe_load(stream)
+    if not isinstance(spec, dict):
+        raise InvalidInputError(f'{path} must hold a mapping of DH keys')
+    unknown = sorted(set(spec) - set(DH_KEYS))
+    if unknown:
+        raise InvalidInputError(f'{path}: unknown keys {unknown}, expected some of {DH_KEYS}')
+    missing = [key for key in ('a', 'alpha', 'd') if key not in spec]
+    if missing:
+        raise InvalidInputError(f'{path}: missing DH columns {missing}')
+    kwargs = {key: spec[key] for key in spec if key not in ('a', 'alpha', 'd', 'offset')}
+    if 'joint_names' in kwargs:
+        kwargs['joint_names'] = tuple(kwargs['joint_names'])
+    return from_dh(spec['a'], spec['alpha'], spec['d'], spec.get('offset'), **kwargs)
+
+
+def minibot(path=None):
+    """Return seed 004's NeXCOM miniBOT from its DH table (config/minibot_dh.yaml)."""
+    return load_dh_yaml(path or os.path.join(CONFIG_DIR, 'minibot_dh.yaml'))

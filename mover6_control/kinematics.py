@@ -1,5 +1,16 @@
-"""Forward kinematics of an ``ArmModel``: single and batched."""
+"""
+Forward and velocity kinematics of an ``ArmModel``: poses, Jacobian, rates, statics.
 
+Twist ordering: every twist, Jacobian row block and wrench here is ``[linear; angular]``, all in
+the base frame. ``J = jacobian(arm, q)`` (6, n) maps joint rates ``qd`` [rad/s] to
+``[v; w]`` where ``v`` [m/s] is the velocity of the tip-link origin and ``w`` [rad/s] the
+angular velocity (seed 004's ``eta = (v, omega)``). A wrench is ``[f; m]``: force [N] at the
+tip-link origin and moment [N m], so the joint torques that balance it are ``J^T [f; m]``
+(seed 002, eq. 20).
+"""
+
+from mover6_control.errors import InvalidInputError
+from mover6_control.rotations import as_finite_array
 import numpy as np
 
 
@@ -17,28 +28,68 @@ def axis_rotations(axes, q):
     return np.eye(3) + s * K + (1.0 - c) * (K @ K)
 
 
+def _skew4(axis):
+    """Return 4x4 matrices ``K`` and ``K @ K`` of the cross-product matrix of ``axis`` (3,)."""
+    K = np.zeros((4, 4))
+    K[0, 1], K[0, 2] = -axis[2], axis[1]
+    K[1, 0], K[1, 2] = axis[2], -axis[0]
+    K[2, 0], K[2, 1] = -axis[1], axis[0]
+    return K, K @ K
+
+
+_CHUNK = 4096  # samples per block: keeps the working set in cache
+
+
+def _chain(arm, Q, keep_frames):
+    """
+    Multiply out the chain for configurations ``Q`` (m, n): frames (m, n + 1, 4, 4) or tips.
+
+    Vectorised without per-sample matrix products: with Rodrigues,
+    ``T O Rot(k, q) = T O + sin(q) T (O K) + (1 - cos(q)) T (O K^2)``, and ``T (O K)`` for a
+    block of samples is one (3m, 4) x (4, 4) product. Only the top 3 rows are carried.
+    """
+    Q = as_finite_array(Q, (None, arm.n_joints), 'configurations')
+    m, n = Q.shape
+    out = np.zeros((m, n + 1, 4, 4) if keep_frames else (m, 4, 4))
+    out[..., 3, 3] = 1.0
+    # T O_i Rot_i = T O_i + sin(q_i) T (O_i K_i) + (1 - cos(q_i)) T (O_i K_i^2).
+    products = []
+    for origin, axis in zip(arm.origins, arm.axes):
+        K, KK = _skew4(axis)
+        products.append((origin, origin @ K, origin @ KK))
+    for lo in range(0, m, _CHUNK):
+        q = Q[lo:lo + _CHUNK]
+        k = len(q)
+        s = np.sin(q)
+        c1 = 1.0 - np.cos(q)
+        T = np.broadcast_to(np.eye(4)[:3], (k, 3, 4))
+        for i in range(n):
+            O, OK, OKK = products[i]
+            flat = T.reshape(-1, 4)
+            T = ((flat @ O).reshape(k, 3, 4) + s[:, i, None, None] * (flat @ OK).reshape(k, 3, 4)
+                 + c1[:, i, None, None] * (flat @ OKK).reshape(k, 3, 4))
+            if keep_frames:
+                out[lo:lo + k, i, :3] = T
+        tip = (T.reshape(-1, 4) @ arm.tool).reshape(k, 3, 4)
+        if keep_frames:
+            out[lo:lo + k, n, :3] = tip
+        else:
+            out[lo:lo + k, :3] = tip
+    return out
+
+
 def fk_frames_batch(arm, Q):
     """
     Return the frame of every joint and the tip, (m, n + 1, 4, 4), for configurations (m, n).
 
     Frame i (i < n) is joint i's frame after its rotation; frame n is the tip link.
     """
-    Q = np.asarray(Q, dtype=float)
-    m, n = Q.shape
-    R = axis_rotations(arm.axes, Q)              # (m, n, 3, 3)
-    frames = np.empty((m, n + 1, 4, 4))
-    T = np.broadcast_to(np.eye(4), (m, 4, 4)).copy()
-    for i in range(n):
-        T = T @ arm.origins[i]
-        T[:, :3, :3] = T[:, :3, :3] @ R[:, i]
-        frames[:, i] = T
-    frames[:, n] = T @ arm.tool
-    return frames
+    return _chain(arm, Q, keep_frames=True)
 
 
 def fk_batch(arm, Q):
     """Return ``T_base_tip`` (m, 4, 4) for configurations ``Q`` (m, n) [rad]."""
-    return fk_frames_batch(arm, Q)[:, -1]
+    return _chain(arm, Q, keep_frames=False)
 
 
 def fk(arm, q):
@@ -51,3 +102,77 @@ def fk_frames(arm, q):
     """Return every joint frame and the tip frame (n + 1, 4, 4) for ``q`` (n,) [rad]."""
     q = arm.check_q(q)
     return fk_frames_batch(arm, q[None, :])[0]
+
+
+def jacobian_batch(arm, Q):
+    """
+    Return geometric Jacobians (m, 6, n) in the base frame for configurations ``Q`` (m, n).
+
+    Column i is ``[z_i x (p_tip - o_i); z_i]`` with ``z_i`` joint i's unit axis and ``o_i`` a
+    point on it, both in the base frame.
+    """
+    frames = fk_frames_batch(arm, Q)
+    n = arm.n_joints
+    z = np.einsum('mnij,nj->mni', frames[:, :n, :3, :3], arm.axes)   # (m, n, 3)
+    o = frames[:, :n, :3, 3]
+    p = frames[:, n, None, :3, 3]
+    J = np.empty((len(frames), 6, n))
+    J[:, :3] = np.cross(z, p - o).transpose(0, 2, 1)
+    J[:, 3:] = z.transpose(0, 2, 1)
+    return J
+
+
+def jacobian(arm, q):
+    """Return the geometric Jacobian (6, n) at ``q`` (n,) [rad]: rows ``[v; w]``, base frame."""
+    q = arm.check_q(q)
+    return jacobian_batch(arm, q[None, :])[0]
+
+
+def singular_values(arm, q):
+    """Return the singular values (min(6, n),) of the Jacobian at ``q``, largest first."""
+    return np.linalg.svd(jacobian(arm, q), compute_uv=False)
+
+
+def manipulability(arm, q):
+    """Return Yoshikawa's manipulability ``sqrt(det(J J^T))`` at ``q`` (0 at a singularity)."""
+    return float(np.prod(singular_values(arm, q)))
+
+
+def condition_number(arm, q):
+    """
+    Return the Jacobian's condition number ``s_max / s_min`` at ``q`` (inf when singular).
+
+    The rows mix [m/s] and [rad/s], so the figure depends on the length unit (metres here), as
+    it does in MoveIt Servo, whose thresholds (17 slow down, 30 halt) use the same Jacobian.
+    """
+    s = singular_values(arm, q)
+    return float(s[0] / s[-1]) if s[-1] > 0.0 else float('inf')
+
+
+def joint_rates(arm, q, twist, damping=1e-3):
+    """
+    Return joint rates ``qd`` (n,) [rad/s] that produce ``twist`` = [v; w] [m/s; rad/s].
+
+    Damped least squares: ``qd = J^T (J J^T + damping^2 I)^-1 twist``; ``damping`` = 0 gives
+    the Moore-Penrose pseudo-inverse (seed 004's ``pinv(J) @ twist``). Damping keeps the rates
+    bounded near a singularity at the price of a small twist error there.
+    """
+    twist = as_finite_array(twist, (6,), 'twist')
+    if not np.isfinite(damping) or damping < 0.0:
+        raise InvalidInputError(f'damping must be finite and >= 0, got {damping}')
+    J = jacobian(arm, q)
+    if damping == 0.0:
+        return np.linalg.pinv(J) @ twist
+    return J.T @ np.linalg.solve(J @ J.T + damping ** 2 * np.eye(6), twist)
+
+
+def joint_torques(arm, q, wrench):
+    """
+    Return joint torques ``tau = J^T wrench`` (n,) [N m] at ``q`` [rad].
+
+    ``wrench`` (6,) is ``[f; m]``: force [N] acting at the tip-link origin and moment [N m], both
+    in the base frame. These are the torques the joints must exert to hold the arm against that
+    wrench applied by the arm on its environment (or to balance ``-wrench`` applied on it).
+    """
+    wrench = as_finite_array(wrench, (6,), 'wrench')
+    return jacobian(arm, q).T @ wrench

@@ -1,0 +1,316 @@
+"""
+Closed-form inverse kinematics of 6R arms with a spherical wrist: every solution, vectorised.
+
+The solver is derived from the model's own geometry (product of exponentials at ``q = 0``), not
+written for one robot. It applies to any 6R ``ArmModel`` whose
+
+- axes 4, 5 and 6 meet in one point (the wrist centre; its position depends on q1..q3 only),
+- axes 2 and 3 are parallel (a planar 2R elbow after the base joint), axis 1 is not.
+
+That covers the Mover6, seed 004's miniBOT and most industrial arms. Steps (Paden-Kahan
+subproblems on the space-frame screws ``omega_i``, ``r_i`` at ``q = 0``):
+
+1. wrist centre ``p = T @ w_tool`` (``w_tool``: the wrist centre in the tip frame, constant);
+2. q1: joints 2 and 3 keep the wrist centre's component along axis 2 fixed, so
+   ``a cos q1 + b sin q1 = c`` (two branches, shoulder left / right);
+3. q3: rotations about axis 2 keep the distance to that axis, so the law of cosines in the plane
+   normal to it gives q3 (two branches, elbow up / down); q2 then turns the point into place;
+4. q4, q5: ``Rot4 Rot5 omega_6 = R_w omega_6`` (subproblem 2, two branches, wrist flip), q6 from
+   what is left (subproblem 1).
+
+Up to 8 candidates per pose. Every candidate is checked by forward kinematics, and those out of
+joint limits are dropped (after trying ``q +- 2 pi``) when ``within_limits`` is set. At a wrist
+singularity (axes 4 and 6 aligned) only q4 + q6 matters: q4 is taken from ``q_ref``; likewise q1
+at a shoulder singularity (wrist centre on axis 1).
+"""
+
+from dataclasses import dataclass
+
+from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics import fk_batch, fk_frames
+from mover6_control.rotations import as_finite_array, validate_transform
+import numpy as np
+
+N_BRANCHES = 8
+VERIFY_TOL = 1e-6        # [m] and [rad]: an FK round trip worse than this is not a solution
+_PARALLEL_TOL = 1e-9     # |omega_a x omega_b| under this: parallel axes
+_POINT_TOL = 1e-7        # [m] axes that pass closer than this meet
+
+
+@dataclass(frozen=True, eq=False)
+class WristGeometry:
+    """Space-frame screws at ``q = 0`` of a 6R arm that the closed form can solve."""
+
+    omega: np.ndarray         # (6, 3) unit joint axes in the base frame at q = 0
+    r: np.ndarray             # (6, 3) a point on each axis [m]
+    M: np.ndarray             # (4, 4) tip pose at q = 0
+    wrist_point: np.ndarray   # (3,) wrist centre at q = 0, base frame [m]
+    wrist_in_tip: np.ndarray  # (3,) wrist centre in the tip frame [m] (constant)
+    x6: np.ndarray            # (3,) a unit vector normal to omega_6
+
+
+def _dot(a, b):
+    """Return the dot product over the last axis."""
+    return np.einsum('...i,...i->...', a, b)
+
+
+def _skew(w):
+    """Return the matrix ``K`` with ``K v = w x v``."""
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def _times(v, A):
+    """Return ``A @ v`` for vectors ``v`` (..., 3) and a constant (3, 3) ``A``, as one product."""
+    return (v.reshape(-1, 3) @ A.T).reshape(v.shape)
+
+
+def _rotate(w, theta, v):
+    """Rotate vectors ``v`` (..., 3) about unit ``w`` (3,) by ``theta`` (...) [rad]."""
+    K = _skew(w)
+    return (v + np.sin(theta)[..., None] * _times(v, K)
+            + (1.0 - np.cos(theta))[..., None] * _times(v, K @ K))
+
+
+def _subproblem1(w, u, v):
+    """Return the angle about ``w`` that turns ``u`` onto ``v`` and ``|u|`` normal to ``w``."""
+    P = np.eye(3) - np.outer(w, w)
+    up = _times(u, P)
+    wu = _times(up, _skew(w))
+    return (np.arctan2(_dot(wu, v), _dot(up, v)), np.sqrt(_dot(up, up)))
+
+
+def _cos_sin(a, b, c, tol):
+    """Solve ``a cos t + b sin t = c``: both roots (..., 2), solvable mask, ``hypot(a, b)``."""
+    rho = np.hypot(a, b)
+    safe = np.where(rho > tol, rho, 1.0)
+    ok = np.abs(c) <= rho + tol
+    delta = np.arccos(np.clip(c / safe, -1.0, 1.0))
+    phi = np.arctan2(b, a)
+    return np.stack([phi + delta, phi - delta], axis=-1), ok, rho
+
+
+def wrist_geometry(arm):
+    """
+    Return the ``WristGeometry`` of ``arm`` or raise ``InvalidInputError`` saying what is missing.
+
+    Requires 6 revolute joints, axes 4-6 meeting in a point, axes 2 and 3 parallel and axis 1
+    not parallel to them.
+    """
+    if arm.n_joints != 6:
+        raise InvalidInputError(
+            f'closed-form IK needs a 6-joint arm, {arm.name} has {arm.n_joints}')
+    frames = fk_frames(arm, np.zeros(6))
+    omega = np.einsum('nij,nj->ni', frames[:6, :3, :3], arm.axes)
+    r = frames[:6, :3, 3].copy()
+    # Least-squares point nearest to the three wrist axes.
+    A = np.zeros((3, 3))
+    rhs = np.zeros(3)
+    for i in (3, 4, 5):
+        P = np.eye(3) - np.outer(omega[i], omega[i])
+        A += P
+        rhs += P @ r[i]
+    if np.linalg.norm(np.cross(omega[3], omega[4])) < 1e-6 or np.linalg.norm(
+            np.cross(omega[4], omega[5])) < 1e-6:
+        raise InvalidInputError(f'{arm.name}: neighbouring wrist axes are parallel; '
+                                'no spherical wrist (use ik_numeric)')
+    centre = np.linalg.solve(A, rhs)
+    for i in (3, 4, 5):
+        off = (centre - r[i]) - np.dot(centre - r[i], omega[i]) * omega[i]
+        if np.linalg.norm(off) > _POINT_TOL:
+            raise InvalidInputError(
+                f'{arm.name}: axes 4, 5, 6 do not meet in one point (axis {i + 1} misses it by '
+                f'{np.linalg.norm(off):.3g} m); no spherical wrist (use ik_numeric)')
+    if np.linalg.norm(np.cross(omega[1], omega[2])) > _PARALLEL_TOL:
+        raise InvalidInputError(
+            f'{arm.name}: axes 2 and 3 are not parallel; this closed form needs a planar elbow '
+            '(use ik_numeric)')
+    if np.linalg.norm(np.cross(omega[0], omega[1])) < 1e-6:
+        raise InvalidInputError(f'{arm.name}: axis 1 is parallel to axis 2 (use ik_numeric)')
+    w2 = omega[1]
+    e = (r[2] - r[1]) - np.dot(r[2] - r[1], w2) * w2
+    u = (centre - r[2]) - np.dot(centre - r[2], w2) * w2
+    if np.linalg.norm(e) < _POINT_TOL or np.linalg.norm(u) < _POINT_TOL:
+        raise InvalidInputError(f'{arm.name}: degenerate elbow (zero link length)')
+    M = frames[6]
+    x6 = np.cross(omega[5], [1.0, 0.0, 0.0])
+    if np.linalg.norm(x6) < 0.5:
+        x6 = np.cross(omega[5], [0.0, 1.0, 0.0])
+    geometry = WristGeometry(omega=omega, r=r, M=M, wrist_point=centre,
+                             wrist_in_tip=M[:3, :3].T @ (centre - M[:3, 3]),
+                             x6=x6 / np.linalg.norm(x6))
+    return geometry
+
+
+def has_spherical_wrist(arm):
+    """Return True when ``ik_closed_form`` can solve ``arm``."""
+    try:
+        wrist_geometry(arm)
+    except InvalidInputError:
+        return False
+    return True
+
+
+def _wrap(q):
+    """Wrap angles to [-pi, pi)."""
+    return (q + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def _into_limits(arm, Q):
+    """Shift each angle by +-2 pi when that brings it inside its joint limits."""
+    lo, hi = arm.lower, arm.upper
+    up = Q + 2.0 * np.pi
+    down = Q - 2.0 * np.pi
+    Q = np.where((Q < lo) & (up >= lo) & (up <= hi), up, Q)
+    return np.where((Q > hi) & (down >= lo) & (down <= hi), down, Q)
+
+
+def pose_errors_batch(T_goal, T):
+    """
+    Return position [m] and orientation [rad] errors between poses (..., 4, 4).
+
+    The orientation error is the angle of ``R_goal^T R``, from the chord
+    ``|R - R_goal|_F = 2 sqrt(2) sin(angle / 2)``, accurate for small angles.
+    """
+    dp = np.linalg.norm(T[..., :3, 3] - T_goal[..., :3, 3], axis=-1)
+    chord = np.linalg.norm(T[..., :3, :3] - T_goal[..., :3, :3], axis=(-2, -1))
+    return dp, 2.0 * np.arcsin(np.clip(chord / (2.0 * np.sqrt(2.0)), 0.0, 1.0))
+
+
+def _candidates(geo, T, q_ref):
+    """Return all 8 candidate solutions (m, 8, 6) and a mask of solvable ones (m, 8)."""
+    m = len(T)
+    om, r = geo.omega, geo.r
+    w1, w2, w3, w4, w5, w6 = om
+    R_goal = T[:, :3, :3]
+    p = np.einsum('mij,j->mi', R_goal, geo.wrist_in_tip) + T[:, :3, 3]      # (m, 3)
+    p0 = geo.wrist_point
+    # q1: w2 . (Rot(w1, -q1)(p - r1) + r1) = w2 . p0
+    v = p - r[0]
+    v1 = _dot(v, w1)
+    s12 = np.dot(w1, w2)
+    a = _dot(v, w2) - v1 * s12
+    b = -_dot(np.cross(w1, v), w2)
+    c = np.dot(w2, p0 - r[0]) - v1 * s12
+    q1, ok1, rho1 = _cos_sin(a, b, c, 1e-12)
+    shoulder = rho1 < 1e-9
+    q1 = np.where(shoulder[:, None], q_ref[:, None, 0], q1)
+    ok1 = ok1 | (shoulder & (np.abs(c) < 1e-9))
+    p1 = r[0] + _rotate(w1, -q1, (p - r[0])[:, None, :])                    # (m, 2, 3)
+    # q3: distance of the wrist centre to axis 2, law of cosines about axis 3.
+    e = (r[2] - r[1]) - np.dot(r[2] - r[1], w2) * w2
+    u = (p0 - r[2]) - np.dot(p0 - r[2], w2) * w2
+    d_vec = (p1 - r[1]) - _dot(p1 - r[1], w2)[..., None] * w2
+    c3 = (_dot(d_vec, d_vec) - np.dot(e, e) - np.dot(u, u)) / 2.0
+    q3, ok3, _ = _cos_sin(np.dot(e, u), np.dot(e, np.cross(w3, u)), c3, 1e-12)  # (m, 2, 2)
+    x = r[2] + _rotate(w3, q3, np.broadcast_to(p0 - r[2], q3.shape + (3,)))
+    q2, _ = _subproblem1(w2, x - r[1], p1[:, :, None, :] - r[1])             # (m, 2, 2)
+    q1 = np.broadcast_to(q1[:, :, None], q2.shape)
+    # The wrist must turn R_w = R03^T R_goal M^T; only R_w w6 and R_w x6 are needed, and
+    # R03^T v = Rot(w3, -q3) Rot(w2, -q2) Rot(w1, -q1) v.
+    M_R = geo.M[:3, :3]
+    goal = R_goal.reshape(-1, 3) @ np.stack([M_R.T @ w6, M_R.T @ geo.x6], axis=1)
+    goal = goal.reshape(m, 1, 1, 3, 2).transpose(0, 1, 2, 4, 3)              # (m, 1, 1, 2, 3)
+    goal = _rotate(w1, -q1[..., None], np.broadcast_to(goal, q2.shape + (2, 3)))
+    goal = _rotate(w2, -q2[..., None], goal)
+    goal = _rotate(w3, -q3[..., None], goal)                                  # (m, 2, 2, 2, 3)
+    tv, tx = goal[..., 0, :], goal[..., 1, :]
+    # q4, q5: Rot4 Rot5 w6 = R_w w6 (subproblem 2 with axes through the wrist centre).
+    s45 = np.dot(w4, w5)
+    den = s45 ** 2 - 1.0
+    alpha = (s45 * np.dot(w5, w6) - _dot(w4, tv)) / den
+    beta = (s45 * _dot(w4, tv) - np.dot(w5, w6)) / den
+    n45 = np.cross(w4, w5)
+    gamma2 = (1.0 - alpha ** 2 - beta ** 2 - 2.0 * alpha * beta * s45) / np.dot(n45, n45)
+    ok_w = gamma2 > -1e-9
+    gamma = np.sqrt(np.maximum(gamma2, 0.0))
+    gamma = np.stack([gamma, -gamma], axis=-1)                                # (m, 2, 2, 2)
+    z = (alpha[..., None, None] * w4 + beta[..., None, None] * w5
+         + gamma[..., None] * n45)                                            # (m, 2, 2, 2, 3)
+    q5, _ = _subproblem1(w5, np.broadcast_to(w6, z.shape), z)
+    tv = np.broadcast_to(tv[..., None, :], z.shape)
+    q4, lever = _subproblem1(w4, z, tv)
+    q4 = np.where(lever < 1e-9, q_ref[:, None, None, None, 3], q4)
+    # q6: Rot6 x6 = Rot5^T Rot4^T R_w x6.
+    target = _rotate(w5, -q5, _rotate(w4, -q4, np.broadcast_to(tx[..., None, :], z.shape)))
+    q6, _ = _subproblem1(w6, np.broadcast_to(geo.x6, target.shape), target)
+    Q123 = np.stack([q1, q2, q3], axis=-1)                                    # (m, 2, 2, 3)
+    Q123 = np.broadcast_to(Q123[..., None, :], q4.shape + (3,))
+    Q = np.concatenate([Q123, q4[..., None], q5[..., None], q6[..., None]], axis=-1)
+    ok = ok1[:, None, None, None] & ok3[:, :, None, None] & ok_w[..., None]
+    return Q.reshape(m, N_BRANCHES, 6), np.broadcast_to(ok, q4.shape).reshape(m, N_BRANCHES)
+
+
+def _as_q_ref(arm, q_ref, m):
+    """Return the reference configurations (m, n) used at singular poses."""
+    if q_ref is None:
+        return np.zeros((m, arm.n_joints))
+    q_ref = np.asarray(q_ref, dtype=float)
+    if q_ref.ndim == 1:
+        q_ref = np.broadcast_to(arm.check_q(q_ref, 'q_ref'), (m, arm.n_joints))
+    return as_finite_array(q_ref, (m, arm.n_joints), 'q_ref')
+
+
+def ik_closed_form_batch(arm, T, within_limits=True, q_ref=None, tol=VERIFY_TOL,
+                         chunk=1024):
+    """
+    Solve many poses at once: ``T`` (m, 4, 4) -> ``(Q (m, 8, 6), valid (m, 8))``.
+
+    ``Q[k, b]`` is branch ``b`` of pose ``k`` [rad]; ``valid`` marks the branches that reproduce
+    the pose by FK within ``tol`` ([m] and [rad]) and, with ``within_limits``, respect the joint
+    limits. Poses are checked for shape and finiteness only (no orthonormality test: use
+    ``ik_closed_form`` for one untrusted pose). ``q_ref`` (6,) or (m, 6) picks q1 and q4 at
+    shoulder and wrist singularities. Raises ``InvalidInputError`` for arms the closed form
+    does not cover. ``chunk`` poses are solved at a time (cache-sized blocks).
+    """
+    geo = wrist_geometry(arm)
+    T = as_finite_array(T, (None, 4, 4), 'poses')
+    m = len(T)
+    q_ref = _as_q_ref(arm, q_ref, m)
+    Q = np.empty((m, N_BRANCHES, 6))
+    ok = np.empty((m, N_BRANCHES), dtype=bool)
+    for lo in range(0, m, chunk):
+        sl = slice(lo, lo + chunk)
+        Q[sl], ok[sl] = _verified(arm, geo, T[sl], q_ref[sl], within_limits, tol)
+    return Q, ok
+
+
+def _verified(arm, geo, T, q_ref, within_limits, tol):
+    """Return the candidates of a block of poses and the mask of verified ones."""
+    m = len(T)
+    Q, ok = _candidates(geo, T, q_ref)
+    Q = _wrap(Q)
+    if within_limits:
+        Q = _into_limits(arm, Q)
+    # FK check on squared figures (no roots): |dp|^2 < tol^2 and the rotation chord
+    # |R - R_goal|_F^2 = 8 sin^2(angle / 2) < 8 sin^2(tol / 2).
+    diff = fk_batch(arm, Q.reshape(-1, 6))[:, :3].reshape(m, N_BRANCHES, 3, 4) - T[:, None, :3]
+    sq = diff * diff
+    ok = (ok & (sq[..., 3].sum(-1) < tol ** 2)
+          & (sq[..., :3].sum((-2, -1)) < 8.0 * np.sin(tol / 2.0) ** 2))
+    if within_limits:
+        inside = np.all((Q >= arm.lower - 1e-9) & (Q <= arm.upper + 1e-9), axis=-1)
+        ok = ok & inside
+    return Q, ok
+
+
+def ik_closed_form(arm, T, within_limits=True, q_ref=None, tol=VERIFY_TOL):
+    """
+    Return every solution (k, 6) [rad] for the pose ``T`` (4, 4); k = 0 when there is none.
+
+    Each row reproduces ``T`` by FK within ``tol``; duplicates (the branches that meet at a
+    singularity) appear once. With ``within_limits`` only solutions inside the joint limits are
+    kept. Rows are sorted by distance to ``q_ref`` (default: zeros), nearest first.
+    Raises ``InvalidInputError`` for a bad pose or an arm without a spherical wrist.
+    """
+    T = validate_transform(T, 'pose')
+    ref = np.zeros(arm.n_joints) if q_ref is None else arm.check_q(q_ref, 'q_ref')
+    Q, ok = ik_closed_form_batch(arm, T[None], within_limits, ref, tol)
+    sols = Q[0][ok[0]]
+    unique = []
+    for q in sols:
+        if all(np.max(np.abs(_wrap(q - other))) > 1e-9 for other in unique):
+            unique.append(q)
+    if not unique:
+        return np.zeros((0, arm.n_joints))
+    out = np.array(unique)
+    return out[np.argsort(np.linalg.norm(out - ref, axis=1), kind='stable')]
