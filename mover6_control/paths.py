@@ -1,0 +1,282 @@
+"""
+Cartesian pose paths: sequences of tool poses ``T_base_tool`` (n, 4, 4) for path IK.
+
+Positions [m] follow the path's curve; orientations are interpolated by SLERP (scipy's
+``Slerp``) along the same parameter. Every builder samples either ``n`` poses, or as few as
+keep each step within ``max_step`` [m] and ``max_angle_step`` [rad] (give one of the two
+forms). The first pose is the start and the last the goal, exactly.
+
+Shapes: linear (seed 000 eq. 3-10), parabolic through a lifted mid-point (seed 000 eq. 11-15),
+cubic spline through any number of via poses (seed 000 section 2.3.2), circular arc through a
+via point, directional move and hold (seed 004 appendix A).
+"""
+
+from mover6_control.errors import InvalidInputError
+from mover6_control.rotations import (as_finite_array, euler_zyx_to_matrix, make_transform,
+                                      rotation_angle_between, validate_transform)
+import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.spatial.transform import Rotation, Slerp
+
+# Points closer than this [m] and rotations smaller than this [rad] count as coincident.
+COINCIDENT_TOL = 1e-9
+# Dense samples used to measure curve length and resample a curve by arc length.
+_DENSE = 4001
+
+
+def _count(n, max_step, max_angle_step, length, angle, rate_scale=1.0):
+    """Return the number of poses: ``n``, or enough to keep steps within the given maxima."""
+    if n is not None:
+        if max_step is not None or max_angle_step is not None:
+            raise InvalidInputError('give either n or max_step / max_angle_step, not both')
+        if int(n) != n or n < 2:
+            raise InvalidInputError(f'n must be an integer >= 2, got {n}')
+        return int(n)
+    if max_step is None and max_angle_step is None:
+        raise InvalidInputError('give n, max_step [m] or max_angle_step [rad]')
+    steps = 1
+    for limit, amount, name in ((max_step, length * rate_scale, 'max_step'),
+                                (max_angle_step, angle, 'max_angle_step')):
+        if limit is None:
+            continue
+        limit = float(limit)
+        if not np.isfinite(limit) or limit <= 0.0:
+            raise InvalidInputError(f'{name} must be positive, got {limit}')
+        steps = max(steps, int(np.ceil(amount / limit - 1e-12)))
+    return steps + 1
+
+
+def _poses(positions, rotations):
+    T = np.tile(np.eye(4), (positions.shape[0], 1, 1))
+    T[:, :3, 3] = positions
+    T[:, :3, :3] = rotations.as_matrix()
+    return T
+
+
+def _slerp(keys, R_keys, params):
+    """Return rotations at ``params`` SLERPed between key rotations (3, 3) at ``keys``."""
+    return Slerp(np.asarray(keys, dtype=float), Rotation.from_matrix(np.asarray(R_keys)))(
+        np.clip(params, keys[0], keys[-1]))
+
+
+def _pin_ends(T, T_start, T_goal):
+    T[0] = T_start
+    T[-1] = T_goal
+    return T
+
+
+def _check_distinct(T_a, T_b, what):
+    dp = np.linalg.norm(T_a[:3, 3] - T_b[:3, 3])
+    da = rotation_angle_between(T_a[:3, :3], T_b[:3, :3])
+    if dp < COINCIDENT_TOL and da < COINCIDENT_TOL:
+        raise InvalidInputError(f'{what} coincide: there is no path between them')
+    return dp, da
+
+
+def linear_path(T_start, T_goal, n=None, max_step=None, max_angle_step=None):
+    """
+    Return poses (n, 4, 4) on the straight line from ``T_start`` to ``T_goal``.
+
+    Position ``p(t) = (1 - t) p_start + t p_goal`` (seed 000 eq. 4) and SLERPed orientation,
+    ``t`` evenly spaced in [0, 1].
+    """
+    T_start = validate_transform(T_start, 'T_start')
+    T_goal = validate_transform(T_goal, 'T_goal')
+    length, angle = _check_distinct(T_start, T_goal, 'start and goal poses')
+    count = _count(n, max_step, max_angle_step, length, angle)
+    t = np.linspace(0.0, 1.0, count)
+    pos = (1.0 - t)[:, None] * T_start[:3, 3] + t[:, None] * T_goal[:3, 3]
+    rot = _slerp([0.0, 1.0], [T_start[:3, :3], T_goal[:3, :3]], t)
+    return _pin_ends(_poses(pos, rot), T_start, T_goal)
+
+
+def parabola_coefficients(p_start, p_mid, p_goal):
+    """
+    Return (a, b, c) (3,) each with ``r(t) = a t^2 + b t + c`` through the three points.
+
+    ``r(0) = p_start``, ``r(0.5) = p_mid``, ``r(1) = p_goal`` (seed 000 eq. 12-15).
+    """
+    M = np.array([[0.0, 0.0, 1.0], [1.0, 1.0, 1.0], [0.25, 0.5, 1.0]])
+    rhs = np.vstack([as_finite_array(p_start, (3,), 'p_start'),
+                     as_finite_array(p_goal, (3,), 'p_goal'),
+                     as_finite_array(p_mid, (3,), 'p_mid')])
+    coeff = np.linalg.solve(M, rhs)
+    return coeff[0], coeff[1], coeff[2]
+
+
+def parabolic_path(T_start, T_goal, peak_height, n=None, max_step=None, max_angle_step=None):
+    """
+    Return poses (n, 4, 4) on seed 000's parabola from ``T_start`` to ``T_goal``.
+
+    The curve passes at ``t = 0.5`` through the mid-point of start and goal raised by
+    ``peak_height`` [m] along the base z axis (seed 000 eq. 11-15); ``t`` is evenly spaced.
+    """
+    T_start = validate_transform(T_start, 'T_start')
+    T_goal = validate_transform(T_goal, 'T_goal')
+    peak = float(as_finite_array(peak_height, (), 'peak_height'))
+    _check_distinct(T_start, T_goal, 'start and goal poses')
+    p0, p1 = T_start[:3, 3], T_goal[:3, 3]
+    mid = 0.5 * (p0 + p1) + np.array([0.0, 0.0, peak])
+    a, b, c = parabola_coefficients(p0, mid, p1)
+    # |r'(t)| = |2 a t + b| is convex in t: its largest value is at an end.
+    top_rate = max(np.linalg.norm(b), np.linalg.norm(2.0 * a + b))
+    angle = rotation_angle_between(T_start[:3, :3], T_goal[:3, :3])
+    count = _count(n, max_step, max_angle_step, top_rate, angle)
+    t = np.linspace(0.0, 1.0, count)
+    pos = np.outer(t ** 2, a) + np.outer(t, b) + c
+    rot = _slerp([0.0, 1.0], [T_start[:3, :3], T_goal[:3, :3]], t)
+    return _pin_ends(_poses(pos, rot), T_start, T_goal)
+
+
+def _resample_by_length(curve, count):
+    """Return curve parameters (count,) in [0, 1] evenly spaced in arc length, and the length."""
+    u = np.linspace(0.0, 1.0, _DENSE)
+    pts = curve(u)
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    if count is None:
+        return None, float(cum[-1])
+    return np.interp(np.linspace(0.0, cum[-1], count), cum, u), float(cum[-1])
+
+
+def spline_path(T_start, T_vias, T_goal, n=None, max_step=None, max_angle_step=None):
+    """
+    Return poses (n, 4, 4) on a cubic spline through ``T_start``, every via pose and ``T_goal``.
+
+    ``T_vias`` is (k, 4, 4) with any k >= 0. The spline is C2 ('natural' ends) in a chord-length
+    parameter, sampled evenly in arc length; orientation is SLERPed between consecutive key
+    poses, reaching each via orientation at its via point.
+    """
+    T_start = validate_transform(T_start, 'T_start')
+    T_goal = validate_transform(T_goal, 'T_goal')
+    vias = as_finite_array(T_vias, (None, 4, 4), 'T_vias')
+    keys = [T_start] + [validate_transform(T, f'T_vias[{i}]') for i, T in enumerate(vias)]
+    keys.append(T_goal)
+    for i in range(len(keys) - 1):
+        _check_distinct(keys[i], keys[i + 1], f'key poses {i} and {i + 1}')
+    P = np.array([T[:3, 3] for T in keys])
+    R = np.array([T[:3, :3] for T in keys])
+    chords = np.linalg.norm(np.diff(P, axis=0), axis=1)
+    turns = np.array([rotation_angle_between(R[i], R[i + 1]) for i in range(len(keys) - 1)])
+    # Chord length, with a little of the turn so a pure rotation still advances the parameter.
+    steps = chords + 1e-3 * turns
+    u_keys = np.concatenate([[0.0], np.cumsum(steps)]) / steps.sum()
+    curve = CubicSpline(u_keys, P, axis=0, bc_type='natural')
+    _, length = _resample_by_length(curve, None)
+    count = _count(n, max_step, max_angle_step, length, turns.sum())
+    u, _ = _resample_by_length(curve, count)
+    if length < COINCIDENT_TOL:
+        u = np.linspace(0.0, 1.0, count)
+    rot = _slerp(u_keys, R, u)
+    return _pin_ends(_poses(curve(u), rot), T_start, T_goal)
+
+
+def circle_through(p_a, p_b, p_c):
+    """
+    Return (center (3,), radius [m], e1 (3,), e2 (3,), angle_b, angle_c) of the circle A-B-C.
+
+    A point at angle ``phi`` is ``center + radius (e1 cos phi + e2 sin phi)``; A is at 0 and
+    ``0 < angle_b < angle_c < 2 pi``. Collinear points have no circle: an error.
+    """
+    A = as_finite_array(p_a, (3,), 'start point')
+    B = as_finite_array(p_b, (3,), 'via point')
+    C = as_finite_array(p_c, (3,), 'goal point')
+    ab, ac = B - A, C - A
+    normal = np.cross(ab, ac)
+    scale = np.linalg.norm(ab) * np.linalg.norm(ac)
+    if scale < COINCIDENT_TOL ** 2 or np.linalg.norm(normal) < 1e-9 * scale \
+            or np.linalg.norm(C - B) < COINCIDENT_TOL:
+        raise InvalidInputError('arc points are collinear or coincide: no unique circle')
+    nn = normal @ normal
+    center = A + (np.cross(normal, ab) * (ac @ ac) + np.cross(ac, normal) * (ab @ ab)) / (2 * nn)
+    radius = float(np.linalg.norm(A - center))
+    e1 = (A - center) / radius
+    e2 = np.cross(normal / np.sqrt(nn), e1)
+
+    def angle(P):
+        d = P - center
+        return float(np.mod(np.arctan2(d @ e2, d @ e1), 2.0 * np.pi))
+
+    return center, radius, e1, e2, angle(B), angle(C)
+
+
+def arc_path(T_start, T_via, T_goal, n=None, max_step=None, max_angle_step=None):
+    """
+    Return poses (n, 4, 4) on the circular arc from ``T_start`` through a via point to ``T_goal``.
+
+    ``T_via`` is a pose (4, 4) or a point (3,) [m]. Samples are evenly spaced in angle. The
+    orientation is SLERPed from start to goal, through the via orientation at the via point
+    when a via pose is given.
+    """
+    T_start = validate_transform(T_start, 'T_start')
+    T_goal = validate_transform(T_goal, 'T_goal')
+    via = np.asarray(T_via, dtype=float)
+    T_via = validate_transform(via, 'T_via') if via.shape == (4, 4) else None
+    p_via = T_via[:3, 3] if T_via is not None else as_finite_array(via, (3,), 'T_via')
+    center, radius, e1, e2, ang_b, ang_c = circle_through(T_start[:3, 3], p_via, T_goal[:3, 3])
+    if T_via is None:
+        keys, R = [0.0, 1.0], [T_start[:3, :3], T_goal[:3, :3]]
+    else:
+        keys = [0.0, ang_b / ang_c, 1.0]
+        R = [T_start[:3, :3], T_via[:3, :3], T_goal[:3, :3]]
+    turn = sum(rotation_angle_between(R[i], R[i + 1]) for i in range(len(R) - 1))
+    count = _count(n, max_step, max_angle_step, radius * ang_c, turn)
+    t = np.linspace(0.0, 1.0, count)
+    phi = t * ang_c
+    pos = center + radius * (np.outer(np.cos(phi), e1) + np.outer(np.sin(phi), e2))
+    return _pin_ends(_poses(pos, _slerp(keys, R, t)), T_start, T_goal)
+
+
+def directional_path(T_start, direction, distance, n=None, max_step=None):
+    """
+    Return poses (n, 4, 4) moving ``distance`` [m] along ``direction`` (3,) in the base frame.
+
+    The orientation is held (seed 004's directional linear path).
+    """
+    T_start = validate_transform(T_start, 'T_start')
+    d = as_finite_array(direction, (3,), 'direction')
+    norm = np.linalg.norm(d)
+    if norm < COINCIDENT_TOL:
+        raise InvalidInputError('direction must be a non-zero vector')
+    distance = float(as_finite_array(distance, (), 'distance'))
+    if distance <= 0.0:
+        raise InvalidInputError(f'distance must be positive, got {distance}')
+    T_goal = T_start.copy()
+    T_goal[:3, 3] += distance * d / norm
+    return linear_path(T_start, T_goal, n=n, max_step=max_step)
+
+
+def hold_path(T, n):
+    """Return ``n`` copies (n, 4, 4) of pose ``T``: stay put for n samples (seed 004)."""
+    T = validate_transform(T, 'T')
+    if int(n) != n or n < 1:
+        raise InvalidInputError(f'n must be an integer >= 1, got {n}')
+    return np.tile(T, (int(n), 1, 1))
+
+
+def concatenate(*paths):
+    """Join pose paths (k_i, 4, 4) end to start, dropping a pose that repeats the previous end."""
+    if not paths:
+        raise InvalidInputError('concatenate needs at least one path')
+    parts = [as_finite_array(paths[0], (None, 4, 4), 'paths[0]')]
+    for i, p in enumerate(paths[1:], start=1):
+        p = as_finite_array(p, (None, 4, 4), f'paths[{i}]')
+        if p.shape[0] and np.abs(p[0] - parts[-1][-1]).max() < COINCIDENT_TOL:
+            p = p[1:]
+        parts.append(p)
+    return np.concatenate(parts)
+
+
+def goal_relative_to_start(T_start, x, y, z, a, b, c):
+    """
+    Return the goal pose as seed 000's MATLAB builds it, rotation relative to the start.
+
+    Position X Y Z [m] is absolute; the rotation is ``R_start @ Rz(a) Ry(b) Rx(c)``. So ``a = b = c = 0`` keeps the start orientation (seed 000: ``tform2rotm(initial_Pos) *
+    eul2rotm([A, B, C])``).
+    """
+    T_start = validate_transform(T_start, 'T_start')
+    return make_transform([x, y, z], T_start[:3, :3] @ euler_zyx_to_matrix(a, b, c))
+
+
+def positions_of(poses):
+    """Return the positions (n, 3) [m] of poses (n, 4, 4)."""
+    return as_finite_array(poses, (None, 4, 4), 'poses')[:, :3, 3].copy()

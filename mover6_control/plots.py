@@ -1,0 +1,107 @@
+"""
+Plots as PNG files: time laws, joint trajectories against limits, desired vs realised 3D path.
+
+Uses matplotlib's object API with the Agg canvas (no pyplot, no display, no global state).
+Each function writes one PNG and returns its path.
+"""
+
+import os
+
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from mover6_control.errors import InvalidInputError
+from mover6_control.rotations import as_finite_array
+import numpy as np
+
+
+def _save(fig, path):
+    path = os.fspath(path)
+    folder = os.path.dirname(path)
+    if folder:
+        os.makedirs(folder, exist_ok=True)
+    FigureCanvasAgg(fig)
+    fig.savefig(path, dpi=100)
+    return path
+
+
+def plot_time_law(laws, path, n=501):
+    """
+    Plot ``s(tau)`` and its first three derivatives for each law (seed 002 Fig. 5).
+
+    ``laws`` is one time law, a sequence of them, or a dict label -> law.
+    """
+    if hasattr(laws, 'evaluate'):
+        laws = [laws]
+    items = list(laws.items()) if isinstance(laws, dict) else [(law.name, law) for law in laws]
+    if not items:
+        raise InvalidInputError('plot_time_law needs at least one law')
+    tau = np.linspace(0.0, 1.0, int(n))
+    fig = Figure(figsize=(10, 7))
+    axes = fig.subplots(2, 2).ravel()
+    labels = ['s(tau)', "s'(tau)", "s''(tau)", "s'''(tau)"]
+    for k, ax in enumerate(axes):
+        for label, law in items:
+            ax.plot(tau, law.evaluate(tau, k), label=label)
+        ax.set_xlabel('tau')
+        ax.set_ylabel(labels[k])
+        ax.grid(True)
+    axes[0].legend(fontsize='small')
+    fig.suptitle('Time laws and their derivatives')
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_joint_trajectories(t, Q, lower, upper, path, QD=None, QDD=None, names=None):
+    """
+    Plot joint positions (m, n) [rad] over ``t`` (m,) [s] with dashed joint limits (n,).
+
+    Velocity and acceleration panels are added when ``QD`` / ``QDD`` (m, n) are given
+    (seed 000 Fig. 5-7, seed 002 Fig. 6-10).
+    """
+    Q = as_finite_array(Q, (None, None), 'Q')
+    m, n = Q.shape
+    t = as_finite_array(t, (m,), 't')
+    lower = np.asarray(lower, dtype=float).reshape(n)
+    upper = np.asarray(upper, dtype=float).reshape(n)
+    names = list(names) if names is not None else [f'joint{i + 1}' for i in range(n)]
+    panels = [('position [rad]', Q)]
+    if QD is not None:
+        panels.append(('velocity [rad/s]', as_finite_array(QD, (m, n), 'QD')))
+    if QDD is not None:
+        panels.append(('acceleration [rad/s^2]', as_finite_array(QDD, (m, n), 'QDD')))
+    fig = Figure(figsize=(10, 3.2 * len(panels)))
+    axes = np.atleast_1d(fig.subplots(len(panels), 1, sharex=True))
+    colors = [f'C{i}' for i in range(n)]
+    for ax, (label, data) in zip(axes, panels):
+        for i in range(n):
+            ax.plot(t, data[:, i], color=colors[i], label=names[i])
+        ax.set_ylabel(label)
+        ax.grid(True)
+    for i in range(n):
+        for bound in (lower[i], upper[i]):
+            if np.isfinite(bound):
+                axes[0].axhline(bound, color=colors[i], linestyle='--', linewidth=0.8)
+    axes[0].legend(fontsize='small', ncol=min(n, 6))
+    axes[-1].set_xlabel('time [s]')
+    fig.suptitle('Joint trajectories (dashed: joint limits)')
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_path_3d(desired, realised, path, waypoints=None):
+    """Plot the desired tool path (k, 3) [m] against the realised one (m, 3) (seed 000 Fig. 1)."""
+    desired = as_finite_array(desired, (None, 3), 'desired')
+    realised = as_finite_array(realised, (None, 3), 'realised')
+    fig = Figure(figsize=(7, 6))
+    ax = fig.add_subplot(projection='3d')
+    ax.plot(*desired.T, 'b-', label='desired path')
+    ax.plot(*realised.T, 'r--', label='realised path')
+    if waypoints is not None:
+        wp = as_finite_array(waypoints, (None, 3), 'waypoints')
+        ax.scatter(*wp.T, color='g', s=12, label='waypoints')
+    ax.set_xlabel('x [m]')
+    ax.set_ylabel('y [m]')
+    ax.set_zlabel('z [m]')
+    ax.legend()
+    fig.tight_layout()
+    return _save(fig, path)
