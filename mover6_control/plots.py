@@ -105,3 +105,25 @@ def plot_path_3d(desired, realised, path, waypoints=None):
     ax.legend()
     fig.tight_layout()
     return _save(fig, path)
+
+
+def plot_joint_velocities(t, QD, velocity_limits, path, names=None):
+    """Plot joint velocities (m, n) [rad/s] over ``t`` (m,) [s] with dashed +- limits (n,)."""
+    QD = as_finite_array(QD, (None, None), 'QD')
+    m, n = QD.shape
+    t = as_finite_array(t, (m,), 't')
+    limits = np.broadcast_to(np.asarray(velocity_limits, dtype=float), (n,))
+    names = list(names) if names is not None else [f'joint{i + 1}' for i in range(n)]
+    fig = Figure(figsize=(10, 4))
+    ax = fig.add_subplot()
+    for i in range(n):
+        ax.plot(t, QD[:, i], color=f'C{i}', label=names[i])
+        for sign in (-1.0, 1.0):
+            ax.axhline(sign * limits[i], color=f'C{i}', linestyle='--', linewidth=0.8)
+    ax.set_xlabel('time [s]')
+    ax.set_ylabel('velocity [rad/s]')
+    ax.grid(True)
+    ax.legend(fontsize='small', ncol=min(n, 6))
+    fig.suptitle('Joint velocities (dashed: velocity limits)')
+    fig.tight_layout()
+    return _save(fig, path)
