@@ -5,12 +5,12 @@ Each test asserts on what really flowed: /joint_states from the MuJoCo bridge, /
 from the planner, the status topics.
 """
 
-from e2e_harness import Stack
 from mover6_control.arm import mover6
 from mover6_control.conversions import status_values
 from mover6_control.goal_cli import EXIT_REFUSED, GoalClient
 from mover6_control.kinematics import fk
 from mover6_control.rotations import pose_from_xyzabc
+from mover6_control.testing import Stack
 import numpy as np
 import pytest
 import rclpy
