@@ -1,0 +1,99 @@
+"""
+Goal-to-/joint_demands latency of the planner node over DDS (issue 7).
+
+Starts the planner as its own process, publishes /joint_states (home pose) from this process,
+sends /pose_goal linear goals and measures the time from publishing the goal to receiving the
+N x 6 /joint_demands, for 20, 100 and 1000 waypoints. Prints a table, writes
+bench/results/planner.json.
+"""
+
+import argparse
+import json
+import os
+import tempfile
+import time
+
+from geometry_msgs.msg import PoseStamped
+from mover6_control import conversions
+from mover6_control.arm import mover6
+from mover6_control.goal_cli import GoalClient
+from mover6_control.rotations import pose_from_xyzabc
+from mover6_control.testing import NodeProcess
+import numpy as np
+import rclpy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float32MultiArray
+
+RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
+GOALS = (pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0),
+         pose_from_xyzabc(0.30, -0.08, 0.32, 0.0, np.pi / 2, 0.0))
+
+
+def measure(client, n_waypoints, repeats):
+    """Return latencies [s] from goal publish to /joint_demands arrival."""
+    problem = client.set_planner_parameters({'n_waypoints': n_waypoints})
+    if problem:
+        raise RuntimeError(problem)
+    received = []
+    sub = client.create_subscription(Float32MultiArray, 'joint_demands',
+                                     lambda m: received.append(time.perf_counter()), 10)
+    latencies = []
+    for i in range(repeats):
+        received.clear()
+        msg = PoseStamped()
+        msg.header.frame_id = 'base_link'
+        msg.pose = conversions.matrix_to_pose(GOALS[i % 2])
+        t0 = time.perf_counter()
+        client.pose_pub.publish(msg)
+        if not client.spin_until(lambda: bool(received), 10.0):
+            raise RuntimeError(f'no /joint_demands for {n_waypoints} waypoints')
+        latencies.append(received[0] - t0)
+    client.destroy_subscription(sub)
+    return latencies
+
+
+def main(argv=None):
+    """Run the benchmark."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--quick', action='store_true', help='fewer repeats')
+    args = parser.parse_args(argv)
+    repeats = 10 if args.quick else 50
+    arm = mover6()
+    log_dir = tempfile.mkdtemp(prefix='bench_planner_')
+    planner = NodeProcess('planner', log_dir)
+    rclpy.init()
+    client = GoalClient(name='bench_planner')
+    state_pub = client.create_publisher(JointState, 'joint_states', 10)
+    home = conversions.make_joint_state(arm.joint_names, np.zeros(6), np.zeros(6))
+    client.create_timer(0.01, lambda: state_pub.publish(home))
+    results = {'repeats': repeats, 'rows': []}
+    try:
+        if not client.spin_until(lambda: client.planner_status is not None
+                                 and client.pose_pub.get_subscription_count() > 0, 30.0):
+            raise RuntimeError('planner did not come up:\n' + planner.tail())
+        client.spin_until(lambda: False, 0.5)   # let /joint_states reach the planner
+        print(f'{"waypoints":>10} {"median [ms]":>12} {"p95 [ms]":>10} {"max [ms]":>10}')
+        for n in (20, 100, 1000):
+            lat = np.array(measure(client, n, repeats)) * 1e3
+            row = {'waypoints': n, 'median_ms': float(np.median(lat)),
+                   'p95_ms': float(np.percentile(lat, 95)), 'max_ms': float(lat.max())}
+            results['rows'].append(row)
+            print(f'{n:>10} {row["median_ms"]:>12.2f} {row["p95_ms"]:>10.2f} '
+                  f'{row["max_ms"]:>10.2f}')
+    finally:
+        client.destroy_node()
+        rclpy.try_shutdown()
+        planner.stop()
+    p95_100 = next(r['p95_ms'] for r in results['rows'] if r['waypoints'] == 100)
+    results['goal_p95_100_waypoints_ms'] = 20.0
+    results['goal_met'] = p95_100 < 20.0
+    print(f'goal: p95 under 20 ms at 100 waypoints: {"met" if results["goal_met"] else "MISSED"}'
+          f' ({p95_100:.2f} ms)')
+    os.makedirs(RESULTS, exist_ok=True)
+    with open(os.path.join(RESULTS, 'planner.json'), 'w') as f:
+        json.dump(results, f, indent=2)
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,209 @@
+"""
+The planner node in one process with real rclpy: plans, refusals, and what it publishes.
+
+A probe node publishes /joint_states and goals and listens to /joint_demands and
+/planner/status, as a user's nodes would.
+"""
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseArray, PoseStamped
+from mover6_control import conversions
+from mover6_control.arm import mover6
+from mover6_control.kinematics import fk
+from mover6_control.planner_node import PlannerNode
+from mover6_control.rotations import pose_from_xyzabc
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float32MultiArray
+
+pytestmark = pytest.mark.node
+ARM = mover6()
+HOME = np.zeros(6)
+GOAL = pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0)
+
+
+class Probe(Node):
+    """Publishes what the planner consumes, records what it produces."""
+
+    def __init__(self):
+        super().__init__('planner_probe')
+        self.demands = []
+        self.statuses = []
+        self.state_pub = self.create_publisher(JointState, 'joint_states', 10)
+        self.pose_pub = self.create_publisher(PoseStamped, 'pose_goal', 10)
+        self.path_pub = self.create_publisher(PoseArray, 'path_goal', 10)
+        self.create_subscription(Float32MultiArray, 'joint_demands',
+                                 lambda m: self.demands.append(m), 10)
+        qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.create_subscription(DiagnosticStatus, 'planner/status',
+                                 lambda m: self.statuses.append(m), qos)
+
+    def publish_state(self, q):
+        """Publish one /joint_states message at ``q``."""
+        self.state_pub.publish(conversions.make_joint_state(ARM.joint_names, q, np.zeros(6)))
+
+
+@pytest.fixture
+def nodes():
+    """Return (executor, planner, probe) with both nodes spinning on one executor."""
+    rclpy.init()
+    planner = PlannerNode()
+    probe = Probe()
+    executor = SingleThreadedExecutor()
+    executor.add_node(planner)
+    executor.add_node(probe)
+    yield executor, planner, probe
+    executor.shutdown()
+    planner.destroy_node()
+    probe.destroy_node()
+    rclpy.try_shutdown()
+
+
+def spin_until(executor, predicate, timeout=30.0):
+    """Spin until ``predicate()`` holds or ``timeout`` [s] passes; return it."""
+    import time
+    deadline = time.monotonic() + timeout
+    while not predicate() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    return predicate()
+
+
+def connected(executor, probe):
+    """Wait until the probe's publishers reach the planner's subscriptions."""
+    assert spin_until(executor, lambda: probe.pose_pub.get_subscription_count() > 0
+                      and probe.state_pub.get_subscription_count() > 0
+                      and probe.path_pub.get_subscription_count() > 0)
+    assert spin_until(executor, lambda: len(probe.statuses) >= 1)
+
+
+def send_pose(executor, probe, T, frame='base_link', quat=None):
+    """Publish a /pose_goal and wait for the planner's answer; return the status."""
+    n = len(probe.statuses)
+    msg = PoseStamped()
+    msg.header.frame_id = frame
+    msg.pose = conversions.matrix_to_pose(T)
+    if quat is not None:
+        o = msg.pose.orientation
+        o.x, o.y, o.z, o.w = quat
+    probe.pose_pub.publish(msg)
+    assert spin_until(executor, lambda: len(probe.statuses) > n), 'planner did not answer'
+    return probe.statuses[-1]
+
+
+def give_state(executor, planner, probe, q):
+    """Publish joint states until the planner holds them."""
+    assert spin_until(executor, lambda: (probe.publish_state(q), planner.q is not None)[1]
+                      and np.allclose(planner.q, q))
+
+
+def test_reachable_goal_publishes_layout_and_ok(nodes):
+    """A reachable goal: N x 6 with the layout on /joint_demands, OK with figures."""
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    status = send_pose(executor, probe, GOAL)
+    assert status.level == DiagnosticStatus.OK, status.message
+    assert spin_until(executor, lambda: len(probe.demands) == 1)
+    msg = probe.demands[0]
+    assert [d.label for d in msg.layout.dim] == ['waypoints', 'joints']
+    Q = conversions.demands_from_msg(msg)
+    values = conversions.status_values(status)
+    assert int(values['waypoints']) == Q.shape[0] == 20
+    assert float(values['path_length']) > 0.0 and float(values['predicted_duration']) > 0.0
+    # Starts at the current configuration, ends at the goal pose (float32 on the wire).
+    assert np.abs(Q[0] - HOME).max() < 1e-6
+    assert np.linalg.norm(fk(ARM, Q[-1])[:3, 3] - GOAL[:3, 3]) < 1e-3
+    assert ARM.within_limits(Q.max(axis=0)) and ARM.within_limits(Q.min(axis=0))
+
+
+def refused(executor, probe, status, reason):
+    """Assert an ERROR status with ``reason`` and nothing on /joint_demands."""
+    assert status.level == DiagnosticStatus.ERROR, status.message
+    values = conversions.status_values(status)
+    assert values['result'] == 'refused'
+    assert values['reason'] == reason, status.message
+    spin_until(executor, lambda: len(probe.demands) > 0, timeout=0.5)
+    assert probe.demands == []
+
+
+def test_goal_before_any_joint_states_is_refused(nodes):
+    """No /joint_states yet: the current pose is unknown, so the goal is refused."""
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    status = send_pose(executor, probe, GOAL)
+    refused(executor, probe, status, 'invalid_goal')
+    assert 'no /joint_states' in status.message
+
+
+def test_unreachable_goal_is_refused_with_closest_pose(nodes):
+    """Far outside the workspace: out_of_reach, with the errors of the closest pose found."""
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    status = send_pose(executor, probe, pose_from_xyzabc(0.9, 0.0, 0.4, 0.0, np.pi / 2, 0.0))
+    refused(executor, probe, status, 'out_of_reach')
+
+
+def test_goal_beyond_joint_limits_is_refused(nodes):
+    """A pose the arm reaches only with a joint past its seed limit: joint_limits."""
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    # Behind the base: joint 1 would have to turn past +-pi/2.
+    q_behind = np.array([2.6, 0.2, 0.3, 0.0, 0.5, 0.0])
+    T = fk(ARM.with_limits(lower=-np.pi * np.ones(6), upper=np.pi * np.ones(6)), q_behind)
+    planner.set_parameters([Parameter('motion', value='joint')])
+    status = send_pose(executor, probe, T)
+    refused(executor, probe, status, 'joint_limits')
+
+
+def test_wrong_frame_is_refused(nodes):
+    """A goal in another frame (no TF lookup here) is refused with its frame named."""
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    status = send_pose(executor, probe, GOAL, frame='world')
+    refused(executor, probe, status, 'invalid_goal')
+    assert '"world"' in status.message
+
+
+@pytest.mark.parametrize('quat', [(0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, float('nan')),
+                                  (0.5, 0.5, 0.5, 0.0)])
+def test_malformed_quaternion_is_refused(nodes, quat):
+    """A zero, non-finite or non-unit quaternion is refused; the node keeps running."""
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    status = send_pose(executor, probe, GOAL, quat=quat)
+    refused(executor, probe, status, 'invalid_goal')
+    assert 'quaternion' in status.message
+    # Still alive and planning.
+    status = send_pose(executor, probe, GOAL)
+    assert status.level == DiagnosticStatus.OK, status.message
+
+
+def test_path_goal_spline_and_arc(nodes):
+    """A /path_goal through via poses plans for both path shapes."""
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    via = pose_from_xyzabc(0.33, -0.02, 0.38, 0.0, np.pi / 2, 0.0)
+    goal = pose_from_xyzabc(0.28, 0.10, 0.36, 0.0, np.pi / 2, 0.0)
+    for shape in ('spline', 'arc'):
+        planner.set_parameters([Parameter('path_motion', value=shape)])
+        n = len(probe.statuses)
+        msg = PoseArray()
+        msg.header.frame_id = 'base_link'
+        msg.poses = [conversions.matrix_to_pose(T) for T in (via, goal)]
+        probe.path_pub.publish(msg)
+        assert spin_until(executor, lambda: len(probe.statuses) > n)
+        status = probe.statuses[-1]
+        assert status.level == DiagnosticStatus.OK, f'{shape}: {status.message}'
+        Q = conversions.demands_from_msg(probe.demands[-1])
+        assert np.linalg.norm(fk(ARM, Q[-1])[:3, 3] - goal[:3, 3]) < 1e-3
