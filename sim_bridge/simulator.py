@@ -46,6 +46,7 @@ MOVER6_TICK_SIZE = tuple(2.0 * math.pi / (g * t) for g, t in
                          zip(MOVER6_GEAR_RATIOS, MOVER6_TICKS_PER_MOTOR_TURN))
 
 _EPS = 1e-9
+_LIMIT_APPROACH = 5.0    # physics steps over which a joint may close its gap to a limit
 
 
 @dataclass(frozen=True)
@@ -104,16 +105,18 @@ def steps_due(sim_elapsed, wall_elapsed, real_time_factor, physics_dt, max_steps
     """
     Return how many physics steps to run now to keep sim time at ``real_time_factor`` x wall.
 
-    ``sim_elapsed`` and ``wall_elapsed`` [s] are counted from the same anchor. A factor of 0
-    means as fast as possible: ``max_steps`` every call. The result is in [0, max_steps]; a
-    caller that gets ``max_steps`` while pacing has fallen behind and should re-anchor.
+    These are the steps that end by now: sim time never runs ahead of the paced wall time and
+    lags it by less than one step. ``sim_elapsed`` and ``wall_elapsed`` [s] are counted from
+    the same anchor. A factor of 0 means as fast as possible: ``max_steps`` every call. The
+    result is in [0, max_steps]; a caller that gets ``max_steps`` while pacing has fallen
+    behind and should re-anchor.
     """
     if not (math.isfinite(real_time_factor) and real_time_factor >= 0.0):
         raise InvalidInputError(f'real_time_factor must be >= 0, got {real_time_factor}')
     if real_time_factor == 0.0:
         return int(max_steps)
     behind = wall_elapsed * real_time_factor - sim_elapsed
-    n = math.floor(behind / physics_dt + _EPS) + 1 if behind >= -_EPS else 0
+    n = math.floor(behind / physics_dt + _EPS)
     return int(min(max(n, 0), max_steps))
 
 
@@ -295,11 +298,17 @@ class Simulator:
         self.data.ctrl[:self.arm.n_joints] = self._demand * ((opt.kv + opt.damping) / opt.kv)
 
     def _limit_guard(self, v):
-        """Return ``v`` [rad/s] reduced so that no joint runs past its limit within one step."""
+        """
+        Return ``v`` [rad/s] reduced so that no joint runs past its limit.
+
+        Within reach of a limit a joint may close at most the gap over ``_LIMIT_APPROACH``
+        physics steps, so it glides onto the limit (exponentially, 10 ms at a 2 ms step) instead
+        of overshooting it by the servo's lag; a joint beyond a limit may only move back.
+        """
         q = self.q
-        dt = self.config.physics_dt
-        hi = np.maximum((self.arm.upper - q) / dt, 0.0)
-        lo = np.minimum((self.arm.lower - q) / dt, 0.0)
+        tau = _LIMIT_APPROACH * self.config.physics_dt
+        hi = np.maximum((self.arm.upper - q) / tau, 0.0)
+        lo = np.minimum((self.arm.lower - q) / tau, 0.0)
         return np.clip(v, lo, hi)
 
     def _vendor_control(self):
