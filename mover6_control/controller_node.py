@@ -1,0 +1,183 @@
+"""
+The controller node: joint waypoints and joint states in, one JointJog per tick out.
+
+Subscribes /joint_states (sensor_msgs/JointState, mapped by name) and /joint_demands
+(std_msgs/Float32MultiArray, N x 6 with layout or flat); publishes /JointJog
+(control_msgs/JointJog: all six joints, stamped, velocities only) at ``rate`` on the node's clock
+(so sim time works) and /controller/status (diagnostic_msgs/DiagnosticStatus, transient local,
+on every change and at ``status_rate``). Services ~/stop and ~/reset (std_srvs/Trigger). All
+the logic is in ``mover6_control.controller_core``; this node converts, calls it and publishes.
+"""
+
+from control_msgs.msg import JointJog
+from diagnostic_msgs.msg import DiagnosticStatus
+from mover6_control import conversions
+from mover6_control.arm import LIMIT_SETS, mover6
+from mover6_control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.errors import InvalidInputError
+from mover6_control.velocity_laws import JOG_UNITS, LawConfig, PROFILES
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float32MultiArray
+from std_srvs.srv import Trigger
+
+STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+DOUBLE = ParameterType.PARAMETER_DOUBLE
+STRING = ParameterType.PARAMETER_STRING
+
+PARAMETERS = (
+    # name, default, type, description (defaults mirrored in config/controller.yaml)
+    ('rate', 100.0, DOUBLE, 'control rate: one /JointJog per tick [Hz]'),
+    ('profile', 'trapezoidal', STRING, 'velocity law: ' + ', '.join(PROFILES)),
+    ('lambda_max', 0.5, DOUBLE, 'synchronised: speed of the joint with the furthest to go '
+                                '[rad/s] (seed 000 eq. 1)'),
+    ('t_max', 1.0, DOUBLE, 'trapezoidal: time of each move [s] (stretched to respect the '
+                           'velocity limits)'),
+    ('t_blend', 0.0, DOUBLE, 'trapezoidal: ramp time [s]; 0 = t_max / 4'),
+    ('a_max', 1.0, DOUBLE, 'acceleration limit of jerk_limited, continuous and of every stop '
+                           '[rad/s^2]'),
+    ('j_max', 5.0, DOUBLE, 'jerk limit of jerk_limited [rad/s^3]'),
+    ('goal_tolerance', 0.002, DOUBLE, 'arrived when every joint is this close [rad]'),
+    ('state_timeout', 0.25, DOUBLE, '/joint_states older than this: zero command, fault [s]'),
+    ('position_gain', 2.0, DOUBLE, 'closed-loop gain on the position error [1/s]'),
+    ('settle_timeout', 3.0, DOUBLE, 'give up settling into the goal tolerance after [s]'),
+    ('path_tolerance', 0.3, DOUBLE, 'tracking error that aborts a motion with a stop [rad]'),
+    ('jog_units', 'rad_per_s', STRING, 'JointJog velocities: ' + ', '.join(JOG_UNITS)),
+    ('speed_override', 0.25, DOUBLE, 'fraction_of_max: speed override of the vendor driver'),
+    ('limit_set', 'seed', STRING, 'joint limits: seed ([-pi/2, pi/2]) or hardware (vendor)'),
+    ('status_rate', 5.0, DOUBLE, 'rate of /controller/status between state changes [Hz]'),
+)
+
+
+def config_from_parameters(get):
+    """Return ``(limit_set, ControllerConfig)`` from a parameter getter ``get(name)``."""
+    law = LawConfig(profile=get('profile'), lambda_max=get('lambda_max'), t_max=get('t_max'),
+                    t_blend=get('t_blend') or None, a_max=get('a_max'), j_max=get('j_max'))
+    config = ControllerConfig(
+        law=law, goal_tolerance=get('goal_tolerance'), state_timeout=get('state_timeout'),
+        position_gain=get('position_gain'), settle_timeout=get('settle_timeout'),
+        path_tolerance=get('path_tolerance'), rate=get('rate'), jog_units=get('jog_units'),
+        speed_override=get('speed_override'))
+    limit_set = get('limit_set')
+    if limit_set not in LIMIT_SETS:
+        raise InvalidInputError(f'limit_set must be one of {LIMIT_SETS}, got {limit_set!r}')
+    return limit_set, config
+
+
+class ControllerNode(Node):
+    """Drive the arm through joint waypoints with one JointJog per tick; see the module doc."""
+
+    def __init__(self, **kwargs):
+        """Declare the parameters, build the core, and start the timer, topics and services."""
+        super().__init__('controller', **kwargs)
+        for name, default, ptype, text in PARAMETERS:
+            self.declare_parameter(name, default, ParameterDescriptor(type=ptype,
+                                                                      description=text))
+        limit_set, config = config_from_parameters(lambda n: self.get_parameter(n).value)
+        self.core = ControllerCore(mover6(limit_set), config)
+        self.joint_names = list(self.core.arm.joint_names)
+        self.status_period = 1.0 / max(self.get_parameter('status_rate').value, 1e-3)
+        self.last_status = None
+        self.jog_pub = self.create_publisher(JointJog, 'JointJog', 10)
+        self.status_pub = self.create_publisher(DiagnosticStatus, 'controller/status',
+                                                STATUS_QOS)
+        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
+        self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
+        self.create_service(Trigger, '~/stop', self.on_stop)
+        self.create_service(Trigger, '~/reset', self.on_reset)
+        self.timer = self.create_timer(1.0 / config.rate, self.on_tick)
+        self.get_logger().info(
+            f'controller: {config.law.profile} at {config.rate:g} Hz, jog_units '
+            f'{config.jog_units}, limit_set {limit_set}; waiting for /joint_states')
+        self.publish_status(self.now())
+
+    def now(self):
+        """Return the node clock's time [s] (sim time when use_sim_time is set)."""
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def on_joint_states(self, msg):
+        """Take a JointState by name; an incomplete or non-finite one faults the core."""
+        now = self.now()
+        try:
+            q, qd = conversions.joint_state_from_msg(msg, self.joint_names)
+            self.core.on_joint_states(now, q, qd)
+        except InvalidInputError as err:
+            self.core.on_invalid_states(now, str(err))
+            self.get_logger().warning(f'bad /joint_states: {err}', throttle_duration_sec=1.0)
+
+    def on_demands(self, msg):
+        """Accept waypoints or log why they were rejected (the running motion is untouched)."""
+        now = self.now()
+        try:
+            Q = conversions.demands_from_msg(msg, len(self.joint_names))
+            motion_id = self.core.on_demands(now, Q)
+        except InvalidInputError as err:
+            self.get_logger().warning(f'rejected /joint_demands: {err}')
+            self.publish_status(now, {'rejected': str(err)}, level='WARN',
+                                message=f'rejected demand: {err}')
+            return
+        self.get_logger().info(f'motion {motion_id}: {len(Q)} waypoint(s) accepted')
+        self.publish_status(now)
+
+    def on_stop(self, request, response):
+        """Decelerate to rest and hold (std_srvs/Trigger)."""
+        response.success, response.message = self.core.request_stop(self.now())
+        self.get_logger().info(f'stop: {response.message}')
+        return response
+
+    def on_reset(self, request, response):
+        """Leave fault and wait for fresh joint states (std_srvs/Trigger)."""
+        self.core.reset(self.now())
+        response.success, response.message = True, f'state {self.core.state}'
+        return response
+
+    def on_tick(self):
+        """Run one control tick: publish the JointJog, and the status when due."""
+        now = self.now()
+        out = self.core.tick(now)
+        stamp = self.get_clock().now().to_msg()
+        self.jog_pub.publish(conversions.make_joint_jog(self.joint_names, out.jog, stamp))
+        if (out.status_changed or self.last_status is None
+                or now - self.last_status >= self.status_period or now < self.last_status):
+            self.publish_status(now)
+
+    def send_zero(self):
+        """Publish a zero JointJog (the vendor driver keeps the last command forever)."""
+        self.jog_pub.publish(conversions.make_joint_jog(
+            self.joint_names, [0.0] * len(self.joint_names), self.get_clock().now().to_msg()))
+
+    def publish_status(self, now, extra=None, level=None, message=None):
+        """Publish the core's status on /controller/status (plus ``extra`` values)."""
+        status = self.core.status()
+        values = dict(status.values)
+        values.update(extra or {})
+        self.status_pub.publish(conversions.make_status(
+            'controller', level or status.level, message or status.message, values))
+        self.last_status = now
+
+
+def main(args=None):
+    """Run the controller node until Ctrl-C or shutdown."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = ControllerNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            try:
+                node.send_zero()
+            except Exception:  # noqa: B902 - the context may already be shut down
+                pass
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,161 @@
+"""The controller node with real rclpy in one process; a test node plays the arm."""
+
+import os
+import time
+
+from control_msgs.msg import JointJog
+from diagnostic_msgs.msg import DiagnosticStatus
+from mover6_control import conversions
+from mover6_control.controller_node import ControllerNode
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float32MultiArray
+from std_srvs.srv import Trigger
+
+NAMES = [f'joint{i}' for i in range(1, 7)]
+GOAL = np.array([0.3, -0.2, 0.2, 0.1, -0.1, 0.3])
+
+
+class FakeArm(Node):
+    """Integrate the commanded JointJog and publish /joint_states; record what comes back."""
+
+    def __init__(self, context):
+        super().__init__('fake_arm', context=context)
+        self.q = np.zeros(6)
+        self.qd = np.zeros(6)
+        self.publishing = True
+        self.names = list(NAMES)
+        self.jogs = []
+        self.statuses = []
+        self.last = time.monotonic()
+        self.state_pub = self.create_publisher(JointState, 'joint_states', 10)
+        self.demand_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
+        self.create_subscription(JointJog, 'JointJog', self.on_jog, 10)
+        qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.create_subscription(DiagnosticStatus, 'controller/status', self.statuses.append, qos)
+        self.create_timer(0.02, self.on_timer)
+        self.stop_client = self.create_client(Trigger, 'controller/stop')
+
+    def on_jog(self, msg):
+        names, velocities = conversions.joint_jog_from_msg(msg)
+        assert names == NAMES
+        self.jogs.append(msg)
+        self.qd = velocities
+
+    def on_timer(self):
+        now = time.monotonic()
+        self.q = self.q + self.qd * min(now - self.last, 0.05)
+        self.last = now
+        if self.publishing:
+            self.state_pub.publish(conversions.make_joint_state(self.names, self.q, self.qd))
+
+    def status(self):
+        return conversions.status_values(self.statuses[-1]) if self.statuses else {}
+
+
+@pytest.fixture(scope='module')
+def ros():
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    os.environ['ROS_DOMAIN_ID'] = '32'
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    controller = ControllerNode(context=context, parameter_overrides=[
+        Parameter('profile', value='trapezoidal'), Parameter('rate', value=100.0)])
+    arm = FakeArm(context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(controller)
+    executor.add_node(arm)
+
+    def spin_until(predicate, timeout=30.0):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.02)
+            if predicate():
+                return True
+        raise AssertionError(f'timed out; last status {arm.status()}')
+
+    yield controller, arm, spin_until
+    executor.shutdown()
+    controller.destroy_node()
+    arm.destroy_node()
+    rclpy.try_shutdown(context=context)
+
+
+def test_arrives_and_reports(ros):
+    controller, arm, spin_until = ros
+    spin_until(lambda: arm.status().get('state') == 'idle')
+    arm.demand_pub.publish(conversions.make_demands(np.array([GOAL / 2, GOAL])))
+    spin_until(lambda: arm.status().get('motion_id') == '1'
+               and arm.status().get('result') == 'arrived')
+    status = arm.statuses[-1]
+    assert conversions.status_level_name(status) == 'OK'
+    values = conversions.status_values(status)
+    assert values['state'] == 'idle' and values['waypoints'] == '2'
+    assert float(values['final_joint_error']) <= 0.002
+    np.testing.assert_allclose(arm.q, GOAL, atol=0.01)
+    last = arm.jogs[-1]
+    assert list(last.velocities) == [0.0] * 6          # explicit zero on arrival
+    assert last.header.stamp.sec > 0 or last.header.stamp.nanosec > 0
+    seen = {conversions.status_values(s)['state'] for s in arm.statuses}
+    assert {'executing', 'idle'} <= seen
+
+
+def test_rate_is_about_the_parameter(ros):
+    controller, arm, spin_until = ros
+    start, t0 = len(arm.jogs), time.monotonic()
+    spin_until(lambda: time.monotonic() - t0 > 1.0)
+    count = len(arm.jogs) - start
+    assert 50 <= count <= 130, count
+
+
+def test_flat_and_bad_demands(ros):
+    controller, arm, spin_until = ros
+    bad = Float32MultiArray(data=[0.1] * 7)
+    arm.demand_pub.publish(bad)
+    spin_until(lambda: 'multiple of 6' in arm.status().get('rejected', ''))
+    outside = Float32MultiArray(data=[0.0, 0.0, 0.0, 0.0, 0.0, 3.0])
+    arm.demand_pub.publish(outside)
+    spin_until(lambda: 'joint6' in arm.status().get('rejected', ''))
+    flat = Float32MultiArray(data=[float(x) for x in np.zeros(6)])
+    arm.demand_pub.publish(flat)
+    spin_until(lambda: arm.status().get('motion_id') == '2'
+               and arm.status().get('result') == 'arrived')
+
+
+def test_stop_service_decelerates_and_holds(ros):
+    controller, arm, spin_until = ros
+    arm.demand_pub.publish(conversions.make_demands(GOAL[None]))
+    spin_until(lambda: arm.status().get('motion_id') == '3'
+               and arm.status().get('state') == 'executing')
+    spin_until(lambda: np.max(np.abs(arm.qd)) > 0.1)
+    future = arm.stop_client.call_async(Trigger.Request())
+    spin_until(future.done)
+    assert future.result().success
+    spin_until(lambda: arm.status().get('result') == 'stopped'
+               and arm.status().get('state') == 'idle')
+    assert list(arm.jogs[-1].velocities) == [0.0] * 6
+
+
+def test_stale_and_incomplete_states_fault_then_recover(ros):
+    controller, arm, spin_until = ros
+    arm.demand_pub.publish(conversions.make_demands(GOAL[None]))
+    spin_until(lambda: arm.status().get('motion_id') == '4'
+               and np.max(np.abs(arm.qd)) > 0.05)
+    arm.publishing = False
+    spin_until(lambda: arm.status().get('state') == 'fault')
+    assert conversions.status_level_name(arm.statuses[-1]) == 'ERROR'
+    assert arm.status().get('result') == 'fault'
+    spin_until(lambda: not np.any(arm.qd))
+    arm.publishing = True
+    spin_until(lambda: arm.status().get('state') == 'idle')
+    arm.names = NAMES[:5] + ['gripper']                   # joint6 missing
+    spin_until(lambda: arm.status().get('state') == 'fault')
+    assert 'joint6' in arm.statuses[-1].message
+    arm.names = list(NAMES)
+    spin_until(lambda: arm.status().get('state') == 'idle')
