@@ -1,0 +1,187 @@
+"""
+Benchmark of the motion library: speed of building and sampling, and seed 000's linear move.
+
+Run: ``python -m bench.bench_motion [--quick]``. Prints tables and writes
+``bench/results/motion.json``.
+
+1. Speed: build a trajectory through 100 joint waypoints and sample it at 1 kHz, for each kind
+   (continuous TOPP timing, cubic, quintic, B-spline, multi-point trapezoid, seed 000's
+   stop-at-each trapezoids, ruckig point-to-point).
+2. Seed 000's linear example: X=0.445 Y=0 Z=0.4425 A=B=C=0 from home (q = 0), 20 waypoints,
+   the Mover6 hardware speed limits (design.md) and a_max = 1 rad/s^2 (the controller's
+   default). A B C are composed relative to the home orientation as the seed's MATLAB does
+   (R_goal = R_home Rzyx(A, B, C)): the tool keeps its orientation and moves 0.1 m along +x.
+   Compared: the seed's scheme (a trapezoid per waypoint, t_blend = t_max / 4, stop at each;
+   both the seed's fixed t_max = 1 s and the shortest t_max the limits allow) against
+   continuous execution, with the largest Cartesian deviation of each from the straight line
+   (FK every 1 ms) and the continuous duration against a lower bound on any trajectory.
+"""
+
+import argparse
+import json
+import os
+import time
+
+from mover6_control import metrics, paths, time_laws, timing, trajectories
+from mover6_control.arm import mover6
+from mover6_control.kinematics import fk, fk_batch
+import numpy as np
+
+RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
+A_MAX = 1.0     # [rad/s^2] the controller's default acceleration limit
+J_MAX = 5.0     # [rad/s^3] the controller's default jerk limit
+
+
+def _solve_path(arm, poses, q_start):
+    """Joint waypoints for the poses: path_ik when it exists, else closed-form IK per pose."""
+    try:
+        from mover6_control.path_ik import solve_path
+    except ImportError:
+        solve_path = None
+    if solve_path is not None:
+        return np.asarray(solve_path(arm, poses, q_start).q), 'path_ik.solve_path'
+    from mover6_control.ik import ik_closed_form
+    Q, q = [], np.asarray(q_start, dtype=float)
+    for T in poses:
+        sols = ik_closed_form(arm, T, q_ref=q)
+        if sols.shape[0] == 0:
+            raise RuntimeError('no IK solution on the seed path')
+        q = sols[0]
+        Q.append(q)
+    return np.array(Q), 'ik.ik_closed_form (nearest to previous)'
+
+
+def _timed(fn, repeats):
+    best = np.inf
+    out = None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return out, best
+
+
+def _waypoints(arm, m, seed=0):
+    """Return a smooth random joint path (m, 6) well inside the hardware limits."""
+    rng = np.random.default_rng(seed)
+    steps = rng.normal(scale=0.05, size=(m, arm.n_joints))
+    Q = np.cumsum(steps, axis=0)
+    Q -= Q.mean(axis=0)
+    span = 0.6 * np.minimum(-arm.lower, arm.upper)
+    return np.clip(Q, -span, span)
+
+
+def bench_speed(arm, quick):
+    """Build and sample each kind of trajectory through 100 waypoints at 1 kHz."""
+    Q = _waypoints(arm, 100)
+    v = arm.velocity_limits
+    builders = {
+        'continuous (TOPP)': lambda: timing.time_parameterize(Q, v, A_MAX),
+        'cubic spline': lambda: trajectories.cubic_trajectory(Q, v_max=v, a_max=A_MAX),
+        'quintic spline': lambda: trajectories.quintic_trajectory(Q, v_max=v, a_max=A_MAX),
+        'B-spline': lambda: trajectories.bspline_trajectory(Q, v_max=v, a_max=A_MAX),
+        'multi-point trapezoid': lambda: trajectories.multipoint_trapezoidal(Q, v, A_MAX),
+        'seed stop-at-each': lambda: trajectories.stop_at_each(
+            Q, time_laws.trapezoidal, v, A_MAX),
+        'ruckig point-to-point': lambda: trajectories.ruckig_trajectory(
+            Q[0], Q[-1], v, A_MAX, J_MAX),
+    }
+    repeats = 1 if quick else 3
+    rows = []
+    for name, build in builders.items():
+        traj, t_build = _timed(build, repeats)
+        t = metrics.sample_times(traj.duration, 1e-3)
+        if quick:
+            t = t[:20000]
+        _, t_batch = _timed(lambda: traj.sample(t), repeats)
+        ticks = t[:: max(1, t.size // 500)]
+        t0 = time.perf_counter()
+        for ti in ticks:
+            traj.sample(float(ti))
+        t_tick = (time.perf_counter() - t0) / ticks.size
+        rows.append({'kind': name, 'duration_s': traj.duration, 'build_ms': 1e3 * t_build,
+                     'sample_batch_us': 1e6 * t_batch / t.size, 'sample_tick_us': 1e6 * t_tick,
+                     'samples': int(t.size)})
+    bound = timing.time_optimal_bound(Q, v, A_MAX)
+    return rows, bound
+
+
+def bench_seed_linear(arm):
+    """Seed 000's linear example: the seed's scheme against continuous execution."""
+    q_home = np.zeros(arm.n_joints)
+    T_home = fk(arm, q_home)
+    T_goal = paths.goal_relative_to_start(T_home, 0.445, 0.0, 0.4425, 0.0, 0.0, 0.0)
+    poses = paths.linear_path(T_home, T_goal, n=20)
+    Q, ik_used = _solve_path(arm, poses, q_home)
+    line = paths.positions_of(poses)[[0, -1]]
+    v = arm.velocity_limits
+
+    def fk_fn(Qs):
+        return fk_batch(arm, Qs)
+
+    schemes = {}
+    seed_fixed = trajectories.PiecewiseTrajectory(
+        [trajectories.TimeLawTrajectory(Q[k], Q[k + 1], 1.0, time_laws.trapezoidal(1.0))
+         for k in range(len(Q) - 1)])
+    schemes['seed scheme, t_max = 1 s per waypoint'] = seed_fixed
+    schemes['seed scheme, shortest t_max'] = trajectories.stop_at_each(
+        Q, time_laws.trapezoidal, v, A_MAX)
+    cont, t_build = _timed(lambda: timing.time_parameterize(Q, v, A_MAX), 3)
+    schemes['continuous (TOPP on blended path)'] = cont
+    bound = timing.time_optimal_bound(Q, v, A_MAX)
+    fine = timing.time_parameterize(Q, v, A_MAX, n_grid=20000)
+    rows = []
+    for name, traj in schemes.items():
+        mt = metrics.trajectory_metrics(traj, fk_fn, line, dt=1e-3)
+        rows.append({
+            'scheme': name, 'duration_s': mt.duration,
+            'max_deviation_mm': 1e3 * mt.max_deviation,
+            'peak_v_over_limit': float(np.max(mt.peak_velocity / v)),
+            'peak_a_rad_s2': float(np.max(mt.peak_acceleration)),
+            'path_length_m': mt.path_length})
+    base = rows[1]['duration_s']
+    return {
+        'ik': ik_used, 'a_max': A_MAX, 'velocity_limits': v.tolist(), 'rows': rows,
+        'speedup_vs_seed_shortest': base / cont.duration,
+        'speedup_vs_seed_fixed_1s': rows[0]['duration_s'] / cont.duration,
+        'lower_bound_s': bound, 'continuous_over_bound': cont.duration / bound,
+        'topp_fine_grid_s': fine.duration, 'continuous_build_ms': 1e3 * t_build,
+    }
+
+
+def main(argv=None):
+    """Run the benchmark, print tables, write bench/results/motion.json."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    parser.add_argument('--quick', action='store_true', help='fewer repeats and samples')
+    args = parser.parse_args(argv)
+    arm = mover6('hardware')
+    speed, bound100 = bench_speed(arm, args.quick)
+    print('100 joint waypoints, hardware speed limits, a_max = 1 rad/s^2, sampled at 1 kHz')
+    print(f'{"kind":26s} {"duration s":>10s} {"build ms":>9s} {"batch us/sample":>16s}'
+          f' {"tick us":>8s}')
+    for r in speed:
+        print(f'{r["kind"]:26s} {r["duration_s"]:10.2f} {r["build_ms"]:9.2f}'
+              f' {r["sample_batch_us"]:16.3f} {r["sample_tick_us"]:8.1f}')
+    print(f'lower bound on any trajectory through these waypoints: {bound100:.2f} s')
+    seed = bench_seed_linear(arm)
+    print(f'\nseed 000 linear example (0.1 m along +x, home orientation kept), IK: {seed["ik"]}')
+    print(f'{"scheme":38s} {"duration s":>10s} {"max dev mm":>10s} {"peak v/limit":>12s}')
+    for r in seed['rows']:
+        print(f'{r["scheme"]:38s} {r["duration_s"]:10.3f} {r["max_deviation_mm"]:10.4f}'
+              f' {r["peak_v_over_limit"]:12.3f}')
+    print(f'continuous is {seed["speedup_vs_seed_shortest"]:.2f}x faster than the seed scheme'
+          f' (shortest t_max), {seed["speedup_vs_seed_fixed_1s"]:.2f}x than its fixed 1 s')
+    print(f'lower bound {seed["lower_bound_s"]:.3f} s; continuous / bound ='
+          f' {seed["continuous_over_bound"]:.3f}; TOPP on a 20000-point grid'
+          f' {seed["topp_fine_grid_s"]:.3f} s')
+    os.makedirs(RESULTS, exist_ok=True)
+    out = {'quick': args.quick, 'speed_100_waypoints': speed,
+           'lower_bound_100_waypoints_s': bound100, 'seed_linear': seed}
+    with open(os.path.join(RESULTS, 'motion.json'), 'w') as f:
+        json.dump(out, f, indent=2)
+    print(f'\nwrote {os.path.join(RESULTS, "motion.json")}')
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,169 @@
+"""Joint trajectories: one sampling interface, waypoints hit, limits kept, bad input refused."""
+
+from hypothesis import given, settings
+import hypothesis.strategies as st
+from mover6_control import time_laws as tl
+from mover6_control import trajectories as tj
+from mover6_control.errors import InvalidInputError
+import numpy as np
+import pytest
+
+V = np.array([0.524, 0.524, 0.524, 0.524, 0.698, 1.745])
+A = np.full(6, 1.0)
+Q = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+              [0.3, -0.2, 0.4, 0.1, -0.3, 0.5],
+              [0.5, 0.1, 0.2, -0.2, 0.0, 0.9],
+              [0.2, 0.3, -0.1, 0.0, 0.4, 0.2]])
+
+
+def dense(traj, n=8001):
+    t = np.linspace(0.0, traj.duration, n)
+    return (t,) + traj.sample(t)
+
+
+def test_point_to_point_follows_seed002_eq29_to_32():
+    q0, q1 = np.array([0.1, -0.2]), np.array([0.5, 0.4])
+    law, T = tl.quintic(), 2.0
+    traj = tj.point_to_point(q0, q1, law, duration=T)
+    tau = 0.3
+    q, qd, qdd = traj.sample(tau * T)
+    assert np.allclose(q, q0 + (q1 - q0) * law(tau))
+    assert np.allclose(qd, (q1 - q0) * law.evaluate(tau, 1) / T)
+    assert np.allclose(qdd, (q1 - q0) * law.evaluate(tau, 2) / T ** 2)
+    assert np.allclose(traj.sample_jerk(tau * T), (q1 - q0) * law.evaluate(tau, 3) / T ** 3)
+
+
+def test_point_to_point_duration_from_limits_is_tight():
+    q0, q1 = np.zeros(6), Q[1]
+    traj = tj.point_to_point(q0, q1, tl.cubic(), v_max=V, a_max=A)
+    _, _, qd, qdd = dense(traj)
+    ratio = max(np.max(np.abs(qd) / V), np.max(np.abs(qdd) / A))
+    assert 0.999 < ratio <= 1.0 + 1e-9
+    # seed 000 eq. 1-2: every joint finishes together
+    assert np.allclose(traj.sample(traj.duration)[0], q1)
+
+
+def test_sample_shapes_and_clamping():
+    traj = tj.cubic_trajectory(Q, v_max=V, a_max=A)
+    q, qd, qdd = traj.sample(0.5)
+    assert q.shape == qd.shape == qdd.shape == (6,)
+    q, qd, qdd = traj.sample(np.array([0.0, 0.5, 1.0]))
+    assert q.shape == (3, 6)
+    assert traj.n_joints == 6
+    end = traj.sample(traj.duration + 10.0)
+    assert np.allclose(end[0], Q[-1]) and np.allclose(end[1], 0.0)
+    assert np.allclose(traj.sample(-5.0)[0], Q[0])
+    with pytest.raises(InvalidInputError):
+        traj.sample(float('nan'))
+
+
+@pytest.mark.parametrize('build', [tj.cubic_trajectory, tj.quintic_trajectory])
+def test_interpolating_splines_pass_through_waypoints_at_their_times(build):
+    times = np.array([0.0, 1.5, 2.5, 4.0])
+    traj = build(Q, times=times)
+    assert traj.duration == pytest.approx(4.0)
+    q, qd, qdd = traj.sample(times)
+    assert np.allclose(q, Q, atol=1e-12)
+    assert np.allclose(qd[[0, -1]], 0.0, atol=1e-12)
+    if build is tj.quintic_trajectory:
+        assert np.allclose(qdd[[0, -1]], 0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize('build', [tj.cubic_trajectory, tj.quintic_trajectory,
+                                   tj.bspline_trajectory])
+def test_limit_fitted_splines_keep_and_touch_the_limits(build):
+    traj = build(Q, v_max=V, a_max=A)
+    _, q, qd, qdd = dense(traj)
+    ratio = max(np.max(np.abs(qd) / V), np.max(np.abs(qdd) / A))
+    assert 0.99 < ratio <= 1.0
+    assert np.allclose(q[[0, -1]], Q[[0, -1]], atol=1e-12)
+    assert np.allclose(qd[[0, -1]], 0.0, atol=1e-12)
+
+
+def test_bspline_stays_in_the_convex_hull_per_joint():
+    traj = tj.bspline_trajectory(Q, duration=5.0)
+    _, q, _, _ = dense(traj)
+    assert np.all(q >= Q.min(axis=0) - 1e-12) and np.all(q <= Q.max(axis=0) + 1e-12)
+
+
+def test_multipoint_trapezoid_is_linear_with_parabolic_blends():
+    traj = tj.multipoint_trapezoidal(Q, V, A)
+    t, q, qd, qdd = dense(traj, 20001)
+    assert np.allclose(q[[0, -1]], Q[[0, -1]], atol=1e-9)
+    assert np.allclose(qd[[0, -1]], 0.0, atol=1e-9)
+    assert np.all(np.abs(qd) <= V * (1.0 + 1e-9))
+    assert np.all(np.abs(qdd) <= A + 1e-9)
+    # Acceleration is 0 (cruise) or +-a_max (blend): piecewise constant.
+    mags = np.abs(qdd)
+    assert np.all(np.isclose(mags, 0.0, atol=1e-9) | np.isclose(mags, 1.0))
+    # The pieces join up: velocity is continuous (changes by at most a_max dt per sample) and
+    # the position is the integral of the velocity.
+    dt = t[1] - t[0]
+    assert np.all(np.abs(np.diff(qd, axis=0)) <= A * dt * (1.0 + 1e-6))
+    integ = Q[0] + np.concatenate([np.zeros((1, 6)), np.cumsum(
+        (qd[1:] + qd[:-1]) * 0.5 * dt, axis=0)])
+    assert np.allclose(q, integ, atol=1e-5)
+
+
+def test_stop_at_each_rests_on_every_waypoint():
+    traj = tj.stop_at_each(Q, tl.trapezoidal, V, A)
+    q, qd, _ = traj.sample(traj.starts)
+    assert np.allclose(q, Q, atol=1e-12)
+    assert np.allclose(qd, 0.0, atol=1e-12)
+    _, _, qd, qdd = dense(traj, 40001)
+    assert np.all(np.abs(qd) <= V * (1.0 + 1e-9)) and np.all(np.abs(qdd) <= A * (1.0 + 1e-9))
+
+
+def test_ruckig_is_jerk_limited_and_synchronised():
+    j = np.full(6, 5.0)
+    qd0 = np.array([0.2, -0.1, 0.0, 0.3, 0.0, -0.5])
+    traj = tj.ruckig_trajectory(Q[0], Q[1], V, A, j, qd0=qd0)
+    q, qd, qdd = traj.sample(0.0)
+    assert np.allclose(qd, qd0) and np.allclose(qdd, 0.0)
+    q, qd, qdd = traj.sample(traj.duration)
+    assert np.allclose(q, Q[1], atol=1e-9) and np.allclose(qd, 0.0, atol=1e-9)
+    t = np.linspace(0.0, traj.duration, 2001)
+    _, qd, qdd = traj.sample(t)
+    assert np.all(np.abs(qd) <= V + 1e-9) and np.all(np.abs(qdd) <= A + 1e-9)
+    assert np.all(np.abs(traj.sample_jerk(t)) <= j * (1.0 + 1e-5))
+    # Time-optimal: the slowest joint alone cannot do better.
+    alone = [tj.ruckig_trajectory(Q[0, [i]], Q[1, [i]], V[i], A[i], j[i], qd0=qd0[[i]]).duration
+             for i in range(6)]
+    assert traj.duration == pytest.approx(max(alone), rel=1e-6)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.lists(st.floats(-2.0, 2.0), min_size=3, max_size=3), min_size=2,
+                max_size=8))
+def test_cubic_through_random_waypoints(rows):
+    W = np.array(rows)
+    if np.any(np.abs(np.diff(W, axis=0)).max(axis=1) < 1e-3):
+        with pytest.raises(InvalidInputError):
+            tj.cubic_trajectory(W, v_max=1.0)
+        return
+    traj = tj.cubic_trajectory(W, v_max=1.0, a_max=2.0)
+    knots = traj._derivs[0][0].x
+    assert np.allclose(traj.sample(knots)[0], W, atol=1e-9)
+    _, _, qd, qdd = dense(traj, 4001)
+    assert np.all(np.abs(qd) <= 1.0) and np.all(np.abs(qdd) <= 2.0)
+
+
+@pytest.mark.parametrize('call', [
+    lambda: tj.cubic_trajectory(Q[:1], v_max=V),
+    lambda: tj.cubic_trajectory(np.vstack([Q[:2], Q[1:2]]), v_max=V),
+    lambda: tj.quintic_trajectory(np.where(Q == 0.5, np.nan, Q), v_max=V),
+    lambda: tj.cubic_trajectory(Q, v_max=np.zeros(6)),
+    lambda: tj.cubic_trajectory(Q, v_max=V, a_max=-1.0),
+    lambda: tj.cubic_trajectory(Q),
+    lambda: tj.cubic_trajectory(Q, times=[0.0, 1.0, 1.0, 2.0]),
+    lambda: tj.multipoint_trapezoidal(Q, V, 0.0),
+    lambda: tj.bspline_trajectory(Q, duration=-1.0),
+    lambda: tj.point_to_point(Q[0], Q[0], tl.cubic(), v_max=V),
+    lambda: tj.point_to_point(Q[0], Q[1], tl.cubic()),
+    lambda: tj.stop_at_each(Q[:1], tl.cubic(), V),
+    lambda: tj.ruckig_trajectory(Q[0], Q[1], V, A, np.zeros(6)),
+    lambda: tj.ruckig_trajectory(Q[0], Q[1, :3], V, A, A),
+])
+def test_bad_input_raises(call):
+    with pytest.raises(InvalidInputError):
+        call()
