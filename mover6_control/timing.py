@@ -25,8 +25,9 @@ from mover6_control.rotations import as_finite_array
 from mover6_control.trajectories import JointTrajectory
 import numpy as np
 
-# Below this turning angle [rad] a corner is treated as straight (no arc needed).
-_STRAIGHT_ANGLE = 1e-9
+# Below this turning angle [rad] a corner is treated as straight: the velocity direction jumps
+# by less than 1e-6 of the speed, well below anything a drive can resolve.
+_STRAIGHT_ANGLE = 1e-6
 # Above this turning angle [rad] the path reverses: the arm stops at the corner instead.
 _REVERSAL_ANGLE = np.pi - 1e-6
 # Largest tangent turn [rad] across one grid interval on a blend arc.
@@ -130,15 +131,16 @@ def blended_path(Q, max_deviation=1e-2):
     stop_at = np.zeros(m, dtype=bool)
     for i in range(1, m - 1):
         y1, y2 = units[i - 1], units[i]
-        alpha = float(np.arccos(np.clip(y1 @ y2, -1.0, 1.0)))
+        # The turning angle, accurate for small and large angles alike.
+        alpha = 2.0 * float(np.arctan2(np.linalg.norm(y2 - y1), np.linalg.norm(y2 + y1)))
         if alpha < _STRAIGHT_ANGLE:
             continue
         if alpha > _REVERSAL_ANGLE:
             stop_at[i] = True
             continue
         half = 0.5 * alpha
-        ell = min(0.5 * lengths[i - 1], 0.5 * lengths[i],
-                  max_deviation * np.sin(half) / (1.0 - np.cos(half)))
+        # The arc's farthest point from the corner is ell tan(alpha / 4) away.
+        ell = min(0.5 * lengths[i - 1], 0.5 * lengths[i], max_deviation / np.tan(0.5 * half))
         r = ell / np.tan(half)
         bis = (y2 - y1) / np.linalg.norm(y2 - y1)
         c = Q[i] + bis * r / np.cos(half)
@@ -297,7 +299,7 @@ def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=
     d0 = path.evaluate(s_grid[:-1], seg)
     d1 = path.evaluate(s_grid[1:], seg)
     # Velocity caps at grid points: x <= (v_i / |q'_i|)^2, smallest of both sides.
-    with np.errstate(divide='ignore'):
+    with np.errstate(divide='ignore', over='ignore'):
         cap0 = np.min((v / np.abs(d0[1])) ** 2, axis=1)
         cap1 = np.min((v / np.abs(d1[1])) ** 2, axis=1)
     x_cap = np.full(N + 1, np.inf)

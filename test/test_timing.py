@@ -1,0 +1,166 @@
+"""Continuous timing: on the path, through every waypoint, within limits, near time-optimal."""
+
+from hypothesis import given, settings
+import hypothesis.strategies as st
+from mover6_control import timing
+from mover6_control.errors import InvalidInputError
+from mover6_control.metrics import max_deviation_from_polyline
+import numpy as np
+import pytest
+
+V = np.array([0.524, 0.524, 0.524, 0.524, 0.698, 1.745])
+A = np.full(6, 1.0)
+Q = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+              [0.3, -0.2, 0.4, 0.1, -0.3, 0.5],
+              [0.5, 0.1, 0.2, -0.2, 0.0, 0.9],
+              [0.2, 0.3, -0.1, 0.0, 0.4, 0.2]])
+
+
+def dense(traj, dt=1e-3):
+    t = np.append(np.arange(0.0, traj.duration, dt), traj.duration)
+    return (t,) + traj.sample(t)
+
+
+def distance_to_polyline(q, W):
+    """Largest joint-space distance of samples q (m, n) to the polyline W (k, n)."""
+    a, ab = W[:-1], np.diff(W, axis=0)
+    t = np.clip(np.einsum('mkj,kj->mk', q[:, None] - a, ab) / np.einsum('kj,kj->k', ab, ab),
+                0.0, 1.0)
+    return np.linalg.norm(q[:, None] - (a + t[..., None] * ab), axis=2).min(axis=1)
+
+
+def test_blended_path_is_tangent_continuous_and_close_to_the_corners():
+    path = timing.blended_path(Q, max_deviation=0.02)
+    assert path.kinds == ('line', 'arc', 'line', 'arc', 'line')
+    s = path.starts[1:-1]
+    before = path.evaluate(s, np.arange(len(s)))
+    after = path.evaluate(s, np.arange(1, len(s) + 1))
+    assert np.allclose(before[0], after[0], atol=1e-12)       # continuous position
+    assert np.allclose(before[1], after[1], atol=1e-12)       # continuous tangent
+    for i in (1, 3):
+        ss = np.linspace(path.starts[i], path.starts[i + 1], 501)  # the middle included
+        q, dq, ddq, _ = path.evaluate(ss, np.full(501, i))
+        assert np.allclose(np.linalg.norm(dq, axis=1), 1.0)   # unit speed in s
+        corner = Q[(i + 1) // 2]
+        assert np.linalg.norm(q - corner, axis=1).min() == pytest.approx(0.02, abs=1e-12)
+        assert np.allclose(np.gradient(q, ss, axis=0)[2:-2], dq[2:-2], atol=1e-4)
+    q = path.evaluate(np.linspace(0, path.length, 3001),
+                      path.segment_of(np.linspace(0, path.length, 3001)))[0]
+    assert distance_to_polyline(q, Q).max() <= 0.02 + 1e-12
+
+
+def test_continuous_trajectory_runs_through_waypoints_within_limits():
+    traj = timing.time_parameterize(Q, V, A, max_deviation=0.01)
+    t, q, qd, qdd = dense(traj)
+    assert np.allclose(q[0], Q[0]) and np.allclose(q[-1], Q[-1], atol=1e-12)
+    assert np.allclose(qd[0], 0.0) and np.allclose(traj.sample(traj.duration)[1], 0.0)
+    assert np.all(np.abs(qd) <= V) and np.all(np.abs(qdd) <= A)
+    assert distance_to_polyline(q, Q).max() <= 0.01 + 1e-9
+    d = np.linalg.norm(q[:, None] - Q[None], axis=2).min(axis=0)
+    assert np.all(d <= 0.01 + 1e-6)                            # passes by every waypoint
+    # ... without stopping there: the speed at the closest approach is far from zero.
+    k = np.linalg.norm(q[:, None] - Q[None, 1:-1], axis=2).argmin(axis=0)
+    assert np.all(np.linalg.norm(qd[k], axis=1) > 0.05)
+    # The limits are used, not just respected: some joint is at a limit most of the time.
+    usage = np.max(np.maximum(np.abs(qd) / V, np.abs(qdd) / A), axis=1)
+    assert np.mean(usage > 0.99) > 0.9
+
+
+def test_straight_line_matches_the_bang_bang_time():
+    W = np.linspace([0.0, 0.0], [1.0, 0.5], 7)                 # collinear waypoints
+    traj = timing.time_parameterize(W, [0.5, 0.5], [1.0, 1.0])
+    exact = 1.0 / 0.5 + 0.5 / 1.0                             # joint 1 limits it
+    assert timing.time_optimal_bound(W, [0.5, 0.5], [1.0, 1.0]) == pytest.approx(exact)
+    assert exact <= traj.duration <= exact * 1.002            # 0.1 % limit margin + grid
+
+
+def test_start_velocity_along_the_path_is_kept():
+    W = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 0.0]])
+    qd0 = np.array([0.2, 0.2])
+    traj = timing.time_parameterize(W, [0.5, 0.5], [1.0, 1.0], qd_start=qd0)
+    assert np.allclose(traj.sample(0.0)[1], qd0, atol=1e-9)
+    sideways = timing.time_parameterize(W, [0.5, 0.5], [1.0, 1.0], qd_start=[0.2, -0.2])
+    assert np.allclose(sideways.sample(0.0)[1], 0.0)          # across the path: dropped
+
+
+def test_reversal_stops_at_the_turning_point():
+    W = np.array([[0.0], [1.0], [0.5]])
+    traj = timing.time_parameterize(W, [0.5], [1.0])
+    t, q, qd, _ = dense(traj)
+    k = np.argmax(q[:, 0])
+    assert q[k, 0] == pytest.approx(1.0, abs=1e-6)
+    assert abs(qd[k, 0]) < 2e-3
+    assert traj.duration >= timing.time_optimal_bound(W, [0.5], [1.0])
+
+
+def test_repeated_waypoints_are_skipped():
+    W = np.vstack([Q[:2], Q[1:2], Q[2:]])
+    a = timing.time_parameterize(W, V, A)
+    b = timing.time_parameterize(Q, V, A)
+    assert a.duration == pytest.approx(b.duration)
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.lists(st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3), min_size=2,
+                max_size=6),
+       st.floats(0.2, 2.0), st.floats(0.2, 3.0))
+def test_random_paths_respect_limits_and_the_lower_bound(rows, v, a):
+    W = np.array(rows)
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(W, axis=0), axis=1) > 1e-12])
+    if keep.sum() < 2:
+        with pytest.raises(InvalidInputError):
+            timing.time_parameterize(W, v, a)
+        return
+    traj = timing.time_parameterize(W, v, a)
+    assert traj.duration >= timing.time_optimal_bound(W, v, a) * (1.0 - 1e-9)
+    t, q, qd, qdd = dense(traj, max(traj.duration / 4000, 1e-4))
+    assert np.all(np.abs(qd) <= v) and np.all(np.abs(qdd) <= a)
+    assert np.allclose(q[-1], W[-1], atol=1e-9)
+    assert distance_to_polyline(q, W[keep]).max() <= 1e-2 + 1e-9
+
+
+def test_seed_like_dense_path_is_close_to_the_bound_and_to_the_line():
+    # 20 waypoints on a gently curved joint path, like path IK of a straight Cartesian line.
+    s = np.linspace(0.0, 1.0, 20)[:, None]
+    W = s * np.array([0.0, 0.3, -0.4, 0.0, 0.1, 0.0]) + 0.02 * np.sin(3 * s)
+    traj = timing.time_parameterize(W, V, A)
+    assert traj.duration <= 1.01 * timing.time_optimal_bound(W, V, A)
+    q = dense(traj)[1]
+    # Each corner arc uses at most half of a segment (ell <= L / 2) and strays ell tan(alpha / 4)
+    # from the corner: here far inside max_deviation.
+    d = np.diff(W, axis=0)
+    L = np.linalg.norm(d, axis=1)
+    u = d / L[:, None]
+    alpha = 2 * np.arctan2(np.linalg.norm(u[1:] - u[:-1], axis=1),
+                           np.linalg.norm(u[1:] + u[:-1], axis=1))
+    worst = np.max(0.5 * np.minimum(L[1:], L[:-1]) * np.tan(alpha / 4))
+    assert worst < 1e-3
+    assert distance_to_polyline(q, W).max() <= worst * (1.0 + 1e-6)
+    assert max_deviation_from_polyline(q[:, :3], W[:, :3]) <= worst * (1.0 + 1e-6)
+
+
+def test_time_optimal_bound_values():
+    # 1 joint, distance 1, v = 0.5, a = 1: cruise reached: 1 / 0.5 + 0.5 / 1 = 2.5 s.
+    assert timing.time_optimal_bound([[0.0], [1.0]], 0.5, 1.0) == pytest.approx(2.5)
+    # distance 0.1 < v^2 / a: triangle 2 sqrt(0.1 / 1).
+    assert timing.time_optimal_bound([[0.0], [0.1]], 0.5, 1.0) == pytest.approx(
+        2 * np.sqrt(0.1))
+    # Back and forth: total variation 2 counts.
+    assert timing.time_optimal_bound([[0.0], [1.0], [0.0]], 0.5, 1.0) == pytest.approx(4.5)
+
+
+@pytest.mark.parametrize('call', [
+    lambda: timing.time_parameterize(Q[:1], V, A),
+    lambda: timing.time_parameterize(np.vstack([Q[:1], Q[:1]]), V, A),
+    lambda: timing.time_parameterize(np.where(Q == 0.5, np.inf, Q), V, A),
+    lambda: timing.time_parameterize(Q, np.zeros(6), A),
+    lambda: timing.time_parameterize(Q, V, -A),
+    lambda: timing.time_parameterize(Q, V[:3], A),
+    lambda: timing.time_parameterize(Q, V, A, j_max=5.0),
+    lambda: timing.time_parameterize(Q, V, A, max_deviation=0.0),
+    lambda: timing.time_parameterize(Q, V, A, qd_start=[np.nan] * 6),
+    lambda: timing.time_optimal_bound(Q, V, 0.0),
+])
+def test_bad_input_raises(call):
+    with pytest.raises(InvalidInputError):
+        call()
