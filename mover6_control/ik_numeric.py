@@ -1,0 +1,221 @@
+"""
+Numeric inverse kinematics for any serial arm: damped least squares with joint limits, restarts.
+
+The cost is seed 000's eq. 21, a weighted sum of squared pose errors, ``e^T W e`` with
+``e = [p_goal - p; log(R_goal R^T)]`` (metres, then a rotation vector in radians, base frame),
+minimised inside the joint limits (eq. 22). The rotation vector replaces the seed's Euler-angle
+differences, which jump by 2 pi and are singular at B = +-pi/2 (exactly its example goal).
+
+Steps are Levenberg-Marquardt with error-dependent damping (Sugihara 2011):
+``(J^T W J + (E + lambda_0) I) dq = J^T W e``, ``E = e^T W e / 2``, then projected onto the
+joint limits. ``n_seeds`` starts run side by side as one batch (the first is ``q0``, the others
+random in the limits); a start that stalls is re-seeded at random. The first start that meets
+both tolerances wins; otherwise the lowest-cost configuration seen is returned with
+``success = False`` (the closest pose found).
+"""
+
+from dataclasses import dataclass
+
+from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics import fk_frames_batch
+from mover6_control.rotations import as_finite_array, validate_transform
+import numpy as np
+
+DEFAULT_WEIGHTS = (1.0, 1.0, 1.0, 0.01, 0.01, 0.01)  # 1 rad weighs as 0.1 m
+
+
+@dataclass(frozen=True)
+class NumericIKResult:
+    """Outcome of ``ik_numeric``: ``q`` (n,) [rad] and how well it meets the pose."""
+
+    q: np.ndarray
+    success: bool
+    position_error: float      # [m]
+    orientation_error: float   # [rad]
+    iterations: int            # batched iterations run
+    restarts: int              # random re-seeds used after the first batch of starts
+    cost: float                # weighted cost e^T W e at q
+
+
+def rotation_log_batch(R):
+    """
+    Return rotation vectors (..., 3) [rad] of rotation matrices (..., 3, 3).
+
+    Accurate near zero (uses the skew part) and at pi (uses the symmetric part).
+    """
+    v = np.empty(R.shape[:-1])
+    v[..., 0] = R[..., 2, 1] - R[..., 1, 2]
+    v[..., 1] = R[..., 0, 2] - R[..., 2, 0]
+    v[..., 2] = R[..., 1, 0] - R[..., 0, 1]
+    v *= 0.5
+    s = np.sqrt((v * v).sum(-1))
+    c = 0.5 * (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0)
+    angle = np.arctan2(s, c)
+    scale = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 1.0)
+    out = v * scale[..., None]
+    if c.min() < -0.99:
+        near_pi = (c < -0.99) & (s < 0.1)
+        # angle ~ pi: the axis from the largest column of a a^T = (sym(R) - c I) / (1 - c).
+        Rn, cn = R[near_pi], c[near_pi, None, None]
+        B = (0.5 * (Rn + Rn.transpose(0, 2, 1)) - cn * np.eye(3)) / (1.0 - cn)
+        idx = np.argmax(np.diagonal(B, axis1=-2, axis2=-1), axis=-1)
+        axis = B[np.arange(len(B)), :, idx]
+        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+        sign = np.where(np.einsum('ki,ki->k', axis, v[near_pi]) < 0.0, -1.0, 1.0)
+        out[near_pi] = axis * (sign * angle[near_pi])[:, None]
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class ScrewChain:
+    """
+    Product-of-exponentials form of an arm, precomputed for fast small-batch FK and Jacobians.
+
+    Joint i at angle q moves points by ``I + sin(q) A_i + (1 - cos(q)) B_i`` (4, 4), with
+    ``A_i = [[K_i, -K_i r_i], [0, 0]]``, ``B_i = [[K_i^2, -K_i^2 r_i], [0, 0]]``, ``K_i`` the
+    cross-product matrix of the space-frame axis ``omega_i`` and ``r_i`` a point on it (q = 0).
+    """
+
+    A: np.ndarray       # (n, 4, 4)
+    B: np.ndarray       # (n, 4, 4)
+    axis_point: np.ndarray  # (n, 4, 2) columns [omega_i; 0] and [r_i; 1]
+    M: np.ndarray       # (4, 4) tip pose at q = 0
+
+
+def screw_chain(arm):
+    """Return the ``ScrewChain`` of ``arm`` (one FK at q = 0)."""
+    frames = fk_frames_batch(arm, np.zeros((1, arm.n_joints)))[0]
+    n = arm.n_joints
+    omega = np.einsum('nij,nj->ni', frames[:n, :3, :3], arm.axes)
+    r = frames[:n, :3, 3]
+    K = np.zeros((n, 3, 3))
+    K[:, 0, 1], K[:, 0, 2] = -omega[:, 2], omega[:, 1]
+    K[:, 1, 0], K[:, 1, 2] = omega[:, 2], -omega[:, 0]
+    K[:, 2, 0], K[:, 2, 1] = -omega[:, 1], omega[:, 0]
+    KK = K @ K
+    A = np.zeros((n, 4, 4))
+    B = np.zeros((n, 4, 4))
+    A[:, :3, :3], A[:, :3, 3] = K, -np.einsum('nij,nj->ni', K, r)
+    B[:, :3, :3], B[:, :3, 3] = KK, -np.einsum('nij,nj->ni', KK, r)
+    axis_point = np.zeros((n, 4, 2))
+    axis_point[:, :3, 0], axis_point[:, :3, 1], axis_point[:, 3, 1] = omega, r, 1.0
+    return ScrewChain(A=A, B=B, axis_point=axis_point, M=frames[n])
+
+
+def pose_residual_batch(chain, Q, T_goal):
+    """
+    Return errors (m, 6) ``[p_goal - p; log(R_goal R^T)]`` and Jacobians (m, 6, n) at ``Q``.
+
+    The Jacobian is the geometric one (rows [v; w], base frame, as ``kinematics.jacobian``);
+    to first order ``e(q + dq) = e(q) - J dq``. Uses the screws of ``chain`` (a
+    ``ScrewChain``), made for small batches in a tight loop.
+    """
+    m, n = Q.shape
+    G = (np.eye(4) + np.sin(Q)[:, :, None, None] * chain.A
+         + (1.0 - np.cos(Q))[:, :, None, None] * chain.B)
+    C = np.empty_like(G)
+    C[:, 0] = G[:, 0]
+    for i in range(1, n):
+        C[:, i] = C[:, i - 1] @ G[:, i]
+    tip = C[:, n - 1] @ chain.M
+    zo = C[:, :, :3] @ chain.axis_point            # (m, n, 3, 2): current axis and point
+    z = zo[..., 0]
+    lever = tip[:, None, :3, 3] - zo[..., 1]
+    J = np.empty((m, 6, n))
+    J[:, 0] = z[..., 1] * lever[..., 2] - z[..., 2] * lever[..., 1]
+    J[:, 1] = z[..., 2] * lever[..., 0] - z[..., 0] * lever[..., 2]
+    J[:, 2] = z[..., 0] * lever[..., 1] - z[..., 1] * lever[..., 0]
+    J[:, 3:] = z.transpose(0, 2, 1)
+    e = np.empty((m, 6))
+    e[:, :3] = T_goal[:3, 3] - tip[:, :3, 3]
+    e[:, 3:] = rotation_log_batch(T_goal[:3, :3] @ tip[:, :3, :3].transpose(0, 2, 1))
+    return e, J
+
+
+def _check_weights(weights):
+    """Return positive weights (6,) or raise."""
+    w = as_finite_array(weights, (6,), 'weights')
+    if np.any(w <= 0.0):
+        raise InvalidInputError(f'weights must be positive, got {w.tolist()}')
+    return w
+
+
+def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
+               weights=DEFAULT_WEIGHTS, within_limits=True, n_seeds=4, max_iterations=300,
+               stall_iterations=12, damping=1e-6, error_damping=0.1, max_step=None, rng=0):
+    """
+    Solve ``T`` (4, 4) numerically from ``q0`` (n,) [rad]; return a ``NumericIKResult``.
+
+    ``position_tol`` [m] and ``orientation_tol`` [rad] define success; ``weights`` (6,) weigh
+    the squared errors (seed 000 eq. 21; position in [m], orientation in [rad]).
+    ``within_limits`` keeps every iterate inside the joint limits (eq. 22). ``n_seeds`` starts
+    run as one batch for at most ``max_iterations``; a start whose cost has not dropped by 1 %
+    in ``stall_iterations`` is re-seeded. ``damping`` is the LM floor lambda_0 and
+    ``error_damping`` the factor on E; ``max_step`` [rad], if set, caps each joint's step.
+    ``rng`` is a seed or a ``numpy.random.Generator`` for the random starts (no hidden state).
+    """
+    T = validate_transform(T, 'pose')
+    q0 = arm.check_q(q0, 'q0')
+    w = _check_weights(weights)
+    for name, value in (('position_tol', position_tol), ('orientation_tol', orientation_tol)):
+        if not np.isfinite(value) or value <= 0.0:
+            raise InvalidInputError(f'{name} must be a positive number, got {value}')
+    if int(n_seeds) < 1 or int(max_iterations) < 1:
+        raise InvalidInputError('n_seeds and max_iterations must be >= 1')
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    lo = np.where(np.isfinite(arm.lower), arm.lower, -np.pi) if within_limits else None
+    hi = np.where(np.isfinite(arm.upper), arm.upper, np.pi) if within_limits else None
+    span_lo = lo if within_limits else np.full(arm.n_joints, -np.pi)
+    span_hi = hi if within_limits else np.full(arm.n_joints, np.pi)
+    n = arm.n_joints
+    Q = np.empty((int(n_seeds), n))
+    Q[0] = np.clip(q0, lo, hi) if within_limits else q0
+    Q[1:] = gen.uniform(span_lo, span_hi, (int(n_seeds) - 1, n))
+    best_q, best_cost, best_err = Q[0].copy(), np.inf, (np.inf, np.inf)
+    stall_cost = np.full(len(Q), np.inf)
+    stall_count = np.zeros(len(Q), dtype=int)
+    restarts = 0
+    eye = np.eye(n)
+    chain = screw_chain(arm)
+    for it in range(1, int(max_iterations) + 1):
+        e, J = pose_residual_batch(chain, Q, T)
+        sq = e * e
+        cost = sq @ w
+        pos = np.sqrt(sq[:, :3].sum(1))
+        rot = np.sqrt(sq[:, 3:].sum(1))
+        done = (pos < position_tol) & (rot < orientation_tol)
+        k = int(np.argmin(cost))
+        if cost[k] < best_cost:
+            best_q, best_cost, best_err = Q[k].copy(), float(cost[k]), (pos[k], rot[k])
+        if done.any():
+            k = int(np.flatnonzero(done)[np.argmin(cost[done])])
+            return NumericIKResult(q=Q[k].copy(), success=True, position_error=float(pos[k]),
+                                   orientation_error=float(rot[k]), iterations=it,
+                                   restarts=restarts, cost=float(cost[k]))
+        JtW = J.transpose(0, 2, 1) * w
+        A = JtW @ J + (error_damping * 0.5 * cost + damping)[:, None, None] * eye
+        dq = np.linalg.solve(A, (JtW @ e[:, :, None]))[:, :, 0]
+        if max_step is not None:
+            dq *= np.minimum(1.0, max_step / (np.abs(dq).max(axis=1) + 1e-300))[:, None]
+        Q = Q + dq
+        if within_limits:
+            Q = np.clip(Q, lo, hi)
+        improved = cost < 0.99 * stall_cost
+        stall_cost = np.where(improved, cost, stall_cost)
+        stall_count = np.where(improved, 0, stall_count + 1)
+        stalled = stall_count >= int(stall_iterations)
+        if np.any(stalled):
+            Q[stalled] = gen.uniform(span_lo, span_hi, (int(stalled.sum()), n))
+            stall_cost[stalled] = np.inf
+            stall_count[stalled] = 0
+            restarts += int(stalled.sum())
+    e, _ = pose_residual_batch(chain, Q, T)
+    cost = np.einsum('ki,i,ki->k', e, w, e)
+    k = int(np.argmin(cost))
+    if cost[k] < best_cost:
+        best_q, best_cost = Q[k].copy(), float(cost[k])
+        best_err = (np.linalg.norm(e[k, :3]), np.linalg.norm(e[k, 3:]))
+    success = bool(best_err[0] < position_tol and best_err[1] < orientation_tol)
+    return NumericIKResult(q=best_q, success=success, position_error=float(best_err[0]),
+                           orientation_error=float(best_err[1]), iterations=int(max_iterations),
+                           restarts=restarts, cost=best_cost)
