@@ -13,6 +13,7 @@ from geometry_msgs.msg import Pose
 from mover6_control.errors import InvalidInputError
 from mover6_control.rotations import matrix_to_quaternion, quaternion_to_matrix
 import numpy as np
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray, MultiArrayDimension
 
@@ -27,6 +28,23 @@ STATUS_LEVELS = {
 def stamp_to_seconds(stamp):
     """Return a ``builtin_interfaces/Time`` as float seconds."""
     return stamp.sec + stamp.nanosec * 1e-9
+
+
+def seconds_to_stamp(seconds):
+    """Return a ``builtin_interfaces/Time`` for ``seconds`` [s] >= 0 (to the nanosecond)."""
+    if not (math.isfinite(seconds) and seconds >= 0.0):
+        raise InvalidInputError(f'a stamp needs finite seconds >= 0, got {seconds}')
+    total = int(round(seconds * 1e9))
+    stamp = Clock().clock
+    stamp.sec, stamp.nanosec = divmod(total, 1_000_000_000)
+    return stamp
+
+
+def make_clock(seconds):
+    """Build a rosgraph_msgs/Clock for sim time ``seconds`` [s]."""
+    msg = Clock()
+    msg.clock = seconds_to_stamp(seconds)
+    return msg
 
 
 # --- /joint_states -------------------------------------------------------------------------

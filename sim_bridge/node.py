@@ -1,0 +1,339 @@
+"""
+The sim_bridge node: the MuJoCo arm on ROS 2, standing in for the Mover6 and its driver.
+
+Subscribes /JointJog (control_msgs/JointJog: ``velocities`` by joint name; ``displacements``,
+``duration`` and the stamp are ignored, as the vendor driver ignores them) and ~/reset_to
+(sensor_msgs/JointState: reset to the named ``position`` values, unnamed joints to
+``initial_q``). Publishes /joint_states (names joint1..joint6, position, velocity, effort,
+stamped) and, with ``publish_clock``, /clock after every physics step. Services: ~/reset
+(std_srvs/Trigger, to ``initial_q``), ~/pause (std_srvs/SetBool), ~/step (std_srvs/Trigger:
+one control period while paused: one /joint_states period, or one 50 ms driver cycle in
+vendor mode).
+
+Physics runs in its own thread, paced against the monotonic wall clock at
+``real_time_factor`` (0 = as fast as it can); callbacks and the physics thread share the
+``Simulator`` under a lock. In 'vendor_driver' mode /joint_states come at the driver's own rate
+(one per 50 ms cycle) and ``publish_rate`` is not used. Stamps are sim time with
+``publish_clock`` (the bridge drives the clock), the node's clock otherwise. All parameters are
+read at start.
+"""
+
+import os
+import threading
+import time
+
+from control_msgs.msg import JointJog
+from mover6_control import conversions
+from mover6_control.arm import LIMIT_SETS, load_urdf, mover6
+from mover6_control.errors import InvalidInputError
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from sim_bridge.model import ModelOptions
+from sim_bridge.simulator import MODES, SimConfig, Simulator, steps_due
+from std_srvs.srv import SetBool, Trigger
+
+PARAMETERS = (
+    # name, default, type, description
+    ('physics_dt', 0.002, ParameterType.PARAMETER_DOUBLE,
+     'fixed physics step [s] (0.001 to 0.002 recommended)'),
+    ('real_time_factor', 1.0, ParameterType.PARAMETER_DOUBLE,
+     'sim time per wall time; 0 runs as fast as it can'),
+    ('publish_rate', 100.0, ParameterType.PARAMETER_DOUBLE,
+     '/joint_states rate [Hz] of sim time, up to 500 (rad_per_s mode)'),
+    ('command_timeout', 0.2, ParameterType.PARAMETER_DOUBLE,
+     'a /JointJog older than this (by receive time, sim clock) halts the joints [s]'),
+    ('mode', 'rad_per_s', ParameterType.PARAMETER_STRING,
+     'JointJog units and driver behaviour: ' + ' | '.join(MODES)),
+    ('speed_override', 0.25, ParameterType.PARAMETER_DOUBLE,
+     'vendor_driver: speed = fraction * max speed * speed_override'),
+    ('limit_set', 'seed', ParameterType.PARAMETER_STRING,
+     'joint limits: seed ([-pi/2, pi/2] as seed 000) or hardware (vendor limits)'),
+    ('urdf_path', '', ParameterType.PARAMETER_STRING,
+     'URDF of the arm; empty = the shipped Mover6 (config/mover6.urdf) with limit_set'),
+    ('initial_q', [0.0] * 6, ParameterType.PARAMETER_DOUBLE_ARRAY,
+     'start and home configuration [rad], one value per joint'),
+    ('publish_clock', False, ParameterType.PARAMETER_BOOL,
+     'publish /clock after every physics step and stamp with sim time'),
+    ('viewer', False, ParameterType.PARAMETER_BOOL,
+     'open the MuJoCo viewer when a display exists (headless otherwise)'),
+    ('kv', 1000.0, ParameterType.PARAMETER_DOUBLE,
+     'joint velocity servo gain [N m s/rad]'),
+    ('damping', 0.5, ParameterType.PARAMETER_DOUBLE,
+     'joint viscous damping [N m s/rad]'),
+)
+
+MAX_PUBLISH_RATE = 500.0
+MAX_BATCH = 200           # physics steps per loop pass before pacing gives up and re-anchors
+VIEWER_PERIOD = 1.0 / 30.0
+
+
+class SimBridgeNode(Node):
+    """The simulated arm on ROS 2; see the module docstring."""
+
+    def __init__(self, **kwargs):
+        """Declare the parameters, build the simulator, start the physics thread."""
+        super().__init__('sim_bridge', **kwargs)
+        for name, default, ptype, text in PARAMETERS:
+            self.declare_parameter(name, default, ParameterDescriptor(type=ptype,
+                                                                      description=text))
+        p = {name: self.get_parameter(name).value for name, *_ in PARAMETERS}
+        self.arm = self._make_arm(p['limit_set'], p['urdf_path'])
+        self.rtf = float(p['real_time_factor'])
+        if not (np.isfinite(self.rtf) and self.rtf >= 0.0):
+            raise InvalidInputError(f'real_time_factor must be >= 0, got {self.rtf}')
+        rate = float(p['publish_rate'])
+        if not (0.0 < rate <= MAX_PUBLISH_RATE):
+            raise InvalidInputError(
+                f'publish_rate must be in (0, {MAX_PUBLISH_RATE}] Hz, got {rate}')
+        config = SimConfig(mode=p['mode'], command_timeout=float(p['command_timeout']),
+                           speed_override=float(p['speed_override']),
+                           model=ModelOptions(physics_dt=float(p['physics_dt']),
+                                              kv=float(p['kv']), damping=float(p['damping'])))
+        self.sim = Simulator(self.arm, config, home_q=list(p['initial_q']))
+        self.vendor = config.mode == 'vendor_driver'
+        self.dt = config.physics_dt
+        self.publish_period = config.vendor_cycle if self.vendor else 1.0 / rate
+        self.publish_clock = bool(p['publish_clock'])
+
+        self.lock = threading.Lock()
+        self.stop_event = threading.Event()
+        self.paused = False
+        self.rejected = 0                # bad /JointJog messages
+        self.last_rejection = ''
+        self.latencies = []              # [s] JointJog arrival to the end of its first step
+        self.overruns = 0                # times pacing fell behind and re-anchored
+        self._pending = None             # (command_count, wall arrival) awaiting its first step
+        self._was_stale = True
+        self._next_publish = self.sim.time
+        self._last_reading_time = None
+
+        self.joint_states_pub = self.create_publisher(JointState, 'joint_states', 10)
+        self.clock_pub = (self.create_publisher(Clock, 'clock', 10)
+                          if self.publish_clock else None)
+        self.create_subscription(JointJog, 'JointJog', self.on_joint_jog, 10)
+        self.create_subscription(JointState, '~/reset_to', self.on_reset_to, 10)
+        self.create_service(Trigger, '~/reset', self.on_reset)
+        self.create_service(SetBool, '~/pause', self.on_pause)
+        self.create_service(Trigger, '~/step', self.on_step)
+
+        self.viewer = self._open_viewer() if p['viewer'] else None
+        self.thread = threading.Thread(target=self._run, name='sim_bridge_physics', daemon=True)
+        self.thread.start()
+        self.get_logger().info(
+            f'{self.arm.name}: mode {config.mode}, physics_dt {self.dt} s, real-time factor '
+            f'{self.rtf}, /joint_states every {self.publish_period:.4f} s, command timeout '
+            f'{config.command_timeout} s' + (', publishing /clock' if self.publish_clock else ''))
+
+    # --- setup -------------------------------------------------------------------------------
+
+    def _make_arm(self, limit_set, urdf_path):
+        """Return the arm: the shipped Mover6 with ``limit_set``, or a given URDF."""
+        if limit_set not in LIMIT_SETS:
+            raise InvalidInputError(f'limit_set must be one of {LIMIT_SETS}, got {limit_set!r}')
+        if urdf_path:
+            return load_urdf(urdf_path)
+        return mover6(limit_set)
+
+    def _open_viewer(self):
+        """Return a passive MuJoCo viewer, or None (with a warning) when there is no display."""
+        if not (os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')):
+            self.get_logger().warning('viewer asked for but no display: running headless')
+            return None
+        try:
+            import mujoco.viewer
+            return mujoco.viewer.launch_passive(self.sim.model, self.sim.data)
+        except Exception as exc:  # noqa: B902 - any GL/GLFW failure: stay headless
+            self.get_logger().warning(f'viewer failed ({exc}): running headless')
+            return None
+
+    # --- callbacks ---------------------------------------------------------------------------
+
+    def on_joint_jog(self, msg):
+        """Take a /JointJog: validate, clamp, hand to the simulator; log why when rejected."""
+        arrival = time.monotonic()
+        try:
+            names, velocities = conversions.joint_jog_from_msg(msg)
+            with self.lock:
+                warnings = self.sim.set_command(names, velocities, self.sim.time)
+                self._pending = (self.sim.command_count, arrival)
+        except InvalidInputError as exc:
+            self.rejected += 1
+            self.last_rejection = str(exc)
+            self.get_logger().warning(f'/JointJog rejected: {exc}', throttle_duration_sec=1.0)
+            return
+        for text in warnings:
+            self.get_logger().warning(f'/JointJog speed clamped: {text}',
+                                      throttle_duration_sec=1.0)
+
+    def on_reset_to(self, msg):
+        """Reset to the positions of a JointState (by name; unnamed joints go home)."""
+        names = list(msg.name)
+        try:
+            if len(msg.position) != len(names):
+                raise InvalidInputError(
+                    f'{len(names)} names but {len(msg.position)} positions')
+            index = {name: i for i, name in enumerate(self.arm.joint_names)}
+            unknown = [n for n in names if n not in index]
+            if unknown:
+                raise InvalidInputError(f'unknown joints {unknown}')
+            q = self.sim.home_q.copy()
+            for name, value in zip(names, msg.position):
+                q[index[name]] = value
+            self._reset(q)
+        except InvalidInputError as exc:
+            self.get_logger().warning(f'~/reset_to rejected: {exc}')
+
+    def on_reset(self, request, response):
+        """Reset to ``initial_q``, at rest, commands dropped."""
+        self._reset(None)
+        response.success = True
+        response.message = f'reset to {np.round(self.sim.home_q, 4).tolist()}'
+        return response
+
+    def on_pause(self, request, response):
+        """Pause (data true) or resume (data false) the physics."""
+        with self.lock:
+            self.paused = bool(request.data)
+            t = self.sim.time
+        response.success = True
+        response.message = f'{"paused" if self.paused else "running"} at t = {t:.4f} s'
+        self.get_logger().info(response.message)
+        return response
+
+    def on_step(self, request, response):
+        """While paused, run one control period and publish; refuse when running."""
+        if not self.paused:
+            response.success = False
+            response.message = 'not paused: ~/pause first'
+            return response
+        n = max(1, int(round(self.publish_period / self.dt)))
+        for _ in range(n):
+            self._one_step(publish_states=self.vendor)   # vendor: its one reading of the cycle
+        if not self.vendor:                              # the state at the end of the period
+            with self.lock:
+                reading = self.sim.state()
+                self._next_publish = reading.time + self.publish_period
+            self._publish_state(reading)
+        response.success = True
+        response.message = f'stepped {n} x {self.dt} s to t = {self.sim.time:.4f} s'
+        return response
+
+    def _reset(self, q):
+        """Reset the simulator (raises on a bad ``q``) and publish the new state at once."""
+        with self.lock:
+            self.sim.reset(q)
+            self._pending = None
+            reading = self.sim.state()
+        self.get_logger().info(f'reset to {np.round(reading.q, 4).tolist()}')
+        self._publish_state(reading)
+
+    # --- the physics thread ------------------------------------------------------------------
+
+    def _run(self):
+        """Step, publish and pace until stopped; re-anchor after a pause or an overrun."""
+        anchor = None
+        last_view = 0.0
+        while not self.stop_event.is_set():
+            if self.paused:
+                anchor = None
+                self.stop_event.wait(0.005)
+                continue
+            now = time.monotonic()
+            if anchor is None:
+                anchor = (now, self.sim.time)
+            n = steps_due(self.sim.time - anchor[1], now - anchor[0], self.rtf, self.dt,
+                          MAX_BATCH)
+            for _ in range(n):
+                self._one_step()
+            if self.rtf > 0.0 and n == MAX_BATCH:
+                self.overruns += 1
+                anchor = None
+            if self.viewer is not None and now - last_view > VIEWER_PERIOD:
+                last_view = now
+                self._sync_viewer()
+            if self.rtf > 0.0 and anchor is not None:
+                due = anchor[0] + (self.sim.time + self.dt - anchor[1]) / self.rtf
+                delay = due - time.monotonic()
+                if delay > 0.0:
+                    self.stop_event.wait(delay)
+            else:
+                time.sleep(0)            # let the callbacks in
+
+    def _one_step(self, publish_states=True):
+        """Advance one physics step; publish /clock and, when due, /joint_states."""
+        with self.lock:
+            self.sim.step()
+            t = self.sim.time
+            pending = self._pending
+            if pending is not None and self.sim.applied_count >= pending[0]:
+                self.latencies.append(time.monotonic() - pending[1])
+                del self.latencies[:-1000]
+                self._pending = None
+            stale = self.sim.is_stale()
+            reading = None
+            if self.vendor:
+                candidate = self.sim.state()
+                if candidate.time != self._last_reading_time:
+                    reading = candidate
+                    self._last_reading_time = candidate.time
+            elif t >= self._next_publish - 1e-9:
+                reading = self.sim.state()
+                self._next_publish += self.publish_period
+                if self._next_publish <= t:
+                    self._next_publish = t + self.publish_period
+        if stale and not self._was_stale:
+            self.get_logger().info('/JointJog command stale: joints halted')
+        self._was_stale = stale
+        if self.clock_pub is not None:
+            self.clock_pub.publish(conversions.make_clock(t))
+        if reading is not None and publish_states:
+            self._publish_state(reading)
+
+    def _publish_state(self, reading):
+        """Publish a ``JointReading`` on /joint_states."""
+        stamp = (conversions.seconds_to_stamp(reading.time) if self.publish_clock
+                 else self.get_clock().now().to_msg())
+        self.joint_states_pub.publish(conversions.make_joint_state(
+            self.arm.joint_names, reading.q, reading.qd, reading.effort, stamp=stamp))
+
+    def _sync_viewer(self):
+        """Show the current state in the viewer (closed viewer: stop syncing)."""
+        if not self.viewer.is_running():
+            self.viewer = None
+            return
+        with self.lock:
+            self.viewer.sync()
+
+    def destroy_node(self):
+        """Stop the physics thread and the viewer, then destroy the node."""
+        self.stop_event.set()
+        if self.thread.is_alive():
+            self.thread.join(timeout=5.0)
+        if self.viewer is not None:
+            self.viewer.close()
+            self.viewer = None
+        return super().destroy_node()
+
+
+def main(args=None):
+    """Run the sim_bridge node until Ctrl-C or shutdown."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SimBridgeNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,245 @@
+"""
+The sim_bridge node on real rclpy (Fast DDS), in one process with a test node.
+
+Every wait is a predicate with a generous limit, never a fixed sleep, except where a test shows
+that nothing happens (a pause) and so must watch for a while.
+"""
+
+import math
+import os
+import time
+
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ['ROS_DOMAIN_ID'] = '31'
+
+from control_msgs.msg import JointJog  # noqa: E402
+from mover6_control import conversions  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+import rclpy  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from sim_bridge.node import SimBridgeNode  # noqa: E402
+from std_srvs.srv import SetBool, Trigger  # noqa: E402
+
+NAMES = [f'joint{i}' for i in range(1, 7)]
+LIMIT = 30.0      # [s] generous limit of every wait
+
+
+@pytest.fixture(scope='module', autouse=True)
+def ros():
+    """Start rclpy once for the module (domain 31, localhost only)."""
+    rclpy.init()
+    yield
+    rclpy.try_shutdown()
+
+
+class Harness:
+    """The bridge under test plus a test node that talks to it, on one executor."""
+
+    def __init__(self, **params):
+        overrides = [Parameter(k, value=v) for k, v in params.items()]
+        self.bridge = SimBridgeNode(parameter_overrides=overrides)
+        self.node = rclpy.create_node('sim_bridge_tester')
+        self.states = []
+        self.clocks = []
+        self.jog_pub = self.node.create_publisher(JointJog, 'JointJog', 10)
+        self.reset_to_pub = self.node.create_publisher(JointState, 'sim_bridge/reset_to', 10)
+        self.node.create_subscription(JointState, 'joint_states', self.states.append, 100)
+        self.node.create_subscription(Clock, 'clock', self.clocks.append, 1000)
+        self.clients = {name: self.node.create_client(kind, f'sim_bridge/{name}')
+                        for name, kind in (('reset', Trigger), ('pause', SetBool),
+                                           ('step', Trigger))}
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.bridge)
+        self.executor.add_node(self.node)
+
+    def spin_until(self, predicate, timeout=LIMIT):
+        """Spin until ``predicate()`` holds; return whether it did."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if predicate():
+                return True
+            self.executor.spin_once(timeout_sec=0.01)
+        return bool(predicate())
+
+    def spin_for(self, duration):
+        """Spin for ``duration`` [s] (only to show that something does not happen)."""
+        self.spin_until(lambda: False, duration)
+
+    def call(self, name, request):
+        """Call one of the bridge's services and return the response."""
+        client = self.clients[name]
+        assert self.spin_until(client.service_is_ready), f'{name} service never came up'
+        future = client.call_async(request)
+        assert self.spin_until(future.done), f'{name} call not answered'
+        return future.result()
+
+    def jog(self, velocities, names=NAMES):
+        """Publish one JointJog."""
+        msg = JointJog()
+        msg.joint_names = list(names)
+        msg.velocities = [float(v) for v in velocities]
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        self.jog_pub.publish(msg)
+
+    def latest(self):
+        """Return (stamp [s], q, qd, effort) of the newest /joint_states."""
+        msg = self.states[-1]
+        return (conversions.stamp_to_seconds(msg.header.stamp), np.array(msg.position),
+                np.array(msg.velocity), np.array(msg.effort))
+
+    def close(self):
+        """Destroy both nodes."""
+        self.executor.shutdown()
+        self.bridge.destroy_node()
+        self.node.destroy_node()
+
+
+@pytest.fixture
+def harness(request):
+    """Yield a bridge with the test's parameters (indirect parametrize of ``harness``)."""
+    h = Harness(**getattr(request, 'param', {}))
+    assert h.spin_until(lambda: len(h.states) > 3), 'no /joint_states from the bridge'
+    yield h
+    h.close()
+
+
+def test_joint_states_are_complete_and_at_the_rate(harness):
+    """Names joint1..joint6, position, velocity and effort for each, at 100 Hz of stamps."""
+    h = harness
+    start = len(h.states)
+    assert h.spin_until(lambda: len(h.states) >= start + 150)
+    msg = h.states[-1]
+    assert list(msg.name) == NAMES
+    assert len(msg.position) == len(msg.velocity) == len(msg.effort) == 6
+    stamps = np.array([conversions.stamp_to_seconds(m.header.stamp) for m in h.states[start:]])
+    rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
+    assert 90.0 < rate < 110.0, rate
+
+
+def test_jog_moves_at_the_commanded_speed_then_halts_when_stale(harness):
+    """A JointJog stream moves the joints at its speed; without it they halt after 0.2 s."""
+    h = harness
+    v = np.array([0.2, -0.1, 0.15, 0.3, -0.25, 0.5])
+    t_end = time.monotonic() + 0.6
+    while time.monotonic() < t_end:
+        h.jog(v)
+        h.spin_until(lambda: False, 0.02)
+    _, q_moving, qd_moving, _ = h.latest()
+    np.testing.assert_allclose(qd_moving, v, atol=1e-3)
+    assert np.all(np.sign(q_moving) == np.sign(v))
+    t_last = h.node.get_clock().now().nanoseconds * 1e-9
+    timeout = h.bridge.sim.config.command_timeout
+    assert h.spin_until(
+        lambda: h.latest()[0] > t_last + timeout + 0.1 and np.all(np.abs(h.latest()[2]) < 1e-4))
+    # it did not halt early: the last message before the timeout (less jitter) still moved
+    before = [m for m in h.states
+              if t_last < conversions.stamp_to_seconds(m.header.stamp) < t_last + timeout - 0.05]
+    assert before and np.allclose(before[-1].velocity, v, atol=1e-3)
+    # and after the timeout plus one step (plus delivery) every message is at rest
+    after = [m for m in h.states
+             if conversions.stamp_to_seconds(m.header.stamp) > t_last + timeout + 0.05]
+    assert after and all(np.all(np.abs(m.velocity) < 1e-2 * np.abs(v)) for m in after[2:])
+
+
+BAD = [
+    (['joint1', 'joint9'], [0.1, 0.1], 'unknown'),
+    (['joint1', 'joint2'], [0.1], 'names but'),
+    (['joint1'], [float('nan')], 'non-finite'),
+    (['joint1'], [float('inf')], 'non-finite'),
+    ([], [], 'no joints'),
+    (['joint2', 'joint2'], [0.1, 0.1], 'twice'),
+]
+
+
+def test_every_bad_message_is_rejected_and_the_bridge_runs_on(harness):
+    """Each kind of bad JointJog is rejected with a reason; states keep coming; good ones work."""
+    h = harness
+    for k, (names, values, reason) in enumerate(BAD):
+        h.jog(values, names)
+        assert h.spin_until(lambda: h.bridge.rejected == k + 1), (names, values)
+        assert reason in h.bridge.last_rejection
+    count = len(h.states)
+    assert h.spin_until(lambda: len(h.states) > count + 10)
+    h.jog([0.3], ['joint1'])
+    assert h.spin_until(lambda: h.latest()[2][0] > 0.29)
+    assert h.bridge.rejected == len(BAD)
+
+
+def test_speed_above_the_limit_is_clamped(harness):
+    """A speed over the joint's limit is clamped to it (and warned about)."""
+    h = harness
+    limit = h.bridge.arm.velocity_limits[0]
+    assert h.spin_until(lambda: (h.jog([5.0], ['joint1']) or True) and
+                        abs(h.latest()[2][0] - limit) < 1e-3)
+
+
+def test_reset_restores_home_and_reset_to_a_given_q(harness):
+    """~/reset puts the arm at rest at initial_q; ~/reset_to at the named positions."""
+    h = harness
+    assert h.spin_until(lambda: (h.jog([0.4, 0.3, 0, 0, 0, 0]) or True) and
+                        h.latest()[1][0] > 0.05)
+    assert h.spin_until(lambda: h.bridge.sim.is_stale())    # no jog still in flight
+    assert h.latest()[1][0] > 0.05
+    response = h.call('reset', Trigger.Request())
+    assert response.success
+    assert h.spin_until(lambda: np.allclose(h.latest()[1], 0.0, atol=1e-9) and
+                        np.allclose(h.latest()[2], 0.0, atol=1e-9))
+    target = JointState(name=['joint2', 'joint5'], position=[0.5, -0.7])
+    h.reset_to_pub.publish(target)
+    expected = np.array([0, 0.5, 0, 0, -0.7, 0])
+    assert h.spin_until(lambda: np.allclose(h.latest()[1], expected, atol=1e-9))
+    h.reset_to_pub.publish(JointState(name=['joint2'], position=[9.0]))   # outside the limits
+    count = len(h.states)
+    assert h.spin_until(lambda: len(h.states) > count + 20)
+    np.testing.assert_allclose(h.latest()[1], expected, atol=1e-9)
+
+
+@pytest.mark.parametrize('harness', [{'publish_clock': True}], indirect=True)
+def test_pause_step_resume_and_clock(harness):
+    """Paused, sim time stands; ~/step runs one period; /clock follows every step."""
+    h = harness
+    assert h.spin_until(lambda: len(h.clocks) > 50)
+    clock = np.array([conversions.stamp_to_seconds(c.clock) for c in h.clocks[-50:]])
+    np.testing.assert_allclose(np.diff(clock), h.bridge.dt, atol=1e-9)
+    assert not h.call('step', Trigger.Request()).success      # refused while running
+    assert h.call('pause', SetBool.Request(data=True)).success
+    t_paused = h.bridge.sim.time
+    h.spin_for(0.3)
+    assert h.bridge.sim.time == t_paused
+    count = len(h.states)
+    response = h.call('step', Trigger.Request())
+    assert response.success, response.message
+    assert math.isclose(h.bridge.sim.time, t_paused + 0.01, abs_tol=1e-9)
+    assert h.spin_until(lambda: len(h.states) == count + 1)
+    assert math.isclose(h.latest()[0], h.bridge.sim.time, abs_tol=1e-9)   # sim-time stamps
+    assert h.call('pause', SetBool.Request(data=False)).success
+    assert h.spin_until(lambda: h.bridge.sim.time > t_paused + 0.2)
+
+
+@pytest.mark.parametrize('harness', [{'mode': 'vendor_driver', 'publish_clock': True}],
+                         indirect=True)
+def test_vendor_mode_publishes_at_20_hz_and_holds_the_command(harness):
+    """In vendor mode states come every 50 ms of sim time and one command is held."""
+    h = harness
+    h.jog([0.5, 0, 0, 0, 0, 0])
+    start = len(h.states)
+    assert h.spin_until(lambda: len(h.states) > start + 30)      # 1.5 s, no renewal
+    stamps = np.array([conversions.stamp_to_seconds(m.header.stamp) for m in h.states[start:]])
+    np.testing.assert_allclose(np.diff(stamps), 0.05, atol=1e-9)
+    speeds = [m.velocity[0] for m in h.states[-10:]]
+    expected = 0.5 * h.bridge.arm.velocity_limits[0] * 0.25
+    np.testing.assert_allclose(speeds, expected, rtol=1e-3)
+
+
+@pytest.mark.parametrize('bad', [{'mode': 'turbo'}, {'publish_rate': 1000.0},
+                                 {'limit_set': 'lax'}, {'initial_q': [0.0, 0.0]},
+                                 {'real_time_factor': -1.0}])
+def test_bad_parameters_are_refused(bad):
+    """The node refuses to start on nonsense parameters, saying why."""
+    overrides = [Parameter(k, value=v) for k, v in bad.items()]
+    with pytest.raises(ValueError):
+        SimBridgeNode(parameter_overrides=overrides)
