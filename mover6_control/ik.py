@@ -270,12 +270,17 @@ def ik_closed_form_batch(arm, T, within_limits=True, q_ref=None, tol=VERIFY_TOL,
     ok = np.empty((m, N_BRANCHES), dtype=bool)
     for lo in range(0, m, chunk):
         sl = slice(lo, lo + chunk)
-        Q[sl], ok[sl] = _verified(arm, geo, T[sl], q_ref[sl], within_limits, tol)
+        Q[sl], ok[sl] = solve_candidates(arm, geo, T[sl], q_ref[sl], within_limits, tol)
     return Q, ok
 
 
-def _verified(arm, geo, T, q_ref, within_limits, tol):
-    """Return the candidates of a block of poses and the mask of verified ones."""
+def solve_candidates(arm, geo, T, q_ref, within_limits=True, tol=VERIFY_TOL):
+    """
+    Return the 8 candidates (m, 8, 6) of poses ``T`` (m, 4, 4) and the mask of verified ones.
+
+    The unchecked core of ``ik_closed_form_batch`` for callers that solve pose after pose:
+    ``geo`` from ``wrist_geometry(arm)``, ``q_ref`` (m, 6) already validated.
+    """
     m = len(T)
     Q, ok = _candidates(geo, T, q_ref)
     Q = _wrap(Q)

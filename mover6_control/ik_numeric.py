@@ -219,3 +219,25 @@ def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
     return NumericIKResult(q=best_q, success=success, position_error=float(best_err[0]),
                            orientation_error=float(best_err[1]), iterations=int(max_iterations),
                            restarts=restarts, cost=best_cost)
+
+
+def closest_within_limits(arm, T, seeds, *, weights=DEFAULT_WEIGHTS, n_seeds=4,
+                          max_iterations=300, rng=0):
+    """
+    Return the ``NumericIKResult`` with the lowest weighted cost from several starts.
+
+    For a pose that cannot be reached this is the closest pose found inside the joint limits
+    (closest in the ``weights`` sense of seed 000 eq. 21). ``seeds`` (k, n) are tried in turn,
+    each with ``n_seeds`` - 1 random companions; an exact solution ends the search.
+    """
+    seeds = as_finite_array(seeds, (None, arm.n_joints), 'seeds')
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    best = None
+    for q0 in seeds:
+        res = ik_numeric(arm, T, q0, weights=weights, n_seeds=n_seeds,
+                         max_iterations=max_iterations, rng=gen)
+        if best is None or res.cost < best.cost:
+            best = res
+        if best.success:
+            break
+    return best

@@ -1,0 +1,201 @@
+"""
+Inverse kinematics along a path of poses: one continuous branch, or a reason why not.
+
+For each waypoint the solution closest to the previous one (the first: to ``q_start``) is
+taken, in the max-norm of the joint step. Closed form first (every branch, so the continuous one
+is always among them); numeric IK seeded with the previous solution for arms without a
+spherical wrist. A path never switches branch: a step larger than ``max_joint_step`` is a
+discontinuity and fails the path. Near a singularity (Jacobian condition number above
+``max_condition`` and rising, i.e. moving towards it) the path fails too: leaving a singular
+pose, such as the Mover6's home (q5 = 0, axes 4 and 6 aligned), is allowed.
+
+Failures raise ``UnreachableError`` with ``reason`` in ``REASONS`` and ``details`` holding
+'waypoint', 'position_error' [m], 'orientation_error' [rad], 'closest_q' and 'closest_pose'
+(the nearest configuration found inside the joint limits and its pose), plus 'message'.
+"""
+
+from dataclasses import dataclass
+
+from mover6_control.errors import InvalidInputError, UnreachableError
+from mover6_control.ik import solve_candidates, VERIFY_TOL, wrist_geometry
+from mover6_control.ik_numeric import closest_within_limits, DEFAULT_WEIGHTS, ik_numeric
+from mover6_control.kinematics import condition_number, fk
+from mover6_control.rotations import as_finite_array, ORTHONORMAL_TOL, pose_error
+import numpy as np
+
+REASONS = ('out_of_reach', 'joint_limits', 'singularity', 'discontinuity')
+
+
+@dataclass(frozen=True)
+class PathSolution:
+    """Joint waypoints for a pose path and per-waypoint figures."""
+
+    q: np.ndarray                  # (m, n) [rad]
+    position_error: np.ndarray     # (m,) [m], FK of q against the poses
+    orientation_error: np.ndarray  # (m,) [rad]
+    condition: np.ndarray          # (m,) Jacobian condition number at each waypoint
+    joint_step: np.ndarray         # (m,) largest joint change from the previous waypoint [rad]
+    method: str                    # 'closed_form' or 'numeric'
+
+    @property
+    def max_joint_step(self):
+        """Return the largest joint change between neighbouring waypoints [rad]."""
+        return float(self.joint_step.max())
+
+    @property
+    def max_condition(self):
+        """Return the largest Jacobian condition number along the path."""
+        return float(self.condition.max())
+
+
+def validate_poses(poses, name='poses'):
+    """Return ``poses`` as a (m, 4, 4) array of proper transforms (m >= 1) or raise."""
+    P = as_finite_array(poses, (None, 4, 4), name)
+    if len(P) == 0:
+        raise InvalidInputError(f'{name} is empty')
+    R = P[:, :3, :3]
+    err = np.abs(R.transpose(0, 2, 1) @ R - np.eye(3)).max(axis=(1, 2))
+    bad = np.flatnonzero(err > ORTHONORMAL_TOL)
+    if len(bad):
+        raise InvalidInputError(
+            f'{name}[{bad[0]}] rotation is not orthonormal (|R^T R - I| = {err[bad[0]]:.2e})')
+    bad = np.flatnonzero(np.linalg.det(R) < 0.0)
+    if len(bad):
+        raise InvalidInputError(f'{name}[{bad[0]}] rotation is a reflection (det < 0)')
+    bad = np.flatnonzero(np.abs(P[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1) > ORTHONORMAL_TOL)
+    if len(bad):
+        raise InvalidInputError(f'{name}[{bad[0]}] last row must be [0, 0, 0, 1]')
+    return P
+
+
+def _positive(name, value, allow_none=False):
+    """Check that a setting is a positive finite number (or None when allowed)."""
+    if value is None and allow_none:
+        return None
+    try:
+        value = float(value)
+    except (TypeError, ValueError) as err:
+        raise InvalidInputError(f'{name} must be a number, got {value!r}') from err
+    if not np.isfinite(value) or value <= 0.0:
+        raise InvalidInputError(f'{name} must be positive and finite, got {value}')
+    return value
+
+
+def _closest(arm, T, seeds, weights):
+    """Return (q, pose, position error, orientation error) of the closest in-limit config."""
+    res = closest_within_limits(arm, T, seeds, weights=weights)
+    pose = fk(arm, res.q)
+    pos, rot = pose_error(pose, T)
+    return res.q, pose, pos, rot
+
+
+def unreachable_error(arm, T, q_seed, waypoint, weights=DEFAULT_WEIGHTS, geometry=None,
+                      what='the pose'):
+    """
+    Return the ``UnreachableError`` for a pose with no solution inside the limits.
+
+    Tells 'joint_limits' (solutions exist outside the limits; the message names the joints)
+    from 'out_of_reach', and finds the closest pose inside the limits. ``what`` is 'waypoint'
+    (the message then names its index) or a noun for the message.
+    """
+    if geometry is not None:
+        Q, ok = solve_candidates(arm, geometry, T[None], q_seed[None], within_limits=False)
+        outside = Q[0][ok[0]]
+    else:
+        res = ik_numeric(arm, T, q_seed, within_limits=False, rng=waypoint)
+        outside = res.q[None] if res.success else np.zeros((0, arm.n_joints))
+    seeds = [q_seed]
+    if len(outside):
+        # The unconstrained solution that needs the least limit violation.
+        over = np.maximum(arm.lower - outside, 0.0) + np.maximum(outside - arm.upper, 0.0)
+        best = outside[np.argmin(over.sum(axis=1))]
+        seeds.append(np.clip(best, arm.lower, arm.upper))
+    q, pose, pos, rot = _closest(arm, T, np.array(seeds), weights)
+    closest = (f'closest pose inside the limits misses it by {pos * 1e3:.1f} mm and '
+               f'{rot:.4f} rad')
+    what = f'waypoint {waypoint}' if what == 'waypoint' else what
+    if len(outside):
+        reason = 'joint_limits'
+        message = (f'{what} is reachable only outside the joint limits ('
+                   + '; '.join(arm.limit_violations(best)) + f'); {closest}')
+    else:
+        reason = 'out_of_reach'
+        message = f'{what} is out of reach; {closest}'
+    details = {'waypoint': int(waypoint), 'position_error': pos, 'orientation_error': rot,
+               'closest_q': q, 'closest_pose': pose, 'message': message}
+    if len(outside):
+        details['q_outside_limits'] = best
+    return UnreachableError(message, reason=reason, details=details)
+
+
+def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
+               position_tol=1e-3, orientation_tol=0.01, weights=DEFAULT_WEIGHTS):
+    """
+    Return a ``PathSolution`` for ``poses`` (m, 4, 4) starting from ``q_start`` (n,) [rad].
+
+    ``max_joint_step`` [rad] is the largest joint change allowed between neighbours;
+    ``max_condition`` (None: no check) the largest Jacobian condition number allowed when moving
+    towards a singularity; ``position_tol`` [m] and ``orientation_tol`` [rad] the accuracy
+    each waypoint must reach. Raises ``UnreachableError`` (see the module docstring) or
+    ``InvalidInputError`` for bad input.
+    """
+    P = validate_poses(poses)
+    q_prev = arm.check_q(q_start, 'q_start')
+    max_joint_step = _positive('max_joint_step', max_joint_step)
+    max_condition = _positive('max_condition', max_condition, allow_none=True)
+    position_tol = _positive('position_tol', position_tol)
+    orientation_tol = _positive('orientation_tol', orientation_tol)
+    try:
+        geometry = wrist_geometry(arm)
+    except InvalidInputError:
+        geometry = None
+    m, n = len(P), arm.n_joints
+    out = {key: np.empty(m) for key in ('pos', 'rot', 'cond', 'step')}
+    Q = np.empty((m, n))
+    cond_prev = condition_number(arm, q_prev)
+    for k in range(m):
+        T = P[k]
+        if geometry is not None:
+            cand, ok = solve_candidates(arm, geometry, T[None], q_prev[None], True, VERIFY_TOL)
+            sols = cand[0][ok[0]]
+        else:
+            res = ik_numeric(arm, T, q_prev, position_tol=min(position_tol, 1e-6),
+                             orientation_tol=min(orientation_tol, 1e-6), weights=weights, rng=k)
+            sols = res.q[None] if res.success else np.zeros((0, n))
+        if len(sols) == 0:
+            raise unreachable_error(arm, T, q_prev, k, weights, geometry, what='waypoint')
+        steps = np.abs(sols - q_prev).max(axis=1)
+        j = int(np.argmin(steps))
+        q = sols[j]
+        pos, rot = pose_error(fk(arm, q), T)
+        if pos > position_tol or rot > orientation_tol:
+            raise unreachable_error(arm, T, q_prev, k, weights, geometry, what='waypoint')
+        cond = condition_number(arm, q)
+        if steps[j] > max_joint_step:
+            joint = int(np.argmax(np.abs(q - q_prev)))
+            _fail(arm, T, q_prev, k, 'discontinuity',
+                  f'waypoint {k} needs a jump of {steps[j]:.3f} rad in {arm.joint_names[joint]} '
+                  f'(limit {max_joint_step:.3f} rad): the continuous branch does not reach it',
+                  {'joint_step': float(steps[j]), 'joint': arm.joint_names[joint],
+                   'jump_q': q})
+        if max_condition is not None and cond > max_condition and cond > cond_prev:
+            _fail(arm, T, q_prev, k, 'singularity',
+                  f'waypoint {k} is near a singularity (Jacobian condition number {cond:.3g} '
+                  f'> {max_condition:.3g}, rising)',
+                  {'condition': float(cond), 'solution_q': q})
+        Q[k] = q
+        out['pos'][k], out['rot'][k], out['cond'][k], out['step'][k] = pos, rot, cond, steps[j]
+        q_prev, cond_prev = q, cond
+    return PathSolution(q=Q, position_error=out['pos'], orientation_error=out['rot'],
+                        condition=out['cond'], joint_step=out['step'],
+                        method='closed_form' if geometry is not None else 'numeric')
+
+
+def _fail(arm, T, q_prev, k, reason, message, extra):
+    """Raise ``UnreachableError``; the closest pose is the last one reached continuously."""
+    pose = fk(arm, q_prev)
+    pos, rot = pose_error(pose, T)
+    details = {'waypoint': int(k), 'position_error': pos, 'orientation_error': rot,
+               'closest_q': q_prev, 'closest_pose': pose, 'message': message}
+    details.update(extra)
+    raise UnreachableError(message, reason=reason, details=details)
