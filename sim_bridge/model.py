@@ -109,10 +109,17 @@ def build_mjcf(arm, options=None):
         f'gravity="{gravity}">',
         '    <flag contact="disable"/>',
         '  </option>',
-        '  <visual><global offwidth="1280" offheight="960"/></visual>',
+        '  <visual>',
+        '    <global offwidth="1280" offheight="960"/>',
+        '    <headlight ambient="0.35 0.35 0.35" diffuse="0.6 0.6 0.6" specular="0.1 0.1 0.1"/>',
+        '  </visual>',
+        '  <asset>',
+        '    <texture name="sky" type="skybox" builtin="gradient" rgb1="0.95 0.95 1" '
+        'rgb2="0.65 0.72 0.8" width="64" height="64"/>',
+        '  </asset>',
         '  <worldbody>',
         '    <light pos="0.5 -0.5 1.5" dir="-0.3 0.3 -1" directional="true"/>',
-        '    <geom name="floor" type="plane" size="1 1 0.01" rgba="0.8 0.8 0.8 1" '
+        '    <geom name="floor" type="plane" size="1 1 0.01" rgba="0.85 0.85 0.82 1" '
         'contype="0" conaffinity="0"/>',
         '    <geom name="base" type="cylinder" size="0.06 {h}" pos="0 0 {h}" '
         'contype="0" conaffinity="0" rgba="0.3 0.3 0.3 1" mass="1"/>'.format(
