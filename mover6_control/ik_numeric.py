@@ -7,9 +7,10 @@ minimised inside the joint limits (eq. 22). The rotation vector replaces the see
 differences, which jump by 2 pi and are singular at B = +-pi/2 (exactly its example goal).
 
 Steps are Levenberg-Marquardt with error-dependent damping (Sugihara 2011):
-``(J^T W J + (E + lambda_0) I) dq = J^T W e``, ``E = e^T W e / 2``, then projected onto the
-joint limits. ``n_seeds`` starts run side by side as one batch (the first is ``q0``, the others
-random in the limits); a start that stalls is re-seeded at random. The first start that meets
+``(J^T W J + (c E + lambda_0) I) dq = J^T W e``, ``E = e^T W e / 2``, then projected onto
+the joint limits (a joint held at a limit that the step pushes outwards leaves the active set).
+``n_seeds`` starts run side by side as one batch (the first is ``q0``, the others random in
+the limits); a start that stalls is re-seeded at random. The first start that meets
 both tolerances wins; otherwise the lowest-cost configuration seen is returned with
 ``success = False`` (the closest pose found).
 """
@@ -195,6 +196,15 @@ def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
         JtW = J.transpose(0, 2, 1) * w
         A = JtW @ J + (error_damping * 0.5 * cost + damping)[:, None, None] * eye
         dq = np.linalg.solve(A, (JtW @ e[:, :, None]))[:, :, 0]
+        if within_limits:
+            # Active set: a joint at a limit that the step pushes outwards is held there and
+            # the step is re-solved for the others (plain clipping stalls on the boundary).
+            blocked = ((Q <= lo) & (dq < 0.0)) | ((Q >= hi) & (dq > 0.0))
+            if blocked.any():
+                Jf = J * ~blocked[:, None, :]
+                JtW = Jf.transpose(0, 2, 1) * w
+                A = JtW @ Jf + (error_damping * 0.5 * cost + damping)[:, None, None] * eye
+                dq = np.linalg.solve(A, (JtW @ e[:, :, None]))[:, :, 0]
         if max_step is not None:
             dq *= np.minimum(1.0, max_step / (np.abs(dq).max(axis=1) + 1e-300))[:, None]
         Q = Q + dq
