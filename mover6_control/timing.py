@@ -30,12 +30,22 @@ import numpy as np
 _STRAIGHT_ANGLE = 1e-6
 # Above this turning angle [rad] the path reverses: the arm stops at the corner instead.
 _REVERSAL_ANGLE = np.pi - 1e-6
+# Quintic Hermite basis (ascending powers) for p(0), p'(0), p'(1), p(1), with p''(0) = p''(1) = 0.
+_HERMITE5 = np.array([[1.0, 0.0, 0.0, -10.0, 15.0, -6.0],
+                      [0.0, 1.0, 0.0, -6.0, 8.0, -3.0],
+                      [0.0, 0.0, 0.0, -4.0, 7.0, -3.0],
+                      [0.0, 0.0, 0.0, 10.0, -15.0, 6.0]])
+# _FALLING[k][j] = j! / (j - k)!: the factor of sigma^(j - k) in the k-th derivative of sigma^j.
+_FALLING = [np.array([np.prod(np.arange(j - k + 1, j + 1)) if j >= k else 0.0
+                      for j in range(6)]) for k in range(4)]
 # Largest tangent turn [rad] across one grid interval on a blend arc.
 _MAX_TURN = 0.05
 # Limits are enforced at grid points only; between them a blend arc can exceed them by
 # O(_MAX_TURN^2 / 8) = 3e-4 relative. Planning to limits this much smaller keeps the whole
 # trajectory inside the true limits.
 _LIMIT_MARGIN = 1e-3
+# The jerk-limited timing is checked on samples: slow it 1 % more than they ask for.
+_JERK_MARGIN = 1e-2
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,6 +63,7 @@ class BlendedPath:
     starts: np.ndarray      # (k + 1,) cumulative arc length at the segment ends [rad]
     stops: tuple            # arc lengths where the path has a corner and speed must be zero
     waypoints: np.ndarray   # (m, n) the waypoints actually used (repeats removed)
+    waypoint_s: tuple       # arc length of the path point nearest each waypoint (m,)
 
     @property
     def length(self):
@@ -82,6 +93,13 @@ class BlendedPath:
                 p, u = self.params[i]
                 out[0][mask] = p + local * u
                 out[1][mask] = u
+            elif self.kinds[i] == 'quintic':
+                coeffs, scale, _ = self.params[i]
+                sigma = local / scale
+                for k in range(4):
+                    poly = coeffs[k:] * _FALLING[k][k:, None]
+                    powers = sigma ** np.arange(poly.shape[0])
+                    out[k][mask] = powers @ poly / scale ** k
             else:
                 c, r, x, y = self.params[i]
                 phi = local / r
@@ -91,6 +109,14 @@ class BlendedPath:
                 out[2][mask] = -(x * cos + y * sin) / r
                 out[3][mask] = (x * sin - y * cos) / r ** 2
         return tuple(out)
+
+    def turn(self, i):
+        """Return how far the tangent turns along segment ``i`` [rad] (0 on a line)."""
+        if self.kinds[i] == 'line':
+            return 0.0
+        if self.kinds[i] == 'quintic':
+            return self.params[i][2]
+        return float((self.starts[i + 1] - self.starts[i]) / self.params[i][1])
 
     def segment_of(self, s):
         """Return the segment index (m,) holding each arc length ``s`` (m,)."""
@@ -109,15 +135,38 @@ def _distinct_waypoints(Q):
     return Q
 
 
-def blended_path(Q, max_deviation=1e-2):
+def _quintic_blend(corner, y1, y2, ell):
+    """Return the coefficients (6, n) of the quintic blend cutting ``ell`` off each side."""
+    ends = np.array([corner - ell * y1, 2.0 * ell * y1, 2.0 * ell * y2, corner + ell * y2])
+    return _HERMITE5.T @ ends
+
+
+def _quintic_deviation(alpha):
+    """Return how far a quintic blend with ell = 1 strays: from the polyline, or the corner."""
+    y1, y2 = np.array([1.0, 0.0]), np.array([np.cos(alpha), np.sin(alpha)])
+    sigma = np.linspace(0.0, 1.0, 201)
+    pts = (sigma[:, None] ** np.arange(6)) @ _quintic_blend(np.zeros(2), y1, y2, 1.0)
+    # Distance to the two rays that meet at the corner (origin).
+    d_in = np.linalg.norm(pts - np.maximum(pts @ -y1, 0.0)[:, None] * -y1, axis=1)
+    d_out = np.linalg.norm(pts - np.maximum(pts @ y2, 0.0)[:, None] * y2, axis=1)
+    # Like the arc, pass the corner within the allowance too (its middle is nearest).
+    return max(float(np.max(np.minimum(d_in, d_out))), float(np.min(np.linalg.norm(pts, axis=1))))
+
+
+def blended_path(Q, max_deviation=1e-2, blend='arc'):
     """
     Return the ``BlendedPath`` through waypoints ``Q`` (m, n) [rad].
 
-    Each inner corner is replaced by a circular arc tangent to both neighbouring lines, at
-    most ``max_deviation`` [rad] (joint-space distance) from the corner and using at most
-    half of either line. Consecutive repeated waypoints are dropped; a full reversal is kept
-    as a corner at which the arm stops.
+    Each inner corner is replaced by a blend tangent to both neighbouring lines, using at most
+    half of either line. ``blend='arc'``: a circular arc at most ``max_deviation`` [rad]
+    (joint-space distance) from the corner (Kunz and Stilman); ``blend='quintic'``: a quintic
+    whose curvature is zero where it meets the lines (curvature-continuous, so acceleration
+    can be continuous: for jerk limits), at most ``max_deviation`` from the polyline.
+    Consecutive repeated waypoints are dropped; a full reversal is kept as a corner at which
+    the arm stops.
     """
+    if blend not in ('arc', 'quintic'):
+        raise InvalidInputError(f"blend must be 'arc' or 'quintic', got {blend!r}")
     Q = _distinct_waypoints(Q)
     max_deviation = float(max_deviation)
     if not np.isfinite(max_deviation) or max_deviation <= 0.0:
@@ -139,6 +188,13 @@ def blended_path(Q, max_deviation=1e-2):
             stop_at[i] = True
             continue
         half = 0.5 * alpha
+        if blend == 'quintic':
+            ell = min(0.5 * lengths[i - 1], 0.5 * lengths[i],
+                      max_deviation / _quintic_deviation(alpha))
+            cut[i] = ell
+            arcs[i] = ('quintic', (_quintic_blend(Q[i], y1, y2, ell), 2.0 * ell, alpha),
+                       2.0 * ell)
+            continue
         # The arc's farthest point from the corner is ell tan(alpha / 4) away.
         ell = min(0.5 * lengths[i - 1], 0.5 * lengths[i], max_deviation / np.tan(0.5 * half))
         r = ell / np.tan(half)
@@ -147,8 +203,8 @@ def blended_path(Q, max_deviation=1e-2):
         start = Q[i] - ell * y1
         x = (start - c) / np.linalg.norm(start - c)
         cut[i] = ell
-        arcs[i] = (c, r, x, y1, alpha * r)
-    kinds, params, seg_len, stops = [], [], [], []
+        arcs[i] = ('arc', (c, r, x, y1), alpha * r)
+    kinds, params, seg_len, stops, waypoint_s = [], [], [], [], [0.0]
     s = 0.0
     for k in range(m - 1):
         line_len = lengths[k] - cut[k] - cut[k + 1]
@@ -159,53 +215,164 @@ def blended_path(Q, max_deviation=1e-2):
             s += line_len
         if k + 1 < m - 1:
             if arcs[k + 1] is not None:
-                c, r, x, y, arc_len = arcs[k + 1]
-                kinds.append('arc')
-                params.append((c, r, x, y))
+                kind, param, arc_len = arcs[k + 1]
+                kinds.append(kind)
+                params.append(param)
                 seg_len.append(arc_len)
+                waypoint_s.append(s + 0.5 * arc_len)    # the arc's middle: nearest the corner
                 s += arc_len
-            elif stop_at[k + 1]:
-                stops.append(s)
+            else:
+                waypoint_s.append(s)
+                if stop_at[k + 1]:
+                    stops.append(s)
     starts = np.concatenate([[0.0], np.cumsum(seg_len)])
-    return BlendedPath(tuple(kinds), tuple(params), starts, tuple(stops), Q)
+    waypoint_s.append(float(starts[-1]))
+    return BlendedPath(tuple(kinds), tuple(params), starts, tuple(stops), Q, tuple(waypoint_s))
+
+
+@dataclass(frozen=True, eq=False)
+class GridTiming:
+    """
+    TOPP's timing: path acceleration ``u_k`` constant on grid interval k.
+
+    On interval k the path position is ``s_k + sdot_k tau + u_k tau^2 / 2`` for ``tau`` in
+    [0, t_{k+1} - t_k]; before the start it rests at 0, after the end at ``s_grid[-1]``.
+    """
+
+    s_grid: np.ndarray      # (N + 1,) [rad]
+    sd: np.ndarray          # (N + 1,) path speed at the grid points [rad/s]
+    u: np.ndarray           # (N,) path acceleration per interval [rad/s^2]
+    t_grid: np.ndarray      # (N + 1,) [s]
+
+    @property
+    def duration(self):
+        """Return the duration [s]."""
+        return float(self.t_grid[-1])
+
+    def profile(self, t):
+        """Return ``s, sdot, sddot, sdddot`` (each (m,)) at times ``t`` (m,) [s]."""
+        t = np.asarray(t, dtype=float)
+        k = np.clip(np.searchsorted(self.t_grid, t, side='right') - 1, 0, self.u.size - 1)
+        tau = np.clip(t - self.t_grid[k], 0.0, self.t_grid[k + 1] - self.t_grid[k])
+        u = self.u[k]
+        s = np.clip(self.s_grid[k] + self.sd[k] * tau + 0.5 * u * tau ** 2,
+                    self.s_grid[k], self.s_grid[k + 1])
+        sd = np.maximum(self.sd[k] + u * tau, 0.0)
+        sdd = u.copy()
+        before, after = t < 0.0, t > self.duration
+        s[before], s[after] = 0.0, self.s_grid[-1]
+        sd[before | after] = 0.0
+        sdd[before | after] = 0.0
+        return s, sd, sdd, np.zeros_like(s)
+
+    def integral(self, t):
+        """Return the integral of ``s`` from 0 to ``t`` (m,) [rad s]; s holds its end after."""
+        t = np.asarray(t, dtype=float)
+        dt = np.diff(self.t_grid)
+        pieces = self.s_grid[:-1] * dt + self.sd[:-1] * dt ** 2 / 2 + self.u * dt ** 3 / 6
+        cum = np.concatenate([[0.0], np.cumsum(pieces)])
+        tc = np.clip(t, 0.0, self.duration)
+        k = np.clip(np.searchsorted(self.t_grid, tc, side='right') - 1, 0, self.u.size - 1)
+        tau = tc - self.t_grid[k]
+        part = self.s_grid[k] * tau + self.sd[k] * tau ** 2 / 2 + self.u[k] * tau ** 3 / 6
+        return cum[k] + part + self.s_grid[-1] * np.maximum(t - self.duration, 0.0)
+
+    def time_at(self, s):
+        """Return the first time [s] at which the path position reaches ``s`` (m,)."""
+        s = np.clip(np.asarray(s, dtype=float), 0.0, self.s_grid[-1])
+        k = np.clip(np.searchsorted(self.s_grid, s, side='right') - 1, 0, self.u.size - 1)
+        ds = s - self.s_grid[k]
+        v0, u = self.sd[k], self.u[k]
+        # Solve ds = v0 tau + u tau^2 / 2 for the smallest tau >= 0 (stable form).
+        disc = np.sqrt(np.maximum(v0 ** 2 + 2.0 * u * ds, 0.0))
+        with np.errstate(divide='ignore', invalid='ignore'):
+            tau = np.where(v0 + disc > 0.0, 2.0 * ds / (v0 + disc), 0.0)
+        return self.t_grid[k] + np.minimum(tau, self.t_grid[k + 1] - self.t_grid[k])
+
+
+@dataclass(frozen=True, eq=False)
+class FilteredTiming:
+    """
+    A timing smoothed by a moving average over ``window`` [s]: jerk becomes finite.
+
+    ``s_f(t)`` is the mean of ``s`` over [t - window, t], so ``sdddot_f`` is the difference of
+    ``sddot`` across the window divided by it. ``s_f`` is a re-timing of the same path: the
+    geometry is untouched. The motion lasts ``window`` longer.
+    """
+
+    base: GridTiming
+    window: float           # [s]
+
+    @property
+    def duration(self):
+        """Return the duration [s]."""
+        return self.base.duration + self.window
+
+    def profile(self, t):
+        """Return ``s, sdot, sddot, sdddot`` (each (m,)) at times ``t`` (m,) [s]."""
+        t = np.asarray(t, dtype=float)
+        w = self.window
+        now = self.base.profile(t)
+        then = self.base.profile(t - w)
+        s = (self.base.integral(t) - self.base.integral(t - w)) / w
+        return (np.clip(s, 0.0, self.base.s_grid[-1]),) + tuple(
+            (a - b) / w for a, b in zip(now[:3], then[:3]))
+
+    def time_at(self, s):
+        """Return the time [s] at which the smoothed path position reaches ``s`` (m,)."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        t_lo = self.base.time_at(s)               # s_f lags s: s_f(t) = s no earlier ...
+        t_hi = np.minimum(t_lo + self.window, self.duration)   # ... and no later than this
+        for _ in range(60):
+            mid = 0.5 * (t_lo + t_hi)
+            below = self.profile(mid)[0] < s
+            t_lo, t_hi = np.where(below, mid, t_lo), np.where(below, t_hi, mid)
+        return t_hi
+
+
+@dataclass(frozen=True, eq=False)
+class ScaledTiming:
+    """A timing slowed down uniformly by ``factor`` >= 1: rates scale by 1 / factor^k."""
+
+    base: object
+    factor: float
+
+    @property
+    def duration(self):
+        """Return the duration [s]."""
+        return self.base.duration * self.factor
+
+    def profile(self, t):
+        """Return ``s, sdot, sddot, sdddot`` (each (m,)) at times ``t`` (m,) [s]."""
+        out = self.base.profile(np.asarray(t, dtype=float) / self.factor)
+        return tuple(v / self.factor ** k for k, v in enumerate(out))
+
+    def time_at(self, s):
+        """Return the time [s] at which the path position reaches ``s`` (m,)."""
+        return self.base.time_at(s) * self.factor
 
 
 class PathTrajectory(JointTrajectory):
-    """
-    A ``BlendedPath`` timed by a piecewise-constant path acceleration.
+    """A ``BlendedPath`` followed with a timing ``s(t)`` (``GridTiming`` or a smoothing of it)."""
 
-    On grid interval k the path position is ``s_k + sdot_k tau + u_k tau^2 / 2`` for
-    ``tau`` in [0, t_{k+1} - t_k].
-    """
-
-    def __init__(self, path, s_grid, seg, x, u, t_grid):
-        super().__init__(t_grid[-1], path.n_joints)
+    def __init__(self, path, timing):
+        super().__init__(timing.duration, path.n_joints)
         self.path = path
-        self.s_grid, self.seg, self.x, self.u, self.t_grid = s_grid, seg, x, u, t_grid
-        self._sd = np.sqrt(x)
+        self.timing = timing
 
     def _evaluate(self, t):
-        k = np.clip(np.searchsorted(self.t_grid, t, side='right') - 1, 0, self.u.size - 1)
-        tau = t - self.t_grid[k]
-        u = self.u[k]
-        sd = np.maximum(self._sd[k] + u * tau, 0.0)
-        s = np.clip(self.s_grid[k] + self._sd[k] * tau + 0.5 * u * tau ** 2,
-                    self.s_grid[k], self.s_grid[k + 1])
-        q, dq, ddq, dddq = self.path.evaluate(s, self.seg[k])
-        sd_, u_ = sd[:, None], u[:, None]
-        qd = dq * sd_
-        qdd = dq * u_ + ddq * sd_ ** 2
-        qddd = dddq * sd_ ** 3 + 3.0 * ddq * sd_ * u_
+        s, sd, sdd, sddd = self.timing.profile(t)
+        q, dq, ddq, dddq = self.path.evaluate(s, self.path.segment_of(s))
+        sd, sdd, sddd = sd[:, None], sdd[:, None], sddd[:, None]
+        qd = dq * sd
+        qdd = dq * sdd + ddq * sd ** 2
+        qddd = dq * sddd + 3.0 * ddq * sd * sdd + dddq * sd ** 3
         return q, qd, qdd, qddd
 
     @property
     def waypoint_times(self):
-        """Return the time [s] at which the path passes closest to each waypoint (m,)."""
-        W = self.path.waypoints
-        t = np.linspace(0.0, self.duration, max(2000, 20 * W.shape[0]))
-        q = self.sample(t)[0]
-        d = np.linalg.norm(q[None, :, :] - W[:, None, :], axis=2)
-        return t[np.argmin(d, axis=1)]
+        """Return the time [s] at which the arm passes (closest to) each waypoint (m,)."""
+        return self.timing.time_at(np.asarray(self.path.waypoint_s))
 
 
 def _grid(path, n_grid):
@@ -215,9 +382,11 @@ def _grid(path, n_grid):
     for i, kind in enumerate(path.kinds):
         a, b = path.starts[i], path.starts[i + 1]
         count = max(2, int(np.ceil((b - a) / ds)))
-        if kind == 'arc':
+        if kind != 'line':
             # Keep the tangent turn per interval small: limits hold to O(turn^2) in between.
-            count = max(count, int(np.ceil((b - a) / path.params[i][1] / _MAX_TURN)))
+            # A quintic blend turns unevenly, so it gets twice the points.
+            per, least = (1.0, 2) if kind == 'arc' else (2.0, 8)
+            count = max(count, least, int(np.ceil(per * path.turn(i) / _MAX_TURN)))
         pts = np.linspace(a, b, count + 1)
         pieces.append(pts[:-1])
         segs.append(np.full(count, i))
@@ -278,15 +447,18 @@ def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=
     the path cannot be followed and is dropped; a speed too high to stop in time is reduced to
     the largest that can), and ends at rest on the last waypoint. ``max_deviation`` [rad]
     bounds the corner arcs; ``n_grid`` sets the TOPP grid (default: 20 points per waypoint,
-    at least 400). Jerk limits are not supported on a path (use
-    ``trajectories.ruckig_trajectory`` for jerk-limited point-to-point moves): passing
-    ``j_max`` raises.
+    at least 400).
+
+    With ``j_max`` [rad/s^3] the time-optimal timing is smoothed by a moving average (see
+    ``_jerk_limited``): the path is unchanged, jerk becomes finite and within ``j_max``, and
+    the motion is no longer exactly time-optimal (it lasts about ``max(2 a_max / j_max)``
+    longer). ``j_max`` with a non-zero ``qd_start`` is refused.
     """
-    if j_max is not None:
+    if j_max is not None and qd_start is not None and np.any(np.asarray(qd_start) != 0.0):
         raise InvalidInputError(
-            'time_parameterize does not enforce jerk limits; pass j_max=None or use '
-            'trajectories.ruckig_trajectory for a jerk-limited move')
-    path = blended_path(Q, max_deviation)
+            'time_parameterize: j_max with a moving start (qd_start) is not supported; use '
+            'trajectories.ruckig_trajectory to blend from the current velocity')
+    path = blended_path(Q, max_deviation, 'arc' if j_max is None else 'quintic')
     n = path.n_joints
     v = _positive(v_max, n, 'v_max') * (1.0 - _LIMIT_MARGIN)
     a = _positive(a_max, n, 'a_max') * (1.0 - _LIMIT_MARGIN)
@@ -305,6 +477,15 @@ def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=
     x_cap = np.full(N + 1, np.inf)
     x_cap[:-1] = cap0
     x_cap[1:] = np.minimum(x_cap[1:], cap1)
+    if j_max is not None:
+        # Jerk on a curved blend grows with sdot^3 |d3q/ds3|: cap the speed there so that term
+        # takes at most half of the jerk budget (the smoothing below handles the rest).
+        j = _positive(j_max, n, 'j_max') * (1.0 - _LIMIT_MARGIN)
+        with np.errstate(divide='ignore', over='ignore'):
+            jcap0 = np.min((0.5 * j / np.abs(d0[3])) ** (2.0 / 3.0), axis=1)
+            jcap1 = np.min((0.5 * j / np.abs(d1[3])) ** (2.0 / 3.0), axis=1)
+        x_cap[:-1] = np.minimum(x_cap[:-1], jcap0)
+        x_cap[1:] = np.minimum(x_cap[1:], jcap1)
     for s_stop in path.stops:
         x_cap[np.argmin(np.abs(s_grid - s_stop))] = 0.0
     x_cap[-1] = 0.0
@@ -355,7 +536,52 @@ def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=
         raise UnreachableError('the path cannot be timed: the speed stays zero',
                                reason='not_controllable')
     t_grid = np.concatenate([[0.0], np.cumsum(dt)])
-    return PathTrajectory(path, s_grid, seg, x, u, t_grid)
+    timing = GridTiming(s_grid, sd, u, t_grid)
+    if j_max is None:
+        return PathTrajectory(path, timing)
+    return _jerk_limited(path, timing, v, a, _positive(j_max, n, 'j_max') * (1.0 - _LIMIT_MARGIN))
+
+
+def _jerk_limited(path, timing, v, a, j):
+    """
+    Smooth the TOPP timing so joint jerk stays within ``j`` (n,) [rad/s^3].
+
+    A moving average over a window ``w`` turns each step of joint acceleration into a ramp
+    (on a line a step of at most ``2 a`` becomes a jerk of at most ``2 a / w``). On the
+    blends the tangent turns during the window, so the ramps can be steeper, and the path's
+    own curvature adds jerk: each candidate window (1, 1.5 and 2.5 times ``max(2 a / j)``) is
+    measured on both sides of every TOPP grid time, of the same shifted by ``w`` and of each
+    time the motion crosses a grid point of the path, and midway between them; it is then
+    slowed down uniformly (rates scale by 1 / factor^k) until every limit holds with a 1 %
+    margin. The shortest result wins.
+    """
+    base_window = float(np.max(2.0 * a / j))
+    mid = 0.5 * (timing.t_grid[1:] + timing.t_grid[:-1])
+    s_grid = timing.s_grid
+    s_fine = np.sort(np.concatenate([s_grid, 0.5 * (s_grid[1:] + s_grid[:-1])]))
+    best = None
+    for scale in (1.0, 1.5, 2.5):
+        w = scale * base_window
+        smooth = FilteredTiming(timing, w)
+        # Sample where the timing changes (grid times, shifted by w) and where the path does
+        # (the times the smoothed motion crosses the grid points and their midpoints).
+        # Rates jump at the grid times: sample both sides of each jump.
+        t_path = smooth.time_at(s_fine)
+        knots = np.concatenate([timing.t_grid, timing.t_grid + w, t_path])
+        eps = 1e-9 * max(smooth.duration, 1.0)
+        t = np.unique(np.clip(np.concatenate([knots, knots - eps, mid, mid + w, t_path]),
+                              0.0, smooth.duration))
+        traj = PathTrajectory(path, smooth)
+        _, qd, qdd, jerk = traj._evaluate(t)
+        factor = max(1.0, float(np.max(np.abs(qd) / v)),
+                     float(np.sqrt(np.max(np.abs(qdd) / a))),
+                     float(np.cbrt(np.max(np.abs(jerk) / j))))
+        if factor > 1.0:
+            factor *= 1.0 + _JERK_MARGIN
+            traj = PathTrajectory(path, ScaledTiming(smooth, factor))
+        if best is None or traj.duration < best.duration:
+            best = traj
+    return best
 
 
 def _positive(value, n, name):

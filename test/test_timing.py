@@ -49,6 +49,48 @@ def test_blended_path_is_tangent_continuous_and_close_to_the_corners():
     assert distance_to_polyline(q, Q).max() <= 0.02 + 1e-12
 
 
+def test_quintic_blends_are_curvature_continuous_and_within_the_deviation():
+    path = timing.blended_path(Q, max_deviation=0.002, blend='quintic')
+    assert path.kinds == ('line', 'quintic', 'line', 'quintic', 'line')
+    s = path.starts[1:-1]
+    before = path.evaluate(s, np.arange(len(s)))
+    after = path.evaluate(s, np.arange(1, len(s) + 1))
+    for k in range(3):                                        # q, q' and q'' all continuous
+        assert np.allclose(before[k], after[k], atol=1e-9)
+    ss = np.linspace(0.0, path.length, 20001)
+    q, dq, ddq, dddq = path.evaluate(ss, path.segment_of(ss))
+    d = distance_to_polyline(q, Q)
+    assert d.max() <= 0.002 + 1e-12
+    middles = 0.5 * (path.starts[[1, 3]] + path.starts[[2, 4]])
+    near = np.linalg.norm(path.evaluate(middles, [1, 3])[0] - Q[1:-1], axis=1)
+    assert np.all(near <= 0.002 + 1e-12) and near.max() == pytest.approx(0.002)
+    inner = np.diff(path.segment_of(ss)) == 0               # derivatives by differences
+    h = ss[1] - ss[0]
+    # Trapezoid rule: the difference quotient and the mean slope differ by h^2 |d3q| / 12.
+    tol = 1.5 * h ** 2 / 12.0 * np.abs(dddq).max()
+    assert np.allclose((np.diff(q, axis=0) / h)[inner], 0.5 * (dq[1:] + dq[:-1])[inner],
+                       atol=tol)
+    assert np.allclose((np.diff(ddq, axis=0) / h)[inner], 0.5 * (dddq[1:] + dddq[:-1])[inner],
+                       atol=1e-3 * np.abs(dddq).max())
+
+
+def test_jerk_limited_timing_keeps_every_limit_and_the_path():
+    J = np.full(6, 5.0)
+    traj = timing.time_parameterize(Q, V, A, j_max=J)
+    free = timing.time_parameterize(Q, V, A)
+    assert traj.duration > free.duration
+    t, q, qd, qdd = dense(traj, 5e-4)
+    assert np.all(np.abs(qd) <= V) and np.all(np.abs(qdd) <= A)
+    assert np.all(np.abs(traj.sample_jerk(t)) <= J)
+    # Acceleration is continuous now: its differences are bounded by the jerk limit too.
+    assert np.all(np.abs(np.diff(qdd, axis=0)) <= J * 5e-4 * (1.0 + 1e-6))
+    assert distance_to_polyline(q, Q).max() <= 1e-2 + 1e-9
+    assert np.allclose(q[-1], Q[-1], atol=1e-12) and np.allclose(qd[[0, -1]], 0.0)
+    times = traj.waypoint_times
+    assert times[0] == pytest.approx(0.0, abs=1e-12) and np.all(np.diff(times) > 0.0)
+    assert np.all(np.linalg.norm(traj.sample(times)[0] - Q, axis=1) <= 1e-2 + 1e-9)
+
+
 def test_continuous_trajectory_runs_through_waypoints_within_limits():
     traj = timing.time_parameterize(Q, V, A, max_deviation=0.01)
     t, q, qd, qdd = dense(traj)
@@ -156,7 +198,9 @@ def test_time_optimal_bound_values():
     lambda: timing.time_parameterize(Q, np.zeros(6), A),
     lambda: timing.time_parameterize(Q, V, -A),
     lambda: timing.time_parameterize(Q, V[:3], A),
-    lambda: timing.time_parameterize(Q, V, A, j_max=5.0),
+    lambda: timing.time_parameterize(Q, V, A, j_max=0.0),
+    lambda: timing.time_parameterize(Q, V, A, j_max=5.0, qd_start=np.full(6, 0.1)),
+    lambda: timing.blended_path(Q, blend='spline'),
     lambda: timing.time_parameterize(Q, V, A, max_deviation=0.0),
     lambda: timing.time_parameterize(Q, V, A, qd_start=[np.nan] * 6),
     lambda: timing.time_optimal_bound(Q, V, 0.0),
