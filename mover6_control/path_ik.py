@@ -178,7 +178,7 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
                   f'(limit {max_joint_step:.3f} rad): the continuous branch does not reach it',
                   {'joint_step': float(steps[j]), 'joint': arm.joint_names[joint],
                    'jump_q': q})
-        if max_condition is not None and cond > max_condition and cond > cond_prev:
+        if max_condition is not None and cond > max_condition and cond > cond_prev * (1 + 1e-6):
             _fail(arm, T, q_prev, k, 'singularity',
                   f'waypoint {k} is near a singularity (Jacobian condition number {cond:.3g} '
                   f'> {max_condition:.3g}, rising)',
