@@ -15,6 +15,8 @@ Run: ``python -m bench.bench_motion [--quick]``. Prints tables and writes
    both the seed's fixed t_max = 1 s and the shortest t_max the limits allow) against
    continuous execution, with the largest Cartesian deviation of each from the straight line
    (FK every 1 ms) and the continuous duration against a lower bound on any trajectory.
+   Plots (PNG, next to the JSON): the time laws, the continuous joint trajectories against the
+   joint limits, the desired against the realised tool path.
 """
 
 import argparse
@@ -22,7 +24,7 @@ import json
 import os
 import time
 
-from mover6_control import metrics, paths, time_laws, timing, trajectories
+from mover6_control import metrics, paths, plots, time_laws, timing, trajectories
 from mover6_control.arm import mover6
 from mover6_control.kinematics import fk, fk_batch
 import numpy as np
@@ -77,6 +79,7 @@ def bench_speed(arm, quick):
     v = arm.velocity_limits
     builders = {
         'continuous (TOPP)': lambda: timing.time_parameterize(Q, v, A_MAX),
+        'continuous, jerk-limited': lambda: timing.time_parameterize(Q, v, A_MAX, j_max=J_MAX),
         'cubic spline': lambda: trajectories.cubic_trajectory(Q, v_max=v, a_max=A_MAX),
         'quintic spline': lambda: trajectories.quintic_trajectory(Q, v_max=v, a_max=A_MAX),
         'B-spline': lambda: trajectories.bspline_trajectory(Q, v_max=v, a_max=A_MAX),
@@ -128,8 +131,25 @@ def bench_seed_linear(arm):
         Q, time_laws.trapezoidal, v, A_MAX)
     cont, t_build = _timed(lambda: timing.time_parameterize(Q, v, A_MAX), 3)
     schemes['continuous (TOPP on blended path)'] = cont
+    schemes['continuous, jerk-limited (j_max 5)'] = timing.time_parameterize(
+        Q, v, A_MAX, j_max=J_MAX)
     bound = timing.time_optimal_bound(Q, v, A_MAX)
     fine = timing.time_parameterize(Q, v, A_MAX, n_grid=20000)
+    t = metrics.sample_times(cont.duration, 1e-3)
+    q, qd, qdd = cont.sample(t)
+    figures = [
+        plots.plot_time_law([time_laws.cubic(), time_laws.quintic(), time_laws.septic(),
+                             time_laws.trapezoidal(), time_laws.sharp_trapezoid(),
+                             time_laws.via_point_polynomial(
+                                 time_laws.via_fraction(83.14, 90.0, 173.37))],
+                            os.path.join(RESULTS, 'motion_time_laws.png')),
+        plots.plot_joint_trajectories(t, q, arm.lower, arm.upper,
+                                      os.path.join(RESULTS, 'motion_seed_joints.png'),
+                                      QD=qd, QDD=qdd),
+        plots.plot_path_3d(paths.positions_of(poses), fk_batch(arm, q)[:, :3, 3],
+                           os.path.join(RESULTS, 'motion_seed_path3d.png'),
+                           waypoints=fk_batch(arm, Q)[:, :3, 3]),
+    ]
     rows = []
     for name, traj in schemes.items():
         mt = metrics.trajectory_metrics(traj, fk_fn, line, dt=1e-3)
@@ -140,7 +160,15 @@ def bench_seed_linear(arm):
             'peak_a_rad_s2': float(np.max(mt.peak_acceleration)),
             'path_length_m': mt.path_length})
     base = rows[1]['duration_s']
+    sweep = []
+    for a_max in (0.5, 1.0, 2.0, 5.0):
+        seed_t = trajectories.stop_at_each(Q, time_laws.trapezoidal, v, a_max).duration
+        cont_t = timing.time_parameterize(Q, v, a_max).duration
+        sweep.append({'a_max': a_max, 'seed_shortest_s': seed_t, 'continuous_s': cont_t,
+                      'speedup': seed_t / cont_t,
+                      'bound_s': timing.time_optimal_bound(Q, v, a_max)})
     return {
+        'figures': figures, 'a_max_sweep': sweep,
         'ik': ik_used, 'a_max': A_MAX, 'velocity_limits': v.tolist(), 'rows': rows,
         'speedup_vs_seed_shortest': base / cont.duration,
         'speedup_vs_seed_fixed_1s': rows[0]['duration_s'] / cont.duration,
@@ -165,12 +193,18 @@ def main(argv=None):
     print(f'lower bound on any trajectory through these waypoints: {bound100:.2f} s')
     seed = bench_seed_linear(arm)
     print(f'\nseed 000 linear example (0.1 m along +x, home orientation kept), IK: {seed["ik"]}')
-    print(f'{"scheme":38s} {"duration s":>10s} {"max dev mm":>10s} {"peak v/limit":>12s}')
+    print(f'{"scheme":38s} {"duration s":>10s} {"max dev mm":>10s} {"peak v/limit":>12s}'
+          f' {"peak a":>7s}')
     for r in seed['rows']:
         print(f'{r["scheme"]:38s} {r["duration_s"]:10.3f} {r["max_deviation_mm"]:10.4f}'
-              f' {r["peak_v_over_limit"]:12.3f}')
+              f' {r["peak_v_over_limit"]:12.3f} {r["peak_a_rad_s2"]:7.3f}')
     print(f'continuous is {seed["speedup_vs_seed_shortest"]:.2f}x faster than the seed scheme'
           f' (shortest t_max), {seed["speedup_vs_seed_fixed_1s"]:.2f}x than its fixed 1 s')
+    print('speed-up against the seed scheme at its fastest, by acceleration limit:')
+    for r in seed['a_max_sweep']:
+        print(f'  a_max {r["a_max"]:4.1f} rad/s^2: seed {r["seed_shortest_s"]:6.3f} s,'
+              f' continuous {r["continuous_s"]:6.3f} s (bound {r["bound_s"]:6.3f} s),'
+              f' {r["speedup"]:.2f}x')
     print(f'lower bound {seed["lower_bound_s"]:.3f} s; continuous / bound ='
           f' {seed["continuous_over_bound"]:.3f}; TOPP on a 20000-point grid'
           f' {seed["topp_fine_grid_s"]:.3f} s')
@@ -179,7 +213,7 @@ def main(argv=None):
            'lower_bound_100_waypoints_s': bound100, 'seed_linear': seed}
     with open(os.path.join(RESULTS, 'motion.json'), 'w') as f:
         json.dump(out, f, indent=2)
-    print(f'\nwrote {os.path.join(RESULTS, "motion.json")}')
+    print(f'\nwrote {os.path.join(RESULTS, "motion.json")} and {", ".join(seed["figures"])}')
     return 0
 
 

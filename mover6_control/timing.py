@@ -244,6 +244,12 @@ class GridTiming:
     u: np.ndarray           # (N,) path acceleration per interval [rad/s^2]
     t_grid: np.ndarray      # (N + 1,) [s]
 
+    def __post_init__(self):
+        """Precompute the integral of s at the grid times (for smoothing)."""
+        dt = np.diff(self.t_grid)
+        pieces = self.s_grid[:-1] * dt + self.sd[:-1] * dt ** 2 / 2 + self.u * dt ** 3 / 6
+        object.__setattr__(self, '_cum', np.concatenate([[0.0], np.cumsum(pieces)]))
+
     @property
     def duration(self):
         """Return the duration [s]."""
@@ -268,14 +274,11 @@ class GridTiming:
     def integral(self, t):
         """Return the integral of ``s`` from 0 to ``t`` (m,) [rad s]; s holds its end after."""
         t = np.asarray(t, dtype=float)
-        dt = np.diff(self.t_grid)
-        pieces = self.s_grid[:-1] * dt + self.sd[:-1] * dt ** 2 / 2 + self.u * dt ** 3 / 6
-        cum = np.concatenate([[0.0], np.cumsum(pieces)])
         tc = np.clip(t, 0.0, self.duration)
         k = np.clip(np.searchsorted(self.t_grid, tc, side='right') - 1, 0, self.u.size - 1)
         tau = tc - self.t_grid[k]
         part = self.s_grid[k] * tau + self.sd[k] * tau ** 2 / 2 + self.u[k] * tau ** 3 / 6
-        return cum[k] + part + self.s_grid[-1] * np.maximum(t - self.duration, 0.0)
+        return self._cum[k] + part + self.s_grid[-1] * np.maximum(t - self.duration, 0.0)
 
     def time_at(self, s):
         """Return the first time [s] at which the path position reaches ``s`` (m,)."""
