@@ -127,6 +127,14 @@ def wall_time_of(sim_elapsed, real_time_factor):
     return sim_elapsed / real_time_factor
 
 
+def _as_slice(indices):
+    """Return a slice for consecutive ``indices`` (cheap views), else the index array."""
+    indices = np.asarray(indices)
+    if np.array_equal(indices, np.arange(indices[0], indices[0] + len(indices))):
+        return slice(int(indices[0]), int(indices[0]) + len(indices))
+    return indices
+
+
 class Simulator:
     """
     One simulated arm: MuJoCo model and data, the command state and the mode's drive logic.
@@ -145,11 +153,18 @@ class Simulator:
         self.home_q = self._check_q(np.zeros(n) if home_q is None else home_q, 'home_q')
         self.model = build_model(arm, self.config.model)
         self.data = mujoco.MjData(self.model)
-        self._qadr = joint_qpos_addresses(self.model, arm.joint_names)
-        self._dadr = joint_dof_addresses(self.model, arm.joint_names)
+        self._qadr = _as_slice(joint_qpos_addresses(self.model, arm.joint_names))
+        self._dadr = _as_slice(joint_dof_addresses(self.model, arm.joint_names))
         self._index = {name: i for i, name in enumerate(arm.joint_names)}
         self._ticks = np.array(self.config.tick_size)
         self._vmax = np.array(arm.velocity_limits)
+        self._n = n
+        self._zeros = np.zeros(n)
+        self._upper, self._lower = np.array(arm.upper), np.array(arm.lower)
+        self._upper_list, self._lower_list = self._upper.tolist(), self._lower.tolist()
+        self._inv_tau = 1.0 / (_LIMIT_APPROACH * self.config.physics_dt)
+        opt = self.config.model
+        self._feedforward = (opt.kv + opt.damping) / opt.kv
         self.step_count = 0
         self.command_count = 0       # commands accepted since construction
         self.applied_count = 0       # the last command_count that a physics step used
@@ -180,7 +195,7 @@ class Simulator:
     @property
     def ctrl(self):
         """Return the velocity (n,) [rad/s] the joint servos were last asked for."""
-        return self._demand.copy()
+        return np.array(self._demand, dtype=float)
 
     @property
     def held_command(self):
@@ -251,15 +266,20 @@ class Simulator:
                                 f' {unit}')
                 value = math.copysign(limit, value)
             cmd[i] = value
-        self._cmd = cmd
+        self._set_held(cmd)
         self._cmd_time = float(receive_time)
         self.command_count += 1
         return warnings
 
     def halt(self):
         """Drop the command: zero velocity (also the held command in vendor mode)."""
-        self._cmd = np.zeros(self.arm.n_joints)
+        self._set_held(np.zeros(self.arm.n_joints))
         self._cmd_time = None
+
+    def _set_held(self, cmd):
+        """Hold ``cmd`` (n,) and what each step needs of it: its reach over the limit guard."""
+        self._cmd = cmd
+        self._cmd_reach = (cmd / self._inv_tau).tolist()
 
     # --- stepping ------------------------------------------------------------------------
 
@@ -280,11 +300,17 @@ class Simulator:
     def _servo_control(self):
         """Set the servo velocities for one 'rad_per_s' step."""
         if self.is_stale():
-            v = np.zeros(self.arm.n_joints)
-        else:
-            v = self._cmd
-            self.applied_count = self.command_count
-        self._set_servo(self._limit_guard(v))
+            self._set_servo(self._zeros)     # zero is always inside the limits
+            return
+        self.applied_count = self.command_count
+        # Fast path (plain floats, no small-array numpy calls): is any joint within reach of a
+        # limit in the direction it is commanded? Only then apply the guard.
+        q = self.data.qpos[self._qadr].tolist()
+        for qi, reach, lo, hi in zip(q, self._cmd_reach, self._lower_list, self._upper_list):
+            if qi + reach > hi or qi + reach < lo:
+                self._set_servo(self._limit_guard(self._cmd))
+                return
+        self._set_servo(self._cmd)
 
     def _set_servo(self, v):
         """
@@ -293,9 +319,8 @@ class Simulator:
         The demand is scaled by (kv + damping) / kv, the drive's feed-forward of the joint's
         viscous damping, so that the steady velocity equals ``v`` exactly.
         """
-        opt = self.config.model
-        self._demand = np.array(v, dtype=float)
-        self.data.ctrl[:self.arm.n_joints] = self._demand * ((opt.kv + opt.damping) / opt.kv)
+        self._demand = v
+        self.data.ctrl[:self._n] = v * self._feedforward
 
     def _limit_guard(self, v):
         """
@@ -305,23 +330,24 @@ class Simulator:
         physics steps, so it glides onto the limit (exponentially, 10 ms at a 2 ms step) instead
         of overshooting it by the servo's lag; a joint beyond a limit may only move back.
         """
-        q = self.q
-        tau = _LIMIT_APPROACH * self.config.physics_dt
-        hi = np.maximum((self.arm.upper - q) / tau, 0.0)
-        lo = np.minimum((self.arm.lower - q) / tau, 0.0)
-        return np.clip(v, lo, hi)
+        q = self.data.qpos[self._qadr]
+        hi = np.maximum((self._upper - q) * self._inv_tau, 0.0)
+        lo = np.minimum((self._lower - q) * self._inv_tau, 0.0)
+        return np.minimum(np.maximum(v, lo), hi)
 
     def _vendor_control(self):
         """Run the driver's 20 Hz cycle when due, then set the servo to follow the target."""
-        cfg = self.config
-        if self.time >= self._next_cycle - _EPS:
+        t = float(self.data.time)
+        if t >= self._next_cycle - _EPS:
             self._vendor_cycle()
-        ramp = min(max((self.time - self._cycle_start) / cfg.vendor_cycle, 0.0), 1.0)
-        target = self._target_ticks * self._ticks
-        ref = self._prev_target + (target - self._prev_target) * ramp
-        v_ff = (target - self._prev_target) / cfg.vendor_cycle if ramp < 1.0 else 0.0
-        v = v_ff + cfg.tracking_gain * (ref - self.q)
-        self._set_servo(np.clip(v, -self._vmax, self._vmax))
+        ramp = (t - self._cycle_start) / self.config.vendor_cycle
+        if ramp < 1.0:
+            ref = self._prev_target + self._ramp_delta * ramp
+            v = self._v_ff + self.config.tracking_gain * (ref - self.data.qpos[self._qadr])
+        else:
+            ref = self._prev_target + self._ramp_delta
+            v = self.config.tracking_gain * (ref - self.data.qpos[self._qadr])
+        self._set_servo(np.minimum(np.maximum(v, -self._vmax), self._vmax))
 
     def _vendor_cycle(self):
         """One cycle of the vendor driver: read encoders, then move the targets in ticks."""
@@ -337,6 +363,8 @@ class Simulator:
         lo = np.ceil(self.arm.lower / self._ticks - _EPS)
         hi = np.floor(self.arm.upper / self._ticks + _EPS)
         self._target_ticks = np.clip(self._target_ticks + ticks, lo, hi)
+        self._ramp_delta = self._target_ticks * self._ticks - self._prev_target
+        self._v_ff = self._ramp_delta / cfg.vendor_cycle
         if np.any(self._cmd != 0.0):
             self.applied_count = self.command_count
         self._cycle_start = now
@@ -363,11 +391,13 @@ class Simulator:
         self.data.qpos[self._qadr] = q
         mujoco.mj_forward(self.model, self.data)
         n = self.arm.n_joints
-        self._cmd = np.zeros(n)
+        self._set_held(np.zeros(n))
         self._cmd_time = None
         self._demand = np.zeros(n)
         self._target_ticks = np.round(q / self._ticks)
         self._prev_target = self._target_ticks * self._ticks
+        self._ramp_delta = np.zeros(n)
+        self._v_ff = np.zeros(n)
         self._cycle_start = t
         self._next_cycle = t
         self._read_q = np.round(q / self._ticks) * self._ticks
