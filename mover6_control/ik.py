@@ -27,7 +27,7 @@ at a shoulder singularity (wrist centre on axis 1).
 from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics import fk_batch, fk_frames
+from mover6_control.kinematics import fk_batch
 from mover6_control.rotations import as_finite_array, validate_transform
 import numpy as np
 
@@ -47,6 +47,22 @@ class WristGeometry:
     wrist_point: np.ndarray   # (3,) wrist centre at q = 0, base frame [m]
     wrist_in_tip: np.ndarray  # (3,) wrist centre in the tip frame [m] (constant)
     x6: np.ndarray            # (3,) a unit vector normal to omega_6
+
+
+def _cross(a, b):
+    """Return the cross product of (..., 3) arrays (np.cross is slow on small inputs)."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def _norm(v):
+    """Return the Euclidean norm of a 3-vector as a float."""
+    return float(np.sqrt(v @ v))
 
 
 def _dot(a, b):
@@ -99,7 +115,11 @@ def wrist_geometry(arm):
     if arm.n_joints != 6:
         raise InvalidInputError(
             f'closed-form IK needs a 6-joint arm, {arm.name} has {arm.n_joints}')
-    frames = fk_frames(arm, np.zeros(6))
+    frames = np.empty((7, 4, 4))      # at q = 0 every joint rotation is the identity
+    frames[0] = arm.origins[0]
+    for i in range(1, 6):
+        frames[i] = frames[i - 1] @ arm.origins[i]
+    frames[6] = frames[5] @ arm.tool
     omega = np.einsum('nij,nj->ni', frames[:6, :3, :3], arm.axes)
     r = frames[:6, :3, 3].copy()
     # Least-squares point nearest to the three wrist axes.
@@ -109,35 +129,35 @@ def wrist_geometry(arm):
         P = np.eye(3) - np.outer(omega[i], omega[i])
         A += P
         rhs += P @ r[i]
-    if np.linalg.norm(np.cross(omega[3], omega[4])) < 1e-6 or np.linalg.norm(
-            np.cross(omega[4], omega[5])) < 1e-6:
+    if _norm(_cross(omega[3], omega[4])) < 1e-6 or _norm(
+            _cross(omega[4], omega[5])) < 1e-6:
         raise InvalidInputError(f'{arm.name}: neighbouring wrist axes are parallel; '
                                 'no spherical wrist (use ik_numeric)')
     centre = np.linalg.solve(A, rhs)
     for i in (3, 4, 5):
         off = (centre - r[i]) - np.dot(centre - r[i], omega[i]) * omega[i]
-        if np.linalg.norm(off) > _POINT_TOL:
+        if _norm(off) > _POINT_TOL:
             raise InvalidInputError(
                 f'{arm.name}: axes 4, 5, 6 do not meet in one point (axis {i + 1} misses it by '
-                f'{np.linalg.norm(off):.3g} m); no spherical wrist (use ik_numeric)')
-    if np.linalg.norm(np.cross(omega[1], omega[2])) > _PARALLEL_TOL:
+                f'{_norm(off):.3g} m); no spherical wrist (use ik_numeric)')
+    if _norm(_cross(omega[1], omega[2])) > _PARALLEL_TOL:
         raise InvalidInputError(
             f'{arm.name}: axes 2 and 3 are not parallel; this closed form needs a planar elbow '
             '(use ik_numeric)')
-    if np.linalg.norm(np.cross(omega[0], omega[1])) < 1e-6:
+    if _norm(_cross(omega[0], omega[1])) < 1e-6:
         raise InvalidInputError(f'{arm.name}: axis 1 is parallel to axis 2 (use ik_numeric)')
     w2 = omega[1]
     e = (r[2] - r[1]) - np.dot(r[2] - r[1], w2) * w2
     u = (centre - r[2]) - np.dot(centre - r[2], w2) * w2
-    if np.linalg.norm(e) < _POINT_TOL or np.linalg.norm(u) < _POINT_TOL:
+    if _norm(e) < _POINT_TOL or _norm(u) < _POINT_TOL:
         raise InvalidInputError(f'{arm.name}: degenerate elbow (zero link length)')
     M = frames[6]
-    x6 = np.cross(omega[5], [1.0, 0.0, 0.0])
-    if np.linalg.norm(x6) < 0.5:
-        x6 = np.cross(omega[5], [0.0, 1.0, 0.0])
+    x6 = _cross(omega[5], [1.0, 0.0, 0.0])
+    if _norm(x6) < 0.5:
+        x6 = _cross(omega[5], [0.0, 1.0, 0.0])
     geometry = WristGeometry(omega=omega, r=r, M=M, wrist_point=centre,
                              wrist_in_tip=M[:3, :3].T @ (centre - M[:3, 3]),
-                             x6=x6 / np.linalg.norm(x6))
+                             x6=x6 / _norm(x6))
     return geometry
 
 
@@ -189,7 +209,7 @@ def _candidates(geo, T, q_ref):
     v1 = _dot(v, w1)
     s12 = np.dot(w1, w2)
     a = _dot(v, w2) - v1 * s12
-    b = -_dot(np.cross(w1, v), w2)
+    b = -_dot(_cross(w1, v), w2)
     c = np.dot(w2, p0 - r[0]) - v1 * s12
     q1, ok1, rho1 = _cos_sin(a, b, c, 1e-12)
     shoulder = rho1 < 1e-9
@@ -201,7 +221,7 @@ def _candidates(geo, T, q_ref):
     u = (p0 - r[2]) - np.dot(p0 - r[2], w2) * w2
     d_vec = (p1 - r[1]) - _dot(p1 - r[1], w2)[..., None] * w2
     c3 = (_dot(d_vec, d_vec) - np.dot(e, e) - np.dot(u, u)) / 2.0
-    q3, ok3, _ = _cos_sin(np.dot(e, u), np.dot(e, np.cross(w3, u)), c3, 1e-12)  # (m, 2, 2)
+    q3, ok3, _ = _cos_sin(np.dot(e, u), np.dot(e, _cross(w3, u)), c3, 1e-12)  # (m, 2, 2)
     x = r[2] + _rotate(w3, q3, np.broadcast_to(p0 - r[2], q3.shape + (3,)))
     q2, _ = _subproblem1(w2, x - r[1], p1[:, :, None, :] - r[1])             # (m, 2, 2)
     q1 = np.broadcast_to(q1[:, :, None], q2.shape)
@@ -219,7 +239,7 @@ def _candidates(geo, T, q_ref):
     den = s45 ** 2 - 1.0
     alpha = (s45 * np.dot(w5, w6) - _dot(w4, tv)) / den
     beta = (s45 * _dot(w4, tv) - np.dot(w5, w6)) / den
-    n45 = np.cross(w4, w5)
+    n45 = _cross(w4, w5)
     gamma2 = (1.0 - alpha ** 2 - beta ** 2 - 2.0 * alpha * beta * s45) / np.dot(n45, n45)
     ok_w = gamma2 > -1e-9
     gamma = np.sqrt(np.maximum(gamma2, 0.0))
