@@ -148,7 +148,8 @@ def spline_path(T_start, T_vias, T_goal, n=None, max_step=None, max_angle_step=N
     """
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
-    vias = as_finite_array(T_vias, (None, 4, 4), 'T_vias')
+    vias = np.zeros((0, 4, 4)) if np.size(T_vias) == 0 else \
+        as_finite_array(T_vias, (None, 4, 4), 'T_vias')
     keys = [T_start] + [validate_transform(T, f'T_vias[{i}]') for i, T in enumerate(vias)]
     keys.append(T_goal)
     for i in range(len(keys) - 1):
@@ -270,8 +271,9 @@ def goal_relative_to_start(T_start, x, y, z, a, b, c):
     """
     Return the goal pose as seed 000's MATLAB builds it, rotation relative to the start.
 
-    Position X Y Z [m] is absolute; the rotation is ``R_start @ Rz(a) Ry(b) Rx(c)``. So ``a = b = c = 0`` keeps the start orientation (seed 000: ``tform2rotm(initial_Pos) *
-    eul2rotm([A, B, C])``).
+    Position X Y Z [m] is absolute; the rotation is ``R_start @ Rz(a) Ry(b) Rx(c)``, so
+    ``a = b = c = 0`` keeps the start orientation (seed 000:
+    ``tform2rotm(initial_Pos) * eul2rotm([A, B, C])``).
     """
     T_start = validate_transform(T_start, 'T_start')
     return make_transform([x, y, z], T_start[:3, :3] @ euler_zyx_to_matrix(a, b, c))

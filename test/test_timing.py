@@ -153,8 +153,11 @@ def test_random_paths_respect_limits_and_the_lower_bound(rows, v, a):
         with pytest.raises(InvalidInputError):
             timing.time_parameterize(W, v, a)
         return
+    # The bound is for motions through the waypoints exactly: compare with corners cut by at
+    # most 1e-6 rad, far less than the 0.1 % margin on the limits can gain.
+    exact = timing.time_parameterize(W, v, a, max_deviation=1e-6)
+    assert exact.duration >= timing.time_optimal_bound(W, v, a)
     traj = timing.time_parameterize(W, v, a)
-    assert traj.duration >= timing.time_optimal_bound(W, v, a) * (1.0 - 1e-9)
     t, q, qd, qdd = dense(traj, max(traj.duration / 4000, 1e-4))
     assert np.all(np.abs(qd) <= v) and np.all(np.abs(qdd) <= a)
     assert np.allclose(q[-1], W[-1], atol=1e-9)
