@@ -11,10 +11,10 @@ from dataclasses import dataclass, replace
 import os
 
 from mover6_control.errors import InvalidInputError
+from mover6_control.resources import CONFIG_DIR
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-CONFIG_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'config')
 
 
 @dataclass(frozen=True, eq=False)
