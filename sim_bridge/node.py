@@ -107,10 +107,12 @@ class SimBridgeNode(Node):
         self.last_rejection = ''
         self.latencies = []              # [s] JointJog arrival to the end of its first step
         self.overruns = 0                # times pacing fell behind and re-anchored
+        self.failure = None              # why the physics thread stopped, if it did
         self._pending = None             # (command_count, wall arrival) awaiting its first step
         self._was_stale = True
         self._next_publish = self.sim.time
         self._last_reading_time = None
+        self._mujoco_warnings = {}
 
         self.joint_states_pub = self.create_publisher(JointState, 'joint_states', 10)
         self.clock_pub = (self.create_publisher(Clock, 'clock', 10)
@@ -235,6 +237,14 @@ class SimBridgeNode(Node):
     # --- the physics thread ------------------------------------------------------------------
 
     def _run(self):
+        """Run the physics loop; a failure is logged loudly, never lost in a thread."""
+        try:
+            self._loop()
+        except Exception as exc:  # noqa: B902 - report whatever stopped the physics
+            self.failure = f'{type(exc).__name__}: {exc}'
+            self.get_logger().fatal(f'physics thread stopped: {self.failure}')
+
+    def _loop(self):
         """Step, publish and pace until stopped; re-anchor after a pause or an overrun."""
         anchor = None
         last_view = 0.0
@@ -289,10 +299,21 @@ class SimBridgeNode(Node):
         if stale and not self._was_stale:
             self.get_logger().info('/JointJog command stale: joints halted')
         self._was_stale = stale
+        if reading is not None:
+            self._check_physics()
         if self.clock_pub is not None:
             self.clock_pub.publish(conversions.make_clock(t))
         if reading is not None and publish_states:
             self._publish_state(reading)
+
+    def _check_physics(self):
+        """Log an error when MuJoCo reports a new warning (a blow-up resets its state)."""
+        with self.lock:
+            warnings = self.sim.warnings()
+        new = {k: n for k, n in warnings.items() if n > self._mujoco_warnings.get(k, 0)}
+        self._mujoco_warnings = warnings
+        if new:
+            self.get_logger().error(f'MuJoCo warnings {new}: the physics was reset by MuJoCo')
 
     def _publish_state(self, reading):
         """Publish a ``JointReading`` on /joint_states."""

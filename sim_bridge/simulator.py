@@ -216,6 +216,20 @@ class Simulator:
         return self._cmd_time is None or (
             self.time - self._cmd_time > self.config.command_timeout + _EPS)
 
+    def warnings(self):
+        """
+        Return MuJoCo's warnings so far as {name: count}, e.g. {'mjWARN_BADQACC': 1}.
+
+        A bad-acceleration warning means the physics blew up and MuJoCo reset its state: the
+        node reports it rather than let the arm jump silently.
+        """
+        out = {}
+        for name, kind in mujoco.mjtWarning.__members__.items():
+            i = int(kind)
+            if i < len(self.data.warning) and self.data.warning[i].number > 0:
+                out[name] = int(self.data.warning[i].number)
+        return out
+
     def state(self):
         """Return the ``JointReading`` the arm reports now (the driver's view in vendor mode)."""
         if self.config.mode == 'vendor_driver':

@@ -30,7 +30,9 @@ LIMIT = 30.0      # [s] generous limit of every wait
 
 @pytest.fixture(scope='module', autouse=True)
 def ros():
-    """Start rclpy once for the module (domain 31, localhost only)."""
+    """Start rclpy once for the module (domain 31, localhost only; no display)."""
+    os.environ.pop('DISPLAY', None)
+    os.environ.pop('WAYLAND_DISPLAY', None)
     rclpy.init()
     yield
     rclpy.try_shutdown()
@@ -139,10 +141,11 @@ def test_jog_moves_at_the_commanded_speed_then_halts_when_stale(harness):
     before = [m for m in h.states
               if t_last < conversions.stamp_to_seconds(m.header.stamp) < t_last + timeout - 0.05]
     assert before and np.allclose(before[-1].velocity, v, atol=1e-3)
-    # and after the timeout plus one step (plus delivery) every message is at rest
+    # and after the timeout (plus delivery and braking: the exact bound of timeout plus one
+    # step is shown on the Simulator, where receipt times are known) every message is at rest
     after = [m for m in h.states
-             if conversions.stamp_to_seconds(m.header.stamp) > t_last + timeout + 0.05]
-    assert after and all(np.all(np.abs(m.velocity) < 1e-2 * np.abs(v)) for m in after[2:])
+             if conversions.stamp_to_seconds(m.header.stamp) > t_last + timeout + 0.1]
+    assert after and all(np.all(np.abs(m.velocity) < 1e-2 * np.abs(v)) for m in after)
 
 
 BAD = [
@@ -233,6 +236,15 @@ def test_vendor_mode_publishes_at_20_hz_and_holds_the_command(harness):
     speeds = [m.velocity[0] for m in h.states[-10:]]
     expected = 0.5 * h.bridge.arm.velocity_limits[0] * 0.25
     np.testing.assert_allclose(speeds, expected, rtol=1e-3)
+
+
+@pytest.mark.parametrize('harness', [{'viewer': True}], indirect=True)
+def test_viewer_without_a_display_runs_headless(harness):
+    """Asked for a viewer with no display, the bridge warns and runs headless."""
+    h = harness
+    assert h.bridge.viewer is None
+    count = len(h.states)
+    assert h.spin_until(lambda: len(h.states) > count + 20)
 
 
 @pytest.mark.parametrize('bad', [{'mode': 'turbo'}, {'publish_rate': 1000.0},

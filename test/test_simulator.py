@@ -164,8 +164,8 @@ def test_reset_restores_the_state(mode):
     """After a reset the arm is at rest at home, commands are gone, time has not gone back."""
     cfg = SimConfig(mode=mode)
     home = np.array([0.1, 0.2, -0.3, 0.0, 0.4, -0.5])
-    v = np.array([0.9, -0.8, 0.7, 0.9, -0.9, 0.8]) * (1.0 if mode == 'vendor_driver'
-                                                        else 0.5 * VMAX)
+    scale = 1.0 if mode == 'vendor_driver' else 0.5 * VMAX
+    v = np.array([0.9, -0.8, 0.7, 0.9, -0.9, 0.8]) * scale
     fresh = Simulator(ARM, cfg, home_q=home)
     expected = _drive(fresh, v, 0.5)
     sim = Simulator(ARM, cfg, home_q=home)
@@ -297,6 +297,16 @@ def test_controller_fraction_of_max_drives_vendor_mode_to_the_goal():
             break
     assert ctl.status().values.get('result') == 'arrived', ctl.status().message
     assert np.all(np.abs(sim.q - goal) <= tol + 1e-9)
+
+
+def test_a_physics_blow_up_is_reported():
+    """A non-finite state makes MuJoCo reset; the simulator reports the warning."""
+    sim = Simulator(ARM)
+    assert sim.warnings() == {}
+    sim.data.qvel[0] = float('nan')
+    sim.step()
+    assert sim.warnings().get('mjWARN_BADQVEL', 0) >= 1
+    assert np.all(np.isfinite(sim.q))
 
 
 # --- pacing --------------------------------------------------------------------------------
