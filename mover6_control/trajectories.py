@@ -26,6 +26,8 @@ from scipy.interpolate import BSpline, CubicSpline, make_interp_spline, PPoly
 # Sampling density used to find peak rates when fitting a trajectory to limits.
 _PEAK_SAMPLES = 4001
 _PEAK_MARGIN = 1e-3
+# Samples per spline piece when looking for peaks (the piece ends included).
+_PER_PIECE = 33
 
 
 class JointTrajectory:
@@ -112,6 +114,14 @@ class SplineTrajectory(JointTrajectory):
         super().__init__(duration, n_joints)
         parts = tuple(splines) if isinstance(splines, (list, tuple)) else (splines,)
         self._derivs = [tuple(p.derivative(k) if k else p for k in range(4)) for p in parts]
+
+    @property
+    def breakpoints(self):
+        """Return the sorted times [s] where any spline piece starts or ends."""
+        knots = [np.asarray(getattr(d[0], 'x', None) if hasattr(d[0], 'x') else d[0].t)
+                 for d in self._derivs]
+        pts = np.unique(np.concatenate(knots))
+        return pts[(pts >= 0.0) & (pts <= self._duration)]
 
     def _evaluate(self, t):
         out = []
@@ -254,7 +264,13 @@ def _segment_durations(Q, v_max):
 
 
 def _peaks(traj):
-    t = np.linspace(0.0, traj.duration, _PEAK_SAMPLES)
+    if isinstance(traj, SplineTrajectory):
+        # Peaks of piecewise polynomials sit at the piece ends or inside: sample every piece.
+        b = traj.breakpoints
+        frac = np.linspace(0.0, 1.0, _PER_PIECE)
+        t = np.unique((b[:-1, None] + np.diff(b)[:, None] * frac).ravel())
+    else:
+        t = np.linspace(0.0, traj.duration, _PEAK_SAMPLES)
     _, qd, qdd = traj.sample(t)
     return np.abs(qd).max(axis=0), np.abs(qdd).max(axis=0)
 

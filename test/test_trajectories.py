@@ -167,3 +167,16 @@ def test_cubic_through_random_waypoints(rows):
 def test_bad_input_raises(call):
     with pytest.raises(InvalidInputError):
         call()
+
+
+@pytest.mark.parametrize('build', [tj.cubic_trajectory, tj.quintic_trajectory,
+                                   tj.bspline_trajectory])
+def test_long_spline_paths_keep_the_limits_at_every_knot(build):
+    # A cubic's acceleration peaks exactly at knots, which a uniform time grid misses.
+    W = np.cumsum(np.random.default_rng(2).normal(scale=0.05, size=(300, 6)), axis=0)
+    traj = build(W, v_max=V, a_max=A)
+    b = traj.breakpoints
+    t = np.unique(np.concatenate([b, np.linspace(0.0, traj.duration, 50001),
+                                  0.5 * (b[1:] + b[:-1])]))
+    _, qd, qdd = traj.sample(t)
+    assert np.all(np.abs(qd) <= V) and np.all(np.abs(qdd) <= A)
