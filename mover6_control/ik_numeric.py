@@ -18,7 +18,6 @@ both tolerances wins; otherwise the lowest-cost configuration seen is returned w
 from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics import fk_frames_batch
 from mover6_control.rotations import as_finite_array, validate_transform
 import numpy as np
 
@@ -85,8 +84,12 @@ class ScrewChain:
 
 def screw_chain(arm):
     """Return the ``ScrewChain`` of ``arm`` (one FK at q = 0)."""
-    frames = fk_frames_batch(arm, np.zeros((1, arm.n_joints)))[0]
     n = arm.n_joints
+    frames = np.empty((n + 1, 4, 4))   # at q = 0 every joint rotation is the identity
+    frames[0] = arm.origins[0]
+    for i in range(1, n):
+        frames[i] = frames[i - 1] @ arm.origins[i]
+    frames[n] = frames[n - 1] @ arm.tool
     omega = np.einsum('nij,nj->ni', frames[:n, :3, :3], arm.axes)
     r = frames[:n, :3, 3]
     K = np.zeros((n, 3, 3))

@@ -40,34 +40,56 @@ def _skew4(axis):
 _CHUNK = 4096  # samples per block: keeps the working set in cache
 
 
+def _aligned_axis(axis):
+    """Return (j, sign) when ``axis`` is +-e_j (the usual case), else None."""
+    j = int(np.argmax(np.abs(axis)))
+    if abs(abs(axis[j]) - 1.0) < 1e-15:
+        return j, float(np.sign(axis[j]))
+    return None
+
+
 def _chain(arm, Q, keep_frames):
     """
     Multiply out the chain for configurations ``Q`` (m, n): frames (m, n + 1, 4, 4) or tips.
 
-    Vectorised without per-sample matrix products: with Rodrigues,
-    ``T O Rot(k, q) = T O + sin(q) T (O K) + (1 - cos(q)) T (O K^2)``, and ``T (O K)`` for a
-    block of samples is one (3m, 4) x (4, 4) product. Only the top 3 rows are carried.
+    Vectorised without per-sample matrix products; only the top 3 rows are carried. ``T O``
+    for a block of samples is one (3m, 4) x (4, 4) product. A rotation about a coordinate axis
+    e_j mixes two columns: ``(a, b) <- (c a + s b, c b - s a)`` for the two other axes. Any
+    other axis uses Rodrigues, ``T O Rot(k, q) = T O + sin(q) T (O K) + (1 - cos(q)) T (O K^2)``.
     """
     Q = as_finite_array(Q, (None, arm.n_joints), 'configurations')
     m, n = Q.shape
     out = np.zeros((m, n + 1, 4, 4) if keep_frames else (m, 4, 4))
     out[..., 3, 3] = 1.0
-    # T O_i Rot_i = T O_i + sin(q_i) T (O_i K_i) + (1 - cos(q_i)) T (O_i K_i^2).
-    products = []
+    steps = []
     for origin, axis in zip(arm.origins, arm.axes):
-        K, KK = _skew4(axis)
-        products.append((origin, origin @ K, origin @ KK))
+        aligned = _aligned_axis(axis)
+        if aligned is not None:
+            j, sign = aligned
+            steps.append((origin, (j + 1) % 3, (j + 2) % 3, sign))
+        else:
+            K, KK = _skew4(axis)
+            steps.append((origin, origin @ K, origin @ KK, None))
     for lo in range(0, m, _CHUNK):
         q = Q[lo:lo + _CHUNK]
         k = len(q)
         s = np.sin(q)
-        c1 = 1.0 - np.cos(q)
+        c = np.cos(q)
         T = np.broadcast_to(np.eye(4)[:3], (k, 3, 4))
         for i in range(n):
-            O, OK, OKK = products[i]
+            O, a, b, sign = steps[i]
             flat = T.reshape(-1, 4)
-            T = ((flat @ O).reshape(k, 3, 4) + s[:, i, None, None] * (flat @ OK).reshape(k, 3, 4)
-                 + c1[:, i, None, None] * (flat @ OKK).reshape(k, 3, 4))
+            if sign is not None:
+                T = (flat @ O).reshape(k, 3, 4)
+                si = s[:, i, None] * sign
+                ci = c[:, i, None]
+                col_a = T[:, :, a] * ci + T[:, :, b] * si
+                T[:, :, b] = T[:, :, b] * ci - T[:, :, a] * si
+                T[:, :, a] = col_a
+            else:
+                T = ((flat @ O).reshape(k, 3, 4)
+                     + s[:, i, None, None] * (flat @ a).reshape(k, 3, 4)
+                     + (1.0 - c[:, i, None, None]) * (flat @ b).reshape(k, 3, 4))
             if keep_frames:
                 out[lo:lo + k, i, :3] = T
         tip = (T.reshape(-1, 4) @ arm.tool).reshape(k, 3, 4)

@@ -2,7 +2,7 @@
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mover6_control.arm import from_dh, minibot, mover6
+from mover6_control.arm import ArmModel, from_dh, minibot, mover6
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics import (condition_number, fk, fk_batch, fk_frames, jacobian,
                                        jacobian_batch, joint_rates, joint_torques,
@@ -76,6 +76,32 @@ def test_batched_fk_equals_single_fk():
         frames = fk_frames(arm, Q[7])
         np.testing.assert_allclose(frames[-1], T[7], atol=1e-12)
         np.testing.assert_allclose(frames[0][:3, 3], fk_frames(arm, np.zeros(6))[0][:3, 3])
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2 ** 31))
+def test_fk_of_an_arm_with_tilted_axes_equals_the_product_of_its_joints(seed):
+    # Axes off the coordinate axes take the general (Rodrigues) path of the batched FK.
+    rng = np.random.default_rng(seed)
+    n = 5
+    origins = np.tile(np.eye(4), (n, 1, 1))
+    origins[:, :3, :3] = Rotation.random(n, random_state=seed).as_matrix()
+    origins[:, :3, 3] = rng.uniform(-0.3, 0.3, (n, 3))
+    axes = rng.normal(size=(n, 3))
+    axes[0] = [0.0, 0.0, -1.0]                        # mix in an aligned one
+    tool = np.eye(4)
+    tool[:3, 3] = [0.01, 0.02, 0.1]
+    arm = ArmModel(name='tilted', joint_names=tuple(f'j{i}' for i in range(n)),
+                   origins=origins, axes=axes, tool=tool, lower=-np.full(n, 3.0),
+                   upper=np.full(n, 3.0), velocity_limits=np.ones(n))
+    q = rng.uniform(-3.0, 3.0, n)
+    T = np.eye(4)
+    for i in range(n):
+        R = np.eye(4)
+        R[:3, :3] = Rotation.from_rotvec(arm.axes[i] * q[i]).as_matrix()
+        T = T @ origins[i] @ R
+    np.testing.assert_allclose(fk(arm, q), T @ tool, atol=1e-12)
+    np.testing.assert_allclose(fk_batch(arm, np.array([q, q]))[1], T @ tool, atol=1e-12)
 
 
 def _numeric_jacobian(arm, q, h=1e-6):
