@@ -16,7 +16,6 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 
-
 @dataclass(frozen=True, eq=False)
 class ArmModel:
     """A serial revolute arm: geometry, joint limits [rad] and velocity limits [rad/s]."""
