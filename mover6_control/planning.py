@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from mover6_control import paths
 from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.ik import ik_closed_form
-from mover6_control.kinematics import fk, fk_batch
+from mover6_control.kinematics import condition_number, fk, fk_batch
 from mover6_control.path_ik import solve_path
 from mover6_control.rotations import pose_error, validate_transform
 import numpy as np
@@ -108,11 +108,56 @@ def _finish(arm, motion, q, poses, T_goal, settings):
                 final_position_error=pos_err, final_orientation_error=rot_err)
 
 
-def _solve(arm, poses, q_current, settings):
-    return solve_path(arm, poses, q_current, max_joint_step=settings.max_joint_step,
+def _solve_path(arm, poses, q_start, settings):
+    return solve_path(arm, poses, q_start, max_joint_step=settings.max_joint_step,
                       max_condition=settings.max_condition,
                       position_tol=settings.position_tolerance,
-                      orientation_tol=settings.orientation_tolerance)
+                      orientation_tol=settings.orientation_tolerance).q
+
+
+def _solve(arm, poses, q_current, settings):
+    """
+    Return joint waypoints for ``poses`` from ``q_current``, leaving a singular start if needed.
+
+    At a singular start, such as the Mover6's home (q5 = 0: axes 4 and 6 aligned), the pose
+    does not fix q4 and q6 apart; the first step along a path can then need a large wrist turn
+    that changes the tool pose hardly at all. That turn is inserted as joint-space waypoints
+    (each within ``max_joint_step``), accepted only when FK along it stays within the position
+    and orientation tolerances of the path's first segment.
+    """
+    try:
+        return _solve_path(arm, poses, q_current, settings)
+    except UnreachableError as err:
+        leaving_singularity = condition_number(arm, q_current) > settings.max_condition
+        if not (err.reason == 'discontinuity' and err.details.get('waypoint') == 1
+                and leaving_singularity and 'jump_q' in err.details):
+            raise
+        details = err.details
+    q1 = np.asarray(details['jump_q'])
+    rest = _solve_path(arm, poses[1:], q1, settings)
+    n_bridge = int(np.ceil(np.abs(q1 - q_current).max() / settings.max_joint_step)) + 1
+    fine = q_current + np.linspace(0.0, 1.0, 20 * n_bridge)[:, None] * (q1 - q_current)
+    T_fine = fk_batch(arm, fine)
+    a, b = poses[0][:3, 3], poses[1][:3, 3]
+    seg = b - a
+    u = np.clip((T_fine[:, :3, 3] - a) @ seg / max(seg @ seg, 1e-18), 0.0, 1.0)
+    pos_dev = np.linalg.norm(T_fine[:, :3, 3] - (a + u[:, None] * seg), axis=1).max()
+    rot_dev = max(pose_error(T, poses[0])[1] for T in T_fine)
+    if pos_dev > settings.position_tolerance or rot_dev > settings.orientation_tolerance:
+        raise UnreachableError(
+            f'leaving the singular start needs a wrist turn of {np.abs(q1 - q_current).max():.3f}'
+            f' rad that moves the tool {pos_dev * 1e3:.2f} mm / {rot_dev:.4f} rad off the path',
+            reason='discontinuity', details=details)
+    bridge = q_current + np.linspace(0.0, 1.0, n_bridge)[:, None] * (q1 - q_current)
+    return np.vstack([bridge[:-1], rest])
+
+
+def _poses_for(arm, q, poses):
+    """Return the intended poses of waypoints ``q``: ``poses`` plus any inserted wrist turn."""
+    extra = len(q) - len(poses)
+    if extra <= 0:
+        return poses
+    return np.concatenate([np.repeat(poses[:1], extra, axis=0), poses])
 
 
 def plan_joint_move(arm, q_current, T_goal, settings):
@@ -164,8 +209,8 @@ def plan_pose_goal(arm, q_current, T_goal, motion='linear', settings=PlannerSett
     else:
         poses = paths.parabolic_path(T_start, T_goal, settings.peak_height,
                                      **settings.sampling())
-    solution = _solve(arm, poses, q_current, settings)
-    return _finish(arm, motion, solution.q, poses, T_goal, settings)
+    q = _solve(arm, poses, q_current, settings)
+    return _finish(arm, motion, q, _poses_for(arm, q, poses), T_goal, settings)
 
 
 def plan_path_goal(arm, q_current, T_vias, T_goal, motion='spline', settings=PlannerSettings()):
@@ -191,5 +236,5 @@ def plan_path_goal(arm, q_current, T_vias, T_goal, motion='spline', settings=Pla
             poses = paths.linear_path(T_start, T_goal, **settings.sampling())
         else:
             poses = paths.spline_path(T_start, T_vias, T_goal, **settings.sampling())
-    solution = _solve(arm, poses, q_current, settings)
-    return _finish(arm, motion, solution.q, poses, T_goal, settings)
+    q = _solve(arm, poses, q_current, settings)
+    return _finish(arm, motion, q, _poses_for(arm, q, poses), T_goal, settings)
