@@ -4,8 +4,8 @@ Inverse kinematics along a path of poses: one continuous branch, or a reason why
 For each waypoint the solution closest to the previous one (the first: to ``q_start``) is
 taken, in the max-norm of the joint step. Closed form first (every branch, so the continuous one
 is always among them); numeric IK seeded with the previous solution for arms without a
-spherical wrist. A path never switches branch: a step larger than ``max_joint_step`` is a
-discontinuity and fails the path. Near a singularity (Jacobian condition number above
+spherical wrist, and as a fallback when the closed form finds nothing. A path never switches
+branch: a step larger than ``max_joint_step`` is a discontinuity and fails the path. Near a singularity (Jacobian condition number above
 ``max_condition`` and rising, i.e. moving towards it) the path fails too: leaving a singular
 pose, such as the Mover6's home (q5 = 0, axes 4 and 6 aligned), is allowed.
 
@@ -155,13 +155,16 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
     cond_prev = condition_number(arm, q_prev)
     for k in range(m):
         T = P[k]
+        sols = np.zeros((0, n))
         if geometry is not None:
             cand, ok = solve_candidates(arm, geometry, T[None], q_prev[None], True, VERIFY_TOL)
             sols = cand[0][ok[0]]
-        else:
+        if len(sols) == 0:
+            # Numeric IK: the solver for arms without a closed form, and the fallback for poses
+            # the closed form misses by rounding (a fully stretched arm, say).
             res = ik_numeric(arm, T, q_prev, position_tol=min(position_tol, 1e-6),
                              orientation_tol=min(orientation_tol, 1e-6), weights=weights, rng=k)
-            sols = res.q[None] if res.success else np.zeros((0, n))
+            sols = res.q[None] if res.success else sols
         if len(sols) == 0:
             raise unreachable_error(arm, T, q_prev, k, weights, geometry, what='waypoint')
         steps = np.abs(sols - q_prev).max(axis=1)
