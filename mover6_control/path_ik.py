@@ -5,9 +5,10 @@ For each waypoint the solution closest to the previous one (the first: to ``q_st
 taken, in the max-norm of the joint step. Closed form first (every branch, so the continuous one
 is always among them); numeric IK seeded with the previous solution for arms without a
 spherical wrist, and as a fallback when the closed form finds nothing. A path never switches
-branch: a step larger than ``max_joint_step`` is a discontinuity and fails the path. Near a singularity (Jacobian condition number above
-``max_condition`` and rising, i.e. moving towards it) the path fails too: leaving a singular
-pose, such as the Mover6's home (q5 = 0, axes 4 and 6 aligned), is allowed.
+branch: a step larger than ``max_joint_step`` is a discontinuity and fails the path. Near a
+singularity (Jacobian condition number above ``max_condition`` and rising, i.e. moving towards
+it) the path fails too: leaving a singular pose, such as the Mover6's home (q5 = 0, axes 4 and
+6 aligned), is allowed.
 
 Failures raise ``UnreachableError`` with ``reason`` in ``REASONS`` and ``details`` holding
 'waypoint', 'position_error' [m], 'orientation_error' [rad], 'closest_q' and 'closest_pose'
