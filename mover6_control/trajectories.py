@@ -61,7 +61,7 @@ class JointTrajectory:
             raise InvalidInputError(f't must be a scalar or 1-D, got shape {t_arr.shape}')
         if not np.all(np.isfinite(t_arr)):
             raise InvalidInputError('t has non-finite values')
-        return np.clip(np.atleast_1d(t_arr), 0.0, self._duration), t_arr.ndim == 0
+        return np.minimum(np.maximum(np.atleast_1d(t_arr), 0.0), self._duration), t_arr.ndim == 0
 
     def _evaluate(self, t):
         raise NotImplementedError
