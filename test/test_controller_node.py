@@ -159,3 +159,15 @@ def test_stale_and_incomplete_states_fault_then_recover(ros):
     assert 'joint6' in arm.statuses[-1].message
     arm.names = list(NAMES)
     spin_until(lambda: arm.status().get('state') == 'idle')
+
+
+def test_destroying_the_node_sends_a_zero_command(ros):
+    """Last test of the module: the node goes away mid-motion and leaves a zero command."""
+    controller, arm, spin_until = ros
+    arm.demand_pub.publish(conversions.make_demands((-GOAL)[None]))
+    spin_until(lambda: arm.status().get('motion_id') == '5'
+               and np.max(np.abs(arm.qd)) > 0.05)
+    count = len(arm.jogs)
+    controller.destroy_node()
+    spin_until(lambda: len(arm.jogs) > count and not np.any(arm.qd))
+    assert list(arm.jogs[-1].velocities) == [0.0] * 6
