@@ -9,8 +9,9 @@ ROS-free and clock-free: the caller steps the physics, passes the receive time o
     A command gives joint velocities [rad/s] by joint name; joints it does not name get zero.
     Speeds above a joint's limit are clamped to it (the command reports a warning). A command
     older than ``command_timeout`` (by receive time) halts the joints: the last physics step
-    that uses it starts at most ``command_timeout`` after its receipt. Positions are never
-    driven past the joint limits. ``state()`` reads the physics: q, qd, motor torque.
+    that uses it starts at most ``command_timeout`` after its receipt, and from then on the
+    servos are asked for zero (the stiff servo brakes within a few milliseconds). Positions are
+    never driven past the joint limits: near a limit a joint glides onto it. ``state()`` reads the physics: q, qd, motor torque.
 
 ``'vendor_driver'`` (the Mover6's own cpr_robot driver, design.md)
     A command gives fractions of each joint's maximum speed (clamped to [-1, 1]); joints it does
@@ -147,16 +148,19 @@ class Simulator:
         self.arm = arm
         self.config = config or SimConfig()
         n = arm.n_joints
-        if len(self.config.tick_size) != n:
-            raise InvalidInputError(
-                f'tick_size has {len(self.config.tick_size)} values for {n} joints')
+        ticks = self.config.tick_size
+        if len(ticks) != n:
+            if self.config.mode == 'vendor_driver':
+                raise InvalidInputError(
+                    f'tick_size has {len(ticks)} values for {n} joints: give one per joint')
+            ticks = (1e-9,) * n          # rad_per_s mode does not quantise; placeholder
         self.home_q = self._check_q(np.zeros(n) if home_q is None else home_q, 'home_q')
         self.model = build_model(arm, self.config.model)
         self.data = mujoco.MjData(self.model)
         self._qadr = _as_slice(joint_qpos_addresses(self.model, arm.joint_names))
         self._dadr = _as_slice(joint_dof_addresses(self.model, arm.joint_names))
         self._index = {name: i for i, name in enumerate(arm.joint_names)}
-        self._ticks = np.array(self.config.tick_size)
+        self._ticks = np.array(ticks)
         self._vmax = np.array(arm.velocity_limits)
         self._n = n
         self._zeros = np.zeros(n)

@@ -198,6 +198,31 @@ def test_reset_to_a_given_configuration_and_refusals():
         Simulator(ARM, home_q=[0, 0, 0, 0, 3.0, 0])
 
 
+def test_any_arm_from_urdf_in_rad_per_s_mode(tmp_path):
+    """A two-joint arm runs in rad_per_s mode; vendor mode asks for its tick sizes."""
+    from mover6_control.arm import load_urdf
+    urdf = tmp_path / 'two.urdf'
+    urdf.write_text("""<?xml version="1.0"?>
+<robot name="two">
+  <link name="base_link"/><link name="a"/><link name="b"/>
+  <joint name="ja" type="revolute"><parent link="base_link"/><child link="a"/>
+    <origin xyz="0 0 0.1"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" velocity="1" effort="1"/></joint>
+  <joint name="jb" type="revolute"><parent link="a"/><child link="b"/>
+    <origin xyz="0 0 0.2"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" velocity="1" effort="1"/></joint>
+</robot>
+""")
+    arm = load_urdf(str(urdf))
+    sim = Simulator(arm)
+    sim.set_command(['jb'], [0.5], sim.time)
+    sim.run_for(0.2)
+    assert abs(sim.q[1] - 0.1) < 1e-3 and abs(sim.q[0]) < 1e-6
+    with pytest.raises(InvalidInputError, match='tick_size'):
+        Simulator(arm, VENDOR)
+    Simulator(arm, SimConfig(mode='vendor_driver', tick_size=(1e-4, 1e-4)))
+
+
 # --- vendor_driver -------------------------------------------------------------------------
 
 def test_vendor_moves_whole_ticks_per_cycle():
