@@ -11,7 +11,8 @@ ROS-free and clock-free: the caller steps the physics, passes the receive time o
     older than ``command_timeout`` (by receive time) halts the joints: the last physics step
     that uses it starts at most ``command_timeout`` after its receipt, and from then on the
     servos are asked for zero (the stiff servo brakes within a few milliseconds). Positions are
-    never driven past the joint limits: near a limit a joint glides onto it. ``state()`` reads the physics: q, qd, motor torque.
+    never driven past the joint limits: near a limit a joint glides onto it. ``state()``
+    reads the physics: q, qd, motor torque.
 
 ``'vendor_driver'`` (the Mover6's own cpr_robot driver, design.md)
     A command gives fractions of each joint's maximum speed (clamped to [-1, 1]); joints it does
