@@ -95,6 +95,14 @@ def _subproblem1(w, u, v):
     return (np.arctan2(_dot(wu, v), _dot(up, v)), np.sqrt(_dot(up, up)))
 
 
+def _angle_from(w, u, v):
+    """Return the angle about ``w`` that turns the constant ``u`` (3,) onto ``v`` (..., 3)."""
+    up = u - np.dot(u, w) * w
+    # atan2(w . (up x v), up . v) = atan2(v . (w x up), v . up): one product for both.
+    both = v.reshape(-1, 3) @ np.stack([np.cross(w, up), up], axis=1)
+    return np.arctan2(both[:, 0], both[:, 1]).reshape(v.shape[:-1])
+
+
 def _cos_sin(a, b, c, tol):
     """Solve ``a cos t + b sin t = c``: both roots (..., 2), solvable mask, ``hypot(a, b)``."""
     rho = np.hypot(a, b)
@@ -229,9 +237,9 @@ def _candidates(geo, T, q_ref):
     # R03^T v = Rot(w3, -q3) Rot(w2, -q2) Rot(w1, -q1) v.
     M_R = geo.M[:3, :3]
     goal = R_goal.reshape(-1, 3) @ np.stack([M_R.T @ w6, M_R.T @ geo.x6], axis=1)
-    goal = goal.reshape(m, 1, 1, 3, 2).transpose(0, 1, 2, 4, 3)              # (m, 1, 1, 2, 3)
-    goal = _rotate(w1, -q1[..., None], np.broadcast_to(goal, q2.shape + (2, 3)))
-    goal = _rotate(w2, -q2[..., None], goal)
+    goal = goal.reshape(m, 1, 3, 2).transpose(0, 1, 3, 2)                    # (m, 1, 2, 3)
+    goal = _rotate(w1, -q1[:, :, 0, None], np.broadcast_to(goal, (m, 2, 2, 3)))
+    goal = _rotate(w2, -q2[..., None], np.broadcast_to(goal[:, :, None], q2.shape + (2, 3)))
     goal = _rotate(w3, -q3[..., None], goal)                                  # (m, 2, 2, 2, 3)
     tv, tx = goal[..., 0, :], goal[..., 1, :]
     # q4, q5: Rot4 Rot5 w6 = R_w w6 (subproblem 2 with axes through the wrist centre).
@@ -246,13 +254,13 @@ def _candidates(geo, T, q_ref):
     gamma = np.stack([gamma, -gamma], axis=-1)                                # (m, 2, 2, 2)
     z = (alpha[..., None, None] * w4 + beta[..., None, None] * w5
          + gamma[..., None] * n45)                                            # (m, 2, 2, 2, 3)
-    q5, _ = _subproblem1(w5, np.broadcast_to(w6, z.shape), z)
+    q5 = _angle_from(w5, w6, z)
     tv = np.broadcast_to(tv[..., None, :], z.shape)
     q4, lever = _subproblem1(w4, z, tv)
     q4 = np.where(lever < 1e-9, q_ref[:, None, None, None, 3], q4)
     # q6: Rot6 x6 = Rot5^T Rot4^T R_w x6.
     target = _rotate(w5, -q5, _rotate(w4, -q4, np.broadcast_to(tx[..., None, :], z.shape)))
-    q6, _ = _subproblem1(w6, np.broadcast_to(geo.x6, target.shape), target)
+    q6 = _angle_from(w6, geo.x6, target)
     Q123 = np.stack([q1, q2, q3], axis=-1)                                    # (m, 2, 2, 3)
     Q123 = np.broadcast_to(Q123[..., None, :], q4.shape + (3,))
     Q = np.concatenate([Q123, q4[..., None], q5[..., None], q6[..., None]], axis=-1)
