@@ -8,6 +8,9 @@ Run: ``python -m bench.bench_ik [--quick]``. Prints a table and writes
 Poses: FK of configurations drawn uniformly inside the joint limits (10,000; 2,000 with
 ``--quick``), for the Mover6 (seed limits, [-1.571, 1.571] rad) and the miniBOT (seed 004).
 
+Times are wall clock and CPU time of this process (``time.process_time``): on a shared machine
+the CPU figure is the fairer one; the load average is printed.
+
 1. Closed form, batched (``ik.ik_closed_form_batch``): poses per second (best of 3; wall and
    CPU time), share of poses solved, share whose generating configuration is among the
    solutions, largest FK round-trip error over every returned solution, mean number of
@@ -70,28 +73,30 @@ def closed_form_batch(arm, Q, T):
 
 
 def closed_form_single(arm, T):
-    """Per-pose latency of ``ik_closed_form``."""
-    times = []
+    """Per-pose latency of ``ik_closed_form`` (wall and CPU time)."""
+    wall, cpu = [], []
     for pose in T:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         ik_closed_form(arm, pose)
-        times.append(time.perf_counter() - t0)
-    times = np.array(times) * 1e6
-    return {'poses': len(T), 'median_us': float(np.median(times)),
-            'p99_us': float(np.percentile(times, 99))}
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    wall, cpu = np.array(wall) * 1e6, np.array(cpu) * 1e6
+    return {'poses': len(T), 'median_us': float(np.median(wall)),
+            'p99_us': float(np.percentile(wall, 99)), 'median_us_cpu': float(np.median(cpu))}
 
 
 def numeric(arm, T):
-    """Success rate and times [ms] of ``ik_numeric`` from q0 = 0."""
-    times, ok, iters = [], [], []
+    """Success, wall and CPU times [ms] and iterations of ``ik_numeric`` from q0 = 0."""
+    wall, cpu, ok, iters = [], [], [], []
     for k, pose in enumerate(T):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         res = ik_numeric(arm, pose, np.zeros(arm.n_joints), position_tol=TOL,
                          orientation_tol=TOL, rng=k)
-        times.append(time.perf_counter() - t0)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
         ok.append(res.success)
         iters.append(res.iterations)
-    return np.array(times) * 1e3, np.array(ok), np.array(iters)
+    return np.array(wall) * 1e3, np.array(cpu) * 1e3, np.array(ok), np.array(iters)
 
 
 def _residual(arm, T, sqrt_w):
@@ -135,9 +140,10 @@ def run(quick):
         Q, T = _poses(arm, n_cf)
         r = {'closed_form_batch': closed_form_batch(arm, Q, T),
              'closed_form_single': closed_form_single(arm, T[:n_single])}
-        t_num, ok_num, iters = numeric(arm, T[:n_num])
+        t_num, c_num, ok_num, iters = numeric(arm, T[:n_num])
         r['numeric'] = {'poses': n_num, 'success': float(ok_num.mean()),
                         'median_ms': float(np.median(t_num)),
+                        'median_ms_cpu': float(np.median(c_num)),
                         'p90_ms': float(np.percentile(t_num, 90)),
                         'median_iterations': float(np.median(iters))}
         t_base, ok_base = scipy_baseline(arm, T[:n_base])
@@ -167,8 +173,10 @@ def print_table(out):
         ('  mean solutions in limits', 'closed_form_batch', 'mean_solutions', '.2f'),
         ('closed form one pose [us, median]', 'closed_form_single', 'median_us', '.0f'),
         ('closed form one pose [us, p99]', 'closed_form_single', 'p99_us', '.0f'),
+        ('closed form one pose [us, cpu med]', 'closed_form_single', 'median_us_cpu', '.0f'),
         ('ik_numeric success', 'numeric', 'success', '.4f'),
         ('ik_numeric median [ms]', 'numeric', 'median_ms', '.2f'),
+        ('ik_numeric median [ms, cpu]', 'numeric', 'median_ms_cpu', '.2f'),
         ('ik_numeric p90 [ms]', 'numeric', 'p90_ms', '.2f'),
         ('scipy least_squares success', 'scipy_baseline', 'success', '.4f'),
         ('scipy least_squares median [ms]', 'scipy_baseline', 'median_ms', '.2f'),

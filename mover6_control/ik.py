@@ -99,7 +99,7 @@ def _angle_from(w, u, v):
     """Return the angle about ``w`` that turns the constant ``u`` (3,) onto ``v`` (..., 3)."""
     up = u - np.dot(u, w) * w
     # atan2(w . (up x v), up . v) = atan2(v . (w x up), v . up): one product for both.
-    both = v.reshape(-1, 3) @ np.stack([np.cross(w, up), up], axis=1)
+    both = v.reshape(-1, 3) @ np.stack([_cross(w, up), up], axis=1)
     return np.arctan2(both[:, 0], both[:, 1]).reshape(v.shape[:-1])
 
 
@@ -339,11 +339,10 @@ def ik_closed_form(arm, T, within_limits=True, q_ref=None, tol=VERIFY_TOL):
     ref = np.zeros(arm.n_joints) if q_ref is None else arm.check_q(q_ref, 'q_ref')
     Q, ok = ik_closed_form_batch(arm, T[None], within_limits, ref, tol)
     sols = Q[0][ok[0]]
-    unique = []
-    for q in sols:
-        if all(np.max(np.abs(_wrap(q - other))) > 1e-9 for other in unique):
-            unique.append(q)
-    if not unique:
+    if len(sols) == 0:
         return np.zeros((0, arm.n_joints))
-    out = np.array(unique)
+    # Drop repeats (branches that meet at a singularity): keep the first of each group.
+    gap = np.abs(_wrap(sols[:, None] - sols[None])).max(axis=-1)
+    repeat = np.tril(gap <= 1e-9, k=-1).any(axis=1)
+    out = sols[~repeat]
     return out[np.argsort(np.linalg.norm(out - ref, axis=1), kind='stable')]

@@ -146,7 +146,8 @@ def _check_weights(weights):
 
 def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
                weights=DEFAULT_WEIGHTS, within_limits=True, n_seeds=4, max_iterations=300,
-               stall_iterations=12, damping=1e-6, error_damping=0.1, max_step=None, rng=0):
+               stall_iterations=12, damping=1e-6, error_damping=0.1, max_step=None,
+               n_candidates=0, rng=0):
     """
     Solve ``T`` (4, 4) numerically from ``q0`` (n,) [rad]; return a ``NumericIKResult``.
 
@@ -156,6 +157,8 @@ def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
     run as one batch for at most ``max_iterations``; a start whose cost has not dropped by 1 %
     in ``stall_iterations`` is re-seeded. ``damping`` is the LM floor lambda_0 and
     ``error_damping`` the factor on E; ``max_step`` [rad], if set, caps each joint's step.
+    ``n_candidates`` > ``n_seeds``: the random starts are the best of that many random
+    configurations (one batched cost evaluation).
     ``rng`` is a seed or a ``numpy.random.Generator`` for the random starts (no hidden state).
     """
     T = validate_transform(T, 'pose')
@@ -172,29 +175,37 @@ def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
     span_lo = lo if within_limits else np.full(arm.n_joints, -np.pi)
     span_hi = hi if within_limits else np.full(arm.n_joints, np.pi)
     n = arm.n_joints
+    chain = screw_chain(arm)
     Q = np.empty((int(n_seeds), n))
     Q[0] = np.clip(q0, lo, hi) if within_limits else q0
-    Q[1:] = gen.uniform(span_lo, span_hi, (int(n_seeds) - 1, n))
+    if n_seeds > 1 and n_candidates > n_seeds:
+        # Keep q0 and the random candidates of lowest cost (one batched evaluation).
+        cand = gen.uniform(span_lo, span_hi, (int(n_candidates), n))
+        e, _ = pose_residual_batch(chain, cand, T)
+        Q[1:] = cand[np.argsort((e * e) @ w)[:int(n_seeds) - 1]]
+    else:
+        Q[1:] = gen.uniform(span_lo, span_hi, (int(n_seeds) - 1, n))
     best_q, best_cost, best_err = Q[0].copy(), np.inf, (np.inf, np.inf)
     stall_cost = np.full(len(Q), np.inf)
     stall_count = np.zeros(len(Q), dtype=int)
     restarts = 0
     eye = np.eye(n)
-    chain = screw_chain(arm)
     for it in range(1, int(max_iterations) + 1):
         e, J = pose_residual_batch(chain, Q, T)
         sq = e * e
         cost = sq @ w
-        pos = np.sqrt(sq[:, :3].sum(1))
-        rot = np.sqrt(sq[:, 3:].sum(1))
-        done = (pos < position_tol) & (rot < orientation_tol)
+        pos2 = sq[:, 0] + sq[:, 1] + sq[:, 2]
+        rot2 = sq[:, 3] + sq[:, 4] + sq[:, 5]
+        done = (pos2 < position_tol ** 2) & (rot2 < orientation_tol ** 2)
         k = int(np.argmin(cost))
         if cost[k] < best_cost:
-            best_q, best_cost, best_err = Q[k].copy(), float(cost[k]), (pos[k], rot[k])
+            best_q, best_cost = Q[k].copy(), float(cost[k])
+            best_err = (np.sqrt(pos2[k]), np.sqrt(rot2[k]))
         if done.any():
             k = int(np.flatnonzero(done)[np.argmin(cost[done])])
-            return NumericIKResult(q=Q[k].copy(), success=True, position_error=float(pos[k]),
-                                   orientation_error=float(rot[k]), iterations=it,
+            return NumericIKResult(q=Q[k].copy(), success=True,
+                                   position_error=float(np.sqrt(pos2[k])),
+                                   orientation_error=float(np.sqrt(rot2[k])), iterations=it,
                                    restarts=restarts, cost=float(cost[k]))
         JtW = J.transpose(0, 2, 1) * w
         A = JtW @ J + (error_damping * 0.5 * cost + damping)[:, None, None] * eye
@@ -214,10 +225,11 @@ def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
         if within_limits:
             Q = np.clip(Q, lo, hi)
         improved = cost < 0.99 * stall_cost
-        stall_cost = np.where(improved, cost, stall_cost)
-        stall_count = np.where(improved, 0, stall_count + 1)
-        stalled = stall_count >= int(stall_iterations)
-        if np.any(stalled):
+        stall_cost[improved] = cost[improved]
+        stall_count += 1
+        stall_count[improved] = 0
+        stalled = stall_count >= stall_iterations
+        if stalled.any():
             Q[stalled] = gen.uniform(span_lo, span_hi, (int(stalled.sum()), n))
             stall_cost[stalled] = np.inf
             stall_count[stalled] = 0
