@@ -156,7 +156,12 @@ def singular_values(arm, q):
 
 
 def manipulability(arm, q):
-    """Return Yoshikawa's manipulability ``sqrt(det(J J^T))`` at ``q`` (0 at a singularity)."""
+    """
+    Return Yoshikawa's manipulability at ``q``: the product of the Jacobian's singular values.
+
+    That is ``sqrt(det(J J^T))`` for n >= 6 joints (``sqrt(det(J^T J))`` for fewer); 0 at a
+    singularity. Its unit mixes [m] and [rad], so compare it only on one arm.
+    """
     return float(np.prod(singular_values(arm, q)))
 
 
