@@ -14,6 +14,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
@@ -161,9 +162,63 @@ def test_stale_and_incomplete_states_fault_then_recover(ros):
     spin_until(lambda: arm.status().get('state') == 'idle')
 
 
+def test_ticks_follow_sim_time():
+    """With use_sim_time the ticks run on /clock: stamps in sim time, none while it stands."""
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=32)
+    controller = ControllerNode(context=context, namespace='simtime', parameter_overrides=[
+        Parameter('use_sim_time', value=True), Parameter('rate', value=100.0)])
+    clock_node = Node('fake_clock', context=context, namespace='simtime')
+    clock_pub = clock_node.create_publisher(Clock, '/clock', 10)
+    stamps, sim = [], {'ns': 1000 * 10**9, 'running': True}
+    clock_node.create_subscription(
+        JointJog, 'JointJog',
+        lambda m: stamps.append(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9), 10)
+
+    def advance():
+        if sim['running']:
+            sim['ns'] += 5 * 10**6                         # 5 ms of sim time per 10 ms of wall
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = divmod(sim['ns'], 10**9)
+        clock_pub.publish(msg)
+
+    clock_node.create_timer(0.01, advance)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(controller)
+    executor.add_node(clock_node)
+
+    def spin_until(predicate, timeout=30.0):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.01)
+            if predicate():
+                return
+        raise AssertionError(f'timed out with {len(stamps)} ticks')
+
+    try:
+        spin_until(lambda: len(stamps) >= 60)
+        recent = np.array(stamps[-50:])
+        assert np.all(recent > 1000.0)                     # stamped in sim time
+        np.testing.assert_allclose(np.median(np.diff(recent)), 0.01, atol=1e-3)
+        sim['running'] = False                             # the simulation pauses
+        t_pause = time.monotonic()
+        spin_until(lambda: time.monotonic() - t_pause > 0.3)    # ticks in flight land
+        count = len(stamps)
+        t_pause = time.monotonic()
+        spin_until(lambda: time.monotonic() - t_pause > 0.5)
+        assert len(stamps) - count <= 1                    # no ticks while sim time stands
+    finally:
+        executor.shutdown()
+        controller.destroy_node()
+        clock_node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
 def test_destroying_the_node_sends_a_zero_command(ros):
     """Last test of the module: the node goes away mid-motion and leaves a zero command."""
     controller, arm, spin_until = ros
+    seen = len(arm.statuses)                   # fresh status: other tests may have paused us
+    spin_until(lambda: len(arm.statuses) > seen + 1 and arm.status().get('state') == 'idle')
     arm.demand_pub.publish(conversions.make_demands((-GOAL)[None]))
     spin_until(lambda: arm.status().get('motion_id') == '5'
                and np.max(np.abs(arm.qd)) > 0.05)
