@@ -13,6 +13,7 @@ from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.ik import ik_closed_form
 from mover6_control.kinematics import condition_number, fk, fk_batch
 from mover6_control.path_ik import solve_path
+from mover6_control.reachability import check_pose
 from mover6_control.rotations import pose_error, validate_transform
 import numpy as np
 
@@ -125,14 +126,16 @@ def _solve(arm, poses, q_current, settings):
     (each within ``max_joint_step``), accepted only when FK along it stays within the position
     and orientation tolerances of the path's first segment.
     """
+    # poses[0] is the current pose, and q_current its solution: the path starts there exactly
+    # (solving it again could pick the other wrist branch, or trip over sensor noise).
     try:
-        return _solve_path(arm, poses, q_current, settings)
+        return np.vstack([q_current, _solve_path(arm, poses[1:], q_current, settings)])
     except UnreachableError as err:
+        details = dict(err.details, waypoint=err.details.get('waypoint', -1) + 1)
         leaving_singularity = condition_number(arm, q_current) > settings.max_condition
-        if not (err.reason == 'discontinuity' and err.details.get('waypoint') == 1
-                and leaving_singularity and 'jump_q' in err.details):
-            raise
-        details = err.details
+        if not (err.reason == 'discontinuity' and details['waypoint'] == 1
+                and leaving_singularity and 'jump_q' in details):
+            raise UnreachableError(str(err), reason=err.reason, details=details) from None
     q1 = np.asarray(details['jump_q'])
     rest = _solve_path(arm, poses[1:], q1, settings)
     n_bridge = int(np.ceil(np.abs(q1 - q_current).max() / settings.max_joint_step)) + 1
@@ -183,6 +186,26 @@ def plan_joint_move(arm, q_current, T_goal, settings):
     return _finish(arm, 'joint', q, fk_batch(arm, q), T_goal, settings)
 
 
+def check_goal(arm, T_goal, q_current, settings, what='goal', singular_ok=False):
+    """
+    Raise ``UnreachableError`` when ``T_goal`` itself cannot be reached.
+
+    Checked before any path, so an impossible goal is refused for what it is (out of reach,
+    joint limits, singular) rather than for the first path waypoint that fails on the way.
+    ``singular_ok`` accepts a singular goal (joint moves: no Cartesian rate to blow up there).
+    """
+    verdict = check_pose(arm, T_goal, q_current,
+                         max_condition=None if singular_ok else settings.max_condition,
+                         position_tol=settings.position_tolerance,
+                         orientation_tol=settings.orientation_tolerance)
+    if not verdict.reachable:
+        details = dict(verdict.details, position_error=verdict.position_error,
+                       orientation_error=verdict.orientation_error,
+                       closest_pose=verdict.closest_pose, waypoint=verdict.waypoint)
+        raise UnreachableError(f'the {what} is not reachable: {verdict.message}',
+                               reason=verdict.reason, details=details)
+
+
 def plan_pose_goal(arm, q_current, T_goal, motion='linear', settings=PlannerSettings()):
     """
     Plan a move of the tool from FK(``q_current``) to ``T_goal`` (4, 4).
@@ -196,14 +219,15 @@ def plan_pose_goal(arm, q_current, T_goal, motion='linear', settings=PlannerSett
     T_goal = validate_transform(T_goal, 'goal pose')
     if motion not in POSE_MOTIONS:
         raise InvalidInputError(f'unknown motion "{motion}", expected one of {POSE_MOTIONS}')
-    if motion == 'joint':
-        return plan_joint_move(arm, q_current, T_goal, settings)
     T_start = fk(arm, q_current)
     pos_err, rot_err = pose_error(T_start, T_goal)
     if pos_err < 1e-6 and rot_err < 1e-6:
         # Already there: a two-row hold lets the controller report arrival at once.
         return _finish(arm, motion, np.stack([q_current, q_current]),
                        np.stack([T_start, T_start]), T_goal, settings)
+    check_goal(arm, T_goal, q_current, settings, singular_ok=motion == 'joint')
+    if motion == 'joint':
+        return plan_joint_move(arm, q_current, T_goal, settings)
     if motion == 'linear':
         poses = paths.linear_path(T_start, T_goal, **settings.sampling())
     else:
@@ -226,6 +250,9 @@ def plan_path_goal(arm, q_current, T_vias, T_goal, motion='spline', settings=Pla
         validate_transform(T, f'via pose {i}')
     if motion not in PATH_MOTIONS:
         raise InvalidInputError(f'unknown path motion "{motion}", expected one of {PATH_MOTIONS}')
+    for i, T in enumerate(T_vias):
+        check_goal(arm, T, q_current, settings, what=f'via pose {i}')
+    check_goal(arm, T_goal, q_current, settings)
     T_start = fk(arm, q_current)
     if motion == 'arc':
         if len(T_vias) != 1:
