@@ -146,7 +146,7 @@ def _check_weights(weights):
 
 def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
                weights=DEFAULT_WEIGHTS, within_limits=True, n_seeds=4, max_iterations=300,
-               stall_iterations=12, damping=1e-6, error_damping=0.1, max_step=None,
+               stall_iterations=12, damping=1e-9, error_damping=0.1, max_step=None,
                n_candidates=0, rng=0):
     """
     Solve ``T`` (4, 4) numerically from ``q0`` (n,) [rad]; return a ``NumericIKResult``.
