@@ -33,7 +33,7 @@ import numpy as np
 
 N_BRANCHES = 8
 VERIFY_TOL = 1e-6        # [m] and [rad]: an FK round trip worse than this is not a solution
-_PARALLEL_TOL = 1e-9     # |omega_a x omega_b| under this: parallel axes
+_PARALLEL_TOL = 1e-7     # |omega_a x omega_b| under this: parallel axes (URDF rounding)
 _POINT_TOL = 1e-7        # [m] axes that pass closer than this meet
 
 
