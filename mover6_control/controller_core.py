@@ -94,6 +94,17 @@ class TickOutput:
     status_changed: bool
 
 
+@dataclass(frozen=True, eq=False)
+class PendingDemand:
+    """A checked and planned demand not yet started (``ControllerCore.prepare_demand``)."""
+
+    now: float
+    waypoints: np.ndarray
+    plan: object
+    moving: bool
+    motion_id: int
+
+
 class ControllerCore:
     """The controller's logic for one arm; see the module docstring."""
 
@@ -159,7 +170,18 @@ class ControllerCore:
 
         Raises ``InvalidInputError`` (the running motion untouched) when the demand is empty,
         has the wrong shape, non-finite values or values outside the joint limits, or when the
-        controller cannot take a demand now (no joint states, fault, stopping).
+        controller cannot take a demand now (no joint states, fault, stopping). The same as
+        ``commit_demand(prepare_demand(now, waypoints))``.
+        """
+        return self.commit_demand(self.prepare_demand(now, waypoints))
+
+    def prepare_demand(self, now, waypoints):
+        """
+        Check a demand and plan it from the present reference; return a ``PendingDemand``.
+
+        Does not change the controller, so a node may call it without holding its lock while
+        the ticks go on (planning the continuous law takes tens of milliseconds), then
+        ``commit_demand`` under the lock. Raises as ``on_demands``.
         """
         n = self.arm.n_joints
         Q = np.asarray(waypoints, dtype=float)
@@ -177,22 +199,39 @@ class ControllerCore:
                for k, row in enumerate(Q) if not self.arm.within_limits(row, tol=1e-6)]
         if bad:
             raise InvalidInputError('demand outside joint limits: ' + '; '.join(bad))
+        self._check_accepts()
+        Q = np.clip(Q, self.arm.lower, self.arm.upper)   # float32 rounding at a limit
+        moving = self._state != sm.IDLE and self._ref is not None
+        q_start, qd_start = self._ref if moving else (self._q, None)
+        plan = plan_motion(self.config.law, q_start, Q, self._vlim, qd_start)
+        return PendingDemand(now, Q, plan, moving, self._motion_id)
+
+    def commit_demand(self, pending):
+        """
+        Start a prepared demand (time counts from when it was prepared); return the motion id.
+
+        When the controller moved on meanwhile (the motion ended, another started) the demand is
+        planned again from the present state; raises when it cannot take a demand any more.
+        """
+        self._check_accepts()
+        moving = self._state != sm.IDLE and self._ref is not None
+        plan = pending.plan
+        if moving != pending.moving or self._motion_id != pending.motion_id:
+            q_start, qd_start = self._ref if moving else (self._q, None)
+            plan = plan_motion(self.config.law, q_start, pending.waypoints, self._vlim, qd_start)
+        self._plan, self._t_plan = plan, pending.now
+        self._motion_id += 1
+        self._waypoints_total, self._waypoint = len(pending.waypoints), 0
+        self._result = {}
+        self._set(sm.DEMAND, 'OK', f'motion {self._motion_id}: {len(pending.waypoints)} '
+                                   f'waypoint(s), {self.config.law.profile}, '
+                                   f'{plan.duration:.2f} s')
+        return self._motion_id
+
+    def _check_accepts(self):
         if self._state not in sm.ACCEPTS_DEMANDS:
             raise InvalidInputError(f'cannot take a demand while {self._state}: '
                                     f'{self._message}')
-        Q = np.clip(Q, self.arm.lower, self.arm.upper)   # float32 rounding at a limit
-        if self._state == sm.IDLE or self._ref is None:
-            q_start, qd_start = self._q, None
-        else:
-            q_start, qd_start = self._ref
-        plan = plan_motion(self.config.law, q_start, Q, self._vlim, qd_start)
-        self._plan, self._t_plan = plan, now
-        self._motion_id += 1
-        self._waypoints_total, self._waypoint = len(Q), 0
-        self._result = {}
-        self._set(sm.DEMAND, 'OK', f'motion {self._motion_id}: {len(Q)} waypoint(s), '
-                                   f'{self.config.law.profile}, {plan.duration:.2f} s')
-        return self._motion_id
 
     def request_stop(self, now):
         """Decelerate to rest and hold; return ``(True, message)`` or why nothing moved."""

@@ -131,8 +131,11 @@ class ControllerNode(Node):
         now = self.now()
         try:
             Q = conversions.demands_from_msg(msg, len(self.joint_names))
+            # Plan without the lock so the ticks go on (the continuous law plans for tens of
+            # milliseconds); the commit re-plans if the controller moved on meanwhile.
+            pending = self.core.prepare_demand(now, Q)
             with self.lock:
-                motion_id = self.core.on_demands(now, Q)
+                motion_id = self.core.commit_demand(pending)
         except InvalidInputError as err:
             self.get_logger().warning(f'rejected /joint_demands: {err}')
             self.publish_status(now, {'rejected': str(err)}, level='WARN',

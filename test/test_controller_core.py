@@ -291,3 +291,47 @@ def test_bad_config_is_rejected():
         ControllerConfig(goal_tolerance=0.0)
     with pytest.raises(InvalidInputError, match='state_timeout'):
         ControllerConfig(state_timeout=-1.0)
+
+
+def test_prepared_demand_commits_later_without_a_jump():
+    core, sim = make('jerk_limited', law={'a_max': 1.0, 'j_max': 20.0})
+    sim.tick()
+    core.on_demands(sim.t, [GOAL])
+    sim.run_until(lambda o: sim.t > 0.8)
+    pending = core.prepare_demand(sim.t, [-GOAL])
+    assert core.motion_id == 1 and core.plan is not pending.plan   # nothing changed yet
+    for _ in range(5):                                               # ticks while planning
+        sim.tick()
+    before = sim.log[-1][2]
+    assert core.commit_demand(pending) == 2
+    after = sim.tick().qd
+    # The new plan left from the state at prepare time: the step grows with the planning delay
+    # (5 ticks here) as a_max * delay at most, far below the reversal a cold switch would give.
+    assert np.max(np.abs(after - before)) <= 1.0 * (5 + 2) * DT
+    assert np.max(np.abs(before)) > 0.3
+    sim.run_until(lambda o: o.state == sm.IDLE)
+    np.testing.assert_allclose(sim.q, -GOAL, atol=0.002)
+
+
+def test_prepared_demand_replans_when_the_motion_ended_meanwhile():
+    core, sim = make('trapezoidal')
+    sim.tick()
+    core.on_demands(sim.t, [GOAL])
+    sim.run_until(lambda o: sim.t > core.plan.duration - 0.05)
+    pending = core.prepare_demand(sim.t, [np.zeros(6)])
+    sim.run_until(lambda o: o.state == sm.IDLE)
+    core.commit_demand(pending)
+    assert core.plan is not pending.plan
+    np.testing.assert_allclose(core.plan.sample(0.0)[0], sim.q)     # from where the arm is
+    np.testing.assert_allclose(core.plan.sample(0.0)[1], 0.0)
+
+
+def test_prepared_demand_is_refused_after_a_fault():
+    core, sim = make()
+    sim.tick()
+    pending = core.prepare_demand(sim.t, [GOAL])
+    sim.report = False
+    sim.run_until(lambda o: o.state == sm.FAULT)
+    with pytest.raises(InvalidInputError, match='fault'):
+        core.commit_demand(pending)
+    assert core.motion_id == 0
