@@ -8,7 +8,10 @@ spherical wrist, and as a fallback when the closed form finds nothing. A path ne
 branch: a step larger than ``max_joint_step`` is a discontinuity and fails the path. Near a
 singularity (Jacobian condition number above ``max_condition`` and rising, i.e. moving towards
 it) the path fails too: leaving a singular pose, such as the Mover6's home (q5 = 0, axes 4 and
-6 aligned), is allowed.
+6 aligned), is allowed. Leaving it may need q4 and q6 turned against each other first; when a
+step is too large and the previous waypoint can be re-chosen on its own pose by such a
+self-motion (the tool stays still, checked by FK along the joint segment), it is, and
+``PathSolution.self_motion`` marks that step.
 
 Failures raise ``UnreachableError`` with ``reason`` in ``REASONS`` and ``details`` holding
 'waypoint', 'position_error' [m], 'orientation_error' [rad], 'closest_q' and 'closest_pose'
@@ -18,9 +21,9 @@ Failures raise ``UnreachableError`` with ``reason`` in ``REASONS`` and ``details
 from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.ik import solve_candidates, VERIFY_TOL, wrist_geometry
+from mover6_control.ik import pose_errors_batch, solve_candidates, VERIFY_TOL, wrist_geometry
 from mover6_control.ik_numeric import closest_within_limits, DEFAULT_WEIGHTS, ik_numeric
-from mover6_control.kinematics import condition_number, fk
+from mover6_control.kinematics import condition_number, fk, fk_batch
 from mover6_control.rotations import as_finite_array, ORTHONORMAL_TOL, pose_error
 import numpy as np
 
@@ -37,11 +40,21 @@ class PathSolution:
     condition: np.ndarray          # (m,) Jacobian condition number at each waypoint
     joint_step: np.ndarray         # (m,) largest joint change from the previous waypoint [rad]
     method: str                    # 'closed_form' or 'numeric'
+    # (m,) True where the step into a waypoint keeps the tool still (joints re-arranged at a
+    # singular pose: q4 against q6 at a wrist singularity).
+    self_motion: np.ndarray = None
 
     @property
     def max_joint_step(self):
         """Return the largest joint change between neighbouring waypoints [rad]."""
         return float(self.joint_step.max())
+
+    @property
+    def max_moving_step(self):
+        """Return the largest joint change on steps that move the tool [rad]."""
+        moving = self.joint_step if self.self_motion is None else np.where(
+            self.self_motion, 0.0, self.joint_step)
+        return float(moving.max())
 
     @property
     def max_condition(self):
@@ -153,6 +166,8 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
     m, n = len(P), arm.n_joints
     out = {key: np.empty(m) for key in ('pos', 'rot', 'cond', 'step')}
     Q = np.empty((m, n))
+    self_motion = np.zeros(m, dtype=bool)
+    q_start_arr = q_prev
     cond_prev = condition_number(arm, q_prev)
     for k in range(m):
         T = P[k]
@@ -170,6 +185,19 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
             raise unreachable_error(arm, T, q_prev, k, weights, geometry, what='waypoint')
         steps = np.abs(sols - q_prev).max(axis=1)
         j = int(np.argmin(steps))
+        if steps[j] > max_joint_step and k >= 1 and geometry is not None:
+            before = q_start_arr if k == 1 else Q[k - 2]
+            redo = _self_motion_start(arm, geometry, P[k - 1], before, sols, steps,
+                                      max_joint_step, position_tol, orientation_tol)
+            if redo is not None:
+                # Waypoint k - 1 is re-chosen on the same pose (the tool stays still while
+                # the joints turn, e.g. q4 against q6 at a wrist singularity).
+                q_prev, j = redo
+                Q[k - 1] = q_prev
+                out['step'][k - 1] = np.abs(q_prev - before).max()
+                out['cond'][k - 1] = cond_prev = condition_number(arm, q_prev)
+                self_motion[k - 1] = True
+                steps = np.abs(sols - q_prev).max(axis=1)
         q = sols[j]
         pos, rot = pose_error(fk(arm, q), T)
         if pos > position_tol or rot > orientation_tol:
@@ -192,7 +220,38 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
         q_prev, cond_prev = q, cond
     return PathSolution(q=Q, position_error=out['pos'], orientation_error=out['rot'],
                         condition=out['cond'], joint_step=out['step'],
-                        method='closed_form' if geometry is not None else 'numeric')
+                        method='closed_form' if geometry is not None else 'numeric',
+                        self_motion=self_motion)
+
+
+def holds_pose(arm, q_a, q_b, T, position_tol, orientation_tol, samples=11):
+    """Return True when the joint-space segment ``q_a`` -> ``q_b`` keeps the tool at ``T``."""
+    s = np.linspace(0.0, 1.0, samples)[:, None]
+    poses = fk_batch(arm, q_a + s * (q_b - q_a))
+    pos, rot = pose_errors_batch(np.broadcast_to(T, poses.shape), poses)
+    return bool(np.all(pos <= position_tol) and np.all(rot <= orientation_tol))
+
+
+def _self_motion_start(arm, geometry, T_prev, before, sols, steps, max_joint_step,
+                       position_tol, orientation_tol):
+    """
+    Re-choose the previous waypoint on its own pose so that the next one is a small step.
+
+    Allowed only when the joints can move from ``before`` to the new choice without moving the
+    tool (self-motion: at a wrist singularity q4 and q6 turn against each other). This lets a
+    path leave a singular start, such as the Mover6's home, towards any orientation. Returns
+    (new previous configuration, index into ``sols``) or None.
+    """
+    for j in np.argsort(steps):
+        cand, ok = solve_candidates(arm, geometry, T_prev[None], sols[j][None], True, VERIFY_TOL)
+        alts = cand[0][ok[0]]
+        if len(alts) == 0:
+            continue
+        alt = alts[np.argmin(np.abs(alts - sols[j]).max(axis=1))]
+        if (np.abs(sols[j] - alt).max() <= max_joint_step
+                and holds_pose(arm, before, alt, T_prev, position_tol, orientation_tol)):
+            return alt, int(j)
+    return None
 
 
 def _fail(arm, T, q_prev, k, reason, message, extra):

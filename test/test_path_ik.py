@@ -6,10 +6,11 @@ from mover6_control.arm import from_dh, minibot, mover6
 from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.ik import ik_closed_form
 from mover6_control.kinematics import condition_number, fk, fk_batch
-from mover6_control.path_ik import PathSolution, REASONS, solve_path
+from mover6_control.path_ik import holds_pose, PathSolution, REASONS, solve_path
 from mover6_control.rotations import pose_error, pose_from_xyzabc
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation, Slerp
 
 DETAIL_KEYS = {'waypoint', 'position_error', 'orientation_error', 'closest_q', 'closest_pose'}
 
@@ -69,6 +70,26 @@ def test_path_stays_on_the_branch_of_q_start(seed, name):
     assume(max(conds) < 300.0)                  # a branch is only defined off singularities
     sol = solve_path(arm, fk_batch(arm, joint_path), q_start)
     np.testing.assert_allclose(sol.q, joint_path, atol=1e-7)
+
+
+def test_leaving_the_singular_home_turns_q4_against_q6_in_place():
+    # From home (q5 = 0) towards this orientation the wrist must first turn q4 by ~0.41 rad:
+    # a step larger than max_joint_step, allowed because the tool does not move.
+    arm = mover6()
+    T0 = fk(arm, np.zeros(6))
+    T1 = fk(arm, np.array([0.2, 0.3, 0.2, 0.8, 0.5, -0.3]))
+    n = 30
+    s = np.linspace(0.0, 1.0, n)
+    poses = np.tile(np.eye(4), (n, 1, 1))
+    poses[:, :3, :3] = Slerp([0.0, 1.0], Rotation.from_matrix([T0[:3, :3], T1[:3, :3]]))(
+        s).as_matrix()
+    poses[:, :3, 3] = (1.0 - s)[:, None] * T0[:3, 3] + s[:, None] * T1[:3, 3]
+    sol = solve_path(arm, poses, np.zeros(6))
+    np.testing.assert_allclose(fk_batch(arm, sol.q), poses, atol=1e-9)
+    assert sol.self_motion[0] and not sol.self_motion[1:].any()
+    assert sol.joint_step[0] > 0.35 >= sol.max_moving_step
+    assert holds_pose(arm, np.zeros(6), sol.q[0], T0, 1e-9, 1e-9)
+    assert not holds_pose(arm, sol.q[0], sol.q[1], T0, 1e-6, 1e-6)
 
 
 def test_same_pose_on_another_branch_is_a_discontinuity():
