@@ -33,8 +33,8 @@ SHOWCASE = (
     ('parabolic', 'pose', {'motion': 'parabolic', 'peak_height': 0.04},
      [(0.30, -0.08, 0.32, 0.0, HALF_PI, 0.0)]),
     ('spline', 'path', {'path_motion': 'spline'},
-     [(0.33, -0.02, 0.38, 0.0, HALF_PI, 0.0), (0.31, 0.06, 0.34, 0.0, HALF_PI, 0.0),
-      (0.28, 0.10, 0.36, 0.0, HALF_PI, 0.0)]),
+     [(0.32, -0.03, 0.36, 0.0, HALF_PI, 0.0), (0.32, 0.04, 0.38, 0.0, HALF_PI, 0.0),
+      (0.29, 0.10, 0.35, 0.0, HALF_PI, 0.0)]),
     ('joint', 'pose', {'motion': 'joint'}, [(0.345, 0.0, 0.4425, 0.0, HALF_PI, 0.0)]),
     ('unreachable', 'pose', {'motion': 'linear'}, [(0.10, 0.10, 0.20, 0.0, 1.5708, 0.0)]),
 )
@@ -172,7 +172,7 @@ def render_animation(report_dir, rows, arm):
     for seg in t:
         times.append(seg + offset)
         offset = times[-1][-1] + 0.5
-    return render.render_gif(arm, np.concatenate(times), np.concatenate(q),
+    return render.save_gif(arm, np.concatenate(times), np.concatenate(q),
                              os.path.join(report_dir, 'motion.gif'))
 
 
