@@ -205,7 +205,12 @@ def pose_errors_batch(T_goal, T):
 
 
 def _candidates(geo, T, q_ref):
-    """Return all 8 candidate solutions (m, 8, 6) and a mask of solvable ones (m, 8)."""
+    """
+    Return all 8 candidates (m, 8, 6), a mask of solvable ones (m, 8) and where q_ref was used.
+
+    The last (m,) marks poses at a shoulder or wrist singularity, whose q1 or q4 came from
+    ``q_ref``.
+    """
     m = len(T)
     om, r = geo.omega, geo.r
     w1, w2, w3, w4, w5, w6 = om
@@ -265,7 +270,9 @@ def _candidates(geo, T, q_ref):
     Q123 = np.broadcast_to(Q123[..., None, :], q4.shape + (3,))
     Q = np.concatenate([Q123, q4[..., None], q5[..., None], q6[..., None]], axis=-1)
     ok = ok1[:, None, None, None] & ok3[:, :, None, None] & ok_w[..., None]
-    return Q.reshape(m, N_BRANCHES, 6), np.broadcast_to(ok, q4.shape).reshape(m, N_BRANCHES)
+    used_ref = shoulder | (lever < 1e-9).reshape(m, -1).any(axis=1)
+    return (Q.reshape(m, N_BRANCHES, 6), np.broadcast_to(ok, q4.shape).reshape(m, N_BRANCHES),
+            used_ref)
 
 
 def _as_q_ref(arm, q_ref, m):
@@ -302,15 +309,18 @@ def ik_closed_form_batch(arm, T, within_limits=True, q_ref=None, tol=VERIFY_TOL,
     return Q, ok
 
 
-def solve_candidates(arm, geo, T, q_ref, within_limits=True, tol=VERIFY_TOL):
+def solve_candidates(arm, geo, T, q_ref, within_limits=True, tol=VERIFY_TOL,
+                     return_ref_used=False):
     """
     Return the 8 candidates (m, 8, 6) of poses ``T`` (m, 4, 4) and the mask of verified ones.
 
     The unchecked core of ``ik_closed_form_batch`` for callers that solve pose after pose:
-    ``geo`` from ``wrist_geometry(arm)``, ``q_ref`` (m, 6) already validated.
+    ``geo`` from ``wrist_geometry(arm)``, ``q_ref`` (m, 6) already validated. With
+    ``return_ref_used`` a third array (m,) marks the singular poses whose q1 or q4 came from
+    ``q_ref``.
     """
     m = len(T)
-    Q, ok = _candidates(geo, T, q_ref)
+    Q, ok, used_ref = _candidates(geo, T, q_ref)
     Q = _wrap(Q)
     if within_limits:
         Q = _into_limits(arm, Q)
@@ -323,7 +333,7 @@ def solve_candidates(arm, geo, T, q_ref, within_limits=True, tol=VERIFY_TOL):
     if within_limits:
         inside = np.all((Q >= arm.lower - 1e-9) & (Q <= arm.upper + 1e-9), axis=-1)
         ok = ok & inside
-    return Q, ok
+    return (Q, ok, used_ref) if return_ref_used else (Q, ok)
 
 
 def ik_closed_form(arm, T, within_limits=True, q_ref=None, tol=VERIFY_TOL):
