@@ -20,6 +20,8 @@ from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
 
 NAMES = [f'joint{i}' for i in range(1, 7)]
+# Our own namespace: another run of these tests (same domain) must not cross-talk with this one.
+NS = f'controller_test_{os.getpid()}'
 GOAL = np.array([0.3, -0.2, 0.2, 0.1, -0.1, 0.3])
 
 
@@ -27,7 +29,7 @@ class FakeArm(Node):
     """Integrate the commanded JointJog and publish /joint_states; record what comes back."""
 
     def __init__(self, context):
-        super().__init__('fake_arm', context=context)
+        super().__init__('fake_arm', context=context, namespace=NS)
         self.q = np.zeros(6)
         self.qd = np.zeros(6)
         self.publishing = True
@@ -66,7 +68,7 @@ def ros():
     os.environ['ROS_DOMAIN_ID'] = '32'
     context = rclpy.Context()
     rclpy.init(context=context)
-    controller = ControllerNode(context=context, parameter_overrides=[
+    controller = ControllerNode(context=context, namespace=NS, parameter_overrides=[
         Parameter('profile', value='trapezoidal'), Parameter('rate', value=100.0)])
     arm = FakeArm(context)
     executor = SingleThreadedExecutor(context=context)
@@ -166,9 +168,9 @@ def test_ticks_follow_sim_time():
     """With use_sim_time the ticks run on /clock: stamps in sim time, none while it stands."""
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=32)
-    controller = ControllerNode(context=context, namespace='simtime', parameter_overrides=[
+    controller = ControllerNode(context=context, namespace=NS + '_sim', parameter_overrides=[
         Parameter('use_sim_time', value=True), Parameter('rate', value=100.0)])
-    clock_node = Node('fake_clock', context=context, namespace='simtime')
+    clock_node = Node('fake_clock', context=context, namespace=NS + '_sim')
     clock_pub = clock_node.create_publisher(Clock, '/clock', 10)
     stamps, sim = [], {'ns': 1000 * 10**9, 'running': True}
     clock_node.create_subscription(
