@@ -275,6 +275,10 @@ class ControllerCore:
 
     def _check_states(self, now):
         if self._q is None:
+            if self._bad_states is not None:
+                message = f'waiting for valid /joint_states: {self._bad_states}'
+                if message != self._message:
+                    self._message, self._changed = message, True
             return
         if self._bad_states is not None:
             reason = f'invalid /joint_states: {self._bad_states}'

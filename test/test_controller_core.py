@@ -60,6 +60,9 @@ def test_waits_for_states_and_commands_zero():
     assert out.state == sm.WAITING_FOR_STATES and not np.any(out.qd)
     with pytest.raises(InvalidInputError, match='waiting_for_states'):
         core.on_demands(0.0, GOAL[None])
+    core.on_invalid_states(0.0, 'joint_states lacks joints [joint6]')
+    assert core.tick(0.0).state == sm.WAITING_FOR_STATES
+    assert 'joint6' in core.status().message
     sim.tick()
     assert core.state == sm.IDLE
 
