@@ -8,7 +8,8 @@ differences, which jump by 2 pi and are singular at B = +-pi/2 (exactly its exam
 
 Steps are Levenberg-Marquardt with error-dependent damping (Sugihara 2011):
 ``(J^T W J + (c E + lambda_0) I) dq = J^T W e``, ``E = e^T W e / 2``, then projected onto
-the joint limits (a joint held at a limit that the step pushes outwards leaves the active set).
+the joint limits (a joint held at a limit that the step pushes outwards leaves the active set;
+a joint whose range spans a full turn wraps around instead).
 ``n_seeds`` starts run side by side as one batch (the first is ``q0``, the others random in
 the limits); a start that stalls is re-seeded at random. The first start that meets
 both tolerances wins; otherwise the lowest-cost configuration seen is returned with
@@ -175,6 +176,9 @@ def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
     span_lo = lo if within_limits else np.full(arm.n_joints, -np.pi)
     span_hi = hi if within_limits else np.full(arm.n_joints, np.pi)
     n = arm.n_joints
+    full_turn = None
+    if within_limits and np.any(hi - lo >= 2.0 * np.pi - 1e-9):
+        full_turn = np.flatnonzero(hi - lo >= 2.0 * np.pi - 1e-9)
     chain = screw_chain(arm)
     Q = np.empty((int(n_seeds), n))
     Q[0] = np.clip(q0, lo, hi) if within_limits else q0
@@ -214,6 +218,8 @@ def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
             # Active set: a joint at a limit that the step pushes outwards is held there and
             # the step is re-solved for the others (plain clipping stalls on the boundary).
             blocked = ((Q <= lo) & (dq < 0.0)) | ((Q >= hi) & (dq > 0.0))
+            if full_turn is not None:
+                blocked[:, full_turn] = False
             if blocked.any():
                 Jf = J * ~blocked[:, None, :]
                 JtW = Jf.transpose(0, 2, 1) * w
@@ -222,6 +228,9 @@ def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
         if max_step is not None:
             dq *= np.minimum(1.0, max_step / (np.abs(dq).max(axis=1) + 1e-300))[:, None]
         Q = Q + dq
+        if full_turn is not None:
+            # A joint whose range spans a full turn wraps around instead of stopping.
+            Q[:, full_turn] = lo[full_turn] + (Q[:, full_turn] - lo[full_turn]) % (2.0 * np.pi)
         if within_limits:
             Q = np.clip(Q, lo, hi)
         improved = cost < 0.99 * stall_cost
