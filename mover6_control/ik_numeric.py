@@ -23,6 +23,10 @@ from mover6_control.rotations import as_finite_array, validate_transform
 import numpy as np
 
 DEFAULT_WEIGHTS = (1.0, 1.0, 1.0, 0.01, 0.01, 0.01)  # 1 rad weighs as 0.1 m
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+_LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0
+_LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
+_LEVI_CIVITA.setflags(write=False)
 
 
 @dataclass(frozen=True)
@@ -127,9 +131,7 @@ def pose_residual_batch(chain, Q, T_goal):
     z = zo[..., 0]
     lever = tip[:, None, :3, 3] - zo[..., 1]
     J = np.empty((m, 6, n))
-    J[:, 0] = z[..., 1] * lever[..., 2] - z[..., 2] * lever[..., 1]
-    J[:, 1] = z[..., 2] * lever[..., 0] - z[..., 0] * lever[..., 2]
-    J[:, 2] = z[..., 0] * lever[..., 1] - z[..., 1] * lever[..., 0]
+    J[:, :3] = np.einsum('ijk,mnj,mnk->min', _LEVI_CIVITA, z, lever)   # z x lever
     J[:, 3:] = z.transpose(0, 2, 1)
     e = np.empty((m, 6))
     e[:, :3] = T_goal[:3, 3] - tip[:, :3, 3]
