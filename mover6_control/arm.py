@@ -86,6 +86,36 @@ class ArmModel:
             raise InvalidInputError(f'{name} has non-finite values: {q_arr.tolist()}')
         return q_arr
 
+    def joint_index(self, name):
+        """Return the index of joint ``name`` or raise naming the known joints."""
+        try:
+            return self.joint_names.index(name)
+        except ValueError:
+            raise InvalidInputError(
+                f'unknown joint "{name}" for {self.name}; joints are {list(self.joint_names)}'
+            ) from None
+
+    def q_from_names(self, names, values, name='q'):
+        """
+        Return ``q`` (n,) in model order from joint ``names`` and their ``values``.
+
+        Every joint must appear exactly once; extra names (other joints on the same message)
+        are an error too, so that a typo cannot pass silently.
+        """
+        names = list(names)
+        values = np.asarray(values, dtype=float).reshape(-1)
+        if len(names) != len(values):
+            raise InvalidInputError(f'{len(names)} joint names but {len(values)} values')
+        if len(set(names)) != len(names):
+            raise InvalidInputError(f'joint names repeat: {names}')
+        q = np.empty(self.n_joints)
+        for joint, value in zip(names, values):
+            q[self.joint_index(joint)] = value
+        missing = [j for j in self.joint_names if j not in names]
+        if missing:
+            raise InvalidInputError(f'{name} lacks joints {missing}')
+        return self.check_q(q, name)
+
     def within_limits(self, q, tol=1e-9):
         """Return True when every joint of ``q`` is inside its limits (with ``tol`` [rad])."""
         q = np.asarray(q, dtype=float)
