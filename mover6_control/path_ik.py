@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.ik import pose_errors_batch, solve_candidates, VERIFY_TOL, wrist_geometry
 from mover6_control.ik_numeric import closest_within_limits, DEFAULT_WEIGHTS, ik_numeric
-from mover6_control.kinematics import condition_number, fk, fk_batch
+from mover6_control.kinematics import condition_number, fk, fk_batch, jacobian_batch
 from mover6_control.rotations import as_finite_array, ORTHONORMAL_TOL, pose_error
 import numpy as np
 
@@ -168,7 +168,7 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
     Q = np.empty((m, n))
     self_motion = np.zeros(m, dtype=bool)
     q_start_arr = q_prev
-    cond_prev = condition_number(arm, q_prev)
+    stop = None      # the first failing waypoint: (reason, index, q, q_prev, step)
     if geometry is not None:
         # Every waypoint at once; the few singular ones (q1 or q4 free) are solved again below
         # with the previous waypoint as reference.
@@ -191,7 +191,8 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
                              orientation_tol=min(orientation_tol, 1e-6), weights=weights, rng=k)
             sols = res.q[None] if res.success else sols
         if len(sols) == 0:
-            raise unreachable_error(arm, T, q_prev, k, weights, geometry, what='waypoint')
+            stop = ('unreachable', k, None, q_prev, None)
+            break
         steps = np.abs(sols - q_prev).max(axis=1)
         j = int(np.argmin(steps))
         if steps[j] > max_joint_step and k >= 1 and geometry is not None:
@@ -204,26 +205,40 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
                 q_prev, j = redo
                 Q[k - 1] = q_prev
                 out['step'][k - 1] = np.abs(q_prev - before).max()
-                out['cond'][k - 1] = cond_prev = condition_number(arm, q_prev)
                 self_motion[k - 1] = True
                 steps = np.abs(sols - q_prev).max(axis=1)
         q = sols[j]
-        cond = condition_number(arm, q)
         if steps[j] > max_joint_step:
-            joint = int(np.argmax(np.abs(q - q_prev)))
-            _fail(arm, T, q_prev, k, 'discontinuity',
-                  f'waypoint {k} needs a jump of {steps[j]:.3f} rad in {arm.joint_names[joint]} '
-                  f'(limit {max_joint_step:.3f} rad): the continuous branch does not reach it',
-                  {'joint_step': float(steps[j]), 'joint': arm.joint_names[joint],
-                   'jump_q': q})
-        if max_condition is not None and cond > max_condition and cond > cond_prev * (1 + 1e-6):
-            _fail(arm, T, q_prev, k, 'singularity',
-                  f'waypoint {k} is near a singularity (Jacobian condition number {cond:.3g} '
-                  f'> {max_condition:.3g}, rising)',
-                  {'condition': float(cond), 'solution_q': q})
+            stop = ('discontinuity', k, q, q_prev, steps[j])
+            break
         Q[k] = q
-        out['cond'][k], out['step'][k] = cond, steps[j]
-        q_prev, cond_prev = q, cond
+        out['step'][k] = steps[j]
+        q_prev = q
+    # Singularity check on the rows solved so far (all at once): fail where the condition
+    # number is above max_condition and rising, unless an earlier waypoint failed.
+    k_end = m if stop is None else stop[1]
+    cond = _condition_numbers(arm, Q[:k_end])
+    if max_condition is not None and k_end:
+        before = np.concatenate([[condition_number(arm, q_start_arr)], cond[:-1]])
+        bad = np.flatnonzero((cond > max_condition) & (cond > before * (1 + 1e-6)))
+        if len(bad):
+            k = int(bad[0])
+            q_before = q_start_arr if k == 0 else Q[k - 1]
+            _fail(arm, P[k], q_before, k, 'singularity',
+                  f'waypoint {k} is near a singularity (Jacobian condition number '
+                  f'{cond[k]:.3g} > {max_condition:.3g}, rising)',
+                  {'condition': float(cond[k]), 'solution_q': Q[k].copy()})
+    if stop is not None and stop[0] == 'unreachable':
+        k, q_prev = stop[1], stop[3]
+        raise unreachable_error(arm, P[k], q_prev, k, weights, geometry, what='waypoint')
+    if stop is not None:
+        _, k, q, q_prev, step = stop
+        joint = int(np.argmax(np.abs(q - q_prev)))
+        _fail(arm, P[k], q_prev, k, 'discontinuity',
+              f'waypoint {k} needs a jump of {step:.3f} rad in {arm.joint_names[joint]} '
+              f'(limit {max_joint_step:.3f} rad): the continuous branch does not reach it',
+              {'joint_step': float(step), 'joint': arm.joint_names[joint], 'jump_q': q})
+    out['cond'] = cond
     # Every solution was verified when found (closed form to VERIFY_TOL, numeric to the
     # tolerances); the figures are measured again here on the final joint path.
     out['pos'], out['rot'] = pose_errors_batch(P, fk_batch(arm, Q))
@@ -261,6 +276,15 @@ def _self_motion_start(arm, geometry, T_prev, before, sols, steps, max_joint_ste
                 and holds_pose(arm, before, alt, T_prev, position_tol, orientation_tol)):
             return alt, int(j)
     return None
+
+
+def _condition_numbers(arm, Q):
+    """Return the Jacobian condition numbers (m,) of configurations ``Q`` (m, n)."""
+    if len(Q) == 0:
+        return np.zeros(0)
+    sv = np.linalg.svd(jacobian_batch(arm, Q), compute_uv=False)
+    with np.errstate(divide='ignore'):
+        return np.where(sv[:, -1] > 0.0, sv[:, 0] / sv[:, -1], np.inf)
 
 
 def _fail(arm, T, q_prev, k, reason, message, extra):

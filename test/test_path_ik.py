@@ -152,6 +152,11 @@ def test_moving_into_a_singularity_is_refused_leaving_it_is_not():
     # Without the check the same path solves; reversed it leaves the singular pose.
     solve_path(arm, poses, q_from)
     solve_path(arm, poses[::-1].copy(), q_to, max_condition=1000.0)
+    # The earliest failure is the one reported: later an unreachable pose or a jump.
+    for extra in (pose_from_xyzabc(0.9, 0.0, 0.3, 0.0, 0.0, 0.0), fk(arm, q_from + 1.0)):
+        with pytest.raises(UnreachableError) as later:
+            solve_path(arm, np.concatenate([poses, extra[None]]), q_from, max_condition=1000.0)
+        assert later.value.reason == 'singularity' and later.value.details['waypoint'] == k
 
 
 def test_numeric_fallback_for_arms_without_a_spherical_wrist():
