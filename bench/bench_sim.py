@@ -25,7 +25,7 @@ import threading
 import time
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-os.environ['ROS_DOMAIN_ID'] = os.environ.get('BENCH_SIM_DOMAIN_ID', '31')
+os.environ.setdefault('ROS_DOMAIN_ID', os.environ.get('BENCH_SIM_DOMAIN_ID', '31'))
 
 from control_msgs.msg import JointJog  # noqa: E402
 from mover6_control.arm import mover6  # noqa: E402

@@ -173,7 +173,7 @@ def render_animation(report_dir, rows, arm):
         times.append(seg + offset)
         offset = times[-1][-1] + 0.5
     return render.save_gif(arm, np.concatenate(times), np.concatenate(q),
-                             os.path.join(report_dir, 'motion.gif'))
+                           os.path.join(report_dir, 'motion.gif'))
 
 
 def passed(rows, steps):

@@ -64,8 +64,8 @@ class FakeArm(Node):
 
 @pytest.fixture(scope='module')
 def ros():
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    os.environ['ROS_DOMAIN_ID'] = '32'
+    # conftest.py keeps discovery on loopback and gives this test run its own ROS_DOMAIN_ID.
+    assert os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
     context = rclpy.Context()
     rclpy.init(context=context)
     controller = ControllerNode(context=context, namespace=NS, parameter_overrides=[
