@@ -18,8 +18,11 @@ subproblems on the space-frame screws ``omega_i``, ``r_i`` at ``q = 0``):
 4. q4, q5: ``Rot4 Rot5 omega_6 = R_w omega_6`` (subproblem 2, two branches, wrist flip), q6 from
    what is left (subproblem 1).
 
-Up to 8 candidates per pose. Every candidate is checked by forward kinematics, and those out of
-joint limits are dropped (after trying ``q +- 2 pi``) when ``within_limits`` is set. At a wrist
+Up to 8 candidates per pose. Each angle is given as the value nearest ``q_ref`` (default 0) by
+whole turns, moved by one more turn when that brings it inside the limits (joints with more
+than a full turn of range have several valid values: the one continuous with ``q_ref`` is
+returned). Every candidate is checked by forward kinematics, and those out of joint limits are
+dropped when ``within_limits`` is set. At a wrist
 singularity (axes 4 and 6 aligned) only q4 + q6 matters: q4 is taken from ``q_ref``; likewise q1
 at a shoulder singularity (wrist centre on axis 1).
 """
@@ -183,6 +186,18 @@ def _wrap(q):
     return (q + np.pi) % (2.0 * np.pi) - np.pi
 
 
+def nearest_alias(arm, Q, q_ref, within_limits=True):
+    """
+    Return ``Q`` (..., n) with each angle moved by whole turns to lie nearest ``q_ref``.
+
+    Then, with ``within_limits``, an angle still outside its limits is moved by one more turn
+    when that brings it inside (joints whose range exceeds a full turn have several valid
+    values; the one continuous with ``q_ref`` is wanted).
+    """
+    Q = q_ref + _wrap(Q - q_ref)
+    return _into_limits(arm, Q) if within_limits else Q
+
+
 def _into_limits(arm, Q):
     """Shift each angle by +-2 pi when that brings it inside its joint limits."""
     lo, hi = arm.lower, arm.upper
@@ -321,9 +336,7 @@ def solve_candidates(arm, geo, T, q_ref, within_limits=True, tol=VERIFY_TOL,
     """
     m = len(T)
     Q, ok, used_ref = _candidates(geo, T, q_ref)
-    Q = _wrap(Q)
-    if within_limits:
-        Q = _into_limits(arm, Q)
+    Q = nearest_alias(arm, Q, q_ref[:, None, :], within_limits)
     # FK check on squared figures (no roots): |dp|^2 < tol^2 and the rotation chord
     # |R - R_goal|_F^2 = 8 sin^2(angle / 2) < 8 sin^2(tol / 2).
     diff = fk_batch(arm, Q.reshape(-1, 6))[:, :3].reshape(m, N_BRANCHES, 3, 4) - T[:, None, :3]

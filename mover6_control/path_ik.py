@@ -21,7 +21,8 @@ Failures raise ``UnreachableError`` with ``reason`` in ``REASONS`` and ``details
 from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.ik import pose_errors_batch, solve_candidates, VERIFY_TOL, wrist_geometry
+from mover6_control.ik import (nearest_alias, pose_errors_batch, solve_candidates, VERIFY_TOL,
+                               wrist_geometry)
 from mover6_control.ik_numeric import closest_within_limits, DEFAULT_WEIGHTS, ik_numeric
 from mover6_control.kinematics import condition_number, fk, fk_batch, jacobian_batch
 from mover6_control.rotations import as_finite_array, ORTHONORMAL_TOL, pose_error
@@ -183,7 +184,10 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
             if all_used[k]:
                 cand, ok = solve_candidates(arm, geometry, T[None], q_prev[None], True,
                                             VERIFY_TOL)
-            sols = cand[0][ok[0]]
+            # Each joint's value by whole turns nearest the previous waypoint (the batch used
+            # q_start as reference; this matters for joints with more than a turn of range).
+            sols = nearest_alias(arm, cand[0][ok[0]], q_prev)
+            sols = sols[np.all((sols >= arm.lower - 1e-9) & (sols <= arm.upper + 1e-9), axis=1)]
         if len(sols) == 0:
             # Numeric IK: the solver for arms without a closed form, and the fallback for poses
             # the closed form misses by rounding (a fully stretched arm, say).

@@ -12,7 +12,18 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-ARMS = {'mover6': mover6, 'mover6_hw': lambda: mover6('hardware'), 'minibot': minibot}
+
+def puma560():
+    """Return a PUMA 560 (standard DH, Corke): spherical wrist, shoulder offset d3."""
+    return from_dh([0.0, 0.4318, 0.0203, 0.0, 0.0, 0.0],
+                   [np.pi / 2, 0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, 0.0],
+                   [0.0, 0.0, 0.15005, 0.4318, 0.0, 0.0], name='puma560',
+                   lower=np.radians([-160, -225, -45, -110, -100, -266]),
+                   upper=np.radians([160, 45, 225, 170, 100, 266]))
+
+
+ARMS = {'mover6': mover6, 'mover6_hw': lambda: mover6('hardware'), 'minibot': minibot,
+        'puma560': puma560}
 # Seed 004 question 1b: the pose (mm, 4-digit rotation) and the two solutions it found [deg].
 SEED_004_R = np.array([[0.7551, 0.4013, 0.5184], [0.6084, -0.7235, -0.3262],
                        [0.2441, 0.5617, -0.7905]])
@@ -41,9 +52,13 @@ def test_round_trip_on_random_poses(name):
     dp, dr = pose_errors_batch(np.repeat(T, 8, axis=0), fk_batch(arm, S.reshape(-1, 6)))
     good = ok.reshape(-1)
     assert dp[good].max() < 1e-9 and dr[good].max() < 1e-9
-    # The configuration that made the pose is one of the solutions.
-    dist = np.where(ok, np.abs(S - Q[:, None]).max(axis=2), np.inf).min(axis=1)
-    assert dist.max() < 1e-8
+    # The configuration that made the pose is one of the solutions (up to whole turns: with
+    # the default q_ref = 0 the value nearest 0 is returned).
+    gap = np.abs((S - Q[:, None] + np.pi) % (2 * np.pi) - np.pi).max(axis=2)
+    assert np.where(ok, gap, np.inf).min(axis=1).max() < 1e-8
+    # With the generating configuration as q_ref it comes back exactly.
+    S, ok = ik_closed_form_batch(arm, T, q_ref=Q)
+    assert np.where(ok, np.abs(S - Q[:, None]).max(axis=2), np.inf).min(axis=1).max() < 1e-8
     inside = (S >= arm.lower - 1e-9) & (S <= arm.upper + 1e-9)
     assert inside.all(axis=2)[ok].all()
 

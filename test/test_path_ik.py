@@ -92,6 +92,21 @@ def test_leaving_the_singular_home_turns_q4_against_q6_in_place():
     assert not holds_pose(arm, sol.q[0], sol.q[1], T0, 1e-6, 1e-6)
 
 
+def test_multi_turn_joint_crosses_180_degrees_without_a_jump():
+    # PUMA 560 joint 6 turns +-266 deg: from 170 to 200 deg is continuous, not a 2 pi jump.
+    arm = from_dh([0.0, 0.4318, 0.0203, 0.0, 0.0, 0.0],
+                  [np.pi / 2, 0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, 0.0],
+                  [0.0, 0.0, 0.15005, 0.4318, 0.0, 0.0], name='puma560',
+                  lower=np.radians([-160, -225, -45, -110, -100, -266]),
+                  upper=np.radians([160, 45, 225, 170, 100, 266]))
+    q_start = np.array([0.3, -0.8, 0.5, 0.4, 0.7, np.radians(170.0)])
+    s = np.linspace(0.0, 1.0, 20)[:, None]
+    joint_path = q_start + s * np.array([0.1, 0.1, 0.0, 0.1, 0.0, np.radians(30.0)])
+    sol = solve_path(arm, fk_batch(arm, joint_path), q_start)
+    np.testing.assert_allclose(sol.q, joint_path, atol=1e-9)
+    assert sol.q[-1, 5] > np.pi
+
+
 def test_same_pose_on_another_branch_is_a_discontinuity():
     arm = minibot()
     q_a = np.array([0.3, 0.5, 0.2, 0.4, 0.6, 0.1])
