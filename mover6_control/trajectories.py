@@ -22,12 +22,11 @@ from mover6_control.rotations import as_finite_array
 import numpy as np
 import ruckig
 from scipy.interpolate import BSpline, CubicSpline, make_interp_spline, PPoly
+from scipy.optimize import minimize_scalar
 
 # Sampling density used to find peak rates when fitting a trajectory to limits.
 _PEAK_SAMPLES = 4001
-_PEAK_MARGIN = 1e-3
-# Samples per spline piece when looking for peaks (the piece ends included).
-_PER_PIECE = 33
+_PEAK_MARGIN = 1e-9
 
 
 class JointTrajectory:
@@ -216,9 +215,22 @@ def validate_waypoints(Q, name='Q', allow_repeats=False):
 
 
 def law_peaks(law):
-    """Return (max |s'|, max |s''|) of a time law over tau in [0, 1]."""
+    """
+    Return (max |s'|, max |s''|) of a time law over tau in [0, 1].
+
+    The largest sample is refined by a bounded search between its neighbours, so a peak that
+    falls between samples is not underestimated (a duration fitted to it would break a limit).
+    """
     tau = np.linspace(0.0, 1.0, _PEAK_SAMPLES)
-    return float(np.abs(law.evaluate(tau, 1)).max()), float(np.abs(law.evaluate(tau, 2)).max())
+    peaks = []
+    for k in (1, 2):
+        values = np.abs(law.evaluate(tau, k))
+        i = int(np.argmax(values))
+        lo, hi = tau[max(i - 1, 0)], tau[min(i + 1, tau.size - 1)]
+        res = minimize_scalar(lambda x, k=k: -abs(float(law.evaluate(x, k))), bounds=(lo, hi),
+                              method='bounded', options={'xatol': 1e-12})
+        peaks.append(max(float(values[i]), -float(res.fun)))
+    return peaks[0], peaks[1]
 
 
 def point_to_point(q0, q1, law, duration=None, v_max=None, a_max=None):
@@ -263,16 +275,53 @@ def _segment_durations(Q, v_max):
     return np.max(np.abs(np.diff(Q, axis=0)) / v_max, axis=1)
 
 
+def _columns(spline):
+    """Return one scalar ``PPoly`` per output column of a (vector-valued) scipy spline."""
+    if isinstance(spline, PPoly):
+        c = spline.c.reshape(spline.c.shape[0], spline.c.shape[1], -1)
+        return [PPoly(c[..., j], spline.x) for j in range(c.shape[2])]
+    c = spline.c.reshape(spline.c.shape[0], -1)
+    return [PPoly.from_spline(BSpline(spline.t, c[:, j], spline.k))
+            for j in range(c.shape[1])]
+
+
+def _piece_extremes(pp, k, duration):
+    """Return max |d^k pp / dt^k| over [0, duration]: piece ends and interior stationary points."""
+    d = pp.derivative(k)
+    x, c = d.x, d.c
+    width = np.diff(x)
+    inside = (x[1:] > 0.0) & (x[:-1] < duration) & (width > 0.0)
+    if not np.any(inside):
+        return 0.0
+    h = np.minimum(x[1:], duration) - x[:-1]
+    # Value at each piece's left end (local 0) and right end (local h): both one-sided limits
+    # count, so a derivative that jumps at a breakpoint is bounded on both sides.
+    left = c[-1]
+    right = np.zeros_like(left)
+    for coef in c:
+        right = right * h + coef
+    best = float(np.max(np.abs(np.concatenate([left[inside], right[inside]]))))
+    roots = d.derivative(1).roots(discontinuity=False, extrapolate=False)
+    roots = roots[np.isfinite(roots) & (roots >= 0.0) & (roots <= duration)]
+    if roots.size:
+        best = max(best, float(np.max(np.abs(d(roots)))))
+    return best
+
+
 def _peaks(traj):
-    if isinstance(traj, SplineTrajectory):
-        # Peaks of piecewise polynomials sit at the piece ends or inside: sample every piece.
-        b = traj.breakpoints
-        frac = np.linspace(0.0, 1.0, _PER_PIECE)
-        t = np.unique((b[:-1, None] + np.diff(b)[:, None] * frac).ravel())
-    else:
-        t = np.linspace(0.0, traj.duration, _PEAK_SAMPLES)
-    _, qd, qdd = traj.sample(t)
-    return np.abs(qd).max(axis=0), np.abs(qdd).max(axis=0)
+    """
+    Return the exact peak |qd| and |qdd| per joint of a piecewise-polynomial trajectory.
+
+    A sampled maximum misses a peak between samples (a cubic's velocity is quadratic inside a
+    piece), and fitting durations to an underestimated peak breaks the limits; so the peaks are
+    taken at every piece end (from both sides) and at the roots of the next derivative.
+    """
+    pv, pa = [], []
+    for derivs in traj._derivs:
+        for pp in _columns(derivs[0]):
+            pv.append(_piece_extremes(pp, 1, traj.duration))
+            pa.append(_piece_extremes(pp, 2, traj.duration))
+    return np.asarray(pv), np.asarray(pa)
 
 
 def _fit_to_limits(build, durations, v_max, a_max):
@@ -282,7 +331,7 @@ def _fit_to_limits(build, durations, v_max, a_max):
     k = float(np.max(pv / v_max))
     if a_max is not None:
         k = max(k, float(np.sqrt(np.max(pa / a_max))))
-    # Peaks come from samples; a 0.1 % margin keeps the true peaks between samples inside.
+    # The peaks are exact; the tiny margin only absorbs rounding in the rescaled spline.
     return build(durations * k * (1.0 + _PEAK_MARGIN)) if k > 0.0 else traj
 
 

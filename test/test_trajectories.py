@@ -1,6 +1,6 @@
 """Joint trajectories: one sampling interface, waypoints hit, limits kept, bad input refused."""
 
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 import hypothesis.strategies as st
 from mover6_control import time_laws as tl
 from mover6_control import trajectories as tj
@@ -132,20 +132,61 @@ def test_ruckig_is_jerk_limited_and_synchronised():
     assert traj.duration == pytest.approx(max(alone), rel=1e-6)
 
 
+def dense_with_breakpoints(traj, n=20001):
+    """Sample ``traj`` on a uniform grid plus its breakpoints (where cubic accelerations peak)."""
+    t = np.unique(np.concatenate([np.linspace(0.0, traj.duration, n), traj.breakpoints]))
+    return traj.sample(t)
+
+
+# Found by hypothesis: the velocity peak of the long second piece lay between the peak-search
+# samples, so the fitted cubic reached |qd| = 1.0001 > v_max.
+FOUND = [[0.0, 0.0, 0.5], [0.0, 0.0, 1.5], [0.0, 0.0, -1.75]]
+
+
+@pytest.mark.parametrize('build', [tj.cubic_trajectory, tj.quintic_trajectory,
+                                   tj.bspline_trajectory])
 @settings(max_examples=25, deadline=None)
 @given(st.lists(st.lists(st.floats(-2.0, 2.0), min_size=3, max_size=3), min_size=2,
                 max_size=8))
-def test_cubic_through_random_waypoints(rows):
+@example(FOUND)
+@example([[0.0, 0.0, 0.0], [0.0, 0.0, 1e-6], [0.0, 0.0, 2.0]])
+@example([[0.0, 0.0, 0.0], [1.0, -1.0, 2.0], [1.01, -1.0, 2.0], [-2.0, 2.0, -2.0]])
+def test_limit_fitted_splines_through_random_waypoints(build, rows):
     W = np.array(rows)
-    if np.any(np.abs(np.diff(W, axis=0)).max(axis=1) < 1e-3):
+    if np.any(np.abs(np.diff(W, axis=0)).max(axis=1) < 1e-12):
         with pytest.raises(InvalidInputError):
-            tj.cubic_trajectory(W, v_max=1.0)
+            build(W, v_max=1.0)
         return
-    traj = tj.cubic_trajectory(W, v_max=1.0, a_max=2.0)
-    knots = traj._derivs[0][0].x
-    assert np.allclose(traj.sample(knots)[0], W, atol=1e-9)
-    _, _, qd, qdd = dense(traj, 4001)
+    traj = build(W, v_max=1.0, a_max=2.0)
+    if build is not tj.bspline_trajectory:
+        knots = traj._derivs[0][0].x if build is tj.cubic_trajectory else traj.breakpoints
+        assert np.allclose(traj.sample(knots)[0], W, atol=1e-9)
+    assert np.allclose(traj.sample([0.0, traj.duration])[0], W[[0, -1]], atol=1e-9)
+    _, qd, qdd = dense_with_breakpoints(traj)
     assert np.all(np.abs(qd) <= 1.0) and np.all(np.abs(qdd) <= 2.0)
+    # One limit is met (the durations are as short as the limits allow).
+    assert max(np.abs(qd).max(), np.abs(qdd).max() / 2.0) > 0.99
+
+
+def test_found_case_peaks_are_exact():
+    # The exact peaks behind the limit fit agree with a very fine grid.
+    traj = tj.cubic_trajectory(np.array(FOUND), v_max=1.0, a_max=2.0)
+    _, qd, qdd = dense_with_breakpoints(traj, 400001)
+    pv, pa = tj._peaks(traj)
+    assert np.allclose(pv, np.abs(qd).max(axis=0), rtol=1e-9, atol=1e-12)
+    assert np.allclose(pa, np.abs(qdd).max(axis=0), rtol=1e-9, atol=1e-12)
+    assert pv.max() == pytest.approx(1.0, rel=1e-8)
+
+
+@pytest.mark.parametrize('law', [tl.cubic(), tl.quintic(), tl.septic(), tl.trapezoidal(),
+                                 tl.via_point_polynomial(0.6, 0.4)])
+def test_law_peaks_are_not_underestimated(law):
+    tau = np.linspace(0.0, 1.0, 1000001)
+    sd, sdd = tj.law_peaks(law)
+    assert sd >= np.abs(law.evaluate(tau, 1)).max() * (1.0 - 1e-12)
+    assert sdd >= np.abs(law.evaluate(tau, 2)).max() * (1.0 - 1e-12)
+    assert sd == pytest.approx(np.abs(law.evaluate(tau, 1)).max(), rel=1e-6)
+    assert sdd == pytest.approx(np.abs(law.evaluate(tau, 2)).max(), rel=1e-6)
 
 
 @pytest.mark.parametrize('call', [
