@@ -9,19 +9,20 @@ Poses: FK of configurations drawn uniformly inside the joint limits (10,000; 2,0
 ``--quick``), for the Mover6 (seed limits, [-1.571, 1.571] rad) and the miniBOT (seed 004).
 
 Times are wall clock and CPU time of this process (``time.process_time``): on a shared machine
-the CPU figure is the fairer one; the load average is printed.
+the CPU figure is the fairer one; the load average is printed. Each timing is the least of
+several runs (batch: 5; per pose: 2), the usual guard against interference.
 
-1. Closed form, batched (``ik.ik_closed_form_batch``): poses per second (best of 3; wall and
+1. Closed form, batched (``ik.ik_closed_form_batch``): poses per second (best of 5; wall and
    CPU time), share of poses solved, share whose generating configuration is among the
    solutions, largest FK round-trip error over every returned solution, mean number of
    solutions.
 2. Closed form, one pose per call (``ik.ik_closed_form``): median and 99th-percentile latency.
 3. Numeric (``ik_numeric.ik_numeric`` from q0 = 0, tolerance 1e-6 m and 1e-6 rad): success rate
-   and median time, on the same poses (first 2,000; 200 with ``--quick``).
+   and median time, on the same poses (first 2,000; 150 with ``--quick``).
 4. Baseline any user could write: ``scipy.optimize.least_squares`` on the same weighted cost
    (position [m] and rotation vector [rad], same weights), bounded by the joint limits, from
    q0 = 0 and then random starts (4 starts at most), finite-difference Jacobian; on the first
-   300 poses (40 with ``--quick``), with the ratio of median times against ``ik_numeric`` on
+   300 poses (30 with ``--quick``), with the ratio of median times against ``ik_numeric`` on
    those same poses.
 
 Anchors (issue 3): TRAC-IK 99.8-100 % at 0.2-0.4 ms; KDL 26-75 %.
@@ -45,6 +46,7 @@ from scipy.spatial.transform import Rotation
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
 THREAD_VARS = ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS')
 TOL = 1e-6   # [m] and [rad] success tolerance of both numeric solvers
+REPEATS = 2  # per-pose timings: the least of this many runs (the machine may be shared)
 
 
 def _poses(arm, m, seed=0):
@@ -55,12 +57,7 @@ def _poses(arm, m, seed=0):
 
 def closed_form_batch(arm, Q, T):
     """Throughput and accuracy of the batched closed form."""
-    wall, cpu = np.inf, np.inf
-    for _ in range(3):
-        t0, c0 = time.perf_counter(), time.process_time()
-        S, ok = ik_closed_form_batch(arm, T)
-        wall = min(wall, time.perf_counter() - t0)
-        cpu = min(cpu, time.process_time() - c0)
+    (S, ok), wall, cpu = _timed(lambda: ik_closed_form_batch(arm, T), 5)
     m = len(T)
     dp, dr = pose_errors_batch(np.repeat(T, 8, axis=0), fk_batch(arm, S.reshape(-1, 6)))
     good = ok.reshape(-1)
@@ -72,28 +69,39 @@ def closed_form_batch(arm, Q, T):
             'mean_solutions': float(ok.sum(axis=1).mean())}
 
 
-def closed_form_single(arm, T):
-    """Per-pose latency of ``ik_closed_form`` (wall and CPU time)."""
+def _timed(fn, repeats):
+    """Return (result of the first call, least wall time, least CPU time) over ``repeats``."""
+    wall, cpu, out = np.inf, np.inf, None
+    for i in range(repeats):
+        t0, c0 = time.perf_counter(), time.process_time()
+        res = fn()
+        wall = min(wall, time.perf_counter() - t0)
+        cpu = min(cpu, time.process_time() - c0)
+        out = res if i == 0 else out
+    return out, wall, cpu
+
+
+def closed_form_single(arm, T, repeats=REPEATS):
+    """Per-pose latency of ``ik_closed_form`` (wall and CPU time, least of ``repeats``)."""
     wall, cpu = [], []
     for pose in T:
-        t0, c0 = time.perf_counter(), time.process_time()
-        ik_closed_form(arm, pose)
-        wall.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
+        _, w, c = _timed(lambda: ik_closed_form(arm, pose), repeats)
+        wall.append(w)
+        cpu.append(c)
     wall, cpu = np.array(wall) * 1e6, np.array(cpu) * 1e6
     return {'poses': len(T), 'median_us': float(np.median(wall)),
             'p99_us': float(np.percentile(wall, 99)), 'median_us_cpu': float(np.median(cpu))}
 
 
-def numeric(arm, T):
+def numeric(arm, T, repeats=REPEATS):
     """Success, wall and CPU times [ms] and iterations of ``ik_numeric`` from q0 = 0."""
     wall, cpu, ok, iters = [], [], [], []
     for k, pose in enumerate(T):
-        t0, c0 = time.perf_counter(), time.process_time()
-        res = ik_numeric(arm, pose, np.zeros(arm.n_joints), position_tol=TOL,
-                         orientation_tol=TOL, rng=k)
-        wall.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
+        res, w, c = _timed(lambda: ik_numeric(arm, pose, np.zeros(arm.n_joints),
+                                              position_tol=TOL, orientation_tol=TOL, rng=k),
+                           repeats)
+        wall.append(w)
+        cpu.append(c)
         ok.append(res.success)
         iters.append(res.iterations)
     return np.array(wall) * 1e3, np.array(cpu) * 1e3, np.array(ok), np.array(iters)
@@ -134,7 +142,7 @@ def scipy_baseline(arm, T, starts=4):
 
 def run(quick):
     """Run every part for both arms; return the results dictionary."""
-    n_cf, n_single, n_num, n_base = (2000, 300, 200, 40) if quick else (10000, 2000, 2000, 300)
+    n_cf, n_single, n_num, n_base = (2000, 200, 150, 30) if quick else (10000, 2000, 2000, 300)
     out = {'quick': quick, 'load_average': os.getloadavg()[0], 'arms': {}}
     for arm in (mover6(), minibot()):
         Q, T = _poses(arm, n_cf)
