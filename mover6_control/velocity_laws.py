@@ -384,14 +384,11 @@ def _continuous_plan(q_start, waypoints, velocity_limits, config, qd_start):
         trajectory = timing.time_parameterize(path[keep], velocity_limits, a_max)
     t0 = first[0].duration if first else 0.0
     duration = float(trajectory.duration)
-    # When does the reference pass each waypoint? Closest approach, in order, on a fine grid.
-    ts = np.linspace(0.0, duration, 400)
-    qs = np.array([trajectory.sample(t)[0] for t in ts])
-    times, lo = [], 0
-    for q in waypoints:
-        dist = np.max(np.abs(qs[lo:] - q), axis=1)
-        lo += int(np.argmin(dist))
-        times.append(t0 + ts[lo])
+    # The library knows when it passes each path point (corner arcs: their middle). A waypoint
+    # dropped as a repeat of the row before passes together with the kept row it repeats.
+    passes = np.asarray(trajectory.waypoint_times, dtype=float)
+    kept_row = np.cumsum(keep) - 1
+    times = t0 + passes[kept_row[1:]]
     times[-1] = t0 + duration
     segment = TrajectorySegment(trajectory, duration, waypoints[-1].copy())
     return Plan(first + (segment,), waypoints, np.array(times))
