@@ -53,12 +53,19 @@ def test_rotation_log_matches_scipy_including_zero_and_pi():
 
 
 @settings(max_examples=25, deadline=None)
-@given(st.lists(st.floats(-np.pi, np.pi), min_size=6, max_size=6))
-def test_residual_jacobian_is_the_geometric_jacobian(q):
+@given(st.lists(st.floats(-np.pi, np.pi), min_size=6, max_size=6),
+       st.lists(st.floats(-np.pi, np.pi), min_size=6, max_size=6))
+def test_residual_is_the_pose_error_and_its_jacobian(q, q_goal):
     for arm in (mover6(), ur5()):
-        e, J = pose_residual_batch(screw_chain(arm), np.array([q]), fk(arm, q))
+        T_goal = fk(arm, q_goal)
+        e, J = pose_residual_batch(screw_chain(arm), np.array([q, q_goal]), T_goal)
         np.testing.assert_allclose(J[0], jacobian(arm, q), atol=1e-12)
-        np.testing.assert_allclose(e[0], np.zeros(6), atol=1e-12)
+        np.testing.assert_allclose(e[1], np.zeros(6), atol=1e-12)
+        T = fk(arm, q)
+        np.testing.assert_allclose(e[0, :3], T_goal[:3, 3] - T[:3, 3], atol=1e-12)
+        rv = Rotation.from_matrix(T_goal[:3, :3] @ T[:3, :3].T).as_rotvec()
+        if np.linalg.norm(rv) < np.pi - 1e-6:      # the sign is arbitrary at pi
+            np.testing.assert_allclose(e[0, 3:], rv, atol=1e-9)
 
 
 def test_unreachable_pose_returns_the_best_in_limit_attempt():
