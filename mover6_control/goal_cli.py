@@ -72,6 +72,7 @@ class GoalClient(Node):
         self.controller_status = None
         self.q = None
         self.last_demands = None
+        self.rejection = None
         self.pose_pub = self.create_publisher(PoseStamped, 'pose_goal', 10)
         self.path_pub = self.create_publisher(PoseArray, 'path_goal', 10)
         self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
@@ -90,8 +91,11 @@ class GoalClient(Node):
         self.planner_status = msg
 
     def on_controller(self, msg):
-        """Keep the controller's latest status."""
+        """Keep the controller's latest status, and note when it rejected a demand."""
         self.controller_status = msg
+        rejected = self.values(msg).get('rejected')
+        if rejected:
+            self.rejection = rejected
 
     def on_joint_states(self, msg):
         """Keep the latest joint positions."""
@@ -178,6 +182,7 @@ class GoalClient(Node):
         seq0 = int(self.values(self.planner_status).get('goal_seq', 0))
         motion0 = int(self.values(self.controller_status).get('motion_id', 0))
         self.last_demands = None
+        self.rejection = None
         t0 = time.monotonic()
         publish()
         demands = None
@@ -194,7 +199,8 @@ class GoalClient(Node):
 
         def motion_done():
             v = self.values(self.controller_status)
-            return int(v.get('motion_id', 0)) > motion0 and v.get('result') in FINAL_RESULTS
+            return self.rejection is not None or (
+                int(v.get('motion_id', 0)) > motion0 and v.get('result') in FINAL_RESULTS)
 
         last_print = [0.0]
 
@@ -212,6 +218,8 @@ class GoalClient(Node):
 
         if not self.spin_until(motion_done, timeout, tick):
             return Outcome(EXIT_FAILED, f'the motion did not finish within {timeout:.0f} s')
+        if self.rejection is not None:
+            return Outcome(EXIT_FAILED, f'the controller rejected the demand: {self.rejection}')
         v = self.values(self.controller_status)
         # Let one fresh /joint_states arrive after the end so the figures are of the final pose.
         stamp = [self.q]

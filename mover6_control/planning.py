@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from mover6_control import paths
 from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.ik import ik_closed_form
-from mover6_control.kinematics import condition_number, fk, fk_batch
+from mover6_control.kinematics import condition_number, fk, fk_batch, jacobian
 from mover6_control.path_ik import solve_path
 from mover6_control.reachability import check_pose
 from mover6_control.rotations import pose_error, validate_transform
@@ -121,10 +121,10 @@ def _solve(arm, poses, q_current, settings):
     Return joint waypoints for ``poses`` from ``q_current``, leaving a singular start if needed.
 
     At a singular start, such as the Mover6's home (q5 = 0: axes 4 and 6 aligned), the pose
-    does not fix q4 and q6 apart; the first step along a path can then need a large wrist turn
-    that changes the tool pose hardly at all. That turn is inserted as joint-space waypoints
-    (each within ``max_joint_step``), accepted only when FK along it stays within the position
-    and orientation tolerances of the path's first segment.
+    does not fix q4 and q6 apart; the first step along a path can then need a large wrist turn.
+    That turn is made first, in place (along the Jacobian's null space, tool pose unchanged),
+    as joint waypoints each within ``max_joint_step``; it is accepted only when FK along it
+    stays within the position and orientation tolerances of the start pose.
     """
     # poses[0] is the current pose, and q_current its solution: the path starts there exactly
     # (solving it again could pick the other wrist branch, or trip over sensor noise).
@@ -137,22 +137,25 @@ def _solve(arm, poses, q_current, settings):
                 and leaving_singularity and 'jump_q' in details):
             raise UnreachableError(str(err), reason=err.reason, details=details) from None
     q1 = np.asarray(details['jump_q'])
-    rest = _solve_path(arm, poses[1:], q1, settings)
-    n_bridge = int(np.ceil(np.abs(q1 - q_current).max() / settings.max_joint_step)) + 1
-    fine = q_current + np.linspace(0.0, 1.0, 20 * n_bridge)[:, None] * (q1 - q_current)
-    T_fine = fk_batch(arm, fine)
-    a, b = poses[0][:3, 3], poses[1][:3, 3]
-    seg = b - a
-    u = np.clip((T_fine[:, :3, 3] - a) @ seg / max(seg @ seg, 1e-18), 0.0, 1.0)
-    pos_dev = np.linalg.norm(T_fine[:, :3, 3] - (a + u[:, None] * seg), axis=1).max()
-    rot_dev = max(pose_error(T, poses[0])[1] for T in T_fine)
-    if pos_dev > settings.position_tolerance or rot_dev > settings.orientation_tolerance:
+    # Turn the wrist in the Jacobian's null space (at the Mover6's home: q4 and q6 in opposite
+    # senses about their aligned axes), which leaves the tool pose unchanged, as far as it
+    # brings the configuration towards the path's first solution q1.
+    v = np.linalg.svd(jacobian(arm, q_current))[2][-1]
+    q_turned = q_current + float(v @ (q1 - q_current)) * v
+    n_bridge = int(np.ceil(np.abs(q_turned - q_current).max() / settings.max_joint_step)) + 1
+    bridge = q_current + np.linspace(0.0, 1.0, n_bridge)[:, None] * (q_turned - q_current)
+    fine = q_current + np.linspace(0.0, 1.0, 20 * n_bridge)[:, None] * (q_turned - q_current)
+    T_start = fk(arm, q_current)
+    pos_dev, rot_dev = np.max([pose_error(T, T_start) for T in fk_batch(arm, fine)], axis=0)
+    if (pos_dev > settings.position_tolerance or rot_dev > settings.orientation_tolerance
+            or not arm.within_limits(q_turned)):
         raise UnreachableError(
             f'leaving the singular start needs a wrist turn of {np.abs(q1 - q_current).max():.3f}'
-            f' rad that moves the tool {pos_dev * 1e3:.2f} mm / {rot_dev:.4f} rad off the path',
+            f' rad that cannot be made in place ({pos_dev * 1e3:.2f} mm / {rot_dev:.4f} rad off'
+            f' the start pose{"" if arm.within_limits(q_turned) else ", past a joint limit"})',
             reason='discontinuity', details=details)
-    bridge = q_current + np.linspace(0.0, 1.0, n_bridge)[:, None] * (q1 - q_current)
-    return np.vstack([bridge[:-1], rest])
+    rest = _solve_path(arm, poses[1:], q_turned, settings)
+    return np.vstack([bridge, rest])
 
 
 def _poses_for(arm, q, poses):

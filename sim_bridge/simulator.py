@@ -280,9 +280,12 @@ class Simulator:
             i = self._index[name]
             limit = 1.0 if vendor else self._vmax[i]
             if abs(value) > limit:
-                unit = 'of max speed' if vendor else 'rad/s'
-                warnings.append(f'{name}: {value:.4g} clamped to {math.copysign(limit, value):.4g}'
-                                f' {unit}')
+                # A command at the limit but for rounding (the controller scales to the same
+                # limit) is clamped without a warning.
+                if abs(value) > limit * (1.0 + 1e-6):
+                    unit = 'of max speed' if vendor else 'rad/s'
+                    warnings.append(f'{name}: {value:.4g} clamped to '
+                                    f'{math.copysign(limit, value):.4g} {unit}')
                 value = math.copysign(limit, value)
             cmd[i] = value
         self._set_held(cmd)

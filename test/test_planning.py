@@ -38,6 +38,18 @@ def test_linear_from_singular_home_inserts_a_wrist_turn_that_stays_on_the_line()
     assert max_deviation_from_polyline(fk_batch(ARM, fine)[:, :3, 3], line) < 1e-3
 
 
+@pytest.mark.parametrize('n', [3, 5, 50])
+def test_wrist_turn_is_made_in_place_for_any_sampling(n):
+    """However coarse the path, the turn out of the singular home keeps the tool still."""
+    settings = PlannerSettings(n_waypoints=n)
+    plan = plan_pose_goal(ARM, HOME, GOAL, 'linear', settings)
+    check_plan(plan, HOME, GOAL, settings)
+    turn = plan.q[:plan.n_waypoints - n + 1]
+    for T in fk_batch(ARM, turn):
+        pos, rot = pose_error(T, fk(ARM, HOME))
+        assert pos < 1e-9 and rot < 1e-9
+
+
 def test_linear_from_a_regular_pose_needs_no_wrist_turn():
     """Away from singularities the plan is exactly the sampled path."""
     q0 = plan_pose_goal(ARM, HOME, GOAL, 'linear').q[-1]
