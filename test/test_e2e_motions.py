@@ -1,0 +1,154 @@
+"""
+End to end through the three processes: every motion shape, every controller profile, and the
+controller's reaction when the arm (the bridge) goes away mid-motion and comes back.
+
+Everything is judged from what really flowed over DDS: /joint_states from the MuJoCo bridge,
+/joint_demands from the planner, /JointJog from the controller, the status topics.
+"""
+
+from control_msgs.msg import JointJog
+from geometry_msgs.msg import PoseStamped
+from mover6_control import conversions
+from mover6_control.arm import mover6
+from mover6_control.conversions import status_values
+from mover6_control.goal_cli import GoalClient
+from mover6_control.kinematics import fk, fk_batch
+from mover6_control.metrics import max_deviation_from_polyline
+from mover6_control.rotations import pose_from_xyzabc
+from mover6_control.testing import Stack
+import numpy as np
+import pytest
+import rclpy
+from sensor_msgs.msg import JointState
+
+pytestmark = pytest.mark.e2e
+
+ARM = mover6()
+HALF_PI = np.pi / 2
+HOME_POSE = fk(ARM, np.zeros(6))
+A = pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, HALF_PI, 0.0)
+B = pose_from_xyzabc(0.30, -0.08, 0.32, 0.0, HALF_PI, 0.0)
+VIA = pose_from_xyzabc(0.32, -0.03, 0.36, 0.0, HALF_PI, 0.0)
+C = pose_from_xyzabc(0.29, 0.10, 0.35, 0.0, HALF_PI, 0.0)
+JOINT_TOLERANCE = 0.01   # [rad] the arm's final joints against the last waypoint
+TOOL_TOLERANCE = 0.003   # [m] the arm's final tool position against the goal
+
+
+class Client(GoalClient):
+    """A goal client that also records /joint_states and /JointJog."""
+
+    def __init__(self):
+        super().__init__(name='e2e_motions_client')
+        self.recording = None
+        self.jogs = []
+        self.create_subscription(JointState, 'joint_states', self.record, 100)
+        self.create_subscription(JointJog, 'JointJog', lambda m: self.jogs.append(m), 100)
+
+    def record(self, msg):
+        """Store /joint_states positions while recording."""
+        if self.recording is not None and self.q is not None:
+            self.recording.append(self.q.copy())
+
+
+@pytest.fixture(scope='module')
+def stack(tmp_path_factory):
+    """Start sim_bridge, controller (continuous profile) and planner as processes."""
+    with Stack(tmp_path_factory.mktemp('e2e_motions'),
+               controller={'profile': 'continuous'}) as running:
+        yield running
+
+
+@pytest.fixture(scope='module')
+def client(stack):
+    """Return a client in this process once every node answers."""
+    rclpy.init()
+    node = Client()
+    problem = node.wait_ready(timeout=30.0)
+    assert problem is None, f'{problem}\n{stack.report()}'
+    yield node
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def arrived(client, stack, outcome, T_goal):
+    """Assert arrival from the measured /joint_states."""
+    assert outcome.arrived, f'{outcome}\n{stack.report()}'
+    assert np.abs(client.q - client.last_demands[-1]).max() < JOINT_TOLERANCE
+    assert np.linalg.norm(fk(ARM, client.q)[:3, 3] - T_goal[:3, 3]) < TOOL_TOLERANCE
+
+
+def test_every_motion_shape_arrives(stack, client):
+    """Linear (within 2 mm of the line), parabolic, spline, arc and joint moves all arrive."""
+    assert client.set_planner_parameters({'motion': 'linear'}) is None
+    start = fk(ARM, client.q)[:3, 3]
+    client.recording = []
+    outcome = client.send_pose(A, timeout=60.0)
+    realised = fk_batch(ARM, np.array(client.recording))[:, :3, 3]
+    client.recording = None
+    arrived(client, stack, outcome, A)
+    line = np.stack([start, A[:3, 3]])
+    deviation = max_deviation_from_polyline(realised, line)
+    assert deviation < 0.002, f'linear move left the line by {deviation * 1e3:.2f} mm'
+
+    assert client.set_planner_parameters({'motion': 'parabolic', 'peak_height': 0.03}) is None
+    arrived(client, stack, client.send_pose(B, timeout=60.0), B)
+
+    for shape in ('spline', 'arc'):
+        assert client.set_planner_parameters({'path_motion': shape}) is None
+        goal = C if shape == 'spline' else B
+        outcome = client.send_path(np.stack([VIA, goal]), timeout=60.0)
+        arrived(client, stack, outcome, goal)
+
+    assert client.set_planner_parameters({'motion': 'joint'}) is None
+    arrived(client, stack, client.send_pose(HOME_POSE, timeout=60.0), HOME_POSE)
+
+
+@pytest.mark.parametrize('profile', ['synchronised', 'trapezoidal', 'jerk_limited'])
+def test_every_profile_reaches_the_goal(stack, client, profile):
+    """Each velocity law drives the simulated arm to the goal within tolerance."""
+    stack.params['controller'] = {'profile': profile}
+    stack.start('controller')
+    client.controller_status = None
+    assert client.spin_until(lambda: client.values(client.controller_status).get('profile')
+                             == profile, 30.0), stack.report()
+    assert client.set_planner_parameters({'motion': 'linear', 'n_waypoints': 5}) is None
+    goal = A if np.linalg.norm(fk(ARM, client.q)[:3, 3] - A[:3, 3]) > 0.01 else B
+    arrived(client, stack, client.send_pose(goal, timeout=60.0), goal)
+    assert client.set_planner_parameters({'n_waypoints': 20}) is None
+
+
+def test_bridge_dies_mid_motion_fault_zero_then_recovery(stack, client):
+    """Stop the bridge mid-motion: fault and zero JointJog; restart it: recover and move."""
+    stack.params['controller'] = {'profile': 'trapezoidal', 't_max': 2.0}
+    stack.start('controller')
+    client.controller_status = None
+    assert client.spin_until(lambda: client.values(client.controller_status).get('profile')
+                             == 'trapezoidal', 30.0), stack.report()
+    assert client.set_planner_parameters({'motion': 'joint'}) is None
+    goal = A if np.linalg.norm(fk(ARM, client.q)[:3, 3] - A[:3, 3]) > 0.01 else B
+    motion0 = int(client.values(client.controller_status).get('motion_id', 0))
+    msg = PoseStamped()
+    msg.header.frame_id = 'base_link'
+    msg.pose = conversions.matrix_to_pose(goal)
+    client.pose_pub.publish(msg)
+    assert client.spin_until(
+        lambda: client.values(client.controller_status).get('state') == 'executing'
+        and int(client.values(client.controller_status).get('motion_id', 0)) > motion0,
+        30.0), stack.report()
+
+    stack.nodes['sim_bridge'].stop()
+    assert client.spin_until(
+        lambda: client.values(client.controller_status).get('state') == 'fault', 5.0), \
+        f'{status_values(client.controller_status)}\n{stack.report()}'
+    # The controller's last word is an explicit zero command (the vendor driver keeps the last
+    # command forever), and it keeps commanding zero while in fault.
+    n = len(client.jogs)
+    assert client.spin_until(lambda: len(client.jogs) > n + 5, 5.0)
+    assert all(not any(m.velocities) for m in client.jogs[n:])
+    assert status_values(client.controller_status)['result'] == 'fault'
+
+    stack.start('sim_bridge')
+    assert client.spin_until(
+        lambda: client.values(client.controller_status).get('state') == 'idle', 30.0), \
+        f'{status_values(client.controller_status)}\n{stack.report()}'
+    arrived(client, stack, client.send_pose(goal, timeout=60.0), goal)
