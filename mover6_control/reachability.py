@@ -58,26 +58,30 @@ def check_pose(arm, T, q_ref=None, *, max_condition=None, position_tol=1e-3,
     """
     T = validate_transform(T, 'pose')
     ref = np.zeros(arm.n_joints) if q_ref is None else arm.check_q(q_ref, 'q_ref')
-    if has_spherical_wrist(arm):
+    closed_form = has_spherical_wrist(arm)
+    sols = np.zeros((0, arm.n_joints))
+    if closed_form:
         sols = ik_closed_form(arm, T, within_limits=True, q_ref=ref)
-        geometry_known = True
-    else:
+    if len(sols) == 0:
+        # Numeric IK: for arms without a closed form, and as a fallback for poses the closed
+        # form misses by rounding (a fully stretched arm, say).
         res = ik_numeric(arm, T, ref, position_tol=min(position_tol, 1e-6),
                          orientation_tol=min(orientation_tol, 1e-6), weights=weights)
-        sols = res.q[None] if res.success else np.zeros((0, arm.n_joints))
-        geometry_known = False
+        sols = res.q[None] if res.success else sols
     if len(sols) == 0:
-        geometry = wrist_geometry(arm) if geometry_known else None
+        geometry = wrist_geometry(arm) if closed_form else None
         return _from_error(unreachable_error(arm, T, ref, 0, weights, geometry))
     conds = np.array([condition_number(arm, q) for q in sols])
     usable = np.ones(len(sols), dtype=bool) if max_condition is None else conds <= max_condition
     if not usable.any():
         k = int(np.argmin(conds))
+        pose = fk(arm, sols[k])
+        pos, rot = pose_error(pose, T)
         return Verdict(
             reachable=False, reason='singularity',
             message=(f'the pose is reachable only near a singularity (best Jacobian condition '
                      f'number {conds[k]:.3g} > {max_condition:.3g})'),
-            q=None, closest_pose=fk(arm, sols[k]), position_error=0.0, orientation_error=0.0,
+            q=None, closest_pose=pose, position_error=pos, orientation_error=rot,
             solutions=sols, details={'condition': float(conds[k]), 'closest_q': sols[k]})
     idx = np.flatnonzero(usable)
     k = idx[np.argmin(np.abs(sols[idx] - ref).max(axis=1))]

@@ -74,7 +74,8 @@ def test_pose_reachable_only_at_a_singularity():
     assert check_pose(arm, T).reachable
     v = check_pose(arm, T, max_condition=1000.0)
     assert v.reason == 'singularity' and not v.reachable
-    assert v.position_error == 0.0 and v.details['condition'] > 1000.0
+    assert v.position_error < 1e-12 and v.details['condition'] > 1000.0
+    _check_closest(v, arm, T)
 
 
 def test_q_ref_picks_the_nearest_solution():
