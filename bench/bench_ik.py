@@ -18,7 +18,7 @@ several runs (batch: 5; per pose: 2), the usual guard against interference.
    solutions.
 2. Closed form, one pose per call (``ik.ik_closed_form``): median and 99th-percentile latency.
 3. Numeric (``ik_numeric.ik_numeric`` from q0 = 0, tolerance 1e-6 m and 1e-6 rad): success rate
-   and median time, on the same poses (first 2,000; 150 with ``--quick``).
+   and median time, on the same poses (all 10,000; the first 150 with ``--quick``).
 4. Baseline any user could write: ``scipy.optimize.least_squares`` on the same weighted cost
    (position [m] and rotation vector [rad], same weights), bounded by the joint limits, from
    q0 = 0 and then random starts (4 starts at most), finite-difference Jacobian; on the first
@@ -142,7 +142,7 @@ def scipy_baseline(arm, T, starts=4):
 
 def run(quick):
     """Run every part for both arms; return the results dictionary."""
-    n_cf, n_single, n_num, n_base = (2000, 200, 150, 30) if quick else (10000, 2000, 2000, 300)
+    n_cf, n_single, n_num, n_base = (2000, 200, 150, 30) if quick else (10000, 2000, 10000, 300)
     out = {'quick': quick, 'load_average': os.getloadavg()[0], 'arms': {}}
     for arm in (mover6(), minibot()):
         Q, T = _poses(arm, n_cf)
