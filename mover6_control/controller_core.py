@@ -14,15 +14,37 @@ vendor driver keeps the last command forever). A demand that is empty, non-finit
 the joint limits raises ``InvalidInputError`` and leaves the running motion untouched; a valid
 one while moving replaces the motion, starting from the present reference and its velocity, so
 the command does not jump. No joint is commanded further past a limit.
+
+``jog_units`` 'fraction_of_max' (the Mover6's vendor driver): the driver moves each joint by
+whole encoder ticks per cycle (``driver_tick_size``, ``driver_cycle``), so a joint commanded
+under one tick per cycle does not move at all (J5/J6: about 7 deg/s), and its position is only
+known to a tick. Two things make the arm arrive anyway:
+
+- dead-zone compensation (``velocity_laws.dead_zone_command``): a joint whose command is below
+  ``min_jog_speed`` gets exactly that speed towards its error while the error exceeds half a
+  tick, zero inside. Its readings lag the driver by up to two cycles, so such a joint moves in
+  pulses: one driver cycle long (one tick), started on a fresh reading, then no new pulse until
+  a reading that shows the pulse (two readings later; three after the law itself moved the
+  joint). It never overshoots by what is still in flight, so it settles instead of oscillating.
+- the goal tolerance of each joint is ``max(goal_tolerance, one tick)`` (reported in the
+  status as ``goal_tolerance``), and the arm has arrived only when both the reading and the
+  reading minus what was commanded since (from one cycle before it came: still in flight) are
+  within it, so a joint still moving does not arrive on a stale reading and then drift out.
+
+This assumes the readings come once per driver cycle (or less often) and that a reading's delay
+plus two and a half control periods stay under one driver cycle (at 100 Hz: under 25 ms).
 """
 
+from collections import deque
 from dataclasses import dataclass, field
 
 from mover6_control import state_machine as sm
 from mover6_control.errors import InvalidInputError
-from mover6_control.velocity_laws import (closed_loop_command, driver_velocity_limits,
-                                          guard_position_limits, JOG_UNITS, LawConfig,
-                                          plan_motion, plan_stop, to_jog_units)
+from mover6_control.velocity_laws import (closed_loop_command, dead_zone_command,
+                                          driver_velocity_limits, guard_position_limits,
+                                          JOG_UNITS, LawConfig, min_jog_speed,
+                                          MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE, plan_motion,
+                                          plan_stop, to_jog_units)
 import numpy as np
 
 
@@ -37,7 +59,9 @@ class ControllerConfig:
     'aborted'). ``path_tolerance`` [rad]: a tracking error above it aborts the motion with a
     controlled stop. ``rate`` [Hz]: the tick rate, for the position-limit guard.
     ``jog_units``: 'rad_per_s' or 'fraction_of_max' (the vendor driver, which moves at
-    ``value * max speed * speed_override``).
+    ``value * max speed * speed_override``). 'fraction_of_max' only: ``driver_tick_size`` (n,)
+    [rad] one encoder tick per joint and ``driver_cycle`` [s] the driver's cycle (defaults: the
+    Mover6's), for the dead-zone compensation and the goal tolerance of at least one tick.
     """
 
     law: LawConfig = field(default_factory=LawConfig)
@@ -49,6 +73,8 @@ class ControllerConfig:
     rate: float = 100.0
     jog_units: str = 'rad_per_s'
     speed_override: float = 0.25
+    driver_tick_size: tuple = MOVER6_TICK_SIZE
+    driver_cycle: float = MOVER6_DRIVER_CYCLE
 
     def __post_init__(self):
         """Check every setting."""
@@ -67,6 +93,12 @@ class ControllerConfig:
         if not (0.0 < self.speed_override <= 1.0):
             raise InvalidInputError(f'speed_override must be in (0, 1], got '
                                     f'{self.speed_override}')
+        ticks = np.asarray(self.driver_tick_size, dtype=float)
+        if ticks.ndim != 1 or not ticks.size:
+            raise InvalidInputError(f'driver_tick_size must be one value per joint, got '
+                                    f'{self.driver_tick_size!r}')
+        min_jog_speed(ticks, self.driver_cycle)          # raises on non-positive values
+        object.__setattr__(self, 'driver_tick_size', tuple(float(t) for t in ticks))
 
 
 @dataclass(frozen=True)
@@ -117,6 +149,16 @@ class ControllerCore:
         self._vlim = driver_velocity_limits(arm.velocity_limits, self.config.jog_units,
                                             self.config.speed_override)
         self._dt = 1.0 / self.config.rate
+        self._ticks = None               # fraction_of_max: tick sizes (n,) [rad]
+        if self.config.jog_units == 'fraction_of_max':
+            self._setup_ticks(arm)
+        self._n_states = 0               # valid joint states received so far
+        self._n_states_seen = 0          # ... as of the previous tick
+        self._pulse_until = np.full(n, -np.inf)  # [s] end of each joint's one-tick pulse
+        self._pulse_after = np.zeros(n, dtype=int)  # no new pulse before this many readings
+        self._travel = np.zeros(n)       # [rad] integral of the commands sent
+        self._travel_log = deque(maxlen=int(np.ceil(3.0 * self.config.driver_cycle
+                                                    * self.config.rate)) + 2)
         self._state = sm.WAITING_FOR_STATES
         self._q = None
         self._t_states = None
@@ -135,6 +177,29 @@ class ControllerCore:
         self._level = 'WARN'
         self._result = {}
         self._changed = True
+
+    def _setup_ticks(self, arm):
+        """Check the driver's tick sizes against ``arm``; widen the goal tolerance to a tick."""
+        ticks = np.asarray(self.config.driver_tick_size, dtype=float)
+        if ticks.shape != (arm.n_joints,):
+            raise InvalidInputError(f'driver_tick_size has {ticks.size} values for '
+                                    f'{arm.n_joints} joints: give one per joint')
+        self._ticks = ticks
+        self._min_speed = min_jog_speed(ticks, self.config.driver_cycle)
+        slow = np.flatnonzero(self._min_speed > self._vlim)
+        if slow.size:
+            names = ', '.join(f'{arm.joint_names[i]} (needs {self._min_speed[i]:.3f} rad/s, '
+                              f'can {self._vlim[i]:.3f})' for i in slow)
+            raise InvalidInputError(
+                f'at speed_override {self.config.speed_override} the driver cannot move one '
+                f'tick per cycle of {self.config.driver_cycle} s: {names}; raise '
+                f'speed_override')
+        self._tol = np.maximum(self._tol, ticks)
+
+    @property
+    def goal_tolerance(self):
+        """Return the goal tolerance (n,) [rad] in use (at least one tick in fraction_of_max)."""
+        return self._tol.copy()
 
     # --- inputs -------------------------------------------------------------------------------
 
@@ -159,6 +224,7 @@ class ControllerCore:
         self._q = q
         self._t_states = now
         self._bad_states = None
+        self._n_states += 1
 
     def on_invalid_states(self, now, reason):
         """Note joint states rejected at ``now`` [s] (missing joints, non-finite): fault."""
@@ -266,12 +332,55 @@ class ControllerCore:
             qd = np.zeros(self.arm.n_joints)
             self._ref = None
         else:
+            if self._ticks is not None and self._state in (sm.EXECUTING, sm.SETTLING):
+                qd = self._whole_ticks(now, qd)
             qd = guard_position_limits(qd, self._q, self.arm.lower, self.arm.upper, self._dt)
+        self._n_states_seen = self._n_states
+        if self._ticks is not None:
+            self._travel_log.append((now, self._travel.copy()))
+            self._travel = self._travel + qd * self._dt
         self._qd_cmd = qd
         jog = to_jog_units(qd, self.arm.velocity_limits, self.config.jog_units,
                            self.config.speed_override)
         changed, self._changed = self._changed, False
         return TickOutput(qd, jog, self._state, changed)
+
+    def _whole_ticks(self, now, qd):
+        """
+        Return the command with the dead zone of a whole-tick driver compensated (pulses).
+
+        A pulse starts on the first tick after a fresh reading, lasts one driver cycle (plus
+        half a control period, so it surely spans one cycle boundary and not two) and moves its
+        joint one tick; the next may start only on a reading that shows it.
+        """
+        pulsing = now < self._pulse_until
+        fresh = self._n_states > self._n_states_seen
+        may_start = fresh & (self._n_states >= self._pulse_after)
+        qd, dead = dead_zone_command(qd, self._error, self._ticks, self._min_speed,
+                                     pulsing | may_start)
+        started = dead & ~pulsing & may_start & (qd != 0.0)
+        self._pulse_until[started] = now + self.config.driver_cycle + 0.5 * self._dt
+        self._pulse_after[started] = self._n_states + 2
+        law = ~dead & (qd != 0.0)          # moved by the law: in flight for up to two cycles
+        self._pulse_until[law] = -np.inf
+        self._pulse_after[law] = self._n_states + 3
+        return qd
+
+    def _in_flight(self):
+        """
+        Return the motion (n,) [rad] commanded that the latest reading cannot show yet.
+
+        The driver applies the command it holds at its cycle and the reading of that cycle is
+        taken before the move, so everything commanded since one cycle before the reading came
+        may still be on its way.
+        """
+        since = self._t_states - self.config.driver_cycle
+        start = self._travel
+        for t, travel in reversed(self._travel_log):
+            start = travel
+            if t <= since:
+                break
+        return self._travel - start
 
     def _check_states(self, now):
         if self._q is None:
@@ -327,7 +436,10 @@ class ControllerCore:
         self._waypoint = self._waypoints_total
         self._error = goal - self._q
         worst = float(np.max(np.abs(self._error)))
-        if np.all(np.abs(self._error) <= self._tol):
+        within = np.abs(self._error) <= self._tol
+        if self._ticks is not None:
+            within &= np.abs(self._error - self._in_flight()) <= self._tol
+        if np.all(within):
             self._result = {'result': 'arrived', 'final_joint_error': f'{worst:.6f}'}
             self._set(sm.SETTLED, 'OK', f'motion {self._motion_id} arrived '
                                         f'(max joint error {worst:.4f} rad)')
@@ -376,5 +488,7 @@ class ControllerCore:
             'profile': self.config.law.profile,
             'jog_units': self.config.jog_units,
         }
+        if self._ticks is not None:
+            values['goal_tolerance'] = ' '.join(f'{t:.6f}' for t in self._tol)
         values.update(self._result)
         return Status(self._state, self._level, self._message, values)

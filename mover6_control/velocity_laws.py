@@ -22,6 +22,10 @@ never makes the command jump.
 The command of every tick is ``closed_loop_command``: ``qd_ref + kp (q_ref - q)`` (the closed-loop
 correction on the measured position), scaled by one common factor into the velocity limits,
 then ``guard_position_limits`` so no joint is driven further past a limit.
+
+For a driver that reads JointJog as fractions of the maximum speed and moves whole encoder ticks
+per cycle (the Mover6's vendor driver), ``dead_zone_command`` lifts commands too small to move a
+tick up to ``min_jog_speed`` while the error exceeds half a tick (see ``controller_core``).
 """
 
 import bisect
@@ -259,6 +263,53 @@ def driver_velocity_limits(velocity_limits, units='rad_per_s', speed_override=0.
     if units == 'fraction_of_max':
         return velocity_limits * speed_override
     return velocity_limits
+
+
+# --- drivers that move whole encoder ticks per cycle (fraction_of_max) ----------------------
+
+# One encoder tick of each Mover6 joint [rad]: 2 pi / (gear ratio * ticks per motor turn), with
+# the vendor driver's (cpr_robot, CPRMover6.cpp) gear ratios 528.2, 528.2, 528.2, 499.1, 1, 1
+# and 1440, 1440, 1440, 1440, 1024, 1024 ticks per motor turn; and the driver's cycle [s] (20 Hz).
+MOVER6_TICK_SIZE = tuple(2.0 * np.pi / (gear * ticks) for gear, ticks in zip(
+    (528.2, 528.2, 528.2, 499.1, 1.0, 1.0), (1440, 1440, 1440, 1440, 1024, 1024)))
+MOVER6_DRIVER_CYCLE = 0.05
+# The smallest command is this much above one tick per cycle, so that rounding in the driver
+# cannot lose the tick (and below two ticks per cycle, so it cannot add one).
+TICK_MARGIN = 1.05
+
+
+def min_jog_speed(tick_size, driver_cycle):
+    """
+    Return the smallest speed (n,) [rad/s] that moves each joint one whole tick per cycle.
+
+    ``tick_size`` (n,) [rad] is one encoder tick, ``driver_cycle`` [s] the driver's cycle; the
+    result is ``TICK_MARGIN * tick_size / driver_cycle`` (Mover6 J5/J6: 0.129 rad/s, 7.4 deg/s).
+    A driver that moves whole ticks per cycle does not move a joint commanded less.
+    """
+    tick_size = np.asarray(tick_size, dtype=float)
+    if not (np.all(np.isfinite(tick_size)) and np.all(tick_size > 0.0)):
+        raise InvalidInputError(f'tick_size must be positive, got {tick_size.tolist()}')
+    if not (np.isfinite(driver_cycle) and driver_cycle > 0.0):
+        raise InvalidInputError(f'driver_cycle must be positive, got {driver_cycle}')
+    return TICK_MARGIN * tick_size / driver_cycle
+
+
+def dead_zone_command(qd, error, tick_size, min_speed, may_move):
+    """
+    Return ``(qd, in_dead_zone)``: the command (n,) [rad/s] for a driver that moves whole ticks.
+
+    Joints commanded at least ``min_speed`` (n,) [rad/s] keep ``qd``: the driver resolves them.
+    Below it (``in_dead_zone``) the driver would not move the joint at all, so a joint whose
+    position ``error`` (n,) [rad] exceeds half a tick (``tick_size`` (n,) [rad]) gets exactly
+    ``min_speed`` towards the error when ``may_move`` (n,) bool allows it, and zero otherwise;
+    a joint within half a tick (the nearest tick: nothing better exists) gets zero.
+    """
+    qd = np.asarray(qd, dtype=float)
+    error = np.asarray(error, dtype=float)
+    dead = np.abs(qd) < min_speed
+    move = dead & np.asarray(may_move, dtype=bool) & (np.abs(error) > 0.5 * np.asarray(tick_size))
+    out = np.where(dead, np.where(move, np.sign(error) * min_speed, 0.0), qd)
+    return out, dead
 
 
 # --- laws -----------------------------------------------------------------------------------
