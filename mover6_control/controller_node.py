@@ -23,7 +23,8 @@ from mover6_control import conversions
 from mover6_control.arm import LIMIT_SETS, mover6
 from mover6_control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.errors import InvalidInputError
-from mover6_control.velocity_laws import JOG_UNITS, LawConfig, PROFILES
+from mover6_control.velocity_laws import (JOG_UNITS, LawConfig, MOVER6_DRIVER_CYCLE,
+                                          MOVER6_TICK_SIZE, PROFILES)
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 import rclpy
 from rclpy.duration import Duration
@@ -37,6 +38,7 @@ from std_srvs.srv import Trigger
 
 STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 DOUBLE = ParameterType.PARAMETER_DOUBLE
+DOUBLES = ParameterType.PARAMETER_DOUBLE_ARRAY
 STRING = ParameterType.PARAMETER_STRING
 
 PARAMETERS = (
@@ -58,6 +60,10 @@ PARAMETERS = (
     ('path_tolerance', 0.3, DOUBLE, 'tracking error that aborts a motion with a stop [rad]'),
     ('jog_units', 'rad_per_s', STRING, 'JointJog velocities: ' + ', '.join(JOG_UNITS)),
     ('speed_override', 0.25, DOUBLE, 'fraction_of_max: speed override of the vendor driver'),
+    ('driver_tick_size', list(MOVER6_TICK_SIZE), DOUBLES,
+     'fraction_of_max: one encoder tick per joint [rad] (default the Mover6): commands under one '
+     'tick per cycle are lifted to it near the goal; goal tolerance at least one tick'),
+    ('driver_cycle', MOVER6_DRIVER_CYCLE, DOUBLE, 'fraction_of_max: cycle of the driver [s]'),
     ('limit_set', 'seed', STRING, 'joint limits: seed ([-pi/2, pi/2]) or hardware (vendor)'),
     ('status_rate', 5.0, DOUBLE, 'rate of /controller/status between state changes [Hz]'),
 )
@@ -71,7 +77,8 @@ def config_from_parameters(get):
         law=law, goal_tolerance=get('goal_tolerance'), state_timeout=get('state_timeout'),
         position_gain=get('position_gain'), settle_timeout=get('settle_timeout'),
         path_tolerance=get('path_tolerance'), rate=get('rate'), jog_units=get('jog_units'),
-        speed_override=get('speed_override'))
+        speed_override=get('speed_override'), driver_tick_size=tuple(get('driver_tick_size')),
+        driver_cycle=get('driver_cycle'))
     limit_set = get('limit_set')
     if limit_set not in LIMIT_SETS:
         raise InvalidInputError(f'limit_set must be one of {LIMIT_SETS}, got {limit_set!r}')
@@ -105,9 +112,13 @@ class ControllerNode(Node):
         self.tick_thread = threading.Thread(target=self.tick_loop, args=(1.0 / config.rate,),
                                             daemon=True)
         self.tick_thread.start()
+        ticks = ''
+        if config.jog_units == 'fraction_of_max':
+            ticks = (' (whole ticks; goal tolerance '
+                     + ' '.join(f'{t:.4f}' for t in self.core.goal_tolerance) + ' rad)')
         self.get_logger().info(
             f'controller: {config.law.profile} at {config.rate:g} Hz, jog_units '
-            f'{config.jog_units}, limit_set {limit_set}; waiting for /joint_states')
+            f'{config.jog_units}{ticks}, limit_set {limit_set}; waiting for /joint_states')
         self.publish_status(self.now())
 
     def now(self):

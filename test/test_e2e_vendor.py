@@ -1,0 +1,95 @@
+"""
+End to end against the vendor driver: the three nodes as processes, the bridge in vendor mode.
+
+The sim bridge behaves like the Mover6's cpr driver (fractions of the maximum speed, 20 Hz
+cycle and /joint_states, whole encoder ticks, last command held); the controller sends
+fraction_of_max. Goals go in as a user sends them; arrival is judged from /joint_states.
+"""
+
+from control_msgs.msg import JointJog
+from mover6_control.arm import mover6
+from mover6_control.conversions import status_values
+from mover6_control.goal_cli import GoalClient
+from mover6_control.kinematics import fk
+from mover6_control.rotations import pose_from_xyzabc
+from mover6_control.testing import Stack
+from mover6_control.velocity_laws import MOVER6_TICK_SIZE
+import numpy as np
+import pytest
+import rclpy
+
+pytestmark = pytest.mark.e2e
+
+ARM = mover6()
+TICK = np.array(MOVER6_TICK_SIZE)
+TOL = np.maximum(0.002, TICK)          # goal tolerance in use: 2 mrad, one tick on J5/J6
+FLOAT32 = 1e-6                         # /joint_demands carry float32 [rad]
+# 5 cm forward-left and 8 cm down from home, tool along +x (A=0, B=pi/2, C=0).
+GOAL = pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0)
+
+
+@pytest.fixture(scope='module')
+def stack(tmp_path_factory):
+    """Start sim_bridge (vendor_driver), controller (fraction_of_max, continuous law), planner."""
+    with Stack(tmp_path_factory.mktemp('e2e_vendor_logs'), sim={'mode': 'vendor_driver'},
+               controller={'jog_units': 'fraction_of_max', 'profile': 'continuous'}) as running:
+        yield running
+
+
+@pytest.fixture(scope='module')
+def client(stack):
+    """Return a goal client that also records every /JointJog, once every node answers."""
+    rclpy.init()
+    node = GoalClient(name='e2e_vendor_client')
+    node.jogs = []
+    node.create_subscription(JointJog, 'JointJog',
+                             lambda msg: node.jogs.append(np.array(msg.velocities)), 100)
+    problem = node.wait_ready(timeout=30.0)
+    assert problem is None, problem + '\n' + stack.report()
+    yield node
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def assert_at_rest(client, stack, q_goal):
+    """Assert the arm reports whole ticks within a tick of ``q_goal``, commanded zero, still."""
+    q = client.q.copy()
+    np.testing.assert_allclose(q / TICK, np.round(q / TICK), atol=1e-6)   # encoder readings
+    assert np.all(np.abs(q - q_goal) <= TOL + FLOAT32), f'{(q - q_goal) / TICK}\n{stack.report()}'
+    jogs = len(client.jogs)
+    assert client.spin_until(lambda: len(client.jogs) >= jogs + 20, 10.0)  # 0.2 s of commands
+    assert not np.any(client.jogs[-1]), client.jogs[-1]
+    stamp = [client.q]
+    for _ in range(3):                                   # three more readings: no motion
+        assert client.spin_until(lambda: client.q is not stamp[0], 5.0)
+        stamp[0] = client.q
+        np.testing.assert_array_equal(client.q, q)
+
+
+def test_controller_reports_the_driver_units_and_tolerance(stack, client):
+    values = status_values(client.controller_status)
+    assert values['jog_units'] == 'fraction_of_max', f'{values}\n{stack.report()}'
+    tolerance = np.array([float(v) for v in values['goal_tolerance'].split()])
+    np.testing.assert_allclose(tolerance, TOL, atol=1e-6)
+
+
+def test_pose_goal_arrives_on_the_vendor_driver(stack, client):
+    """A PoseStamped goal: the arm arrives within a tick per joint and a few mm at the tool."""
+    client.jogs.clear()
+    outcome = client.send_pose(GOAL, timeout=60.0)
+    assert outcome.arrived, f'{outcome}\n{stack.report()}'
+    demands = client.last_demands
+    assert demands is not None and demands.shape[1] == 6 and demands.shape[0] >= 2
+    assert_at_rest(client, stack, demands[-1])
+    assert np.linalg.norm(fk(ARM, client.q)[:3, 3] - GOAL[:3, 3]) < 0.005
+    jogs = np.array(client.jogs)
+    assert np.all(np.abs(jogs) <= 1.0) and np.abs(jogs).max() > 0.1     # fractions, used
+
+
+def test_small_wrist_move_arrives(stack, client):
+    """J5 and J6 by 0.03 and -0.02 rad: all under the driver's dead zone at the default gain."""
+    assert client.spin_until(lambda: client.q is not None, 10.0)
+    q_goal = client.q + np.array([0.0, 0.0, 0.0, 0.0, 0.03, -0.02])
+    outcome = client.send_joints(q_goal[None], timeout=60.0)
+    assert outcome.arrived, f'{outcome}\n{stack.report()}'
+    assert_at_rest(client, stack, q_goal)
