@@ -18,11 +18,11 @@ several runs (batch: 5; per pose: 2), the usual guard against interference.
    solutions.
 2. Closed form, one pose per call (``ik.ik_closed_form``): median and 99th-percentile latency.
 3. Numeric (``ik_numeric.ik_numeric`` from q0 = 0, tolerance 1e-6 m and 1e-6 rad): success rate
-   and median time, on the same poses (all 10,000; the first 150 with ``--quick``).
+   and median time, on the same poses (all 10,000; the first 100 with ``--quick``).
 4. Baseline any user could write: ``scipy.optimize.least_squares`` on the same weighted cost
    (position [m] and rotation vector [rad], same weights), bounded by the joint limits, from
    q0 = 0 and then random starts (4 starts at most), finite-difference Jacobian; on the first
-   300 poses (30 with ``--quick``), with the ratio of median times against ``ik_numeric`` on
+   300 poses (20 with ``--quick``), with the ratio of median times against ``ik_numeric`` on
    those same poses.
 
 Anchors (issue 3): TRAC-IK 99.8-100 % at 0.2-0.4 ms; KDL 26-75 %.
@@ -142,7 +142,7 @@ def scipy_baseline(arm, T, starts=4):
 
 def run(quick):
     """Run every part for both arms; return the results dictionary."""
-    n_cf, n_single, n_num, n_base = (2000, 200, 150, 30) if quick else (10000, 2000, 10000, 300)
+    n_cf, n_single, n_num, n_base = (2000, 100, 100, 20) if quick else (10000, 2000, 10000, 300)
     out = {'quick': quick, 'load_average': os.getloadavg()[0], 'arms': {}}
     for arm in (mover6(), minibot()):
         Q, T = _poses(arm, n_cf)
