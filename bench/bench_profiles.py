@@ -18,7 +18,8 @@ planner), a ``GoalClient`` in this process publishes the goal and records /joint
 /controller/status with their arrival times. Figures:
 
 - arrive [s]: from publishing the goal to the controller's status saying ``arrived`` (planning
-  and settling into the goal tolerance included); plan [s] is the planner's share.
+  and settling into the goal tolerance included); plan [s] is the planner's share, ref end [s]
+  when the controller's reference ended (status ``settling``); the rest is settling.
 - final joint error [mrad]: the largest joint's distance from the last demanded waypoint, on
   the first /joint_states after arrival.
 - line deviation [mm]: ``metrics.max_deviation_from_polyline`` of FK(q(t)) for every recorded
@@ -191,6 +192,8 @@ def figures(client, outcome, T_goal, q_start, t_sent, motion0, seq0):
     t_arrived = next(t for t, v in client.controller_events
                      if int(v.get('motion_id', 0)) > motion0 and v.get('result') == 'arrived')
     t_planned = next(t for t, v in client.planner_events if int(v.get('goal_seq', 0)) > seq0)
+    settling = [t for t, v in client.controller_events
+                if int(v.get('motion_id', 0)) > motion0 and v.get('state') == 'settling']
     t = np.array([s[0] for s in client.samples])
     Q = np.array([s[1] for s in client.samples])
     during = (t >= t_sent) & (t <= t_arrived)
@@ -205,6 +208,7 @@ def figures(client, outcome, T_goal, q_start, t_sent, motion0, seq0):
     return {
         'arrive_s': float(t_arrived - t_sent),
         'plan_s': float(t_planned - t_sent),
+        'reference_done_s': float(settling[0] - t_sent) if settling else None,
         'first_motion_s': float(t[moved[0]] - t_sent) if moved.size else None,
         'final_joint_error_rad': float(outcome.figures['final_joint_error']),
         'final_position_error_m': float(outcome.figures['final_position_error']),
@@ -217,7 +221,7 @@ def figures(client, outcome, T_goal, q_start, t_sent, motion0, seq0):
 
 def summarise(runs):
     """Return the median of every figure over the runs of one profile (and their spread)."""
-    keys = [k for k in runs[0] if isinstance(runs[0][k], float)]
+    keys = [k for k in runs[0] if all(isinstance(r.get(k), float) for r in runs)]
     out = {k: float(np.median([r[k] for r in runs])) for k in keys}
     out['arrive_s_min'] = float(min(r['arrive_s'] for r in runs))
     out['arrive_s_max'] = float(max(r['arrive_s'] for r in runs))
@@ -230,13 +234,15 @@ def print_table(goal_text, T_goal, summary):
     p = T_goal[:3, 3]
     print(f'goal: {goal_text}; ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m, home orientation kept, '
           f'{N_WAYPOINTS} waypoints, sim in real time')
-    head = (f'{"profile":<13} {"runs":>4} {"arrive [s]":>10} {"plan [s]":>8} '
+    head = (f'{"profile":<13} {"runs":>4} {"arrive [s]":>10} {"plan [s]":>8} {"ref end [s]":>11} '
             f'{"joint err [mrad]":>16} {"pos err [mm]":>12} {"line dev [mm]":>13} '
             f'{"orient dev [deg]":>16}')
     print(head)
     print('-' * len(head))
     for name, s in summary.items():
-        print(f'{name:<13} {s["runs"]:>4} {s["arrive_s"]:>10.2f} {s["plan_s"]:>8.2f} '
+        ref = s.get('reference_done_s')
+        ref = f'{ref:>11.2f}' if ref is not None else f'{"-":>11}'
+        print(f'{name:<13} {s["runs"]:>4} {s["arrive_s"]:>10.2f} {s["plan_s"]:>8.2f} {ref} '
               f'{s["final_joint_error_rad"] * 1e3:>16.2f} '
               f'{s["final_position_error_m"] * 1e3:>12.2f} '
               f'{s["max_line_deviation_m"] * 1e3:>13.2f} '

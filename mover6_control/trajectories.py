@@ -308,20 +308,21 @@ def _piece_extremes(pp, k, duration):
     return best
 
 
-def _peaks(traj):
+def _peaks(traj, orders=(1, 2)):
     """
     Return the exact peak |qd| and |qdd| per joint of a piecewise-polynomial trajectory.
 
     A sampled maximum misses a peak between samples (a cubic's velocity is quadratic inside a
     piece), and fitting durations to an underestimated peak breaks the limits; so the peaks are
     taken at every piece end (from both sides) and at the roots of the next derivative.
+    ``orders`` picks the derivatives (a tuple of 1 and/or 2); one array (n,) per order.
     """
-    pv, pa = [], []
+    peaks = tuple([] for _ in orders)
     for derivs in traj._derivs:
         for pp in _columns(derivs[0]):
-            pv.append(_piece_extremes(pp, 1, traj.duration))
-            pa.append(_piece_extremes(pp, 2, traj.duration))
-    return np.asarray(pv), np.asarray(pa)
+            for out, k in zip(peaks, orders):
+                out.append(_piece_extremes(pp, k, traj.duration))
+    return tuple(np.asarray(p) for p in peaks)
 
 
 def _fit_to_limits(build, durations, v_max, a_max):
@@ -486,7 +487,7 @@ def multipoint_trapezoidal(Q, v_max, a_max, durations=None):
         parts = [_lspb_joint(Q[:, i], td, a[i]) for i in range(n)]
         if all(p is not None for p in parts):
             traj = SplineTrajectory(parts, float(td.sum()), n)
-            pv = _peaks(traj)[0]
+            pv = _peaks(traj, orders=(1,))[0]
             if np.all(pv <= v * (1.0 + 1e-9)):
                 return traj
             td = td * min(max(float(np.max(pv / v)), 1.01), 1.5)
