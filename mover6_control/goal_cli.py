@@ -129,12 +129,21 @@ class GoalClient(Node):
         """Return a status message's values as a dict (empty for None)."""
         return conversions.status_values(msg) if msg is not None else {}
 
-    def wait_ready(self, timeout=30.0, need_planner=True):
-        """Wait for joint states, the controller's status and (optionally) the planner's."""
+    def wait_ready(self, timeout=30.0, need_planner=True, steady=1.0):
+        """
+        Wait for joint states, the controller's status and (optionally) the planner's.
+
+        The controller must then stay ready (idle or moving, not waiting for states and not in
+        fault) for ``steady`` [s]: nodes that have just started can stall briefly, and a demand
+        that reaches a controller in fault is rejected.
+        """
         checks = [('/joint_states (is the sim bridge or robot driver running?)',
                    lambda: self.q is not None),
                   ('/controller/status (is the controller running?)',
-                   lambda: self.controller_status is not None)]
+                   lambda: self.controller_status is not None),
+                  ('the controller to receive /joint_states',
+                   lambda: self.values(self.controller_status).get('state')
+                   not in (None, 'waiting_for_states'))]
         if need_planner:
             checks += [('/planner/status (is the planner running?)',
                         lambda: self.planner_status is not None),
@@ -143,6 +152,17 @@ class GoalClient(Node):
         for what, check in checks:
             if not self.spin_until(check, timeout):
                 return f'no {what} within {timeout:.0f} s'
+        deadline = time.monotonic() + timeout
+        ready_since = [time.monotonic()]
+
+        def steady_ready():
+            if self.values(self.controller_status).get('state') in (
+                    None, 'waiting_for_states', 'fault'):
+                ready_since[0] = time.monotonic()
+            return time.monotonic() - ready_since[0] >= steady
+        if not self.spin_until(steady_ready, max(deadline - time.monotonic(), steady)):
+            state = self.values(self.controller_status).get('state')
+            return f'the controller did not stay ready for {steady:.1f} s (state {state})'
         return None
 
     def set_planner_parameters(self, params, timeout=10.0):

@@ -1,6 +1,8 @@
 """
-End to end through the three processes: every motion shape, every controller profile, and the
-controller's reaction when the arm (the bridge) goes away mid-motion and comes back.
+End to end through the three processes: motion shapes, profiles, losing the arm mid-motion.
+
+Every motion shape, every controller profile, and the controller's reaction when the arm (the
+bridge) goes away mid-motion and comes back.
 
 Everything is judged from what really flowed over DDS: /joint_states from the MuJoCo bridge,
 /joint_demands from the planner, /JointJog from the controller, the status topics.
@@ -103,15 +105,24 @@ def test_every_motion_shape_arrives(stack, client):
     arrived(client, stack, client.send_pose(HOME_POSE, timeout=60.0), HOME_POSE)
 
 
+def restart_controller(stack, client, params):
+    """Restart the controller process with ``params``; wait until it has joint states."""
+    stack.params['controller'] = params
+    stack.start('controller')
+    client.controller_status = None
+    profile = params['profile']
+    assert client.spin_until(lambda: client.values(client.controller_status).get('profile')
+                             == profile, 30.0), stack.report()
+    problem = client.wait_ready(timeout=30.0)
+    assert problem is None, f'{problem}\n{stack.report()}'
+
+
 @pytest.mark.parametrize('profile', ['synchronised', 'trapezoidal', 'jerk_limited'])
 def test_every_profile_reaches_the_goal(stack, client, profile):
     """Each velocity law drives the simulated arm to the goal within tolerance."""
-    stack.params['controller'] = {'profile': profile}
-    stack.start('controller')
-    client.controller_status = None
-    assert client.spin_until(lambda: client.values(client.controller_status).get('profile')
-                             == profile, 30.0), stack.report()
-    assert client.set_planner_parameters({'motion': 'linear', 'n_waypoints': 5}) is None
+    restart_controller(stack, client, {'profile': profile})
+    # A joint move of 5 waypoints keeps the stop-at-each-waypoint laws' run short.
+    assert client.set_planner_parameters({'motion': 'joint', 'n_waypoints': 5}) is None
     goal = A if np.linalg.norm(fk(ARM, client.q)[:3, 3] - A[:3, 3]) > 0.01 else B
     arrived(client, stack, client.send_pose(goal, timeout=60.0), goal)
     assert client.set_planner_parameters({'n_waypoints': 20}) is None
@@ -119,11 +130,7 @@ def test_every_profile_reaches_the_goal(stack, client, profile):
 
 def test_bridge_dies_mid_motion_fault_zero_then_recovery(stack, client):
     """Stop the bridge mid-motion: fault and zero JointJog; restart it: recover and move."""
-    stack.params['controller'] = {'profile': 'trapezoidal', 't_max': 2.0}
-    stack.start('controller')
-    client.controller_status = None
-    assert client.spin_until(lambda: client.values(client.controller_status).get('profile')
-                             == 'trapezoidal', 30.0), stack.report()
+    restart_controller(stack, client, {'profile': 'trapezoidal', 't_max': 2.0})
     assert client.set_planner_parameters({'motion': 'joint'}) is None
     goal = A if np.linalg.norm(fk(ARM, client.q)[:3, 3] - A[:3, 3]) > 0.01 else B
     motion0 = int(client.values(client.controller_status).get('motion_id', 0))
@@ -140,15 +147,21 @@ def test_bridge_dies_mid_motion_fault_zero_then_recovery(stack, client):
     assert client.spin_until(
         lambda: client.values(client.controller_status).get('state') == 'fault', 5.0), \
         f'{status_values(client.controller_status)}\n{stack.report()}'
-    # The controller's last word is an explicit zero command (the vendor driver keeps the last
-    # command forever), and it keeps commanding zero while in fault.
-    n = len(client.jogs)
-    assert client.spin_until(lambda: len(client.jogs) > n + 5, 5.0)
-    assert all(not any(m.velocities) for m in client.jogs[n:])
+    # From then on it commands zero (the vendor driver keeps the last command forever) on
+    # every tick: every command stamped after the fault was seen is zero.
+    seen = client.get_clock().now().nanoseconds * 1e-9
+
+    def after_fault():
+        return [m for m in client.jogs
+                if m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 > seen]
+    assert client.spin_until(lambda: len(after_fault()) >= 30, 10.0), stack.report()
+    assert client.count_publishers('JointJog') == 1
+    assert all(not any(m.velocities) for m in after_fault())
     assert status_values(client.controller_status)['result'] == 'fault'
 
     stack.start('sim_bridge')
     assert client.spin_until(
         lambda: client.values(client.controller_status).get('state') == 'idle', 30.0), \
         f'{status_values(client.controller_status)}\n{stack.report()}'
+    assert client.wait_ready(timeout=30.0) is None
     arrived(client, stack, client.send_pose(goal, timeout=60.0), goal)
