@@ -39,7 +39,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
 
-STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Transient local to get the last status at once; depth 10 so that a status (such as the
+# controller's 'rejected' report) is not overwritten by the next one before it is read.
+STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 EXIT_ARRIVED, EXIT_FAILED, EXIT_REFUSED, EXIT_NO_NODES = 0, 1, 2, 3
 FINAL_RESULTS = ('arrived', 'fault', 'aborted', 'stopped')
 
