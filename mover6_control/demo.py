@@ -96,8 +96,8 @@ def run_step(client, recorder, arm, step, say):
     """Run one showcase step; return its metrics row."""
     name, kind, params, poses = step
     Ts = np.stack([pose_from_xyzabc(*p) for p in poses])
-    problem = client.set_planner_parameters(params) or client.wait_ready(timeout=30.0,
-                                                                          steady=0.5)
+    problem = (client.set_planner_parameters(params)
+               or client.wait_ready(timeout=30.0, steady=0.5))
     if problem:
         return {'motion': name, 'result': 'failed', 'reason': problem}
     say(f'--- {name}: goal {np.round(Ts[-1][:3, 3], 3).tolist()} m')
