@@ -28,11 +28,17 @@ FLOAT32 = 1e-6                         # /joint_demands carry float32 [rad]
 GOAL = pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0)
 
 
+# The driver publishes /joint_states at 20 Hz (the real one at 10 to 20 Hz): the default state
+# timeout of 0.25 s is 2.5 periods at 10 Hz, and on a loaded machine one late reading faults the
+# controller; half a second is the setting for this driver. The continuous law keeps it short.
+CONTROLLER = {'jog_units': 'fraction_of_max', 'profile': 'continuous', 'state_timeout': 0.5}
+
+
 @pytest.fixture(scope='module')
 def stack(tmp_path_factory):
-    """Start sim_bridge (vendor_driver), controller (fraction_of_max, continuous law), planner."""
+    """Start sim_bridge (vendor_driver), controller (fraction_of_max) and planner."""
     with Stack(tmp_path_factory.mktemp('e2e_vendor_logs'), sim={'mode': 'vendor_driver'},
-               controller={'jog_units': 'fraction_of_max', 'profile': 'continuous'}) as running:
+               controller=CONTROLLER) as running:
         yield running
 
 
@@ -46,6 +52,11 @@ def client(stack):
                              lambda msg: node.jogs.append(np.array(msg.velocities)), 100)
     problem = node.wait_ready(timeout=30.0)
     assert problem is None, problem + '\n' + stack.report()
+    # The planner's demands reach the controller only once DDS has matched them (a message
+    # before that is lost): wait until this process sees both ends (itself being one of each).
+    assert node.spin_until(lambda: node.count_publishers('joint_demands') >= 2
+                           and node.count_subscribers('joint_demands') >= 2, 30.0), \
+        'planner or controller not on /joint_demands\n' + stack.report()
     yield node
     node.destroy_node()
     rclpy.try_shutdown()
