@@ -31,8 +31,10 @@ known to a tick. Two things make the arm arrive anyway:
   reading minus what was commanded since (from one cycle before it came: still in flight) are
   within it, so a joint still moving does not arrive on a stale reading and then drift out.
 
-This assumes the readings come once per driver cycle (or less often) and that a reading's delay
-plus two and a half control periods stay under one driver cycle (at 100 Hz: under 25 ms).
+This assumes the readings come once per driver cycle (or less often) and that two and a half
+control periods plus the delays of a reading and of a command stay under one driver cycle (at
+100 Hz and 20 Hz: delays under 12 ms each). Beyond that a pulse may move two ticks; the arm
+still settles within the tolerance, with a correction.
 """
 
 from collections import deque

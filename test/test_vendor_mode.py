@@ -226,3 +226,24 @@ def test_without_compensation_the_wrist_stops_short():
     status = loop.core.status()
     assert status.values['result'] == 'aborted', status.message
     np.testing.assert_array_equal(loop.sim.state().q[4:], 0.0)
+
+
+def test_wrist_follows_a_slow_reference_in_one_tick_pulses():
+    """
+    Three ticks on J5 and J6 over the trapezoid's 1 s: each move is one pulse of one cycle.
+
+    A pulse holds the minimum speed for one driver cycle (plus half a control period), moves
+    exactly one tick, and the next waits for a reading that shows it: three pulses, three ticks.
+    """
+    loop = Loop(vendor_core('trapezoidal'))
+    goal = np.array([0.0, 0.0, 0.0, 0.0, 3 * TICK[4], -3 * TICK[5]])
+    loop.move(goal)
+    assert loop.core.status().values['result'] == 'arrived'
+    jogs = np.array(loop.jogs)
+    pulse_ticks = int(np.ceil((MOVER6_DRIVER_CYCLE + 0.5 * DT) / DT))
+    for j, sign in ((4, 1.0), (5, -1.0)):
+        moving = np.flatnonzero(jogs[:, j])
+        runs = np.split(moving, np.flatnonzero(np.diff(moving) > 1) + 1)
+        assert [len(run) for run in runs] == [pulse_ticks] * 3
+        assert np.all(np.sign(jogs[moving, j]) == sign)
+    np.testing.assert_allclose(loop.sim.state().q[4:] / TICK[4:], [3.0, -3.0], atol=1e-9)
