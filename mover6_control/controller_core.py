@@ -28,13 +28,14 @@ known to a tick. Two things make the arm arrive anyway:
   joint). It never overshoots by what is still in flight, so it settles instead of oscillating.
 - the goal tolerance of each joint is ``max(goal_tolerance, one tick)`` (reported in the
   status as ``goal_tolerance``), and the arm has arrived only when both the reading and the
-  reading minus what was commanded since (from one cycle before it came: still in flight) are
+  reading minus what was commanded since (from two cycles before it came: maybe in flight) are
   within it, so a joint still moving does not arrive on a stale reading and then drift out.
 
 This assumes the readings come once per driver cycle (or less often) and that two and a half
 control periods plus the delays of a reading and of a command stay under one driver cycle (at
-100 Hz and 20 Hz: delays under 12 ms each). Beyond that a pulse may move two ticks; the arm
-still settles within the tolerance, with a correction.
+100 Hz and 20 Hz: delays under 12 ms each). Beyond that (a reading 40 ms late) a pulse may
+move two ticks, a wrist goal between two ticks may not settle, and the motion then ends
+'aborted' after ``settle_timeout`` rather than 'arrived' out of tolerance.
 """
 
 from collections import deque
@@ -159,7 +160,7 @@ class ControllerCore:
         self._pulse_until = np.full(n, -np.inf)  # [s] end of each joint's one-tick pulse
         self._pulse_after = np.zeros(n, dtype=int)  # no new pulse before this many readings
         self._travel = np.zeros(n)       # [rad] integral of the commands sent
-        self._travel_log = deque(maxlen=int(np.ceil(3.0 * self.config.driver_cycle
+        self._travel_log = deque(maxlen=int(np.ceil(4.0 * self.config.driver_cycle
                                                     * self.config.rate)) + 2)
         self._state = sm.WAITING_FOR_STATES
         self._q = None
@@ -373,10 +374,11 @@ class ControllerCore:
         Return the motion (n,) [rad] commanded that the latest reading cannot show yet.
 
         The driver applies the command it holds at its cycle and the reading of that cycle is
-        taken before the move, so everything commanded since one cycle before the reading came
-        may still be on its way.
+        taken before the move, so what was commanded from one cycle before that cycle may still
+        be on its way; counting from two cycles before the reading came also covers delays of
+        up to a cycle (erring towards 'in flight' only delays the arrival).
         """
-        since = self._t_states - self.config.driver_cycle
+        since = self._t_states - 2.0 * self.config.driver_cycle
         start = self._travel
         for t, travel in reversed(self._travel_log):
             start = travel

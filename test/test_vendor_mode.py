@@ -35,13 +35,16 @@ def vendor_core(profile='trapezoidal', **kwargs):
 class Loop:
     """The controller at 100 Hz on a vendor-mode simulator, readings as the driver sends them."""
 
-    def __init__(self, core, q0=None, reading_every=1):
+    def __init__(self, core, q0=None, reading_every=1, reading_delay=0.0, command_delay=0.0):
         self.core = core
         self.sim = Simulator(ARM, SimConfig(mode='vendor_driver'), home_q=q0)
         self.reading_every = reading_every     # 2: /joint_states at 10 Hz (every other cycle)
+        self.reading_delay = reading_delay     # [s] from the driver's cycle to the controller
+        self.command_delay = command_delay     # [s] from the controller to the driver, < DT
         self.last_reading = None
         self.readings = 0
-        self.jogs = []                          # every command sent, in fractions
+        self.in_transit = []                   # (delivery time, reading)
+        self.jogs = []                         # every command sent, in fractions
 
     def step(self):
         """Deliver a new reading if there is one, tick, send the command, run 10 ms."""
@@ -51,12 +54,16 @@ class Loop:
             self.last_reading = reading.time
             self.readings += 1
             if self.readings % self.reading_every == 0:
-                self.core.on_joint_states(now, reading.q, reading.qd)
+                self.in_transit.append((reading.time + self.reading_delay, reading))
+        while self.in_transit and self.in_transit[0][0] <= now + 1e-9:
+            reading = self.in_transit.pop(0)[1]
+            self.core.on_joint_states(now, reading.q, reading.qd)
         out = self.core.tick(now)
         assert np.all(np.abs(out.jog) <= 1.0)
-        self.sim.set_command(NAMES, out.jog, now)
+        self.sim.run_for(self.command_delay)
+        self.sim.set_command(NAMES, out.jog, self.sim.time)
         self.jogs.append(out.jog)
-        self.sim.run_for(DT)
+        self.sim.run_for(DT - self.command_delay)
         return out
 
     def move(self, goal, timeout=20.0):
@@ -189,6 +196,20 @@ def test_arrives_when_readings_come_at_10_hz():
         loop.move(np.array(goal))
         assert_arrives_and_holds(loop, np.array(goal))
         assert np.all(loop.reversals()[4:] == 0), loop.reversals()
+
+
+@pytest.mark.parametrize('reading_delay, command_delay', [(0.01, 0.002), (0.03, 0.006)])
+def test_arrives_with_message_delays(reading_delay, command_delay):
+    """Readings 10 or 30 ms late, commands 2 or 6 ms: arrives in tolerance, at most one turn."""
+    rng = np.random.default_rng(5)
+    for k, profile in enumerate(['trapezoidal', 'synchronised', 'jerk_limited', 'continuous']):
+        q0 = rng.uniform(-1.0, 1.0, 6)
+        goal = q0 + np.r_[rng.uniform(-0.05, 0.05, 4) * (k % 2), rng.uniform(-0.05, 0.05, 2)]
+        loop = Loop(vendor_core(profile), q0=q0, reading_delay=reading_delay,
+                    command_delay=command_delay)
+        loop.move(goal)
+        assert_arrives_and_holds(loop, goal)
+        assert np.all(loop.reversals()[4:] <= 1), loop.reversals()
 
 
 def test_goals_in_a_row_from_where_the_last_one_ended():
