@@ -6,7 +6,10 @@ Subscribes /joint_states (sensor_msgs/JointState, mapped by name) and /joint_dem
 (control_msgs/JointJog: all six joints, stamped, velocities only) at ``rate`` on the node's clock
 and /controller/status (diagnostic_msgs/DiagnosticStatus, transient local, on every change and
 at ``status_rate``). Services ~/stop and ~/reset (std_srvs/Trigger). All the logic is in
-``mover6_control.controller_core``; this node converts, calls it and publishes.
+``mover6_control.controller_core``; this node converts, calls it and publishes. For the Mover6's
+vendor driver set ``jog_units`` to fraction_of_max; ``driver_tick_size`` and ``driver_cycle``
+(defaults: the Mover6's) let the core move joints that a command under one encoder tick per
+cycle would leave standing, and widen the goal tolerance to one tick.
 
 The tick runs in its own thread that sleeps on the node's clock (``Clock.sleep_until``, so sim
 time works): that costs less CPU and jitter than an executor timer; the executor thread serves
