@@ -47,7 +47,7 @@ STRING = ParameterType.PARAMETER_STRING
 PARAMETERS = (
     # name, default, type, description (defaults mirrored in config/controller.yaml)
     ('rate', 100.0, DOUBLE, 'control rate: one /JointJog per tick [Hz]'),
-    ('profile', 'trapezoidal', STRING, 'velocity law: ' + ', '.join(PROFILES)),
+    ('profile', 'continuous', STRING, 'velocity law: ' + ', '.join(PROFILES)),
     ('lambda_max', 0.5, DOUBLE, 'synchronised: speed of the joint with the furthest to go '
                                 '[rad/s] (seed 000 eq. 1)'),
     ('t_max', 1.0, DOUBLE, 'trapezoidal: time of each move [s] (stretched to respect the '

@@ -150,7 +150,9 @@ class GoalClient(Node):
             checks += [('/planner/status (is the planner running?)',
                         lambda: self.planner_status is not None),
                        ('a subscriber on /pose_goal',
-                        lambda: self.pose_pub.get_subscription_count() > 0)]
+                        lambda: self.pose_pub.get_subscription_count() > 0),
+                       ('the planner and the controller on /joint_demands',
+                        lambda: self.on_topic('joint_demands', 'planner', 'controller'))]
         for what, check in checks:
             if not self.spin_until(check, timeout):
                 return f'no {what} within {timeout:.0f} s'
@@ -166,6 +168,13 @@ class GoalClient(Node):
             state = self.values(self.controller_status).get('state')
             return f'the controller did not stay ready for {steady:.1f} s (state {state})'
         return None
+
+    def on_topic(self, topic, publisher_node, subscriber_node):
+        """Return True when the graph shows ``publisher_node`` and ``subscriber_node`` on it."""
+        name = self.resolve_topic_name(topic)
+        pubs = {info.node_name for info in self.get_publishers_info_by_topic(name)}
+        subs = {info.node_name for info in self.get_subscriptions_info_by_topic(name)}
+        return publisher_node in pubs and subscriber_node in subs
 
     def set_planner_parameters(self, params, timeout=10.0):
         """Set planner parameters (e.g. motion); return an error text or None."""
