@@ -24,6 +24,8 @@ PYTHON_BIN=${PYTHON:-python3}
 export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
 export PYTHONDONTWRITEBYTECODE=1
 export MPLBACKEND=Agg
+# Offscreen MuJoCo rendering (demo animation, render tests) through EGL when there is no display.
+[ -z "${DISPLAY:-}" ] && export MUJOCO_GL=${MUJOCO_GL:-egl}
 
 # Everything pip installs. Versions are pinned where a newer release could change behaviour.
 ROS_REQS=("ros-jazzy-rclpy[fastrtps]==7.1.6" "ros-jazzy-common-interfaces==5.3.6")
@@ -118,6 +120,23 @@ fix_wheel_cmake_paths() {
     done
 }
 
+setup_system_libs() {
+    # Offscreen rendering needs EGL and GL (Debian's Mesa). Installed once, when missing and
+    # when we may (root); otherwise say what to install.
+    if ldconfig -p 2>/dev/null | grep -q 'libEGL.so.1' \
+        && ldconfig -p 2>/dev/null | grep -q 'libEGL_mesa.so.0'; then
+        return 0
+    fi
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        log "installing libegl1 libgl1 libegl-mesa0 (offscreen rendering)"
+        { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+            libegl1 libgl1 libegl-mesa0; } >"$WS/apt.log" 2>&1 \
+            || log "apt-get failed (see $WS/apt.log): rendering will not work"
+    else
+        log "offscreen rendering needs: sudo apt-get install libegl1 libgl1 libegl-mesa0"
+    fi
+}
+
 colcon_build() {
     # Build control_msgs only when the environment has none, then this package. Skipped when
     # nothing changed since the last build.
@@ -148,6 +167,7 @@ ensure() {
         log "using the sourced ROS 2 $ROS_DISTRO install"
     fi
     mkdir -p "$WS"
+    setup_system_libs
     setup_venv
     activate
     colcon_build

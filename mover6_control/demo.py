@@ -164,6 +164,8 @@ def write_report(report_dir, rows, arm):
 
 def render_animation(report_dir, rows, arm):
     """Render the recorded motion of every step into one animated GIF; return its path."""
+    if not os.environ.get('DISPLAY'):
+        os.environ.setdefault('MUJOCO_GL', 'egl')   # read when MuJoCo is first imported
     from sim_bridge import render
     q = [np.asarray(r['samples']['q']) for r in rows if r.get('samples', {}).get('q')]
     t = [np.asarray(r['samples']['t']) for r in rows if r.get('samples', {}).get('q')]
