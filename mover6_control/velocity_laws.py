@@ -31,6 +31,9 @@ tick up to ``min_jog_speed`` while the error exceeds half a tick (see ``controll
 import bisect
 from dataclasses import dataclass
 
+# Imported with this module, not lazily in the first continuous demand's callback: that import
+# (scipy.interpolate; 0.1 s idle, far longer on a loaded machine) held up the controller.
+from mover6_control import timing
 from mover6_control.errors import InvalidInputError
 from mover6_control.joint import check_trapezoid_times
 import numpy as np
@@ -416,8 +419,6 @@ def _per_waypoint(q_start, waypoints, make, first=()):
 
 
 def _continuous_plan(q_start, waypoints, velocity_limits, config, qd_start):
-    from mover6_control import timing
-
     n = q_start.shape[0]
     a_max = _as_vector(config.a_max, n, 'a_max')
     first = ()
