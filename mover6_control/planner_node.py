@@ -54,6 +54,8 @@ PARAMETERS = (
      'the only frame goals are accepted in'),
     ('state_timeout', 1.0, ParameterType.PARAMETER_DOUBLE,
      '/joint_states older than this are too old to plan from [s]'),
+    ('match_timeout', 3.0, ParameterType.PARAMETER_DOUBLE,
+     'longest wait for /joint_demands readers to be matched before publishing a plan [s]'),
 )
 
 
@@ -72,6 +74,8 @@ class PlannerNode(Node):
         self.q = None
         self.q_time = None
         self.goal_seq = 0
+        self.pending = None      # a plan waiting for /joint_demands readers to be matched
+        self.create_timer(0.02, self.publish_pending)
         self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'planner/status', STATUS_QOS)
         self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
@@ -148,6 +152,33 @@ class PlannerNode(Node):
         except (Mover6Error, ValueError) as err:
             self.refuse(motion, str(err), 'invalid_goal', {})
             return
+        self.pending = (self.goal_seq, motion, plan, self.get_clock().now())
+        self.publish_pending()
+
+    def subscribers_matched(self):
+        """
+        Return (matched, known): /joint_demands readers matched, and readers in the graph.
+
+        A reader the graph shows but the publisher has not matched yet would miss a message
+        published now (volatile durability); under load discovery can take a few seconds.
+        """
+        known = len(self.get_subscriptions_info_by_topic(self.demands_pub.topic_name))
+        return self.demands_pub.get_subscription_count(), known
+
+    def publish_pending(self):
+        """Publish the pending plan once every known reader of /joint_demands is matched."""
+        if self.pending is None:
+            return
+        seq, motion, plan, since = self.pending
+        matched, known = self.subscribers_matched()
+        waited = (self.get_clock().now() - since).nanoseconds * 1e-9
+        if matched < max(known, 1) and waited < self.get_parameter('match_timeout').value:
+            return   # the timer calls again
+        self.pending = None
+        if matched == 0:
+            self.refuse(motion, 'nobody subscribes to /joint_demands: is the controller running?',
+                        'no_controller', {})
+            return
         self.demands_pub.publish(conversions.make_demands(plan.q))
         values = {'result': 'planned', 'motion': motion, 'waypoints': plan.n_waypoints,
                   'path_length': f'{plan.path_length:.6f}',
@@ -156,7 +187,7 @@ class PlannerNode(Node):
                   'orientation_error': f'{plan.final_orientation_error:.3e}'}
         text = (f'planned {motion} move: {plan.n_waypoints} waypoints, '
                 f'{plan.path_length * 1e3:.1f} mm, about {plan.predicted_duration:.2f} s')
-        self.get_logger().info(f'goal {self.goal_seq}: {text}')
+        self.get_logger().info(f'goal {seq}: {text}')
         self.publish_status('OK', text, values)
 
     def refuse(self, motion, text, reason, details):

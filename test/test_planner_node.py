@@ -38,8 +38,8 @@ class Probe(Node):
         self.state_pub = self.create_publisher(JointState, 'joint_states', 10)
         self.pose_pub = self.create_publisher(PoseStamped, 'pose_goal', 10)
         self.path_pub = self.create_publisher(PoseArray, 'path_goal', 10)
-        self.create_subscription(Float32MultiArray, 'joint_demands',
-                                 lambda m: self.demands.append(m), 10)
+        self.demands_sub = self.create_subscription(Float32MultiArray, 'joint_demands',
+                                                    lambda m: self.demands.append(m), 10)
         qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.create_subscription(DiagnosticStatus, 'planner/status',
                                  lambda m: self.statuses.append(m), qos)
@@ -208,3 +208,17 @@ def test_path_goal_spline_and_arc(nodes):
         assert status.level == DiagnosticStatus.OK, f'{shape}: {status.message}'
         Q = conversions.demands_from_msg(probe.demands[-1])
         assert np.linalg.norm(fk(ARM, Q[-1])[:3, 3] - goal[:3, 3]) < 1e-3
+
+
+def test_plan_with_nobody_listening_is_refused(nodes):
+    """No reader on /joint_demands (no controller): refused after match_timeout, said why."""
+    executor, planner, probe = nodes
+    probe.destroy_subscription(probe.demands_sub)
+    planner.set_parameters([Parameter('match_timeout', value=0.5)])
+    connected(executor, probe)
+    assert spin_until(executor, lambda: planner.demands_pub.get_subscription_count() == 0)
+    give_state(executor, planner, probe, HOME)
+    status = send_pose(executor, probe, GOAL)
+    assert status.level == DiagnosticStatus.ERROR, status.message
+    assert conversions.status_values(status)['reason'] == 'no_controller'
+    assert 'controller' in status.message
