@@ -5,10 +5,15 @@ Each test asserts on what really flowed: /joint_states from the MuJoCo bridge, /
 from the planner, the status topics.
 """
 
+import os
+import subprocess
+import sys
+
 from mover6_control.arm import mover6
 from mover6_control.conversions import status_values
 from mover6_control.goal_cli import EXIT_REFUSED, GoalClient
 from mover6_control.kinematics import fk
+from mover6_control.resources import CONFIG_DIR
 from mover6_control.rotations import pose_from_xyzabc
 from mover6_control.testing import Stack
 import numpy as np
@@ -68,3 +73,24 @@ def test_unreachable_goal_is_refused_and_nothing_published(stack, client):
     # published first); give the network one more second to deliver a stray message anyway.
     client.spin_until(lambda: client.last_demands is not None, 1.0)
     assert client.last_demands is None
+
+
+def run_cli(*args):
+    """Run the goal command line as its own process; return (exit code, output)."""
+    proc = subprocess.run([sys.executable, '-m', 'mover6_control.goal_cli', *args],
+                          capture_output=True, text=True, timeout=120,
+                          cwd=os.path.dirname(CONFIG_DIR))
+    return proc.returncode, proc.stdout + proc.stderr
+
+
+def test_goal_cli_arrives_and_refuses_with_exit_codes(stack, client):
+    """The goal command line: exit 0 and a RESULT line on arrival, exit 2 with the reason."""
+    code, out = run_cli('0.30', '-0.08', '0.32', '0', '1.5708', '0', '--timeout', '60')
+    assert code == 0, f'{out}\n{stack.report()}'
+    assert 'RESULT arrived' in out and 'final joint error' in out
+    assert 'final tool position error' in out and 'waypoint' in out   # progress was shown
+    code, out = run_cli('pose', '0.1', '0.1', '0.2', '0', '1.5708', '0')
+    assert code == 2, out
+    assert 'RESULT refused' in out and 'joint_limits' in out
+    code, out = run_cli('pose', '0.3', '0.0')   # malformed: not six numbers
+    assert code == 2 and 'X Y Z A B C' in out, out

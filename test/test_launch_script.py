@@ -1,0 +1,101 @@
+"""
+scripts/launch.sh: starts the three nodes, and stops all of them when one dies or on Ctrl-C.
+
+Needs the package built and on the ament index (./run.sh test does that).
+"""
+
+import os
+import re
+import signal
+import subprocess
+import time
+
+from mover6_control.resources import CONFIG_DIR
+import pytest
+
+pytestmark = pytest.mark.e2e
+
+SCRIPT = os.path.join(os.path.dirname(CONFIG_DIR), 'scripts', 'launch.sh')
+
+
+def installed():
+    """Return True when the package is found on the ament index."""
+    try:
+        from ament_index_python.packages import get_package_prefix
+        get_package_prefix('mover6_control')
+        return True
+    except Exception:  # noqa: B902 - not built
+        return False
+
+
+def alive(pid):
+    """Return True while process ``pid`` exists."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def wait_for(predicate, timeout):
+    """Poll ``predicate`` until it holds or ``timeout`` [s] passes; return it."""
+    deadline = time.monotonic() + timeout
+    while not predicate() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return predicate()
+
+
+def start(tmp_path):
+    """Start launch.sh; return (process, path of its stderr log)."""
+    log = tmp_path / 'launch.err'
+    proc = subprocess.Popen(['bash', SCRIPT, '--log-dir', str(tmp_path / 'logs')],
+                            stdout=subprocess.DEVNULL, stderr=open(log, 'w'),
+                            start_new_session=True)
+    return proc, log
+
+
+def node_pids(log, count=3, timeout=30.0):
+    """Return {node: pid} from launch.sh's 'started' lines once ``count`` nodes started."""
+    found = {}
+
+    def enough():
+        found.update(re.findall(r'started (\w+) \(pid (\d+)\)', log.read_text()))
+        return len(found) >= count
+    assert wait_for(enough, timeout), log.read_text()
+    return {name: int(pid) for name, pid in found.items()}
+
+
+@pytest.mark.skipif(not installed(), reason='needs the built package (./run.sh test)')
+def test_one_node_dying_stops_the_others(tmp_path):
+    """Kill the controller: launch.sh stops the bridge and the planner and exits non-zero."""
+    proc, log = start(tmp_path)
+    try:
+        pids = node_pids(log)
+        assert set(pids) == {'sim_bridge', 'controller', 'planner'}
+        assert all(alive(p) for p in pids.values())
+        os.kill(pids['controller'], signal.SIGKILL)
+        assert proc.wait(30) != 0
+        assert wait_for(lambda: not any(alive(p) for p in pids.values()), 15.0)
+        assert 'controller exited' in log.read_text()
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+
+
+@pytest.mark.skipif(not installed(), reason='needs the built package (./run.sh test)')
+def test_ctrl_c_stops_every_node(tmp_path):
+    """SIGINT to launch.sh (Ctrl-C) stops every node it started."""
+    proc, log = start(tmp_path)
+    try:
+        pids = node_pids(log)
+        # Let the nodes come up fully before interrupting.
+        assert wait_for(lambda: (tmp_path / 'logs' / 'planner.log').exists()
+                        and 'planner ready' in (tmp_path / 'logs' / 'planner.log').read_text(),
+                        30.0)
+        proc.send_signal(signal.SIGINT)
+        proc.wait(30)
+        assert wait_for(lambda: not any(alive(p) for p in pids.values()), 15.0)
+        assert 'all nodes stopped' in log.read_text()
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
