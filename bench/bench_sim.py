@@ -2,7 +2,7 @@
 Benchmark of the MuJoCo bridge: physics speed, real-time pacing, CPU and JointJog latency.
 
 Run inside the ROS environment: ``./run.sh exec python -m bench.bench_sim [--quick]``. Prints a
-table and writes ``bench/results/bench_sim.json``. ROS traffic stays on localhost, domain 31.
+table and writes ``bench/results/sim.json``. ROS traffic stays on localhost, domain 31.
 
 1. Physics steps per second, as fast as possible: the bare ``Simulator`` (no ROS); the node at
    real_time_factor 0 publishing /joint_states at 100 Hz of sim time; the same plus /clock on
@@ -208,7 +208,7 @@ def main(argv=None):
     print(f'{"JointJog arrival -> applied step, p95 / max [ms]":<52}'
           f'{lat["p95"]:>7.3f} / {lat["max"]:.3f}')
     os.makedirs(RESULTS, exist_ok=True)
-    path = os.path.join(RESULTS, 'bench_sim.json')
+    path = os.path.join(RESULTS, 'sim.json')
     with open(path, 'w') as f:
         json.dump(results, f, indent=2)
     print(f'\nwrote {path}')

@@ -164,6 +164,7 @@ class ControllerCore:
                                                     * self.config.rate)) + 2)
         self._state = sm.WAITING_FOR_STATES
         self._q = None
+        self._qd_measured = None
         self._t_states = None
         self._bad_states = None          # reason why the latest states were rejected
         self._t_fault = None
@@ -225,6 +226,9 @@ class ControllerCore:
         """Take valid measured positions (n,) [rad] received at ``now`` [s]."""
         q = self.arm.check_q(q, 'joint_states position')
         self._q = q
+        # Measured velocity, when the states carry one: arrival also asks where the arm is going.
+        self._qd_measured = (np.zeros_like(q) if qd is None
+                             else np.nan_to_num(np.asarray(qd, dtype=float), nan=0.0))
         self._t_states = now
         self._bad_states = None
         self._n_states += 1
@@ -443,6 +447,11 @@ class ControllerCore:
         within = np.abs(self._error) <= self._tol
         if self._ticks is not None:
             within &= np.abs(self._error - self._in_flight()) <= self._tol
+        else:
+            # Not arrived while still moving: where the arm will be two ticks from now must be
+            # within tolerance too (a law that ends at full speed, such as the synchronised one,
+            # would otherwise declare arrival and coast one tick past the goal).
+            within &= np.abs(self._error - 2.0 * self._dt * self._qd_measured) <= self._tol
         if np.all(within):
             self._result = {'result': 'arrived', 'final_joint_error': f'{worst:.6f}'}
             self._set(sm.SETTLED, 'OK', f'motion {self._motion_id} arrived '
