@@ -203,12 +203,14 @@ def test_ticks_follow_sim_time():
         assert np.all(recent > 1000.0)                     # stamped in sim time
         np.testing.assert_allclose(np.median(np.diff(recent)), 0.01, atol=1e-3)
         sim['running'] = False                             # the simulation pauses
+        paused_at = sim['ns'] * 1e-9
         t_pause = time.monotonic()
-        spin_until(lambda: time.monotonic() - t_pause > 0.3)    # ticks in flight land
-        count = len(stamps)
-        t_pause = time.monotonic()
-        spin_until(lambda: time.monotonic() - t_pause > 0.5)
-        assert len(stamps) - count <= 1                    # no ticks while sim time stands
+        spin_until(lambda: time.monotonic() - t_pause > 0.8)
+        # No tick is stamped after sim time stopped (judged by stamp, not by arrival: ticks
+        # published before the pause can still be in the queue on a loaded machine).
+        assert max(stamps) <= paused_at + 0.01 + 1e-9
+        # Nor does it keep publishing at the frozen time.
+        assert sum(1 for t in stamps if t >= paused_at - 0.005) <= 2
     finally:
         executor.shutdown()
         controller.destroy_node()
