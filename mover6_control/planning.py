@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from mover6_control import paths
 from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.ik import ik_closed_form
+from mover6_control.ik import ik_closed_form, pose_errors_batch
 from mover6_control.kinematics import condition_number, fk, fk_batch, jacobian
 from mover6_control.path_ik import solve_path
 from mover6_control.reachability import check_pose
@@ -116,46 +116,54 @@ def _solve_path(arm, poses, q_start, settings):
                       orientation_tol=settings.orientation_tolerance).q
 
 
+def _wrist_turn(arm, q_current, T_next, settings):
+    """
+    Return joint waypoints (k, n) that turn a singular start in place, or None if not needed.
+
+    At a singular start, such as the Mover6's home (q5 = 0: axes 4 and 6 aligned), the pose
+    does not fix q4 and q6 apart, and the path's next pose can need a large wrist turn. That
+    turn is made first, along the Jacobian's null space (at home: q4 and q6 in opposite senses
+    about their aligned axes), which leaves the tool pose unchanged, as far as it brings the
+    configuration towards the next pose's nearest solution; in steps within ``max_joint_step``,
+    accepted only when FK along it stays within the tolerances of the start pose.
+    """
+    if condition_number(arm, q_current) <= settings.max_condition:
+        return None
+    try:
+        solutions = ik_closed_form(arm, T_next, within_limits=True, q_ref=q_current)
+    except InvalidInputError:
+        return None      # no closed form for this arm: the path solver deals with it
+    if len(solutions) == 0:
+        return None
+    q1 = solutions[np.argmin(np.abs(solutions - q_current).max(axis=1))]
+    if np.abs(q1 - q_current).max() <= settings.max_joint_step:
+        return None
+    v = np.linalg.svd(jacobian(arm, q_current))[2][-1]
+    q_turned = q_current + float(v @ (q1 - q_current)) * v
+    n_bridge = int(np.ceil(np.abs(q_turned - q_current).max() / settings.max_joint_step)) + 1
+    fine = q_current + np.linspace(0.0, 1.0, 20 * n_bridge)[:, None] * (q_turned - q_current)
+    pos, rot = pose_errors_batch(fk(arm, q_current), fk_batch(arm, fine))
+    if (pos.max() > settings.position_tolerance or rot.max() > settings.orientation_tolerance
+            or not arm.within_limits(q_turned)):
+        return None      # cannot be made in place: the path solver reports the jump
+    return q_current + np.linspace(0.0, 1.0, n_bridge)[:, None] * (q_turned - q_current)
+
+
 def _solve(arm, poses, q_current, settings):
     """
     Return joint waypoints for ``poses`` from ``q_current``, leaving a singular start if needed.
 
-    At a singular start, such as the Mover6's home (q5 = 0: axes 4 and 6 aligned), the pose
-    does not fix q4 and q6 apart; the first step along a path can then need a large wrist turn.
-    That turn is made first, in place (along the Jacobian's null space, tool pose unchanged),
-    as joint waypoints each within ``max_joint_step``; it is accepted only when FK along it
-    stays within the position and orientation tolerances of the start pose.
+    poses[0] is the current pose and ``q_current`` its solution: the path starts there exactly
+    (solving it again could pick the other wrist branch, or trip over sensor noise). A wrist
+    turn out of a singular start (``_wrist_turn``) comes first when the next pose needs one.
     """
-    # poses[0] is the current pose, and q_current its solution: the path starts there exactly
-    # (solving it again could pick the other wrist branch, or trip over sensor noise).
+    turn = _wrist_turn(arm, q_current, poses[1], settings)
+    start = q_current[None] if turn is None else turn
     try:
-        return np.vstack([q_current, _solve_path(arm, poses[1:], q_current, settings)])
+        return np.vstack([start, _solve_path(arm, poses[1:], start[-1], settings)])
     except UnreachableError as err:
         details = dict(err.details, waypoint=err.details.get('waypoint', -1) + 1)
-        leaving_singularity = condition_number(arm, q_current) > settings.max_condition
-        if not (err.reason == 'discontinuity' and details['waypoint'] == 1
-                and leaving_singularity and 'jump_q' in details):
-            raise UnreachableError(str(err), reason=err.reason, details=details) from None
-    q1 = np.asarray(details['jump_q'])
-    # Turn the wrist in the Jacobian's null space (at the Mover6's home: q4 and q6 in opposite
-    # senses about their aligned axes), which leaves the tool pose unchanged, as far as it
-    # brings the configuration towards the path's first solution q1.
-    v = np.linalg.svd(jacobian(arm, q_current))[2][-1]
-    q_turned = q_current + float(v @ (q1 - q_current)) * v
-    n_bridge = int(np.ceil(np.abs(q_turned - q_current).max() / settings.max_joint_step)) + 1
-    bridge = q_current + np.linspace(0.0, 1.0, n_bridge)[:, None] * (q_turned - q_current)
-    fine = q_current + np.linspace(0.0, 1.0, 20 * n_bridge)[:, None] * (q_turned - q_current)
-    T_start = fk(arm, q_current)
-    pos_dev, rot_dev = np.max([pose_error(T, T_start) for T in fk_batch(arm, fine)], axis=0)
-    if (pos_dev > settings.position_tolerance or rot_dev > settings.orientation_tolerance
-            or not arm.within_limits(q_turned)):
-        raise UnreachableError(
-            f'leaving the singular start needs a wrist turn of {np.abs(q1 - q_current).max():.3f}'
-            f' rad that cannot be made in place ({pos_dev * 1e3:.2f} mm / {rot_dev:.4f} rad off'
-            f' the start pose{"" if arm.within_limits(q_turned) else ", past a joint limit"})',
-            reason='discontinuity', details=details)
-    rest = _solve_path(arm, poses[1:], q_turned, settings)
-    return np.vstack([bridge, rest])
+        raise UnreachableError(str(err), reason=err.reason, details=details) from None
 
 
 def _poses_for(arm, q, poses):
