@@ -32,7 +32,11 @@ def main(argv):
         print(f'unknown benchmarks {unknown}; available: {available()}', file=sys.stderr)
         return 2
     os.makedirs(RESULTS, exist_ok=True)
+    summary_path = os.path.join(RESULTS, 'summary.json')
     summary, failed = {}, []
+    if os.path.exists(summary_path):      # a run of some benchmarks keeps the others' figures
+        with open(summary_path) as f:
+            summary = json.load(f)
     for name in names:
         print(f'\n=== bench_{name} {" ".join(flags)}', flush=True)
         t0 = time.monotonic()
@@ -45,7 +49,7 @@ def main(argv):
             with open(path) as f:
                 summary[name] = json.load(f)
         print(f'=== bench_{name}: exit {rc}, {time.monotonic() - t0:.1f} s', flush=True)
-    with open(os.path.join(RESULTS, 'summary.json'), 'w') as f:
+    with open(summary_path, 'w') as f:
         json.dump(summary, f, indent=2)
     print(f'\nresults: {RESULTS}/ (summary.json)' + (f'; FAILED: {failed}' if failed else ''))
     return 1 if failed else 0
