@@ -206,7 +206,7 @@ case "$cmd" in
     demo)
         ensure
         pick_domain_id
-        exec python -m mover6_control.demo "$@"
+        exec python -m mover6_control.demo_cli "$@"
         ;;
     launch)
         ensure

@@ -28,7 +28,7 @@ setup(
         'console_scripts': [
             'planner = mover6_control.planner_node:main',
             'controller = mover6_control.controller_node:main',
-            'sim_bridge = sim_bridge.node:main',
+            'sim_bridge = sim_bridge.bridge_node:main',
             'goal = mover6_control.goal_cli:main',
         ],
     },

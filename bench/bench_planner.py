@@ -17,8 +17,8 @@ from geometry_msgs.msg import PoseStamped
 from mover6_control import conversions
 from mover6_control.arm import mover6
 from mover6_control.goal_cli import GoalClient
+from mover6_control.ros_testing import NodeProcess
 from mover6_control.rotations import pose_from_xyzabc
-from mover6_control.testing import NodeProcess
 import numpy as np
 import rclpy
 from sensor_msgs.msg import JointState

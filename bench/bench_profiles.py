@@ -151,7 +151,7 @@ def run_once(profile, T_goal, log_dir, timeout):
     """Start the stack with ``profile``, send the goal, return the figures of the run."""
     from geometry_msgs.msg import PoseStamped
     from mover6_control import conversions
-    from mover6_control.testing import Stack
+    from mover6_control.ros_testing import Stack
 
     with Stack(log_dir, controller={'profile': profile}) as stack:
         client = make_client()

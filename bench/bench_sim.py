@@ -34,7 +34,7 @@ import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
-from sim_bridge.node import SimBridgeNode  # noqa: E402
+from sim_bridge.bridge_node import SimBridgeNode  # noqa: E402
 from sim_bridge.simulator import Simulator  # noqa: E402
 
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
@@ -100,7 +100,7 @@ def paced_run(rate, duration):
 
     Return (achieved real-time factor, CPU % of one core, messages counted).
     """
-    cmd = [sys.executable, '-m', 'sim_bridge.node', '--ros-args', '-p',
+    cmd = [sys.executable, '-m', 'sim_bridge.bridge_node', '--ros-args', '-p',
            'real_time_factor:=1.0', '-p', f'publish_rate:={rate}']
     env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get('PYTHONPATH', ''))
     proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL,

@@ -16,9 +16,9 @@ import sys
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-ROS_SIDE = {'mover6_control': {'planner_node', 'controller_node', 'goal_cli', 'demo',
-                               'conversions', 'testing'},
-            'sim_bridge': {'node'}}
+ROS_SIDE = {'mover6_control': {'planner_node', 'controller_node', 'goal_cli', 'demo_cli',
+                               'conversions', 'ros_testing'},
+            'sim_bridge': {'bridge_node'}}
 FORBIDDEN = re.compile(r'^(rclpy|rosidl\w*|rcl_interfaces|builtin_interfaces|\w+_msgs|\w+_srvs)'
                        r'(\.|$)')
 

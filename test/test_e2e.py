@@ -14,8 +14,8 @@ from mover6_control.conversions import status_values
 from mover6_control.goal_cli import EXIT_REFUSED, GoalClient
 from mover6_control.kinematics import fk
 from mover6_control.resources import CONFIG_DIR
+from mover6_control.ros_testing import Stack
 from mover6_control.rotations import pose_from_xyzabc
-from mover6_control.testing import Stack
 import numpy as np
 import pytest
 import rclpy

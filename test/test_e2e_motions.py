@@ -16,8 +16,8 @@ from mover6_control.conversions import status_values
 from mover6_control.goal_cli import GoalClient
 from mover6_control.kinematics import fk, fk_batch
 from mover6_control.metrics import max_deviation_from_polyline
+from mover6_control.ros_testing import Stack
 from mover6_control.rotations import pose_from_xyzabc
-from mover6_control.testing import Stack
 import numpy as np
 import pytest
 import rclpy

@@ -11,8 +11,8 @@ from mover6_control.arm import mover6
 from mover6_control.conversions import status_values
 from mover6_control.goal_cli import GoalClient
 from mover6_control.kinematics import fk
+from mover6_control.ros_testing import Stack
 from mover6_control.rotations import pose_from_xyzabc
-from mover6_control.testing import Stack
 from mover6_control.velocity_laws import MOVER6_TICK_SIZE
 import numpy as np
 import pytest

@@ -21,7 +21,7 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
-from sim_bridge.node import SimBridgeNode  # noqa: E402
+from sim_bridge.bridge_node import SimBridgeNode  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
 NAMES = [f'joint{i}' for i in range(1, 7)]

@@ -16,7 +16,7 @@ import time
 from mover6_control.resources import CONFIG_DIR
 
 ROOT = os.path.dirname(CONFIG_DIR)
-MODULES = {'sim_bridge': 'sim_bridge.node', 'controller': 'mover6_control.controller_node',
+MODULES = {'sim_bridge': 'sim_bridge.bridge_node', 'controller': 'mover6_control.controller_node',
            'planner': 'mover6_control.planner_node'}
 
 
