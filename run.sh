@@ -196,11 +196,16 @@ case "$cmd" in
         ensure
         pick_domain_id
         log "tests in ROS_DOMAIN_ID=$ROS_DOMAIN_ID"
-        rm -rf "$WS/build/mover6_control/test_results"
+        # No stale results: a run that wrote none must fail, not pass on the last one's.
+        rm -rf "$WS/build/mover6_control/test_results" "$WS/build/mover6_control/pytest.xml"
         (cd "$ROOT" && colcon --log-base "$WS/log" test --base-paths . \
             --build-base "$WS/build" --install-base "$WS/install" \
             --packages-select mover6_control --event-handlers console_direct+ summary- \
             --pytest-args "$@") || true
+        if [ ! -f "$WS/build/mover6_control/pytest.xml" ]; then
+            log "pytest wrote no results: the test run did not happen (see $WS/log)"
+            exit 1
+        fi
         colcon test-result --test-result-base "$WS/build/mover6_control" --verbose
         ;;
     demo)
