@@ -287,9 +287,9 @@ class ControllerCore:
         planned again from the present state; raises when it cannot take a demand any more.
         """
         self._check_accepts()
-        moving = self._state != sm.IDLE and self._ref is not None
         plan = pending.plan
-        if moving != pending.moving or self._motion_id != pending.motion_id:
+        if not self.is_current(pending):
+            moving = self._state != sm.IDLE and self._ref is not None
             q_start, qd_start = self._ref if moving else (self._q, None)
             plan = plan_motion(self.config.law, q_start, pending.waypoints, self._vlim, qd_start)
         self._plan, self._t_plan = plan, pending.now
@@ -300,6 +300,17 @@ class ControllerCore:
                                    f'waypoint(s), {self.config.law.profile}, '
                                    f'{plan.duration:.2f} s')
         return self._motion_id
+
+    def is_current(self, pending):
+        """
+        Return whether ``pending`` still fits the controller (``commit_demand`` would not re-plan).
+
+        It does not once the motion it was planned from ended or another one started; a node
+        then prepares the demand again without its lock rather than let the commit plan under
+        it (the ticks would wait for the planning).
+        """
+        moving = self._state != sm.IDLE and self._ref is not None
+        return moving == pending.moving and self._motion_id == pending.motion_id
 
     def _check_accepts(self):
         if self._state not in sm.ACCEPTS_DEMANDS:

@@ -13,9 +13,18 @@ cycle would leave standing, and widen the goal tolerance to one tick.
 
 The tick runs in its own thread that sleeps on the node's clock (``Clock.sleep_until``, so sim
 time works): that costs less CPU and jitter than an executor timer; the executor thread serves
-the callbacks, and a lock keeps the core consistent between the two.
+the callbacks, and a lock keeps the core consistent between the two. Demands are planned in a
+third thread, in the order they came, without the lock: the continuous law plans a long path
+for tens of milliseconds, hundreds on a loaded machine, and neither the ticks nor the
+/joint_states callback may wait that long (states unread for ``state_timeout`` fault the
+controller mid-motion). A plan that the controller moved on from meanwhile is made again,
+still without the lock. The status value ``max_tick_gap`` [s]
+is the longest time between two ticks since the node started (node clock; nominal ``1 / rate``)
+and a tick later than ``TICK_GAP_WARN`` logs a warning: a stalled tick thread shows here, and
+not only as a stale command at the driver.
 """
 
+import queue
 import signal
 import sys
 import threading
@@ -25,7 +34,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control import conversions
 from mover6_control.arm import LIMIT_SETS, mover6
 from mover6_control.controller_core import ControllerConfig, ControllerCore
-from mover6_control.errors import InvalidInputError
+from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.velocity_laws import (JOG_UNITS, LawConfig, MOVER6_DRIVER_CYCLE,
                                           MOVER6_TICK_SIZE, PROFILES)
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
@@ -39,6 +48,11 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
 
+# A tick this late [s] is logged: the driver (and the sim bridge) halt after 0.2 s without one.
+TICK_GAP_WARN = 0.05
+# Plans of one demand made without the lock before the last is committed as it is (re-planned
+# under the lock when the controller moved on yet again: only when motions end that often).
+DEMAND_ATTEMPTS = 3
 STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 DOUBLE = ParameterType.PARAMETER_DOUBLE
 DOUBLES = ParameterType.PARAMETER_DOUBLE_ARRAY
@@ -110,11 +124,16 @@ class ControllerNode(Node):
         self.create_service(Trigger, '~/stop', self.on_stop)
         self.create_service(Trigger, '~/reset', self.on_reset)
         self.lock = threading.RLock()
+        self.last_tick = None            # node clock [ns] of the latest tick
+        self.max_tick_gap = 0.0          # [s] longest time between two ticks so far
         self.running = True
         self.destroyed = False
         self.tick_thread = threading.Thread(target=self.tick_loop, args=(1.0 / config.rate,),
                                             daemon=True)
         self.tick_thread.start()
+        self.demands = queue.SimpleQueue()   # /joint_demands messages not yet taken; None: end
+        self.demand_thread = threading.Thread(target=self.demand_loop, daemon=True)
+        self.demand_thread.start()
         ticks = ''
         if config.jog_units == 'fraction_of_max':
             ticks = (' (whole ticks; goal tolerance '
@@ -141,16 +160,36 @@ class ControllerNode(Node):
             self.get_logger().warning(f'bad /joint_states: {err}', throttle_duration_sec=1.0)
 
     def on_demands(self, msg):
+        """Hand a /joint_demands message to the demand thread (it plans there)."""
+        self.demands.put(msg)
+
+    def demand_loop(self):
+        """Take the queued demands in order until ``None`` comes (the node closes)."""
+        while True:
+            msg = self.demands.get()
+            if msg is None or not self.running:
+                return
+            try:
+                self.take_demand(msg)
+            except Exception as err:  # noqa: B902 - keep taking demands; say why this one failed
+                self.get_logger().error(f'/joint_demands failed: {type(err).__name__}: {err}')
+
+    def take_demand(self, msg):
         """Accept waypoints or log why they were rejected (the running motion is untouched)."""
         now = self.now()
         try:
             Q = conversions.demands_from_msg(msg, len(self.joint_names))
             # Plan without the lock so the ticks go on (the continuous law plans for tens of
-            # milliseconds); the commit re-plans if the controller moved on meanwhile.
-            pending = self.core.prepare_demand(now, Q)
-            with self.lock:
-                motion_id = self.core.commit_demand(pending)
-        except InvalidInputError as err:
+            # milliseconds); when the controller moved on meanwhile (the motion ended), plan
+            # again, also without the lock, rather than let the commit re-plan under it.
+            for attempt in range(DEMAND_ATTEMPTS):
+                pending = self.core.prepare_demand(now, Q)
+                with self.lock:
+                    if attempt + 1 == DEMAND_ATTEMPTS or self.core.is_current(pending):
+                        motion_id = self.core.commit_demand(pending)
+                        break
+                now = self.now()
+        except Mover6Error as err:
             self.get_logger().warning(f'rejected /joint_demands: {err}')
             self.publish_status(now, {'rejected': str(err)}, level='WARN',
                                 message=f'rejected demand: {err}')
@@ -181,6 +220,7 @@ class ControllerNode(Node):
             deadline = deadline + step
             if not clock.sleep_until(deadline, self.context):
                 deadline = clock.now()          # clock switched (sim time) or shutting down
+                self.last_tick = None           # no gap across the switch
                 continue
             now = clock.now()
             if (now - deadline).nanoseconds > step.nanoseconds:
@@ -194,8 +234,10 @@ class ControllerNode(Node):
             return
         self.destroyed = True
         self.running = False
-        if self.tick_thread.is_alive() and self.tick_thread is not threading.current_thread():
-            self.tick_thread.join(timeout=1.0)
+        self.demands.put(None)
+        for thread in (self.tick_thread, self.demand_thread):
+            if thread.is_alive() and thread is not threading.current_thread():
+                thread.join(timeout=1.0)
         if self.context.ok():
             self.send_zero()
         super().destroy_node()
@@ -204,6 +246,12 @@ class ControllerNode(Node):
         """Run one control tick: publish the JointJog, and the status when due."""
         time_now = self.get_clock().now()
         now = time_now.nanoseconds * 1e-9
+        gap = self.note_tick(time_now.nanoseconds)
+        if gap > TICK_GAP_WARN:
+            self.get_logger().warning(
+                f'tick {gap * 1e3:.0f} ms after the one before (period '
+                f'{1e3 / self.core.config.rate:.0f} ms): the tick thread stalled',
+                throttle_duration_sec=1.0)
         with self.lock:
             out = self.core.tick(now)
             self.jog_pub.publish(
@@ -211,6 +259,15 @@ class ControllerNode(Node):
             if (out.status_changed or self.last_status is None
                     or now - self.last_status >= self.status_period or now < self.last_status):
                 self.publish_status(now)
+
+    def note_tick(self, stamp_ns):
+        """Record a tick at ``stamp_ns`` [ns] of the node clock; return the gap [s] (0 first)."""
+        last, self.last_tick = self.last_tick, stamp_ns
+        if last is None or stamp_ns < last:          # first tick, or the clock went back
+            return 0.0
+        gap = (stamp_ns - last) * 1e-9
+        self.max_tick_gap = max(self.max_tick_gap, gap)
+        return gap
 
     def send_zero(self):
         """Publish a zero JointJog (the vendor driver keeps the last command forever)."""
@@ -222,6 +279,7 @@ class ControllerNode(Node):
         with self.lock:
             status = self.core.status()
             values = dict(status.values)
+            values['max_tick_gap'] = f'{self.max_tick_gap:.4f}'
             values.update(extra or {})
             self.status_pub.publish(conversions.make_status(
                 'controller', level or status.level, message or status.message, values))

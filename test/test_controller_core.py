@@ -305,6 +305,7 @@ def test_prepared_demand_commits_later_without_a_jump():
     assert core.motion_id == 1 and core.plan is not pending.plan   # nothing changed yet
     for _ in range(5):                                               # ticks while planning
         sim.tick()
+    assert core.is_current(pending)                                  # commit will not re-plan
     before = sim.log[-1][2]
     assert core.commit_demand(pending) == 2
     after = sim.tick().qd
@@ -322,11 +323,24 @@ def test_prepared_demand_replans_when_the_motion_ended_meanwhile():
     core.on_demands(sim.t, [GOAL])
     sim.run_until(lambda o: sim.t > core.plan.duration - 0.05)
     pending = core.prepare_demand(sim.t, [np.zeros(6)])
+    assert core.is_current(pending)
     sim.run_until(lambda o: o.state == sm.IDLE)
+    assert not core.is_current(pending)          # a node prepares it again, without its lock
     core.commit_demand(pending)
     assert core.plan is not pending.plan
     np.testing.assert_allclose(core.plan.sample(0.0)[0], sim.q)     # from where the arm is
     np.testing.assert_allclose(core.plan.sample(0.0)[1], 0.0)
+
+
+def test_prepared_demand_is_stale_once_another_motion_started():
+    core, sim = make('trapezoidal')
+    sim.tick()
+    pending = core.prepare_demand(sim.t, [GOAL])
+    assert core.is_current(pending)
+    core.on_demands(sim.t, [-GOAL])              # another demand got in first
+    assert not core.is_current(pending)
+    assert core.commit_demand(pending) == 2
+    assert core.is_current(core.prepare_demand(sim.t, [np.zeros(6)]))
 
 
 def test_prepared_demand_is_refused_after_a_fault():

@@ -1,6 +1,7 @@
 """The controller node with real rclpy in one process; a test node plays the arm."""
 
 import os
+import sys
 import time
 
 from control_msgs.msg import JointJog
@@ -28,8 +29,8 @@ GOAL = np.array([0.3, -0.2, 0.2, 0.1, -0.1, 0.3])
 class FakeArm(Node):
     """Integrate the commanded JointJog and publish /joint_states; record what comes back."""
 
-    def __init__(self, context):
-        super().__init__('fake_arm', context=context, namespace=NS)
+    def __init__(self, context, namespace=NS, jog_depth=10):
+        super().__init__('fake_arm', context=context, namespace=namespace)
         self.q = np.zeros(6)
         self.qd = np.zeros(6)
         self.publishing = True
@@ -39,7 +40,7 @@ class FakeArm(Node):
         self.last = time.monotonic()
         self.state_pub = self.create_publisher(JointState, 'joint_states', 10)
         self.demand_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
-        self.create_subscription(JointJog, 'JointJog', self.on_jog, 10)
+        self.create_subscription(JointJog, 'JointJog', self.on_jog, jog_depth)
         qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.create_subscription(DiagnosticStatus, 'controller/status', self.statuses.append, qos)
         self.create_timer(0.02, self.on_timer)
@@ -230,3 +231,70 @@ def test_destroying_the_node_sends_a_zero_command(ros):
     controller.destroy_node()
     spin_until(lambda: len(arm.jogs) > count and not np.any(arm.qd))
     assert list(arm.jogs[-1].velocities) == [0.0] * 6
+
+
+def wavy_path(start, goal, n=100):
+    """Return n waypoints (n, 6) from near ``start`` to ``goal`` that bend all the way."""
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    return start + s * (goal - start) + 0.05 * np.sin(4.0 * np.pi * s) * np.array(
+        [1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+
+
+def test_continuous_demands_never_stall_the_ticks():
+    """
+    Long continuous demands, one replacing a running motion: no tick is late.
+
+    The continuous law plans a 100-waypoint demand for tens of milliseconds (more on a loaded
+    machine) in the executor thread, which here also serves the fake arm; the tick thread must
+    go on at its period meanwhile. Judged by the node's own ``max_tick_gap`` and by the stamps
+    of the JointJog commands (taken by the tick thread; a deep queue so none is dropped).
+    """
+    switch_interval = sys.getswitchinterval()
+    sys.setswitchinterval(0.0005)                 # as controller_node.main sets it
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    ns = NS + '_continuous'
+    controller = ControllerNode(context=context, namespace=ns, parameter_overrides=[
+        Parameter('profile', value='continuous'), Parameter('rate', value=100.0)])
+    arm = FakeArm(context, namespace=ns, jog_depth=1000)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(controller)
+    executor.add_node(arm)
+
+    def spin_until(predicate, timeout=30.0):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.01)
+            if predicate():
+                return time.monotonic()
+        raise AssertionError(f'timed out; last status {arm.status()}')
+
+    def stamp(msg):
+        return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+    try:
+        spin_until(lambda: arm.status().get('state') == 'idle')
+        first = len(arm.jogs)
+        taken = []
+        for motion, (start, goal) in enumerate([(np.zeros(6), GOAL), (GOAL / 2, -GOAL / 2)], 1):
+            sent = time.monotonic()
+            arm.demand_pub.publish(conversions.make_demands(wavy_path(start, goal)))
+            taken.append(spin_until(lambda: arm.status().get('motion_id') == str(motion)
+                                    and arm.status().get('state') == 'executing') - sent)
+            if motion == 1:                       # the second replaces the running first
+                spin_until(lambda: np.max(np.abs(arm.qd)) > 0.2)
+        spin_until(lambda: arm.status().get('motion_id') == '2'
+                   and arm.status().get('result') == 'arrived')
+        np.testing.assert_allclose(arm.q, -GOAL / 2, atol=0.01)
+        gaps = np.diff([stamp(m) for m in arm.jogs[first:]])
+        assert len(gaps) > 100 and np.min(gaps) > 0.0
+        assert np.max(gaps) < 0.05, f'JointJog stamps {np.max(gaps) * 1e3:.0f} ms apart'
+        assert float(arm.status()['max_tick_gap']) < 0.05, arm.status()
+        assert float(arm.status()['max_tick_gap']) >= np.max(gaps) - 5e-5   # 0.1 ms digits
+        assert max(taken) < 2.0, taken            # a stalled node took demands seconds late
+    finally:
+        sys.setswitchinterval(switch_interval)
+        executor.shutdown()
+        controller.destroy_node()
+        arm.destroy_node()
+        rclpy.try_shutdown(context=context)
