@@ -13,6 +13,13 @@ step is too large and the previous waypoint can be re-chosen on its own pose by 
 self-motion (the tool stays still, checked by FK along the joint segment), it is, and
 ``PathSolution.self_motion`` marks that step.
 
+Speed: every waypoint's closed-form branches are found in one batch. For arms whose joints all
+turn less than a full turn (``single_turn``) a branch's joint values do not depend on the
+waypoint it is compared with, so every step between the branches of neighbouring waypoints is
+computed at once (``branch_steps``) and the branch choice is a walk over a small integer
+table; singular waypoints, numeric fallbacks and steps over the limit take the waypoint-by-
+waypoint way, which gives the same choice.
+
 Failures raise ``UnreachableError`` with ``reason`` in ``REASONS`` and ``details`` holding
 'waypoint', 'position_error' [m], 'orientation_error' [rad], 'closest_q' and 'closest_pose'
 (the nearest configuration found inside the joint limits and its pose), plus 'message'.
@@ -81,6 +88,52 @@ def validate_poses(poses, name='poses'):
     if len(bad):
         raise InvalidInputError(f'{name}[{bad[0]}] last row must be [0, 0, 0, 1]')
     return P
+
+
+def single_turn(arm):
+    """
+    Return True when no joint's range reaches a full turn (with the 1e-9 rad limit slack).
+
+    Each joint angle then has at most one value by whole turns inside its limits, so a closed-
+    form branch has the same joint values whichever waypoint it is aliased against.
+    """
+    return bool(np.all(arm.upper - arm.lower < 2.0 * np.pi - 4e-9))
+
+
+def branch_steps(arm, Q, valid):
+    """
+    Return every step between the branches of neighbouring waypoints (m - 1, b, b) [rad].
+
+    ``Q`` (m, b, n) [rad] are the closed-form branches of m waypoints inside the limits of a
+    ``single_turn`` arm and ``valid`` (m, b) the verified ones. ``steps[k, a, c]`` is the
+    max-norm joint change from branch a of waypoint k to branch c of waypoint k + 1, inf where
+    branch c is not valid. It is what aliasing c nearest a (``nearest_alias``) would give: a
+    single-turn joint has one value inside its limits, except that a value within the 1e-9 rad
+    slack outside a limit and more than half a turn away is not brought back (inf too).
+    """
+    Q = np.asarray(Q, dtype=float)
+    valid = np.asarray(valid, dtype=bool)
+    if Q.ndim != 3 or Q.shape[2] != arm.n_joints or valid.shape != Q.shape[:2]:
+        raise InvalidInputError(
+            f'branches must be (m, b, {arm.n_joints}) with a (m, b) mask, got {Q.shape} and '
+            f'{valid.shape}')
+    if not single_turn(arm):
+        raise InvalidInputError(f'{arm.name} has a joint with a full turn of range or more: '
+                                'its branches depend on the previous waypoint')
+    # Joint by joint into preallocated (m - 1, b, b) buffers: small arrays stay in cache.
+    Qj = np.ascontiguousarray(Q.transpose(2, 0, 1))                  # (n, m, b)
+    slack = (Qj[:, 1:] < arm.lower[:, None, None]) | (Qj[:, 1:] > arm.upper[:, None, None])
+    steps = np.zeros((len(Q) - 1, Q.shape[1], Q.shape[1]))
+    diff = np.empty_like(steps)
+    far = np.zeros(steps.shape, dtype=bool)
+    for i in range(arm.n_joints):
+        np.subtract(Qj[i, 1:, None, :], Qj[i, :-1, :, None], out=diff)
+        np.abs(diff, out=diff)
+        np.maximum(steps, diff, out=steps)
+        if slack[i].any():
+            far |= (diff > np.pi) & slack[i, :, None, :]
+    steps[far | ~valid[1:, None, :]] = np.inf
+    return steps
 
 
 def _positive(name, value, allow_none=False):
@@ -170,15 +223,36 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
     self_motion = np.zeros(m, dtype=bool)
     q_start_arr = q_prev
     stop = None      # the first failing waypoint: (reason, index, q, q_prev, step)
+    state = None     # the branch of the previous waypoint when q_prev is its batch candidate
+    walk = geometry is not None and m > 1 and single_turn(arm)
     if geometry is not None:
         # Every waypoint at once; the few singular ones (q1 or q4 free) are solved again below
         # with the previous waypoint as reference.
         all_cand, all_ok, all_used = solve_candidates(
             arm, geometry, P, np.broadcast_to(q_prev, (m, n)), True, VERIFY_TOL,
             return_ref_used=True)
+        if walk:
+            # Every step between branches of neighbouring waypoints at once; the walk below
+            # then only looks up the nearest branch to the one taken before.
+            table = branch_steps(arm, all_cand, all_ok)
+            nearest = np.argmin(table, axis=2)
+            nearest_step = np.take_along_axis(table, nearest[..., None], axis=2)[..., 0]
+            # A branch is taken from the table when it is a regular waypoint's and the step
+            # is allowed; anything else (singular pose, no branch, a jump) goes the long way.
+            usable = ((nearest_step <= max_joint_step)
+                      & ~all_used[1:, None] & ~all_used[:-1, None]).tolist()
+            nearest = nearest.tolist()
     for k in range(m):
+        if state is not None and usable[k - 1][state]:
+            j = nearest[k - 1][state]
+            Q[k] = all_cand[k, j]
+            out['step'][k] = nearest_step[k - 1, state]
+            state = j
+            continue
+        q_prev = q_start_arr if k == 0 else Q[k - 1]
         T = P[k]
         sols = np.zeros((0, n))
+        branch = np.zeros(0, dtype=int)
         if geometry is not None:
             cand, ok = all_cand[k:k + 1], all_ok[k:k + 1]
             if all_used[k]:
@@ -186,14 +260,17 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
                                             VERIFY_TOL)
             # Each joint's value by whole turns nearest the previous waypoint (the batch used
             # q_start as reference; this matters for joints with more than a turn of range).
-            sols = nearest_alias(arm, cand[0][ok[0]], q_prev)
-            sols = sols[np.all((sols >= arm.lower - 1e-9) & (sols <= arm.upper + 1e-9), axis=1)]
+            branch = np.flatnonzero(ok[0])
+            sols = nearest_alias(arm, cand[0][branch], q_prev)
+            inside = np.all((sols >= arm.lower - 1e-9) & (sols <= arm.upper + 1e-9), axis=1)
+            sols, branch = sols[inside], branch[inside]
         if len(sols) == 0:
             # Numeric IK: the solver for arms without a closed form, and the fallback for poses
             # the closed form misses by rounding (a fully stretched arm, say).
             res = ik_numeric(arm, T, q_prev, position_tol=min(position_tol, 1e-6),
                              orientation_tol=min(orientation_tol, 1e-6), weights=weights, rng=k)
             sols = res.q[None] if res.success else sols
+            branch = np.full(len(sols), -1)
         if len(sols) == 0:
             stop = ('unreachable', k, None, q_prev, None)
             break
@@ -217,7 +294,8 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
             break
         Q[k] = q
         out['step'][k] = steps[j]
-        q_prev = q
+        # The table walk may resume from a regular waypoint's batch branch.
+        state = int(branch[j]) if walk and branch[j] >= 0 and not all_used[k] else None
     # Singularity check on the rows solved so far (all at once): fail where the condition
     # number is above max_condition and rising, unless an earlier waypoint failed.
     k_end = m if stop is None else stop[1]
