@@ -4,9 +4,10 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from mover6_control.arm import from_dh, minibot, mover6
 from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.ik import ik_closed_form
+from mover6_control.ik import ik_closed_form, nearest_alias, solve_candidates, wrist_geometry
 from mover6_control.kinematics import condition_number, fk, fk_batch
-from mover6_control.path_ik import holds_pose, PathSolution, REASONS, solve_path
+from mover6_control.path_ik import (branch_steps, holds_pose, PathSolution, REASONS,
+                                    single_turn, solve_path)
 from mover6_control.rotations import pose_error, pose_from_xyzabc
 import numpy as np
 import pytest
@@ -203,3 +204,71 @@ def test_bad_input_raises(kwargs, match):
     poses, q_start = args.pop('poses'), args.pop('q_start')
     with pytest.raises(InvalidInputError, match=match):
         solve_path(arm, poses, q_start, **args)
+
+
+def test_single_turn_arms():
+    assert single_turn(mover6()) and single_turn(mover6('hardware'))
+    assert not single_turn(minibot())          # +-pi: a full turn of range
+    with pytest.raises(InvalidInputError, match='full turn'):
+        branch_steps(minibot(), np.zeros((2, 8, 6)), np.ones((2, 8), dtype=bool))
+    with pytest.raises(InvalidInputError, match='mask'):
+        branch_steps(mover6(), np.zeros((2, 8, 6)), np.ones((3, 8), dtype=bool))
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2 ** 31), st.sampled_from(['seed', 'hardware']))
+def test_branch_steps_match_aliasing_branch_by_branch(seed, limit_set):
+    # The batched table against nearest_alias on each pair of branches, as the per-waypoint
+    # rule does it; values in the 1e-9 rad slack outside a limit included.
+    arm = mover6(limit_set)
+    rng = np.random.default_rng(seed)
+    Q = rng.uniform(arm.lower, arm.upper, (5, 8, 6))
+    edge = rng.random(Q.shape) < 0.15
+    Q[edge] = np.where(rng.random(Q.shape) < 0.5, arm.lower - 5e-10, arm.upper + 5e-10)[edge]
+    valid = rng.random((5, 8)) < 0.7
+    steps = branch_steps(arm, Q, valid)
+    assert steps.shape == (4, 8, 8)
+    for k in range(4):
+        for a in range(8):
+            for c in range(8):
+                q = nearest_alias(arm, Q[k + 1, c], Q[k, a])
+                inside = np.all((q >= arm.lower - 1e-9) & (q <= arm.upper + 1e-9))
+                want = np.abs(q - Q[k, a]).max() if valid[k + 1, c] and inside else np.inf
+                assert steps[k, a, c] == pytest.approx(want, abs=1e-12)
+
+
+def _walk_reference(arm, poses, q_start):
+    """Choose each waypoint's branch one pose at a time, nearest the previous choice."""
+    geo = wrist_geometry(arm)
+    q_prev, out = q_start, []
+    for T in poses:
+        cand, ok = solve_candidates(arm, geo, T[None], q_prev[None])
+        sols = nearest_alias(arm, cand[0][ok[0]], q_prev)
+        sols = sols[np.all((sols >= arm.lower - 1e-9) & (sols <= arm.upper + 1e-9), axis=1)]
+        q_prev = sols[np.argmin(np.abs(sols - q_prev).max(axis=1))]
+        out.append(q_prev)
+    return np.array(out)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2 ** 31))
+def test_table_walk_chooses_as_waypoint_by_waypoint(seed):
+    # Random pose paths with turns in orientation (branches come close), from a random start:
+    # the batched walk picks what the per-waypoint rule picks.
+    arm = mover6('hardware')
+    rng = np.random.default_rng(seed)
+    q_start = rng.uniform(arm.lower * 0.9, arm.upper * 0.9)
+    knots = q_start + np.cumsum(rng.uniform(-0.3, 0.3, (4, 6)), axis=0)
+    knots = np.clip(knots, arm.lower, arm.upper)
+    s = np.linspace(0.0, 1.0, 20)[:, None]
+    joint_path = np.concatenate([q_start + s * (knots[0] - q_start)]
+                                + [a + s[1:] * (b - a) for a, b in zip(knots, knots[1:])])
+    poses = fk_batch(arm, joint_path)
+    try:
+        sol = solve_path(arm, poses, q_start, max_joint_step=0.5)
+    except UnreachableError:
+        assume(False)
+    assume(not sol.self_motion.any())
+    np.testing.assert_allclose(sol.q, _walk_reference(arm, poses, q_start), atol=1e-12)
+    np.testing.assert_allclose(sol.joint_step[1:],
+                               np.abs(np.diff(sol.q, axis=0)).max(axis=1), atol=1e-12)
