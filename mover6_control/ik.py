@@ -56,7 +56,7 @@ def _cross(a, b):
     """Return the cross product of (..., 3) arrays (np.cross is slow on small inputs)."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out = np.empty(np.broadcast(a, b).shape)
     out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
     out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
     out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
@@ -334,18 +334,22 @@ def solve_candidates(arm, geo, T, q_ref, within_limits=True, tol=VERIFY_TOL,
     ``return_ref_used`` a third array (m,) marks the singular poses whose q1 or q4 came from
     ``q_ref``.
     """
-    m = len(T)
     Q, ok, used_ref = _candidates(geo, T, q_ref)
     Q = nearest_alias(arm, Q, q_ref[:, None, :], within_limits)
-    # FK check on squared figures (no roots): |dp|^2 < tol^2 and the rotation chord
-    # |R - R_goal|_F^2 = 8 sin^2(angle / 2) < 8 sin^2(tol / 2).
-    diff = fk_batch(arm, Q.reshape(-1, 6))[:, :3].reshape(m, N_BRANCHES, 3, 4) - T[:, None, :3]
-    sq = diff * diff
-    ok = (ok & (sq[..., 3].sum(-1) < tol ** 2)
-          & (sq[..., :3].sum((-2, -1)) < 8.0 * np.sin(tol / 2.0) ** 2))
     if within_limits:
-        inside = np.all((Q >= arm.lower - 1e-9) & (Q <= arm.upper + 1e-9), axis=-1)
-        ok = ok & inside
+        ok = ok & np.all((Q >= arm.lower - 1e-9) & (Q <= arm.upper + 1e-9), axis=-1)
+    else:
+        ok = np.array(ok)          # writable and contiguous: the FK check fills it in place
+    # FK check of the candidates still in question (often half of them or fewer), on squared
+    # figures (no roots): |dp|^2 < tol^2 and the rotation chord
+    # |R - R_goal|_F^2 = 8 sin^2(angle / 2) < 8 sin^2(tol / 2).
+    flat = np.flatnonzero(ok)
+    if len(flat):
+        diff = (fk_batch(arm, Q.reshape(-1, 6)[flat])[:, :3]
+                - T[flat // N_BRANCHES, :3])
+        sq = diff * diff
+        ok.reshape(-1)[flat] = ((sq[..., 3].sum(-1) < tol ** 2)
+                                & (sq[..., :3].sum((-2, -1)) < 8.0 * np.sin(tol / 2.0) ** 2))
     return (Q, ok, used_ref) if return_ref_used else (Q, ok)
 
 
