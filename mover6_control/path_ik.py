@@ -240,11 +240,13 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
             # A branch is taken from the table when it is a regular waypoint's and the step
             # is allowed; anything else (singular pose, no branch, a jump) goes the long way.
             usable = ((nearest_step <= max_joint_step)
-                      & ~all_used[1:, None] & ~all_used[:-1, None]).tolist()
-            nearest = nearest.tolist()
+                      & ~all_used[1:, None] & ~all_used[:-1, None])
+            # One flat list of small ints (-1: go the long way): no per-row Python objects.
+            b = all_cand.shape[1]
+            walk_to = np.where(usable, nearest, -1).ravel().tolist()
     for k in range(m):
-        if state is not None and usable[k - 1][state]:
-            j = nearest[k - 1][state]
+        if state is not None and walk_to[(k - 1) * b + state] >= 0:
+            j = walk_to[(k - 1) * b + state]
             Q[k] = all_cand[k, j]
             out['step'][k] = nearest_step[k - 1, state]
             state = j
