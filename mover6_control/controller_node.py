@@ -21,9 +21,14 @@ controller mid-motion). A plan that the controller moved on from meanwhile is ma
 still without the lock. The status value ``max_tick_gap`` [s]
 is the longest time between two ticks since the node started (node clock; nominal ``1 / rate``)
 and a tick later than ``TICK_GAP_WARN`` logs a warning: a stalled tick thread shows here, and
-not only as a stale command at the driver.
+not only as a stale command at the driver. To see what held it up, set the environment
+variable ``MOVER6_TICK_WATCHDOG`` to a time [s]: a tick later than that dumps the stack of
+every thread to stderr (``faulthandler``, which needs no interpreter lock to do so; wall
+time: a paused sim clock trips it too).
 """
 
+import faulthandler
+import os
 import queue
 import signal
 import sys
@@ -53,6 +58,7 @@ TICK_GAP_WARN = 0.05
 # Plans of one demand made without the lock before the last is committed as it is (re-planned
 # under the lock when the controller moved on yet again: only when motions end that often).
 DEMAND_ATTEMPTS = 3
+WATCHDOG_ENV = 'MOVER6_TICK_WATCHDOG'
 STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 DOUBLE = ParameterType.PARAMETER_DOUBLE
 DOUBLES = ParameterType.PARAMETER_DOUBLE_ARRAY
@@ -123,7 +129,8 @@ class ControllerNode(Node):
         self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
         self.create_service(Trigger, '~/stop', self.on_stop)
         self.create_service(Trigger, '~/reset', self.on_reset)
-        self.lock = threading.RLock()
+        self.lock = threading.RLock()        # the core's state
+        self.status_lock = threading.Lock()  # one status publication at a time (before lock)
         self.last_tick = None            # node clock [ns] of the latest tick
         self.max_tick_gap = 0.0          # [s] longest time between two ticks so far
         self.running = True
@@ -216,7 +223,10 @@ class ControllerNode(Node):
         clock = self.get_clock()
         step = Duration(seconds=period)
         deadline = clock.now()
+        watchdog = float(os.environ.get(WATCHDOG_ENV) or 0.0)
         while self.running and self.context.ok():
+            if watchdog > 0.0:
+                faulthandler.dump_traceback_later(watchdog + period)   # re-armed each tick
             deadline = deadline + step
             if not clock.sleep_until(deadline, self.context):
                 deadline = clock.now()          # clock switched (sim time) or shutting down
@@ -227,6 +237,8 @@ class ControllerNode(Node):
                 deadline = now                  # fell behind by a whole period: no burst
             if self.running:
                 self.on_tick()
+        if watchdog > 0.0:
+            faulthandler.cancel_dump_traceback_later()
 
     def destroy_node(self):
         """Stop the tick thread, send a last zero command, then destroy the node."""
@@ -254,11 +266,15 @@ class ControllerNode(Node):
                 throttle_duration_sec=1.0)
         with self.lock:
             out = self.core.tick(now)
-            self.jog_pub.publish(
-                conversions.make_joint_jog(self.joint_names, out.jog, time_now.to_msg()))
-            if (out.status_changed or self.last_status is None
-                    or now - self.last_status >= self.status_period or now < self.last_status):
-                self.publish_status(now)
+            status_due = (out.status_changed or self.last_status is None
+                          or now - self.last_status >= self.status_period
+                          or now < self.last_status)
+        # Published without the lock: a DDS write can block (seen for 0.33 s right after start-up
+        # while the sim bridge was being matched), and the callbacks must not wait for it.
+        self.jog_pub.publish(
+            conversions.make_joint_jog(self.joint_names, out.jog, time_now.to_msg()))
+        if status_due:
+            self.publish_status(now)
 
     def note_tick(self, stamp_ns):
         """Record a tick at ``stamp_ns`` [ns] of the node clock; return the gap [s] (0 first)."""
@@ -275,15 +291,21 @@ class ControllerNode(Node):
             self.joint_names, [0.0] * len(self.joint_names), self.get_clock().now().to_msg()))
 
     def publish_status(self, now, extra=None, level=None, message=None):
-        """Publish the core's status on /controller/status (plus ``extra`` values)."""
-        with self.lock:
-            status = self.core.status()
+        """
+        Publish the core's status on /controller/status (plus ``extra`` values).
+
+        Never call it holding ``lock``: ``status_lock`` comes first, so that statuses go out in
+        the order they were read, and the core's lock is not held while publishing.
+        """
+        with self.status_lock:
+            with self.lock:
+                status = self.core.status()
+                self.last_status = now
             values = dict(status.values)
             values['max_tick_gap'] = f'{self.max_tick_gap:.4f}'
             values.update(extra or {})
             self.status_pub.publish(conversions.make_status(
                 'controller', level or status.level, message or status.message, values))
-            self.last_status = now
 
 
 def _interrupt(signum, frame):

@@ -219,6 +219,31 @@ def test_ticks_follow_sim_time():
         rclpy.try_shutdown(context=context)
 
 
+def test_a_blocked_publish_holds_up_neither_states_nor_status(ros):
+    """A JointJog write that blocks (DDS, seen for 0.33 s at start-up) stalls only the tick."""
+    controller, arm, spin_until = ros
+    seen = len(arm.statuses)                   # fresh status: other tests may have paused us
+    spin_until(lambda: len(arm.statuses) > seen + 1 and arm.status().get('state') == 'idle')
+    publish, blocked = controller.jog_pub.publish, []
+
+    def blocking_publish(msg):
+        if not blocked:
+            blocked.append(time.monotonic())
+            time.sleep(0.4)                        # longer than state_timeout (0.25 s)
+        publish(msg)
+
+    seen = len(arm.statuses)
+    controller.jog_pub.publish = blocking_publish
+    try:
+        spin_until(lambda: blocked and time.monotonic() - blocked[0] > 1.0)
+    finally:
+        del controller.jog_pub.publish
+    # The states that came meanwhile were taken, so the late tick found them fresh: no fault.
+    states = [conversions.status_values(s)['state'] for s in arm.statuses[seen:]]
+    assert 'fault' not in states and states[-1] == 'idle', [s.message for s in arm.statuses[seen:]]
+    assert float(arm.status()['max_tick_gap']) >= 0.4
+
+
 def test_destroying_the_node_sends_a_zero_command(ros):
     """Last test of the module: the node goes away mid-motion and leaves a zero command."""
     controller, arm, spin_until = ros
