@@ -13,18 +13,20 @@ cycle would leave standing, and widen the goal tolerance to one tick.
 
 The tick runs in its own thread that sleeps on the node's clock (``Clock.sleep_until``, so sim
 time works): that costs less CPU and jitter than an executor timer; the executor thread serves
-the callbacks, and a lock keeps the core consistent between the two. Demands are planned in a
-third thread, in the order they came, without the lock: the continuous law plans a long path
-for tens of milliseconds, hundreds on a loaded machine, and neither the ticks nor the
-/joint_states callback may wait that long (states unread for ``state_timeout`` fault the
-controller mid-motion). A plan that the controller moved on from meanwhile is made again,
-still without the lock. The status value ``max_tick_gap`` [s]
-is the longest time between two ticks since the node started (node clock; nominal ``1 / rate``)
-and a tick later than ``TICK_GAP_WARN`` logs a warning: a stalled tick thread shows here, and
-not only as a stale command at the driver. To see what held it up, set the environment
-variable ``MOVER6_TICK_WATCHDOG`` to a time [s]: a tick later than that dumps the stack of
-every thread to stderr (``faulthandler``, which needs no interpreter lock to do so; wall
-time: a paused sim clock trips it too).
+the callbacks, and a lock keeps the core consistent between the two. Nothing slow happens under
+that lock. Demands are planned in a third thread, in the order they came: the continuous law
+plans a long path for tens of milliseconds, hundreds on a loaded machine, and neither the ticks
+nor the /joint_states callback may wait that long (states unread for ``state_timeout`` fault the
+controller); a plan that the controller moved on from meanwhile is made again, also outside the
+lock. JointJog and status are published outside it too: a DDS write can block (0.33 s was seen
+right after start-up).
+
+The status value ``max_tick_gap`` [s] is the longest time between two ticks since the node
+started (node clock; nominal ``1 / rate``), and a tick later than ``TICK_GAP_WARN`` logs a
+warning, so a stalled tick thread shows in the controller and not only as a stale command at the
+driver. To see what held it up, set the environment variable ``MOVER6_TICK_WATCHDOG`` to a time
+[s]: a tick later than that dumps the stack of every thread to stderr (``faulthandler``, which
+needs no interpreter lock for it; wall time, so a paused sim clock trips it too).
 """
 
 import faulthandler
