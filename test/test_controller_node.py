@@ -168,7 +168,7 @@ def test_stale_and_incomplete_states_fault_then_recover(ros):
 def test_ticks_follow_sim_time():
     """With use_sim_time the ticks run on /clock: stamps in sim time, none while it stands."""
     context = rclpy.Context()
-    rclpy.init(context=context, domain_id=32)
+    rclpy.init(context=context)     # the run's own domain (conftest.py): /clock is global
     controller = ControllerNode(context=context, namespace=NS + '_sim', parameter_overrides=[
         Parameter('use_sim_time', value=True), Parameter('rate', value=100.0)])
     clock_node = Node('fake_clock', context=context, namespace=NS + '_sim')
