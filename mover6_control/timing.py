@@ -559,8 +559,32 @@ def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=
     t_grid = np.concatenate([[0.0], np.cumsum(dt)])
     timing = GridTiming(s_grid, sd, u, t_grid)
     if j_max is None:
-        return PathTrajectory(path, timing)
+        traj = PathTrajectory(path, timing)
+        if qd_start is not None and np.any(np.asarray(qd_start) != 0.0):
+            return traj      # scaling time would change the start velocity it must match
+        return _within_limits(path, timing, traj, v / (1.0 - _LIMIT_MARGIN),
+                              a / (1.0 - _LIMIT_MARGIN))
     return _jerk_limited(path, timing, v, a, _positive(j_max, n, 'j_max') * (1.0 - _LIMIT_MARGIN))
+
+
+def _within_limits(path, timing, traj, v, a, samples=6):
+    """
+    Return ``traj``, slowed down uniformly if it exceeds ``v`` or ``a`` (n,) between grid points.
+
+    The speed caps hold at the grid points; on a corner arc the tangent turns inside an
+    interval and a joint's rate can pass its cap there by a fraction of the 0.1 % margin, or
+    (rarely, on a reversal) by more. Each interval is sampled at ``samples`` interior points;
+    a violation of the true limits scales the whole timing (rates by 1 / factor, accelerations
+    by 1 / factor^2), which keeps the path and the rest-to-rest ends.
+    """
+    t_grid = timing.t_grid
+    frac = np.arange(1, samples + 1) / (samples + 1.0)
+    t = np.concatenate([t_grid, (t_grid[:-1, None] + np.diff(t_grid)[:, None] * frac).ravel()])
+    _, qd, qdd, _ = traj._evaluate(np.sort(t))
+    factor = max(1.0, float(np.max(np.abs(qd) / v)), float(np.sqrt(np.max(np.abs(qdd) / a))))
+    if factor <= 1.0:
+        return traj
+    return PathTrajectory(path, ScaledTiming(timing, factor * (1.0 + 1e-4)))
 
 
 def _jerk_limited(path, timing, v, a, j):
