@@ -13,3 +13,12 @@ os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(1, 100)))
 os.environ.setdefault('MPLBACKEND', 'Agg')
 os.environ.setdefault('PYTHONDONTWRITEBYTECODE', '1')
+
+
+# Property tests: random examples for developers; in CI the same examples every run, so a
+# failure there is reproducible (hypothesis prints the blob to reproduce it).
+from hypothesis import settings  # noqa: E402
+
+settings.register_profile('ci', derandomize=True, print_blob=True)
+if os.environ.get('CI'):
+    settings.load_profile('ci')
