@@ -279,28 +279,20 @@ class ControllerCore:
         plan = plan_motion(self.config.law, q_start, Q, self._vlim, qd_start)
         return PendingDemand(now, Q, plan, moving, self._motion_id)
 
-    def commit_demand(self, pending, now=None):
+    def commit_demand(self, pending):
         """
-        Start a prepared demand; return the motion id.
+        Start a prepared demand (time counts from when it was prepared); return the motion id.
 
-        A demand that replaces a running motion counts its time from when it was prepared (it
-        left from the reference of that moment, which went on meanwhile). Given ``now`` [s],
-        one that starts from rest counts from ``now``, so the time spent planning does not make
-        the reference start ahead of the arm. When the controller moved on meanwhile (the motion
-        ended, another started) the demand is planned again from the present state (and counts
-        from ``now``); raises when it cannot take a demand any more.
+        When the controller moved on meanwhile (the motion ended, another started) the demand is
+        planned again from the present state; raises when it cannot take a demand any more.
         """
         self._check_accepts()
-        plan, t_plan = pending.plan, pending.now
-        moving = pending.moving
+        plan = pending.plan
         if not self.is_current(pending):
             moving = self._state != sm.IDLE and self._ref is not None
             q_start, qd_start = self._ref if moving else (self._q, None)
             plan = plan_motion(self.config.law, q_start, pending.waypoints, self._vlim, qd_start)
-            t_plan = pending.now if now is None else now
-        elif now is not None and not moving:
-            t_plan = now
-        self._plan, self._t_plan = plan, t_plan
+        self._plan, self._t_plan = plan, pending.now
         self._motion_id += 1
         self._waypoints_total, self._waypoint = len(pending.waypoints), 0
         self._result = {}

@@ -195,7 +195,7 @@ class ControllerNode(Node):
                 pending = self.core.prepare_demand(now, Q)
                 with self.lock:
                     if attempt + 1 == DEMAND_ATTEMPTS or self.core.is_current(pending):
-                        motion_id = self.core.commit_demand(pending, self.now())
+                        motion_id = self.core.commit_demand(pending)
                         break
                 now = self.now()
         except Mover6Error as err:

@@ -332,27 +332,6 @@ def test_prepared_demand_replans_when_the_motion_ended_meanwhile():
     np.testing.assert_allclose(core.plan.sample(0.0)[1], 0.0)
 
 
-def test_demand_from_rest_starts_when_committed():
-    """Planning time does not put the reference ahead of an arm at rest (given the time)."""
-    core, sim = make('trapezoidal')
-    sim.tick()
-    pending = core.prepare_demand(sim.t, [GOAL])
-    for _ in range(30):                          # 0.3 s of planning; still at rest
-        sim.tick()
-    core.commit_demand(pending, sim.t)
-    out = sim.tick()
-    assert np.max(np.abs(out.qd)) < 0.05         # ramping up from zero, not 0.3 s into the ramp
-    sim.run_until(lambda o: o.state == sm.IDLE)
-    np.testing.assert_allclose(sim.q, GOAL, atol=0.002)
-    late, sim2 = make('trapezoidal')
-    sim2.tick()
-    pending = late.prepare_demand(sim2.t, [GOAL])
-    for _ in range(30):
-        sim2.tick()
-    late.commit_demand(pending)                  # no time given: counts from prepare time
-    assert np.max(np.abs(sim2.tick().qd)) > np.max(np.abs(out.qd))
-
-
 def test_prepared_demand_is_stale_once_another_motion_started():
     core, sim = make('trapezoidal')
     sim.tick()
