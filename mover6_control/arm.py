@@ -211,6 +211,15 @@ MOVER6_HARDWARE_LIMITS_DEG = {
 }
 LIMIT_SETS = ('seed', 'hardware')
 
+# The vendor driver (cpr_robot, CPRMover6.cpp) moves whole encoder ticks once per cycle. One tick
+# of each joint [rad] is 2 pi / (gear ratio * ticks per motor turn); the cycle is 50 ms (20 Hz).
+# The controller's fraction_of_max mode and the simulator's vendor_driver mode both use these.
+MOVER6_GEAR_RATIOS = (528.2, 528.2, 528.2, 499.1, 1.0, 1.0)
+MOVER6_TICKS_PER_MOTOR_TURN = (1440, 1440, 1440, 1440, 1024, 1024)
+MOVER6_TICK_SIZE = tuple(2.0 * np.pi / (gear * ticks) for gear, ticks in
+                         zip(MOVER6_GEAR_RATIOS, MOVER6_TICKS_PER_MOTOR_TURN))
+MOVER6_DRIVER_CYCLE = 0.05
+
 
 def mover6(limit_set='seed', urdf_path=None):
     """

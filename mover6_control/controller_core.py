@@ -42,11 +42,11 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from mover6_control import state_machine as sm
+from mover6_control.arm import MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 from mover6_control.errors import InvalidInputError
 from mover6_control.velocity_laws import (closed_loop_command, dead_zone_command,
                                           driver_velocity_limits, guard_position_limits,
-                                          JOG_UNITS, LawConfig, min_jog_speed,
-                                          MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE, plan_motion,
+                                          JOG_UNITS, LawConfig, min_jog_speed, plan_motion,
                                           plan_stop, to_jog_units)
 import numpy as np
 

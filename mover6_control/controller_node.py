@@ -39,11 +39,10 @@ import threading
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control import conversions
-from mover6_control.arm import LIMIT_SETS, mover6
+from mover6_control.arm import LIMIT_SETS, mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 from mover6_control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.errors import InvalidInputError, Mover6Error
-from mover6_control.velocity_laws import (JOG_UNITS, LawConfig, MOVER6_DRIVER_CYCLE,
-                                          MOVER6_TICK_SIZE, PROFILES)
+from mover6_control.velocity_laws import JOG_UNITS, LawConfig, PROFILES
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 import rclpy
 from rclpy.duration import Duration

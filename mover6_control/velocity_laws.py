@@ -270,12 +270,8 @@ def driver_velocity_limits(velocity_limits, units='rad_per_s', speed_override=0.
 
 # --- drivers that move whole encoder ticks per cycle (fraction_of_max) ----------------------
 
-# One encoder tick of each Mover6 joint [rad]: 2 pi / (gear ratio * ticks per motor turn), with
-# the vendor driver's (cpr_robot, CPRMover6.cpp) gear ratios 528.2, 528.2, 528.2, 499.1, 1, 1
-# and 1440, 1440, 1440, 1440, 1024, 1024 ticks per motor turn; and the driver's cycle [s] (20 Hz).
-MOVER6_TICK_SIZE = tuple(2.0 * np.pi / (gear * ticks) for gear, ticks in zip(
-    (528.2, 528.2, 528.2, 499.1, 1.0, 1.0), (1440, 1440, 1440, 1440, 1024, 1024)))
-MOVER6_DRIVER_CYCLE = 0.05
+# The Mover6's tick sizes and driver cycle are arm facts: mover6_control.arm.MOVER6_TICK_SIZE
+# and MOVER6_DRIVER_CYCLE.
 # The smallest command is this much above one tick per cycle, so that rounding in the driver
 # cannot lose the tick (and below two ticks per cycle, so it cannot add one).
 TICK_MARGIN = 1.05

@@ -34,6 +34,7 @@ threshold design.md reports (0.352 deg / 0.05 s = 7.0 deg/s).
 from dataclasses import dataclass, field
 import math
 
+from mover6_control.arm import MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 from mover6_control.errors import InvalidInputError
 import mujoco
 import numpy as np
@@ -42,10 +43,6 @@ from sim_bridge.model import (build_model, joint_dof_addresses, joint_qpos_addre
 
 MODES = ('rad_per_s', 'vendor_driver')
 
-MOVER6_GEAR_RATIOS = (528.2, 528.2, 528.2, 499.1, 1.0, 1.0)
-MOVER6_TICKS_PER_MOTOR_TURN = (1440, 1440, 1440, 1440, 1024, 1024)
-MOVER6_TICK_SIZE = tuple(2.0 * math.pi / (g * t) for g, t in
-                         zip(MOVER6_GEAR_RATIOS, MOVER6_TICKS_PER_MOTOR_TURN))
 
 _EPS = 1e-9
 _LIMIT_APPROACH = 5.0    # physics steps over which a joint may close its gap to a limit
@@ -58,7 +55,7 @@ class SimConfig:
     mode: str = 'rad_per_s'
     command_timeout: float = 0.2                # [s], 'rad_per_s' only
     speed_override: float = 0.25                # 'vendor_driver' only, in (0, 1]
-    vendor_cycle: float = 0.05                  # [s], 'vendor_driver' only
+    vendor_cycle: float = MOVER6_DRIVER_CYCLE   # [s], 'vendor_driver' only
     tick_size: tuple = MOVER6_TICK_SIZE         # (n,) [rad], 'vendor_driver' only
     tracking_gain: float = 50.0                 # [1/s] vendor target tracking
     model: ModelOptions = field(default_factory=ModelOptions)

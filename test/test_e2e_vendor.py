@@ -7,13 +7,12 @@ fraction_of_max. Goals go in as a user sends them; arrival is judged from /joint
 """
 
 from control_msgs.msg import JointJog
-from mover6_control.arm import mover6
+from mover6_control.arm import mover6, MOVER6_TICK_SIZE
 from mover6_control.conversions import status_values
 from mover6_control.goal_cli import GoalClient
 from mover6_control.kinematics import fk
 from mover6_control.ros_testing import Stack
 from mover6_control.rotations import pose_from_xyzabc
-from mover6_control.velocity_laws import MOVER6_TICK_SIZE
 import numpy as np
 import pytest
 import rclpy

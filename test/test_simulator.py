@@ -3,15 +3,14 @@
 import math
 
 from hypothesis import given, settings, strategies as st
-from mover6_control.arm import mover6
+from mover6_control.arm import mover6, MOVER6_TICK_SIZE
 from mover6_control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.errors import InvalidInputError
 import mujoco
 import numpy as np
 import pytest
 from sim_bridge.model import ModelOptions
-from sim_bridge.simulator import (MOVER6_TICK_SIZE, SimConfig, Simulator, steps_due,
-                                  wall_time_of)
+from sim_bridge.simulator import SimConfig, Simulator, steps_due, wall_time_of
 
 ARM = mover6('hardware')
 NAMES = ARM.joint_names

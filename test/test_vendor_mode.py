@@ -9,14 +9,13 @@ wrist moves never arrive.
 
 from hypothesis import given, settings
 import hypothesis.strategies as st
-from mover6_control.arm import mover6
+from mover6_control.arm import mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 from mover6_control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.errors import InvalidInputError
 from mover6_control.velocity_laws import (dead_zone_command, LawConfig, min_jog_speed,
-                                          MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE, TICK_MARGIN)
+                                          TICK_MARGIN)
 import numpy as np
 import pytest
-from sim_bridge import simulator
 from sim_bridge.simulator import SimConfig, Simulator
 
 ARM = mover6()
@@ -104,8 +103,11 @@ def assert_arrives_and_holds(loop, goal):
 # --- the pure helpers ----------------------------------------------------------------------
 
 def test_tick_sizes_match_the_simulated_driver():
-    np.testing.assert_allclose(MOVER6_TICK_SIZE, simulator.MOVER6_TICK_SIZE, rtol=1e-15)
+    np.testing.assert_allclose(MOVER6_TICK_SIZE, SimConfig().tick_size, rtol=1e-15)
     assert MOVER6_DRIVER_CYCLE == SimConfig().vendor_cycle
+    # design.md: J5/J6 do not move under about 7 deg/s (one tick per 50 ms cycle).
+    np.testing.assert_allclose(np.degrees(MOVER6_TICK_SIZE[4:]) / MOVER6_DRIVER_CYCLE, 7.03,
+                               atol=0.01)
 
 
 def test_min_jog_speed_is_one_tick_per_cycle_with_margin():
