@@ -211,7 +211,7 @@ case "$cmd" in
     demo)
         ensure
         pick_domain_id
-        exec python -m mover6_control.demo_cli "$@"
+        exec python -m mover6_control.tools.demo "$@"
         ;;
     launch)
         ensure
@@ -219,7 +219,7 @@ case "$cmd" in
         ;;
     goal)
         ensure
-        exec python -m mover6_control.goal_cli "$@"
+        exec python -m mover6_control.tools.goal_cli "$@"
         ;;
     bench)
         ensure

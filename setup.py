@@ -26,10 +26,10 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'planner = mover6_control.planner_node:main',
-            'controller = mover6_control.controller_node:main',
+            'planner = mover6_control.nodes.planner_node:main',
+            'controller = mover6_control.nodes.controller_node:main',
             'sim_bridge = sim_bridge.bridge_node:main',
-            'goal = mover6_control.goal_cli:main',
+            'goal = mover6_control.tools.goal_cli:main',
         ],
     },
 )

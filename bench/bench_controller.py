@@ -24,9 +24,9 @@ import sys
 import tempfile
 import time
 
-from mover6_control.arm import mover6
-from mover6_control.controller_core import ControllerConfig, ControllerCore
-from mover6_control.velocity_laws import LawConfig, PROFILES
+from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.velocity_laws import LawConfig, PROFILES
+from mover6_control.kinematics.arm import mover6
 import numpy as np
 
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
@@ -107,7 +107,7 @@ class SourceNode:
 def bench_node(rate, seconds, log_dir):
     """Start the controller node at ``rate`` [Hz]; return jitter and CPU figures."""
     from control_msgs.msg import JointJog
-    from mover6_control import conversions
+    from mover6_control.nodes import conversions
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
@@ -182,8 +182,7 @@ def bench_node(rate, seconds, log_dir):
 
 def probe_main(argv):
     """Run the controller node, saving the monotonic time of every tick to ``argv[0]`` (.npy)."""
-    from mover6_control import controller_node
-
+    from mover6_control.nodes import controller_node
     times = []
     on_tick = controller_node.ControllerNode.on_tick
 

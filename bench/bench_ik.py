@@ -6,7 +6,8 @@ Run: ``python -m bench.bench_ik [--quick]``. Prints a table and writes
 ``OPENBLAS_NUM_THREADS=1`` (and the OpenMP / MKL equivalents) when they are not set.
 
 Poses: FK of configurations drawn uniformly inside the joint limits (10,000; 2,000 with
-``--quick``), for the Mover6 (seed limits, [-1.571, 1.571] rad) and the miniBOT (seed 004).
+``--quick``), for the Mover6 (seed limits, [-1.571, 1.571] rad) and the miniBOT (the miniBOT
+report).
 
 Times are wall clock and CPU time of this process (``time.process_time``): on a shared machine
 the CPU figure is the fairer one; the load average is printed. Each timing is the least of
@@ -35,10 +36,11 @@ import subprocess
 import sys
 import time
 
-from mover6_control.arm import minibot, mover6
-from mover6_control.ik import ik_closed_form, ik_closed_form_batch, pose_errors_batch
-from mover6_control.ik_numeric import DEFAULT_WEIGHTS, ik_numeric
-from mover6_control.kinematics import fk, fk_batch
+from mover6_control.kinematics.arm import minibot, mover6
+from mover6_control.kinematics.forward import fk, fk_batch
+from mover6_control.kinematics.ik_closed_form import (ik_closed_form, ik_closed_form_batch,
+                                                      pose_errors_batch)
+from mover6_control.kinematics.ik_numeric import DEFAULT_WEIGHTS, ik_numeric
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation

@@ -1,22 +1,22 @@
 """
-Benchmark of the motion library: speed of building and sampling, and seed 000's linear move.
+Benchmark of the motion library: build and sample speed, and the Mover6 report's linear move.
 
 Run: ``python -m bench.bench_motion [--quick]``. Prints tables and writes
 ``bench/results/motion.json``.
 
 1. Speed: build a trajectory through 100 joint waypoints and sample it at 1 kHz, for each kind
-   (continuous TOPP timing, cubic, quintic, B-spline, multi-point trapezoid, seed 000's
+   (continuous TOPP timing, cubic, quintic, B-spline, multi-point trapezoid, the Mover6 report's
    stop-at-each trapezoids, ruckig point-to-point).
-2. Seed 000's linear example: X=0.445 Y=0 Z=0.4425 A=B=C=0 from home (q = 0), 20 waypoints,
-   the Mover6 hardware speed limits (design.md) and a_max = 1 rad/s^2 (the controller's
-   default). A B C are composed relative to the home orientation as the seed's MATLAB does
-   (R_goal = R_home Rzyx(A, B, C)): the tool keeps its orientation and moves 0.1 m along +x.
-   Compared: the seed's scheme (a trapezoid per waypoint, t_blend = t_max / 4, stop at each;
-   both the seed's fixed t_max = 1 s and the shortest t_max the limits allow) against
-   continuous execution, with the largest Cartesian deviation of each from the straight line
-   (FK every 1 ms) and the continuous duration against a lower bound on any trajectory.
-   Plots (PNG, next to the JSON): the time laws, the continuous joint trajectories against the
-   joint limits, the desired against the realised tool path.
+2. The Mover6 report's linear example: X=0.445 Y=0 Z=0.4425 A=B=C=0 from home (q = 0), 20
+   waypoints, the Mover6 hardware speed limits (design.md) and a_max = 1 rad/s^2 (the controller's
+   default). A B C are composed relative to the home orientation as the seed's MATLAB does (R_goal
+   = R_home Rzyx(A, B, C)): the tool keeps its orientation and moves 0.1 m along +x. Compared: the
+   seed's scheme (a trapezoid per waypoint, t_blend = t_max / 4, stop at each; both the seed's
+   fixed t_max = 1 s and the shortest t_max the limits allow) against continuous execution, with
+   the largest Cartesian deviation of each from the straight line (FK every 1 ms) and the
+   continuous duration against a lower bound on any trajectory. Plots (PNG, next to the JSON): the
+   time laws, the continuous joint trajectories against the joint limits, the desired against the
+   realised tool path.
 """
 
 import argparse
@@ -24,9 +24,10 @@ import json
 import os
 import time
 
-from mover6_control import metrics, paths, plots, time_laws, timing, trajectories
-from mover6_control.arm import mover6
-from mover6_control.kinematics import fk, fk_batch
+from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.forward import fk, fk_batch
+from mover6_control.motion import metrics, paths, time_laws, timing, trajectories
+from mover6_control.tools import plots
 import numpy as np
 
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
@@ -37,12 +38,12 @@ J_MAX = 5.0     # [rad/s^3] the controller's default jerk limit
 def _solve_path(arm, poses, q_start):
     """Joint waypoints for the poses: path_ik when it exists, else closed-form IK per pose."""
     try:
-        from mover6_control.path_ik import solve_path
+        from mover6_control.kinematics.path_ik import solve_path
     except ImportError:
         solve_path = None
     if solve_path is not None:
         return np.asarray(solve_path(arm, poses, q_start).q), 'path_ik.solve_path'
-    from mover6_control.ik import ik_closed_form
+    from mover6_control.kinematics.ik_closed_form import ik_closed_form
     Q, q = [], np.asarray(q_start, dtype=float)
     for T in poses:
         sols = ik_closed_form(arm, T, q_ref=q)
@@ -110,7 +111,7 @@ def bench_speed(arm, quick):
 
 
 def bench_seed_linear(arm):
-    """Seed 000's linear example: the seed's scheme against continuous execution."""
+    """Time the Mover6 report's linear example: its stop-at-each scheme against continuous."""
     q_home = np.zeros(arm.n_joints)
     T_home = fk(arm, q_home)
     T_goal = paths.goal_relative_to_start(T_home, 0.445, 0.0, 0.4425, 0.0, 0.0, 0.0)
@@ -192,7 +193,8 @@ def main(argv=None):
               f' {r["sample_batch_us"]:16.3f} {r["sample_tick_us"]:8.1f}')
     print(f'lower bound on any trajectory through these waypoints: {bound100:.2f} s')
     seed = bench_seed_linear(arm)
-    print(f'\nseed 000 linear example (0.1 m along +x, home orientation kept), IK: {seed["ik"]}')
+    print('\nThe Mover6 report linear example (0.1 m along +x, home orientation kept),'
+          f' IK: {seed["ik"]}')
     print(f'{"scheme":38s} {"duration s":>10s} {"max dev mm":>10s} {"peak v/limit":>12s}'
           f' {"peak a":>7s}')
     for r in seed['rows']:

@@ -14,13 +14,13 @@ import tempfile
 import time
 
 from geometry_msgs.msg import PoseStamped
-from mover6_control import conversions
-from mover6_control.arm import mover6
-from mover6_control.goal_cli import GoalClient
-from mover6_control.ros_testing import NodeProcess
-from mover6_control.rotations import pose_from_xyzabc
+from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.rotations import pose_from_xyzabc
+from mover6_control.nodes import conversions
+from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import rclpy
+from ros_testing import NodeProcess
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 

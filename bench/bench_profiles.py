@@ -1,10 +1,10 @@
 """
-The controller profiles in simulation on seed 000's linear example (issue 5).
+The controller profiles in simulation on the Mover6 report's linear example (issue 5).
 
-"For seed 000's linear example in simulation, per profile: time to arrive, final joint error,
-largest Cartesian deviation from the straight line."
+"For the Mover6 report's linear example in simulation, per profile: time to arrive, final joint
+error, largest Cartesian deviation from the straight line."
 
-Seed 000's example: from home (q = 0, flange at (0.345, 0, 0.4425) m) to X = 0.445, Y = 0,
+The Mover6 report's example: from home (q = 0, flange at (0.345, 0, 0.4425) m) to X = 0.445, Y = 0,
 Z = 0.4425 [m] with A = B = C = 0 composed relative to the home orientation
 (``R_goal = R_home @ Rzyx(0, 0, 0)``: the home orientation kept), a straight line in 20
 waypoints (the planner's ``n_waypoints``). The goal is checked offline first
@@ -51,7 +51,8 @@ import numpy as np
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PROFILES = ('synchronised', 'trapezoidal', 'jerk_limited', 'continuous')
-SEED_GOAL = (0.445, 0.0, 0.4425)     # [m] seed 000's example, A = B = C = 0 relative to home
+# [m] the Mover6 report's example, A = B = C = 0 relative to home
+SEED_GOAL = (0.445, 0.0, 0.4425)
 N_WAYPOINTS = 20
 MOVED = 1e-3                          # [rad] the arm has started once a joint moved this far
 ATTEMPTS = 3                          # a run whose stack fails is started afresh
@@ -60,13 +61,13 @@ DEMAND_WAIT = 3.0                     # [s] from the planner's answer to the con
 
 def goal_variants(p_home):
     """
-    Yield (description, position (3,) [m]) for the goal: seed 000's first, then fallbacks.
+    Yield (description, position (3,) [m]) for the goal: the Mover6 report's first, then fallbacks.
 
     Fallbacks: the same straight line along +x shortened, then 0.1 m along other directions.
     """
-    yield 'seed 000 as given: +0.100 m along base x from home', np.array(SEED_GOAL)
+    yield 'the Mover6 report as given: +0.100 m along base x from home', np.array(SEED_GOAL)
     for length in (0.08, 0.06, 0.04, 0.02):
-        yield (f'fallback: seed 000 line shortened to +{length:.3f} m along base x',
+        yield (f'fallback: the Mover6 report line shortened to +{length:.3f} m along base x',
                p_home + np.array([length, 0.0, 0.0]))
     for axis, step in (('-z', (0.0, 0.0, -0.1)), ('+z', (0.0, 0.0, 0.1)),
                        ('+y', (0.0, 0.1, 0.0))):
@@ -76,10 +77,10 @@ def goal_variants(p_home):
 def choose_goal(arm):
     """Return the goal (4, 4), its description and the offline checks of every candidate."""
     from mover6_control.errors import UnreachableError
-    from mover6_control.kinematics import fk
-    from mover6_control.planning import plan_pose_goal, PlannerSettings
-    from mover6_control.reachability import check_pose
-    from mover6_control.rotations import euler_zyx_to_matrix, make_transform
+    from mover6_control.kinematics.forward import fk
+    from mover6_control.kinematics.reachability import check_pose
+    from mover6_control.kinematics.rotations import euler_zyx_to_matrix, make_transform
+    from mover6_control.planning.planner_core import plan_pose_goal, PlannerSettings
 
     q_home = np.zeros(arm.n_joints)
     T_home = fk(arm, q_home)
@@ -107,7 +108,7 @@ def choose_goal(arm):
 
 def make_client():
     """Return a GoalClient that also records /joint_states and /controller/status with times."""
-    from mover6_control.goal_cli import GoalClient
+    from mover6_control.tools.goal_cli import GoalClient
 
     class RecordingClient(GoalClient):
         """GoalClient keeping (monotonic time, q) and (monotonic time, status values)."""
@@ -150,8 +151,8 @@ def graph_ready(client):
 def run_once(profile, T_goal, log_dir, timeout):
     """Start the stack with ``profile``, send the goal, return the figures of the run."""
     from geometry_msgs.msg import PoseStamped
-    from mover6_control import conversions
-    from mover6_control.ros_testing import Stack
+    from mover6_control.nodes import conversions
+    from ros_testing import Stack
 
     with Stack(log_dir, controller={'profile': profile}) as stack:
         client = make_client()
@@ -203,9 +204,9 @@ def run_once(profile, T_goal, log_dir, timeout):
 
 def figures(client, outcome, T_goal, q_start, t_sent, motion0, seq0):
     """Return the figures of one run from the recorded messages."""
-    from mover6_control.kinematics import fk, fk_batch
-    from mover6_control.metrics import max_deviation_from_polyline
-    from mover6_control.rotations import rotation_angle_between
+    from mover6_control.kinematics.forward import fk, fk_batch
+    from mover6_control.kinematics.rotations import rotation_angle_between
+    from mover6_control.motion.metrics import max_deviation_from_polyline
 
     t_arrived = next(t for t, v in client.controller_events
                      if int(v.get('motion_id', 0)) > motion0 and v.get('result') == 'arrived')
@@ -293,8 +294,8 @@ def main(argv=None):
     reexec_in_ros_environment(argv)
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(1, 100)))
+    from mover6_control.kinematics.arm import mover6
     import rclpy
-    from mover6_control.arm import mover6
 
     runs = args.runs or (1 if args.quick else 3)
     t_start = time.monotonic()

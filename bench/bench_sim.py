@@ -28,7 +28,7 @@ os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('ROS_DOMAIN_ID', os.environ.get('BENCH_SIM_DOMAIN_ID', '31'))
 
 from control_msgs.msg import JointJog  # noqa: E402
-from mover6_control.arm import mover6  # noqa: E402
+from mover6_control.kinematics.arm import mover6  # noqa: E402
 import numpy as np  # noqa: E402
 import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402

@@ -23,9 +23,9 @@ import threading
 import time
 
 from control_msgs.msg import JointJog
-from mover6_control import conversions
-from mover6_control.arm import LIMIT_SETS, load_urdf, mover6
 from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.arm import LIMIT_SETS, load_urdf, mover6
+from mover6_control.nodes import conversions
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 import rclpy
@@ -51,8 +51,9 @@ PARAMETERS = (
      'JointJog units and driver behaviour: ' + ' | '.join(MODES)),
     ('speed_override', 0.25, ParameterType.PARAMETER_DOUBLE,
      'vendor_driver: speed = fraction * max speed * speed_override'),
-    ('limit_set', 'seed', ParameterType.PARAMETER_STRING,
-     'joint limits: seed ([-pi/2, pi/2] as seed 000) or hardware (vendor limits)'),
+    ('limit_set', 'within_90_deg', ParameterType.PARAMETER_STRING,
+     'joint limits: within_90_deg (every joint in [-pi/2, pi/2], as the Mover6 report)'
+     ' or hardware (vendor limits)'),
     ('urdf_path', '', ParameterType.PARAMETER_STRING,
      'URDF of the arm; empty = the shipped Mover6 (config/mover6.urdf) with limit_set'),
     ('initial_q', [0.0] * 6, ParameterType.PARAMETER_DOUBLE_ARRAY,

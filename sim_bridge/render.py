@@ -17,8 +17,8 @@ import argparse
 import os
 import sys
 
-from mover6_control.arm import LIMIT_SETS, mover6
 from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.arm import LIMIT_SETS, mover6
 import mujoco
 import numpy as np
 from sim_bridge.model import build_model, joint_qpos_addresses

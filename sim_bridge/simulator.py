@@ -34,12 +34,11 @@ threshold design.md reports (0.352 deg / 0.05 s = 7.0 deg/s).
 from dataclasses import dataclass, field
 import math
 
-from mover6_control.arm import MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.arm import MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 import mujoco
 import numpy as np
-from sim_bridge.model import (build_model, joint_dof_addresses, joint_qpos_addresses,
-                              ModelOptions)
+from sim_bridge.model import build_model, joint_dof_addresses, joint_qpos_addresses, ModelOptions
 
 MODES = ('rad_per_s', 'vendor_driver')
 

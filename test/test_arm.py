@@ -4,11 +4,11 @@ import os
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mover6_control.arm import (CONFIG_DIR, dh_link_transform, from_dh, load_dh_yaml, load_urdf,
-                                minibot, mover6)
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics import fk
-from mover6_control.rotations import matrix_to_euler_zyx
+from mover6_control.kinematics.arm import (CONFIG_DIR, dh_link_transform, from_dh, load_dh_yaml,
+                                           load_urdf, minibot, mover6)
+from mover6_control.kinematics.forward import fk
+from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 import numpy as np
 import pytest
 
@@ -30,8 +30,9 @@ def _dh_product(a, alpha, d, offset, q):
     return T
 
 
-def test_minibot_fk_matches_seed_004_question_1a():
-    # seed 004: FK of [0, 90, 0, 0, -90, 0] deg is (277.5, 0, 564) mm, ZYX Euler (180, 0, 0).
+def test_minibot_fk_matches_minibot_report_question_1a():
+    # the miniBOT report: FK of [0, 90, 0, 0, -90, 0] deg is (277.5, 0, 564) mm, ZYX Euler (180, 0,
+    # 0).
     T = fk(minibot(), np.radians([0.0, 90.0, 0.0, 0.0, -90.0, 0.0]))
     np.testing.assert_allclose(T[:3, 3], [0.2775, 0.0, 0.564], atol=1e-12)
     np.testing.assert_allclose(T[:3, :3], np.diag([1.0, -1.0, -1.0]), atol=1e-12)

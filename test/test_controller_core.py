@@ -4,16 +4,16 @@ import importlib.util
 
 from hypothesis import given, settings
 import hypothesis.strategies as st
-from mover6_control import state_machine as sm
-from mover6_control.arm import mover6
-from mover6_control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control import state_machine as sm
+from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError
-from mover6_control.velocity_laws import LawConfig
+from mover6_control.kinematics.arm import mover6
 import numpy as np
 import pytest
 
 DT = 0.01
-HAS_TIMING = importlib.util.find_spec('mover6_control.timing') is not None
+HAS_TIMING = importlib.util.find_spec('mover6_control.motion.timing') is not None
 PROFILES = ['synchronised', 'trapezoidal', 'jerk_limited'] + (
     ['continuous'] if HAS_TIMING else [])
 GOAL = np.array([0.4, -0.3, 0.2, 0.3, -0.2, 0.5])
@@ -252,7 +252,7 @@ def test_settle_timeout_reports_aborted():
 
 
 def test_never_commands_further_past_a_limit():
-    arm = mover6('seed')
+    arm = mover6('within_90_deg')
     core = ControllerCore(arm, ControllerConfig(law=LawConfig(profile='trapezoidal')))
     sim = Sim(core, q0=[0.0, 0.0, 0.0, 0.0, 0.0, arm.upper[5] + 0.02])
     sim.tick()

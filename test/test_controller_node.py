@@ -6,8 +6,8 @@ import time
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
-from mover6_control import conversions
-from mover6_control.controller_node import ControllerNode
+from mover6_control.nodes import conversions
+from mover6_control.nodes.controller_node import ControllerNode
 import numpy as np
 import pytest
 import rclpy

@@ -1,10 +1,11 @@
 """
 The core stays ROS-free: no rclpy, no message or service package, imported or pulled in.
 
-Nodes (and the modules that exist to talk ROS: conversions, the goal client, the demo, the test
-harness) are the only places allowed to. Checked twice: statically on every import statement,
-and dynamically by importing each core module in a fresh interpreter and looking at what got
-loaded.
+ROS lives in ``mover6_control/nodes/`` (the nodes and the one message-conversion module), in
+``mover6_control/tools/`` (the goal command line and the demo talk to the nodes) and in
+``sim_bridge/bridge_node.py``; everything else is the core. Checked twice: statically on every
+import statement, and dynamically by importing each core module in a fresh interpreter and looking
+at what got loaded.
 """
 
 import ast
@@ -16,9 +17,8 @@ import sys
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-ROS_SIDE = {'mover6_control': {'planner_node', 'controller_node', 'goal_cli', 'demo_cli',
-                               'conversions', 'ros_testing'},
-            'sim_bridge': {'bridge_node'}}
+PACKAGES = ('mover6_control', 'sim_bridge')
+ROS_SIDE = ('mover6_control.nodes', 'mover6_control.tools', 'sim_bridge.bridge_node')
 FORBIDDEN = re.compile(r'^(rclpy|rosidl\w*|rcl_interfaces|builtin_interfaces|\w+_msgs|\w+_srvs)'
                        r'(\.|$)')
 
@@ -26,11 +26,17 @@ FORBIDDEN = re.compile(r'^(rclpy|rosidl\w*|rcl_interfaces|builtin_interfaces|\w+
 def core_modules():
     """Return the dotted names of every core module."""
     out = []
-    for package, ros_side in ROS_SIDE.items():
-        for name in sorted(os.listdir(os.path.join(ROOT, package))):
-            stem, ext = os.path.splitext(name)
-            if ext == '.py' and stem not in ros_side:
-                out.append(f'{package}.{stem}' if stem != '__init__' else package)
+    for package in PACKAGES:
+        for folder, dirs, files in os.walk(os.path.join(ROOT, package)):
+            dirs[:] = sorted(d for d in dirs if not d.startswith(('.', '__')))
+            dotted = os.path.relpath(folder, ROOT).replace(os.sep, '.')
+            for name in sorted(files):
+                stem, ext = os.path.splitext(name)
+                if ext != '.py':
+                    continue
+                module = dotted if stem == '__init__' else f'{dotted}.{stem}'
+                if not any(module == r or module.startswith(r + '.') for r in ROS_SIDE):
+                    out.append(module)
     return out
 
 
@@ -50,9 +56,13 @@ def imported_names(path):
 def test_the_core_list_is_not_empty():
     """The check below covers the modules it should (guards against a wrong folder)."""
     modules = core_modules()
-    for expected in ('mover6_control.ik', 'mover6_control.controller_core',
-                     'mover6_control.planning', 'sim_bridge.simulator'):
+    for expected in ('mover6_control.kinematics.ik_closed_form',
+                     'mover6_control.control.controller_core',
+                     'mover6_control.planning.planner_core', 'sim_bridge.simulator'):
         assert expected in modules
+    for ros_side in ('mover6_control.nodes.controller_node', 'mover6_control.tools.goal_cli',
+                     'sim_bridge.bridge_node'):
+        assert ros_side not in modules
 
 
 @pytest.mark.parametrize('module', core_modules())
@@ -69,7 +79,7 @@ def test_forbidden_pattern_catches_ros_packages():
     for name in ('rclpy', 'rclpy.node', 'std_msgs.msg', 'control_msgs', 'std_srvs.srv',
                  'rcl_interfaces.msg'):
         assert FORBIDDEN.match(name), name
-    for name in ('numpy', 'scipy.spatial', 'mujoco', 'mover6_control.arm', 'ruckig'):
+    for name in ('numpy', 'scipy.spatial', 'mujoco', 'mover6_control.kinematics.arm', 'ruckig'):
         assert not FORBIDDEN.match(name), name
 
 
@@ -82,6 +92,6 @@ def test_importing_the_core_loads_no_ros():
     env = dict(os.environ, MUJOCO_GL=os.environ.get('MUJOCO_GL', 'egl'))
     out = subprocess.run([sys.executable, '-c', code], cwd=ROOT, env=env, check=True,
                          capture_output=True, text=True).stdout.split()
-    assert 'mover6_control.ik' in out
+    assert 'mover6_control.kinematics.ik_closed_form' in out
     loaded = [m for m in out if FORBIDDEN.match(m)]
     assert loaded == [], f'importing the core loaded {loaded}'

@@ -9,16 +9,16 @@ import os
 import subprocess
 import sys
 
-from mover6_control.arm import mover6
-from mover6_control.conversions import status_values
-from mover6_control.goal_cli import EXIT_REFUSED, GoalClient
-from mover6_control.kinematics import fk
+from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.forward import fk
+from mover6_control.kinematics.rotations import pose_from_xyzabc
+from mover6_control.nodes.conversions import status_values
 from mover6_control.resources import CONFIG_DIR
-from mover6_control.ros_testing import Stack
-from mover6_control.rotations import pose_from_xyzabc
+from mover6_control.tools.goal_cli import EXIT_REFUSED, GoalClient
 import numpy as np
 import pytest
 import rclpy
+from ros_testing import Stack
 
 pytestmark = pytest.mark.e2e
 
@@ -77,7 +77,7 @@ def test_unreachable_goal_is_refused_and_nothing_published(stack, client):
 
 def run_cli(*args):
     """Run the goal command line as its own process; return (exit code, output)."""
-    proc = subprocess.run([sys.executable, '-m', 'mover6_control.goal_cli', *args],
+    proc = subprocess.run([sys.executable, '-m', 'mover6_control.tools.goal_cli', *args],
                           capture_output=True, text=True, timeout=120,
                           cwd=os.path.dirname(CONFIG_DIR))
     return proc.returncode, proc.stdout + proc.stderr

@@ -10,17 +10,17 @@ Everything is judged from what really flowed over DDS: /joint_states from the Mu
 
 from control_msgs.msg import JointJog
 from geometry_msgs.msg import PoseStamped
-from mover6_control import conversions
-from mover6_control.arm import mover6
-from mover6_control.conversions import status_values
-from mover6_control.goal_cli import GoalClient
-from mover6_control.kinematics import fk, fk_batch
-from mover6_control.metrics import max_deviation_from_polyline
-from mover6_control.ros_testing import Stack
-from mover6_control.rotations import pose_from_xyzabc
+from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.forward import fk, fk_batch
+from mover6_control.kinematics.rotations import pose_from_xyzabc
+from mover6_control.motion.metrics import max_deviation_from_polyline
+from mover6_control.nodes import conversions
+from mover6_control.nodes.conversions import status_values
+from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import pytest
 import rclpy
+from ros_testing import Stack
 from sensor_msgs.msg import JointState
 
 pytestmark = pytest.mark.e2e

@@ -7,15 +7,15 @@ fraction_of_max. Goals go in as a user sends them; arrival is judged from /joint
 """
 
 from control_msgs.msg import JointJog
-from mover6_control.arm import mover6, MOVER6_TICK_SIZE
-from mover6_control.conversions import status_values
-from mover6_control.goal_cli import GoalClient
-from mover6_control.kinematics import fk
-from mover6_control.ros_testing import Stack
-from mover6_control.rotations import pose_from_xyzabc
+from mover6_control.kinematics.arm import mover6, MOVER6_TICK_SIZE
+from mover6_control.kinematics.forward import fk
+from mover6_control.kinematics.rotations import pose_from_xyzabc
+from mover6_control.nodes.conversions import status_values
+from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import pytest
 import rclpy
+from ros_testing import Stack
 
 pytestmark = pytest.mark.e2e
 

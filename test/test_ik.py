@@ -1,13 +1,14 @@
-"""Closed-form IK: every branch, verified by FK, limits, singular poses, seed 004's numbers."""
+"""Closed-form IK: every branch, verified by FK, limits, singular poses, the miniBOT numbers."""
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mover6_control.arm import from_dh, minibot, mover6
 from mover6_control.errors import InvalidInputError
-from mover6_control.ik import (has_spherical_wrist, ik_closed_form, ik_closed_form_batch,
-                               pose_errors_batch, wrist_geometry)
-from mover6_control.kinematics import fk, fk_batch
-from mover6_control.rotations import euler_zyx_to_matrix, pose_from_xyzabc
+from mover6_control.kinematics.arm import from_dh, minibot, mover6
+from mover6_control.kinematics.forward import fk, fk_batch
+from mover6_control.kinematics.ik_closed_form import (has_spherical_wrist, ik_closed_form,
+                                                      ik_closed_form_batch, pose_errors_batch,
+                                                      wrist_geometry)
+from mover6_control.kinematics.rotations import euler_zyx_to_matrix, pose_from_xyzabc
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -24,7 +25,8 @@ def puma560():
 
 ARMS = {'mover6': mover6, 'mover6_hw': lambda: mover6('hardware'), 'minibot': minibot,
         'puma560': puma560}
-# Seed 004 question 1b: the pose (mm, 4-digit rotation) and the two solutions it found [deg].
+# The miniBOT report question 1b: the pose (mm, 4-digit rotation) and the two solutions it found
+# [deg].
 SEED_004_R = np.array([[0.7551, 0.4013, 0.5184], [0.6084, -0.7235, -0.3262],
                        [0.2441, 0.5617, -0.7905]])
 SEED_004_T_MM = np.array([399.1255, 171.01526, 416.0308])
@@ -81,7 +83,7 @@ def test_single_pose_solutions_are_unique_verified_and_sorted(name, seed):
     assert len(everything) >= len(sols)
 
 
-def test_seed_004_question_1b_all_eight_solutions():
+def test_minibot_report_question_1b_all_eight_solutions():
     arm = minibot()
     u, _, vt = np.linalg.svd(SEED_004_R)   # the seed's rotation is rounded to 4 digits
     T = np.eye(4)
@@ -97,7 +99,7 @@ def test_seed_004_question_1b_all_eight_solutions():
     assert np.sum(np.isclose(np.degrees(sols[:, 0]), -150.0, atol=0.01)) == 4
 
 
-def test_seed_000_goal_absolute_vs_relative_reading():
+def test_mover6_report_goal_absolute_vs_relative_reading():
     arm = mover6()
     T_abs = pose_from_xyzabc(0.1, 0.1, 0.2, 0.0, 1.5708, 0.0)
     T_rel = T_abs.copy()

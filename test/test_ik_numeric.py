@@ -2,12 +2,13 @@
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mover6_control.arm import from_dh, minibot, mover6
 from mover6_control.errors import InvalidInputError
-from mover6_control.ik_numeric import (closest_within_limits, ik_numeric, pose_residual_batch,
-                                       rotation_log_batch, screw_chain)
-from mover6_control.kinematics import fk, fk_batch, jacobian
-from mover6_control.rotations import pose_error, pose_from_xyzabc
+from mover6_control.kinematics.arm import from_dh, minibot, mover6
+from mover6_control.kinematics.forward import fk, fk_batch, jacobian
+from mover6_control.kinematics.ik_numeric import (closest_within_limits, ik_numeric,
+                                                  pose_residual_batch, rotation_log_batch,
+                                                  screw_chain)
+from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
@@ -88,7 +89,7 @@ def _weighted_residual(arm, T, w):
 
 
 def test_closest_pose_is_no_worse_than_scipy_on_the_same_cost():
-    # Seed 000's goal read absolutely is outside the seed's limits (joint 3).
+    # the Mover6 report's goal read absolutely is outside the seed's limits (joint 3).
     arm = mover6()
     T = pose_from_xyzabc(0.1, 0.1, 0.2, 0.0, 1.5708, 0.0)
     w = np.array([1.0, 1.0, 1.0, 0.01, 0.01, 0.01])

@@ -1,11 +1,11 @@
-"""Joint and Robot: seed 000's classes, eq. 1-2 (synchronised) and eq. 16-19 (trapezoid)."""
+"""Joint and Robot: the Mover6 report's classes, eq. 1-2 (synchronised), 16-19 (trapezoid)."""
 
 from hypothesis import given, settings
 import hypothesis.strategies as st
-from mover6_control.arm import mover6
+from mover6_control.control.joint import Joint
+from mover6_control.control.robot import Robot
 from mover6_control.errors import InvalidInputError
-from mover6_control.joint import Joint
-from mover6_control.robot import Robot
+from mover6_control.kinematics.arm import mover6
 import numpy as np
 import pytest
 
@@ -51,7 +51,8 @@ def test_joint_rejects_bad_values():
 
 
 def test_synchronised_seed_numbers():
-    # Seed 000: lambda = 2 rad/s; joint 2 travels furthest (0.8 rad) so t_max = 0.4 s (eq. 1).
+    # the Mover6 report: lambda = 2 rad/s; joint 2 travels furthest (0.8 rad) so t_max = 0.4 s (eq.
+    # 1).
     robot = Robot.from_arm(mover6()).with_demand([0.4, -0.8, 0.2, 0.0, 0.1, 0.0])
     assert robot.max_time(2.0) == pytest.approx(0.4)
     np.testing.assert_allclose(robot.synchronised_velocities(2.0),
@@ -70,7 +71,8 @@ def test_synchronised_all_arrive_together(q0, q1, lam):
 
 
 def test_trapezoid_seed_defaults_eq16_to_19():
-    # Seed 000: t_max = 1 s, t_blend = t_max / 4; a move of 0.3 rad gives V_max = 0.4 rad/s.
+    # the Mover6 report: t_max = 1 s, t_blend = t_max / 4; a move of 0.3 rad gives V_max = 0.4
+    # rad/s.
     joint = Joint('joint1', -1.571, 1.571, 1.0, q=0.2).with_demand(-0.1)
     t_max, t_blend = 1.0, 0.25
     v_max = 0.3 / (t_max - t_blend)                                        # eq. 16

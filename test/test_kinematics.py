@@ -1,22 +1,28 @@
-"""FK against seed 000's analytic H matrices, Jacobian, rates (seed 004) and statics (seed 002)."""
+"""
+FK, Jacobian, rates and statics against the source documents' numbers.
+
+FK against the Mover6 report's analytic H matrices, joint rates against the miniBOT report and
+statics against the Jacobians and trajectories report.
+"""
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mover6_control.arm import ArmModel, from_dh, minibot, mover6
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics import (condition_number, fk, fk_batch, fk_frames, jacobian,
-                                       jacobian_batch, joint_rates, joint_torques,
-                                       manipulability)
+from mover6_control.kinematics.arm import ArmModel, from_dh, minibot, mover6
+from mover6_control.kinematics.forward import (condition_number, fk, fk_batch, fk_frames, jacobian,
+                                               jacobian_batch, joint_rates, joint_torques,
+                                               manipulability)
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 Q6 = st.lists(st.floats(-np.pi, np.pi), min_size=6, max_size=6).map(np.array)
-# Seed 000 eq. 23-29 link lengths l1..l6 [m] (from its verification script).
+# The Mover6 report eq. 23-29 link lengths l1..l6 [m] (from its verification script).
 L = (0.130, 0.0625, 0.190, -0.06, 0.290, 0.055)
 # The URDF writes pi/2 as 1.57079632679 (error 5e-12 rad), the seed's H_3^2 uses pi/2 exactly.
 URDF_PI_TOL = 1e-11
-# Seed 004 question 1b: the two solutions it found [deg] and their joint rates for the twist.
+# The miniBOT report question 1b: the two solutions it found [deg] and their joint rates for the
+# twist.
 SEED_004_SOLUTIONS = [([30.0, -15.998, 148.716, 145.037, 109.042, 156.916],
                        [-0.815, -1.407, 1.779, 2.056, -1.299, 0.792]),
                       ([30.0, 60.0, 0.0, 134.998, 50.0, -157.501],
@@ -41,8 +47,8 @@ def _ry(t):
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
-def seed_000_h06(q):
-    """Return H_6^0 of seed 000 eq. 23-29, term by term."""
+def mover6_report_h06(q):
+    """Return H_6^0 of the Mover6 report eq. 23-29, term by term."""
     l1, l2, l3, l4, l5, l6 = L
     z3 = np.zeros(3)
     H01 = _h(np.eye(3), [0, 0, l1]) @ _h(_rz(-q[0]), z3)
@@ -54,15 +60,15 @@ def seed_000_h06(q):
     return H01 @ H12 @ H23 @ H34 @ H45 @ H56
 
 
-def test_fk_matches_seed_000_analytic_example():
+def test_fk_matches_mover6_report_analytic_example():
     q = np.array([0.6, -np.pi / 6, np.pi / 8, -np.pi / 6, -np.pi / 4, np.pi / 3])
-    np.testing.assert_allclose(fk(mover6(), q), seed_000_h06(q), atol=URDF_PI_TOL)
+    np.testing.assert_allclose(fk(mover6(), q), mover6_report_h06(q), atol=URDF_PI_TOL)
 
 
 @settings(max_examples=60, deadline=None)
 @given(Q6)
-def test_fk_matches_seed_000_analytic_everywhere(q):
-    np.testing.assert_allclose(fk(mover6(), q), seed_000_h06(q), atol=URDF_PI_TOL)
+def test_fk_matches_mover6_report_analytic_everywhere(q):
+    np.testing.assert_allclose(fk(mover6(), q), mover6_report_h06(q), atol=URDF_PI_TOL)
 
 
 def test_batched_fk_equals_single_fk():
@@ -71,7 +77,7 @@ def test_batched_fk_equals_single_fk():
         Q = rng.uniform(-np.pi, np.pi, (5000, 6))   # more than one internal block
         T = fk_batch(arm, Q)
         for k in (0, 1234, 4095, 4096, 4999):
-            np.testing.assert_allclose(T[k], seed_000_h06(Q[k]) if arm.name == 'mover6'
+            np.testing.assert_allclose(T[k], mover6_report_h06(Q[k]) if arm.name == 'mover6'
                                        else fk(arm, Q[k]), atol=URDF_PI_TOL)
         frames = fk_frames(arm, Q[7])
         np.testing.assert_allclose(frames[-1], T[7], atol=1e-12)
@@ -124,7 +130,7 @@ def test_jacobian_is_the_derivative_of_fk(q, name):
 
 
 @pytest.mark.parametrize('solution_deg, rates', SEED_004_SOLUTIONS)
-def test_joint_rates_match_seed_004_question_2(solution_deg, rates):
+def test_joint_rates_match_minibot_report_question_2(solution_deg, rates):
     arm = minibot()
     q = np.radians(solution_deg)
     qd = joint_rates(arm, q, SEED_004_TWIST, damping=0.0)
@@ -149,8 +155,9 @@ def test_damping_bounds_the_rates_at_a_singularity():
     assert 1.0 < condition_number(arm, q_good) < 100.0
 
 
-def test_statics_match_seed_002():
-    # Seed 002's 3R wrist: alpha1 = alpha2 = 120 deg; at theta1 = 0, theta2 = 90 deg its
+def test_statics_match_jacobians_report():
+    # the Jacobians and trajectories report's 3R wrist: alpha1 = alpha2 = 120 deg; at theta1 = 0,
+    # theta2 = 90 deg its
     # Jacobian in frame 2 (Q1^T [J]_1) is given, and J^T n = tau = (20, 20, -10) for
     # n = (0, 20 sqrt 3, 20) N m.
     arm = from_dh([0.0, 0.0, 0.5], [2 * np.pi / 3, 2 * np.pi / 3, 0.0], [0.0, 0.0, 0.0])

@@ -2,10 +2,10 @@
 
 from hypothesis import given, settings
 import hypothesis.strategies as st
-from mover6_control import metrics
-from mover6_control import time_laws as tl
 from mover6_control.errors import InvalidInputError
-from mover6_control.trajectories import TimeLawTrajectory
+from mover6_control.motion import metrics
+from mover6_control.motion import time_laws as tl
+from mover6_control.motion.trajectories import TimeLawTrajectory
 import numpy as np
 import pytest
 

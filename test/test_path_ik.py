@@ -2,13 +2,14 @@
 
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from mover6_control.arm import from_dh, minibot, mover6
 from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.ik import ik_closed_form, nearest_alias, solve_candidates, wrist_geometry
-from mover6_control.kinematics import condition_number, fk, fk_batch
-from mover6_control.path_ik import (branch_steps, holds_pose, PathSolution, REASONS,
-                                    single_turn, solve_path)
-from mover6_control.rotations import pose_error, pose_from_xyzabc
+from mover6_control.kinematics.arm import from_dh, minibot, mover6
+from mover6_control.kinematics.forward import condition_number, fk, fk_batch
+from mover6_control.kinematics.ik_closed_form import (ik_closed_form, nearest_alias,
+                                                      solve_candidates, wrist_geometry)
+from mover6_control.kinematics.path_ik import (branch_steps, holds_pose, PathSolution, REASONS,
+                                               single_turn, solve_path)
+from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
@@ -41,8 +42,8 @@ def _check_details(err, arm, T):
     assert d['orientation_error'] == pytest.approx(rot, abs=1e-12)
 
 
-def test_seed_000_default_line_from_home():
-    # Seed 000's default goal: 10 cm forward at the home orientation, from home (a wrist
+def test_mover6_report_default_line_from_home():
+    # the Mover6 report's default goal: 10 cm forward at the home orientation, from home (a wrist
     # singularity, which the path may leave).
     arm = mover6()
     T0 = fk(arm, np.zeros(6))
@@ -130,7 +131,8 @@ def test_same_pose_on_another_branch_is_a_discontinuity():
 
 def test_goal_outside_the_limits_reports_joint_limits():
     arm = mover6()
-    T_goal = pose_from_xyzabc(0.1, 0.1, 0.2, 0.0, 1.5708, 0.0)   # seed 000, absolute reading
+    # the Mover6 report, absolute reading
+    T_goal = pose_from_xyzabc(0.1, 0.1, 0.2, 0.0, 1.5708, 0.0)
     with pytest.raises(UnreachableError) as info:
         solve_path(arm, np.array([fk(arm, np.zeros(6)), T_goal]), np.zeros(6),
                    max_joint_step=10.0)
@@ -216,7 +218,7 @@ def test_single_turn_arms():
 
 
 @settings(max_examples=30, deadline=None)
-@given(st.integers(0, 2 ** 31), st.sampled_from(['seed', 'hardware']))
+@given(st.integers(0, 2 ** 31), st.sampled_from(['within_90_deg', 'hardware']))
 def test_branch_steps_match_aliasing_branch_by_branch(seed, limit_set):
     # The batched table against nearest_alias on each pair of branches, as the per-waypoint
     # rule does it; values in the 1e-9 rad slack outside a limit included.

@@ -2,10 +2,10 @@
 
 from hypothesis import given, settings
 import hypothesis.strategies as st
-from mover6_control import paths
 from mover6_control.errors import InvalidInputError
-from mover6_control.rotations import (euler_zyx_to_matrix, make_transform,
-                                      rotation_angle_between)
+from mover6_control.kinematics.rotations import (euler_zyx_to_matrix, make_transform,
+                                                 rotation_angle_between)
+from mover6_control.motion import paths
 import numpy as np
 import pytest
 
@@ -25,7 +25,7 @@ def assert_valid_poses(poses):
     assert np.allclose(poses[:, 3], [0.0, 0.0, 0.0, 1.0])
 
 
-def test_linear_path_seed000_eq4_and_slerp():
+def test_linear_path_mover6_report_eq4_and_slerp():
     poses = paths.linear_path(T0, T1, n=20)
     assert poses.shape == (20, 4, 4)
     assert np.array_equal(poses[0], T0) and np.array_equal(poses[-1], T1)
@@ -36,7 +36,7 @@ def test_linear_path_seed000_eq4_and_slerp():
     assert_valid_poses(poses)
 
 
-def test_seed000_example_keeps_home_orientation():
+def test_mover6_report_example_keeps_home_orientation():
     T_goal = paths.goal_relative_to_start(T0, 0.445, 0.0, 0.4425, 0.0, 0.0, 0.0)
     assert np.allclose(T_goal[:3, :3], R_HOME)
     poses = paths.linear_path(T0, T_goal, n=20)
@@ -59,7 +59,7 @@ def test_linear_path_by_step_is_the_fewest_poses_within_the_steps(max_step, max_
         (max_angle_step and turns.sum() / fewer > max_angle_step)
 
 
-def test_parabola_seed000_example():
+def test_parabola_mover6_report_example():
     A, B = np.array([0.5, 0.2, 0.0]), np.array([0.9, 1.0, 2.0])
     M = (A + B) / 2 + [0.0, 0.0, 2.0]
     a, b, c = paths.parabola_coefficients(A, M, B)

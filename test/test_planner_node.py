@@ -7,11 +7,11 @@ A probe node publishes /joint_states and goals and listens to /joint_demands and
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
-from mover6_control import conversions
-from mover6_control.arm import mover6
-from mover6_control.kinematics import fk
-from mover6_control.planner_node import PlannerNode
-from mover6_control.rotations import pose_from_xyzabc
+from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.forward import fk
+from mover6_control.kinematics.rotations import pose_from_xyzabc
+from mover6_control.nodes import conversions
+from mover6_control.nodes.planner_node import PlannerNode
 import numpy as np
 import pytest
 import rclpy

@@ -1,11 +1,11 @@
 """Planning from the current configuration to a goal (ROS-free): shapes, singular starts."""
 
-from mover6_control.arm import mover6
 from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.kinematics import fk, fk_batch
-from mover6_control.metrics import max_deviation_from_polyline
-from mover6_control.planning import plan_path_goal, plan_pose_goal, PlannerSettings
-from mover6_control.rotations import pose_error, pose_from_xyzabc
+from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.forward import fk, fk_batch
+from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc
+from mover6_control.motion.metrics import max_deviation_from_polyline
+from mover6_control.planning.planner_core import plan_path_goal, plan_pose_goal, PlannerSettings
 import numpy as np
 import pytest
 

@@ -1,18 +1,18 @@
-"""Reachability verdicts: seed 000's example goal in both readings, and every reason."""
+"""Reachability verdicts: the Mover6 report's example goal in both readings, and every reason."""
 
-from mover6_control.arm import from_dh, mover6
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics import fk, fk_batch
-from mover6_control.reachability import check_path, check_pose, REASONS, Verdict
-from mover6_control.rotations import euler_zyx_to_matrix, pose_error, pose_from_xyzabc
+from mover6_control.kinematics.arm import from_dh, mover6
+from mover6_control.kinematics.forward import fk, fk_batch
+from mover6_control.kinematics.reachability import check_path, check_pose, REASONS, Verdict
+from mover6_control.kinematics.rotations import euler_zyx_to_matrix, pose_error, pose_from_xyzabc
 import numpy as np
 import pytest
 
 SEED_000_GOAL = (0.1, 0.1, 0.2, 0.0, 1.5708, 0.0)   # X Y Z [m], A B C [rad]
 
 
-def seed_000_goal(reading):
-    """Return seed 000's example goal read absolutely (this project) or relatively (MATLAB)."""
+def mover6_report_goal(reading):
+    """Return the Mover6 report's example goal read absolutely or relatively (its MATLAB)."""
     T = pose_from_xyzabc(*SEED_000_GOAL)
     if reading == 'relative':
         T[:3, :3] = fk(mover6(), np.zeros(6))[:3, :3] @ euler_zyx_to_matrix(*SEED_000_GOAL[3:])
@@ -27,9 +27,9 @@ def _check_closest(verdict, arm, T):
     assert verdict.message and verdict.message[0].isalpha()
 
 
-def test_seed_000_goal_read_absolutely_is_outside_the_seed_limits():
+def test_mover6_report_goal_read_absolutely_is_outside_the_seed_limits():
     arm = mover6()
-    T = seed_000_goal('absolute')
+    T = mover6_report_goal('absolute')
     v = check_pose(arm, T)
     assert not v.reachable and v.reason == 'joint_limits' and v.q is None
     assert 'joint3=1.6544' in v.message and 'outside' in v.message
@@ -41,9 +41,9 @@ def test_seed_000_goal_read_absolutely_is_outside_the_seed_limits():
     assert not arm.within_limits(v.details['q_outside_limits'])
 
 
-def test_seed_000_goal_read_relatively_is_exactly_reachable():
+def test_mover6_report_goal_read_relatively_is_exactly_reachable():
     arm = mover6()
-    T = seed_000_goal('relative')
+    T = mover6_report_goal('relative')
     v = check_pose(arm, T)
     assert v.reachable and v.reason == 'reachable'
     assert arm.within_limits(v.q)
@@ -53,8 +53,8 @@ def test_seed_000_goal_read_relatively_is_exactly_reachable():
 
 
 @pytest.mark.parametrize('reading', ['absolute', 'relative'])
-def test_seed_000_goal_is_outside_the_hardware_limits_either_way(reading):
-    v = check_pose(mover6('hardware'), seed_000_goal(reading))
+def test_mover6_report_goal_is_outside_the_hardware_limits_either_way(reading):
+    v = check_pose(mover6('hardware'), mover6_report_goal(reading))
     assert v.reason == 'joint_limits' and 'joint2' in v.message
 
 
@@ -105,7 +105,7 @@ def test_path_verdicts():
     ok = check_path(arm, fk_batch(arm, joint_path), q0, max_condition=1000.0)
     assert ok.reachable and ok.q.shape == (10, 6)
     np.testing.assert_allclose(ok.q, joint_path, atol=1e-8)
-    T_goal = seed_000_goal('absolute')
+    T_goal = mover6_report_goal('absolute')
     bad = check_path(arm, np.array([fk(arm, q0), T_goal]), q0, max_joint_step=10.0)
     assert bad.reason == 'joint_limits' and bad.waypoint == 1 and not bad.reachable
     _check_closest(bad, arm, T_goal)

@@ -1,16 +1,16 @@
 """The MuJoCo model built from the URDF: same kinematics as the core, plausible physics."""
 
 from hypothesis import given, settings, strategies as st
-from mover6_control.arm import load_urdf, mover6
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics import fk, fk_frames
+from mover6_control.kinematics.arm import load_urdf, mover6
+from mover6_control.kinematics.forward import fk, fk_frames
 import mujoco
 import numpy as np
 import pytest
-from sim_bridge.model import (build_mjcf, build_model, joint_dof_addresses,
-                              joint_qpos_addresses, ModelOptions, site_transform)
+from sim_bridge.model import (build_mjcf, build_model, joint_dof_addresses, joint_qpos_addresses,
+                              ModelOptions, site_transform)
 
-ARMS = {name: mover6(name) for name in ('seed', 'hardware')}
+ARMS = {name: mover6(name) for name in ('within_90_deg', 'hardware')}
 MODELS = {name: build_model(arm) for name, arm in ARMS.items()}
 
 
@@ -28,7 +28,7 @@ def _q_strategy(arm, margin=0.0):
                        for lo, hi in zip(arm.lower, arm.upper)]).map(np.array)
 
 
-@pytest.mark.parametrize('limit_set', ['seed', 'hardware'])
+@pytest.mark.parametrize('limit_set', ['within_90_deg', 'hardware'])
 @settings(max_examples=60, deadline=None)
 @given(data=st.data())
 def test_fk_agrees_with_core(limit_set, data):
@@ -41,8 +41,8 @@ def test_fk_agrees_with_core(limit_set, data):
 
 def test_fk_home_is_the_seed_flange_position():
     """At q = 0 MuJoCo puts the flange at (0.345, 0, 0.4425) m, as design.md states."""
-    arm = ARMS['seed']
-    T_mj, _ = _mujoco_fk(MODELS['seed'], arm, np.zeros(6))
+    arm = ARMS['within_90_deg']
+    T_mj, _ = _mujoco_fk(MODELS['within_90_deg'], arm, np.zeros(6))
     np.testing.assert_allclose(T_mj[:3, 3], [0.345, 0.0, 0.4425], atol=1e-12)
 
 
@@ -60,7 +60,7 @@ def test_joint_frames_and_world_axes_agree(q):
         np.testing.assert_allclose(data.xaxis[jid], frames[i][:3, :3] @ arm.axes[i], atol=1e-9)
 
 
-@pytest.mark.parametrize('limit_set', ['seed', 'hardware'])
+@pytest.mark.parametrize('limit_set', ['within_90_deg', 'hardware'])
 def test_ranges_are_the_joint_limits(limit_set):
     """Hinge ranges equal the arm's limits exactly and every joint is limited and actuated."""
     arm, model = ARMS[limit_set], MODELS[limit_set]
@@ -78,7 +78,7 @@ def test_ranges_are_the_joint_limits(limit_set):
 
 def test_masses_and_inertias_are_plausible():
     """Each moving body has positive mass and inertia; the arm weighs a few kilograms."""
-    model = MODELS['seed']
+    model = MODELS['within_90_deg']
     moving = range(1, model.nbody)
     masses = np.array([model.body_mass[b] for b in moving])
     assert np.all(masses > 0.05)
@@ -119,8 +119,8 @@ def test_model_from_another_urdf(tmp_path):
 
 def test_mjcf_is_text_with_the_names():
     """The MJCF names joints and actuators after the URDF joints and the site after the tip."""
-    xml = build_mjcf(ARMS['seed'])
-    for name in ARMS['seed'].joint_names:
+    xml = build_mjcf(ARMS['within_90_deg'])
+    for name in ARMS['within_90_deg'].joint_names:
         assert f'joint name="{name}"' in xml
         assert f'velocity name="{name}"' in xml
     assert 'site name="link6"' in xml
@@ -153,5 +153,5 @@ def test_options_are_checked(bad):
 
 def test_physics_dt_reaches_the_model():
     """The physics step of the options is the model's timestep."""
-    model = build_model(ARMS['seed'], ModelOptions(physics_dt=0.001))
+    model = build_model(ARMS['within_90_deg'], ModelOptions(physics_dt=0.001))
     assert model.opt.timestep == 0.001

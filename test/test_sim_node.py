@@ -13,7 +13,7 @@ import time
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 from control_msgs.msg import JointJog  # noqa: E402
-from mover6_control import conversions  # noqa: E402
+from mover6_control.nodes import conversions  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 import rclpy  # noqa: E402

@@ -3,9 +3,9 @@
 import math
 
 from hypothesis import given, settings, strategies as st
-from mover6_control.arm import mover6, MOVER6_TICK_SIZE
-from mover6_control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.arm import mover6, MOVER6_TICK_SIZE
 import mujoco
 import numpy as np
 import pytest
@@ -199,7 +199,7 @@ def test_reset_to_a_given_configuration_and_refusals():
 
 def test_any_arm_from_urdf_in_rad_per_s_mode(tmp_path):
     """A two-joint arm runs in rad_per_s mode; vendor mode asks for its tick sizes."""
-    from mover6_control.arm import load_urdf
+    from mover6_control.kinematics.arm import load_urdf
     urdf = tmp_path / 'two.urdf'
     urdf.write_text("""<?xml version="1.0"?>
 <robot name="two">

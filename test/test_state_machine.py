@@ -2,7 +2,7 @@
 
 from hypothesis import given, settings
 import hypothesis.strategies as st
-from mover6_control import state_machine as sm
+from mover6_control.control import state_machine as sm
 import pytest
 
 

@@ -1,10 +1,10 @@
-"""Time laws s(tau): boundary conditions, derivatives, seed 000 and seed 002 numbers."""
+"""Time laws s(tau): boundary conditions, derivatives, the numbers of the source documents."""
 
 from hypothesis import given, settings
 import hypothesis.strategies as st
-from mover6_control import time_laws as tl
 from mover6_control.errors import InvalidInputError
-from mover6_control.trajectories import TimeLawTrajectory
+from mover6_control.motion import time_laws as tl
+from mover6_control.motion.trajectories import TimeLawTrajectory
 import numpy as np
 import pytest
 
@@ -44,7 +44,7 @@ def test_higher_order_end_conditions():
     assert s.coefficients[4:] == (35.0, -84.0, 70.0, -20.0)
 
 
-def test_seed002_via_point_polynomial_coefficients():
+def test_jacobians_report_via_point_polynomial_coefficients():
     S = tl.via_fraction(83.14, 90.0, 173.37)
     assert S == pytest.approx(0.0760279, abs=1e-7)
     law = tl.via_point_polynomial(S)
@@ -66,7 +66,7 @@ def test_via_point_polynomial_meets_all_seven_conditions(s_via, tau_via):
     assert law(tau_via) == pytest.approx(s_via, abs=1e-9)
 
 
-def test_seed000_trapezoid_eq16_to_18():
+def test_mover6_report_trapezoid_eq16_to_18():
     t_max, dq = 2.0, 0.8
     law = tl.trapezoidal(t_max)
     assert law.blend == pytest.approx(0.25)

@@ -2,9 +2,9 @@
 
 from hypothesis import example, given, settings
 import hypothesis.strategies as st
-from mover6_control import timing
 from mover6_control.errors import InvalidInputError
-from mover6_control.metrics import max_deviation_from_polyline
+from mover6_control.motion import timing
+from mover6_control.motion.metrics import max_deviation_from_polyline
 import numpy as np
 import pytest
 

@@ -2,9 +2,9 @@
 
 from hypothesis import example, given, settings
 import hypothesis.strategies as st
-from mover6_control import time_laws as tl
-from mover6_control import trajectories as tj
 from mover6_control.errors import InvalidInputError
+from mover6_control.motion import time_laws as tl
+from mover6_control.motion import trajectories as tj
 import numpy as np
 import pytest
 
@@ -21,7 +21,7 @@ def dense(traj, n=8001):
     return (t,) + traj.sample(t)
 
 
-def test_point_to_point_follows_seed002_eq29_to_32():
+def test_point_to_point_follows_jacobians_report_eq29_to_32():
     q0, q1 = np.array([0.1, -0.2]), np.array([0.5, 0.4])
     law, T = tl.quintic(), 2.0
     traj = tj.point_to_point(q0, q1, law, duration=T)
@@ -39,7 +39,7 @@ def test_point_to_point_duration_from_limits_is_tight():
     _, _, qd, qdd = dense(traj)
     ratio = max(np.max(np.abs(qd) / V), np.max(np.abs(qdd) / A))
     assert 0.999 < ratio <= 1.0 + 1e-9
-    # seed 000 eq. 1-2: every joint finishes together
+    # the Mover6 report eq. 1-2: every joint finishes together
     assert np.allclose(traj.sample(traj.duration)[0], q1)
 
 

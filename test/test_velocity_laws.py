@@ -4,18 +4,19 @@ import importlib.util
 
 from hypothesis import given, settings
 import hypothesis.strategies as st
-from mover6_control.arm import mover6
+from mover6_control.control.robot import Robot
+from mover6_control.control.velocity_laws import (closed_loop_command, guard_position_limits,
+                                                  LawConfig, plan_motion, plan_stop,
+                                                  scale_to_limits, to_jog_units)
 from mover6_control.errors import InvalidInputError
-from mover6_control.robot import Robot
-from mover6_control.velocity_laws import (closed_loop_command, guard_position_limits, LawConfig,
-                                          plan_motion, plan_stop, scale_to_limits, to_jog_units)
+from mover6_control.kinematics.arm import mover6
 import numpy as np
 import pytest
 
 ARM = mover6('hardware')
 VLIM = ARM.velocity_limits
 DT = 0.01
-HAS_TIMING = importlib.util.find_spec('mover6_control.timing') is not None
+HAS_TIMING = importlib.util.find_spec('mover6_control.motion.timing') is not None
 PROFILES = ['synchronised', 'trapezoidal', 'jerk_limited'] + (
     ['continuous'] if HAS_TIMING else [])
 
@@ -50,7 +51,7 @@ def test_every_law_reaches_every_waypoint_within_limits(profile):
 @settings(max_examples=30, deadline=None)
 @given(config6, config6, st.floats(0.1, 2.0))
 def test_synchronised_arrival_is_common(q0, q1, lam):
-    """Seed 000 eq. 1-2: every moving joint stops within one tick of the others."""
+    """Mover6 report eq. 1-2: every moving joint stops within one tick of the others."""
     plan = plan_motion(LawConfig(profile='synchronised', lambda_max=lam), q0, q1[None], VLIM)
     ts, q, qd = sample_grid(plan)
     moving = np.abs(q1 - q0) > 1e-6

@@ -9,11 +9,11 @@ wrist moves never arrive.
 
 from hypothesis import given, settings
 import hypothesis.strategies as st
-from mover6_control.arm import mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
-from mover6_control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.velocity_laws import (dead_zone_command, LawConfig, min_jog_speed,
+                                                  TICK_MARGIN)
 from mover6_control.errors import InvalidInputError
-from mover6_control.velocity_laws import (dead_zone_command, LawConfig, min_jog_speed,
-                                          TICK_MARGIN)
+from mover6_control.kinematics.arm import mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 import numpy as np
 import pytest
 from sim_bridge.simulator import SimConfig, Simulator

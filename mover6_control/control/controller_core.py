@@ -41,13 +41,13 @@ move two ticks, a wrist goal between two ticks may not settle, and the motion th
 from collections import deque
 from dataclasses import dataclass, field
 
-from mover6_control import state_machine as sm
-from mover6_control.arm import MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
+from mover6_control.control import state_machine as sm
+from mover6_control.control.velocity_laws import (closed_loop_command, dead_zone_command,
+                                                  driver_velocity_limits, guard_position_limits,
+                                                  JOG_UNITS, LawConfig, min_jog_speed, plan_motion,
+                                                  plan_stop, to_jog_units)
 from mover6_control.errors import InvalidInputError
-from mover6_control.velocity_laws import (closed_loop_command, dead_zone_command,
-                                          driver_velocity_limits, guard_position_limits,
-                                          JOG_UNITS, LawConfig, min_jog_speed, plan_motion,
-                                          plan_stop, to_jog_units)
+from mover6_control.kinematics.arm import MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 import numpy as np
 
 

@@ -1,10 +1,10 @@
 """
-One joint of the arm: what seed 000's ``Joint`` class holds, as a small frozen value.
+One joint of the arm: what the Mover6 report's ``Joint`` class holds, as a small frozen value.
 
-Seed 000 keeps per joint a name, the measured value, the demand, the state at the start of the
-move and a velocity, and computes the sign of the move and the trapezoidal velocity (eq. 16-18).
-This keeps the same facts plus the joint's limits, and fixes the seed's sign at zero distance
-(a division by zero there: here a joint at its demand has direction 0).
+The Mover6 report keeps per joint a name, the measured value, the demand, the state at the start of
+the move and a velocity, and computes the sign of the move and the trapezoidal velocity (eq.
+16-18). This keeps the same facts plus the joint's limits, and fixes the report's sign at zero
+distance (a division by zero there: here a joint at its demand has direction 0).
 """
 
 from dataclasses import dataclass, replace
@@ -20,8 +20,8 @@ class Joint:
 
     ``q`` [rad] and ``qd`` [rad/s] are the measured position and velocity; ``demand`` [rad] is the
     position the joint is sent to and ``q_initial`` [rad] the measured position when that demand
-    was set (seed 000's ``init_state``). ``lower``/``upper`` [rad] are the position limits and
-    ``velocity_limit`` [rad/s] the speed limit.
+    was set (the Mover6 report's ``init_state``). ``lower``/``upper`` [rad] are the position limits
+    and ``velocity_limit`` [rad/s] the speed limit.
     """
 
     name: str
@@ -75,18 +75,18 @@ class Joint:
 
     @property
     def direction(self):
-        """Return the sign of the move still to go: -1, 0 or +1 (seed 000's ``Sign()``)."""
+        """Return the sign of the move still to go: -1, 0 or +1 (the Mover6 report's ``Sign``)."""
         d = self.distance_to_go
         return 0.0 if d == 0.0 else math.copysign(1.0, d)
 
     def trapezoidal_velocity(self, t, t_max, t_blend=None):
         """
-        Return the trapezoidal velocity [rad/s] at ``t`` [s] after the start (seed 000 eq. 16-18).
+        Return the trapezoidal velocity [rad/s] at ``t`` [s] after the start (Mover6 report 16-18).
 
         ``V_max = |demand - q_initial| / (t_max - t_blend)`` (eq. 16); the velocity ramps up
         over ``t_blend``, holds ``V_max`` and ramps down to zero at ``t_max`` (eq. 18), so its
         integral is ``demand - q_initial`` (eq. 19). The sign is that of ``demand - q_initial``
-        (the planned move): unlike the seed's ``Sign()`` of the remaining distance, it does not
+        (the planned move): unlike the report's ``Sign()`` of the remaining distance, it does not
         flip when the joint overshoots; correcting that is the closed loop's job.
         """
         t_blend = t_max / 4.0 if t_blend is None else t_blend
@@ -104,7 +104,7 @@ class Joint:
 
 
 def check_trapezoid_times(t_max, t_blend):
-    """Raise unless ``0 < t_blend < t_max / 2`` (seed 000: a symmetric trapezoid)."""
+    """Raise unless ``0 < t_blend < t_max / 2`` (the Mover6 report: a symmetric trapezoid)."""
     if not (math.isfinite(t_max) and t_max > 0.0):
         raise InvalidInputError(f't_max must be positive, got {t_max}')
     if not (math.isfinite(t_blend) and 0.0 < t_blend < t_max / 2.0):

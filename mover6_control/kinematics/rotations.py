@@ -3,8 +3,8 @@ Rotations and homogeneous transforms: validation and conversions.
 
 Conventions:
 - A pose is a 4x4 homogeneous transform ``T_base_tool`` [m].
-- Euler angles follow seed 000 (MATLAB's default ZYX): ``R = Rz(A) @ Ry(B) @ Rx(C)``, so A is
-  yaw, B pitch and C roll [rad].
+- Euler angles follow the Mover6 report (MATLAB's default ZYX): ``R = Rz(A) @ Ry(B) @ Rx(C)``, so A
+  is yaw, B pitch and C roll [rad].
 - Quaternions are in ROS order ``(x, y, z, w)``.
 """
 
@@ -64,7 +64,7 @@ def make_transform(position, R=None):
 
 
 def euler_zyx_to_matrix(a, b, c):
-    """Return ``Rz(a) @ Ry(b) @ Rx(c)`` (3, 3) for angles [rad] in the seed's ZYX order."""
+    """Return ``Rz(a) @ Ry(b) @ Rx(c)`` (3, 3) for angles [rad] in MATLAB's default ZYX order."""
     angles = as_finite_array([a, b, c], (3,), 'euler angles')
     return Rotation.from_euler('ZYX', angles).as_matrix()
 
@@ -98,7 +98,7 @@ def matrix_to_quaternion(R):
 
 
 def pose_from_xyzabc(x, y, z, a, b, c):
-    """Return ``T`` (4, 4) from the seed's goal form X Y Z [m] A B C [rad] (ZYX Euler)."""
+    """Return ``T`` (4, 4) from the Mover6 report's goal form X Y Z [m] A B C [rad] (ZYX Euler)."""
     return make_transform([x, y, z], euler_zyx_to_matrix(a, b, c))
 
 

@@ -4,10 +4,10 @@ The controller's velocity laws behind one small interface, plus closed loop and 
 A law turns the start state and the waypoints (N, n) [rad] into a ``Plan``: a reference
 ``sample(t) -> (q_ref, qd_ref)`` over ``[0, duration]`` [s]. The four laws:
 
-- ``synchronised``: seed 000 eq. 1-2. Per waypoint, the joint with the furthest to go moves at
-  ``lambda_max`` and sets ``t_max``; every joint moves at ``(q_k - q_{k-1}) / t_max`` so all
-  arrive together; the arm stops at each waypoint.
-- ``trapezoidal``: seed 000 eq. 16-18 per waypoint: ``V_max = |dq| / (t_max - t_blend)``,
+- ``synchronised``: the Mover6 report eq. 1-2. Per waypoint, the joint with the furthest to go
+  moves at ``lambda_max`` and sets ``t_max``; every joint moves at ``(q_k - q_{k-1}) / t_max`` so
+  all arrive together; the arm stops at each waypoint.
+- ``trapezoidal``: the Mover6 report eq. 16-18 per waypoint: ``V_max = |dq| / (t_max - t_blend)``,
   ramps of ``t_blend`` (default ``t_max / 4``); stops at each waypoint.
 - ``jerk_limited``: ruckig, rest to rest per waypoint, within velocity, ``a_max`` and ``j_max``.
 - ``continuous``: the motion library's time-parameterised trajectory through all waypoints,
@@ -15,9 +15,9 @@ A law turns the start state and the waypoints (N, n) [rad] into a ``Plan``: a re
 
 Every law respects the joints' velocity limits by one common factor that stretches time (so the
 direction of motion and the synchronised arrival are kept). A plan started while the arm moves
-begins from the present commanded velocity: the two seed laws first decelerate from it (common
-factor, ``a_max``), ruckig and the continuous law start from it directly. So replacing a motion
-never makes the command jump.
+begins from the present commanded velocity: the two laws of the Mover6 report first decelerate from
+it (common factor, ``a_max``), ruckig and the continuous law start from it directly. So replacing a
+motion never makes the command jump.
 
 The command of every tick is ``closed_loop_command``: ``qd_ref + kp (q_ref - q)`` (the closed-loop
 correction on the measured position), scaled by one common factor into the velocity limits,
@@ -33,9 +33,9 @@ from dataclasses import dataclass
 
 # Imported with this module, not lazily in the first continuous demand's callback: that import
 # (scipy.interpolate; 0.1 s idle, far longer on a loaded machine) held up the controller.
-from mover6_control import timing
+from mover6_control.control.joint import check_trapezoid_times
 from mover6_control.errors import InvalidInputError
-from mover6_control.joint import check_trapezoid_times
+from mover6_control.motion import timing
 import numpy as np
 
 PROFILES = ('synchronised', 'trapezoidal', 'jerk_limited', 'continuous')
@@ -71,7 +71,7 @@ class LawConfig:
 
     @property
     def blend(self):
-        """Return ``t_blend`` [s], defaulting to ``t_max / 4`` (seed 000)."""
+        """Return ``t_blend`` [s], defaulting to ``t_max / 4`` (the Mover6 report)."""
         return self.t_max / 4.0 if self.t_blend in (None, 0.0) else float(self.t_blend)
 
 
@@ -79,7 +79,7 @@ class LawConfig:
 
 @dataclass(frozen=True, eq=False)
 class ConstantVelocitySegment:
-    """Straight line in joint space at constant velocity (seed 000 eq. 2)."""
+    """Straight line in joint space at constant velocity (the Mover6 report eq. 2)."""
 
     q0: np.ndarray
     q1: np.ndarray
@@ -95,7 +95,7 @@ class ConstantVelocitySegment:
 
 @dataclass(frozen=True, eq=False)
 class TrapezoidSegment:
-    """Seed 000 eq. 16-18 for every joint over the common ``duration`` (t_max) and ``blend``."""
+    """Mover6 report eq. 16-18 for every joint over the common ``duration`` and ``blend``."""
 
     q0: np.ndarray
     q1: np.ndarray
@@ -356,7 +356,7 @@ def plan_stop(q_start, qd_start, a_max):
 
 def synchronised_segment(q0, q1, lambda_max, velocity_limits):
     """
-    Return the constant-velocity segment of seed 000 eq. 1-2 from ``q0`` to ``q1``.
+    Return the constant-velocity segment of the Mover6 report eq. 1-2 from ``q0`` to ``q1``.
 
     ``t_max = max |q1 - q0| / lambda_max`` (eq. 1), stretched by one common factor when a
     joint's speed ``(q1 - q0) / t_max`` (eq. 2) would exceed its velocity limit.
@@ -370,7 +370,7 @@ def synchronised_segment(q0, q1, lambda_max, velocity_limits):
 
 def trapezoid_segment(q0, q1, t_max, t_blend, velocity_limits):
     """
-    Return the trapezoid of seed 000 eq. 16-18 from ``q0`` to ``q1`` over ``t_max`` [s].
+    Return the trapezoid of the Mover6 report eq. 16-18 from ``q0`` to ``q1`` over ``t_max`` [s].
 
     When a joint's ``V_max`` (eq. 16) exceeds its velocity limit, ``t_max`` and ``t_blend`` are
     stretched by one common factor (the shape and synchronised arrival are kept). A move of
@@ -447,8 +447,8 @@ def plan_motion(config, q_start, waypoints, velocity_limits, qd_start=None):
     Return the ``Plan`` of ``config.profile`` from ``q_start`` (n,) through ``waypoints`` (N, n).
 
     ``velocity_limits`` (n,) [rad/s]; ``qd_start`` (n,) [rad/s] is the velocity commanded now
-    (None: at rest). The seed laws decelerate from it first; ruckig and the continuous law
-    start from it. Waypoints are not checked against position limits here (the caller does).
+    (None: at rest). The Mover6 report's laws decelerate from it first; ruckig and the continuous
+    law start from it. Waypoints are not checked against position limits here (the caller does).
     """
     q_start, waypoints, velocity_limits, qd_start = _check_inputs(
         q_start, waypoints, velocity_limits, qd_start)

@@ -1,7 +1,7 @@
 """
 The goal command line: send a goal, follow the motion, exit 0 only when the arm arrived.
 
-Examples (poses in base_link; X Y Z [m] then A B C [rad], ZYX Euler as seed 000:
+Examples (poses in base_link; X Y Z [m] then A B C [rad], ZYX Euler as the Mover6 report:
 R = Rz(A) Ry(B) Rx(C), so A is yaw, B pitch, C roll)::
 
     goal 0.40 0.05 0.35 0 1.5708 0                    # linear move (planner's default)
@@ -23,11 +23,12 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
-from mover6_control import conversions
-from mover6_control.arm import mover6
 from mover6_control.errors import Mover6Error
-from mover6_control.kinematics import fk
-from mover6_control.rotations import make_transform, pose_from_xyzabc, quaternion_to_matrix
+from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.forward import fk
+from mover6_control.kinematics.rotations import (make_transform, pose_from_xyzabc,
+                                                 quaternion_to_matrix)
+from mover6_control.nodes import conversions
 import numpy as np
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -318,8 +319,8 @@ def build_parser():
     parser = argparse.ArgumentParser(
         prog='goal', description=__doc__.split('\n\n')[0],
         epilog='Poses: X Y Z [m] in base_link, then A B C [rad] with R = Rz(A) Ry(B) Rx(C) '
-               '(seed 000 / MATLAB ZYX: A yaw, B pitch, C roll), or with --quat a quaternion '
-               'QX QY QZ QW.', formatter_class=argparse.RawDescriptionHelpFormatter)
+               '(the Mover6 report, MATLAB ZYX: A yaw, B pitch, C roll), or with --quat a '
+               'quaternion QX QY QZ QW.', formatter_class=argparse.RawDescriptionHelpFormatter)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument('--timeout', type=float, default=60.0,
                         help='seconds to wait for the motion to finish (default 60)')

@@ -27,8 +27,8 @@ time-optimal.
 from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.rotations import as_finite_array
-from mover6_control.trajectories import JointTrajectory
+from mover6_control.kinematics.rotations import as_finite_array
+from mover6_control.motion.trajectories import JointTrajectory
 import numpy as np
 
 # Below this turning angle [rad] a corner is treated as straight: the velocity direction jumps

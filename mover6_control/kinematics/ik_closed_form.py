@@ -7,7 +7,7 @@ written for one robot. It applies to any 6R ``ArmModel`` whose
 - axes 4, 5 and 6 meet in one point (the wrist centre; its position depends on q1..q3 only),
 - axes 2 and 3 are parallel (a planar 2R elbow after the base joint), axis 1 is not.
 
-That covers the Mover6, seed 004's miniBOT and most industrial arms. Steps (Paden-Kahan
+That covers the Mover6, the miniBOT report's miniBOT and most industrial arms. Steps (Paden-Kahan
 subproblems on the space-frame screws ``omega_i``, ``r_i`` at ``q = 0``):
 
 1. wrist centre ``p = T @ w_tool`` (``w_tool``: the wrist centre in the tip frame, constant);
@@ -30,8 +30,8 @@ at a shoulder singularity (wrist centre on axis 1).
 from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics import fk_batch
-from mover6_control.rotations import as_finite_array, validate_transform
+from mover6_control.kinematics.forward import fk_batch
+from mover6_control.kinematics.rotations import as_finite_array, validate_transform
 import numpy as np
 
 N_BRANCHES = 8

@@ -28,11 +28,11 @@ Failures raise ``UnreachableError`` with ``reason`` in ``REASONS`` and ``details
 from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.ik import (nearest_alias, pose_errors_batch, solve_candidates, VERIFY_TOL,
-                               wrist_geometry)
-from mover6_control.ik_numeric import closest_within_limits, DEFAULT_WEIGHTS, ik_numeric
-from mover6_control.kinematics import condition_number, fk, fk_batch, jacobian_batch
-from mover6_control.rotations import as_finite_array, ORTHONORMAL_TOL, pose_error
+from mover6_control.kinematics.forward import condition_number, fk, fk_batch, jacobian_batch
+from mover6_control.kinematics.ik_closed_form import (nearest_alias, pose_errors_batch,
+                                                      solve_candidates, VERIFY_TOL, wrist_geometry)
+from mover6_control.kinematics.ik_numeric import closest_within_limits, DEFAULT_WEIGHTS, ik_numeric
+from mover6_control.kinematics.rotations import as_finite_array, ORTHONORMAL_TOL, pose_error
 import numpy as np
 
 REASONS = ('out_of_reach', 'joint_limits', 'singularity', 'discontinuity')

@@ -6,19 +6,21 @@ Joint-space trajectories: one sampling interface for every way of timing a joint
 (each (m, n)). ``t`` is clamped to [0, duration], so sampling past the end holds the end.
 
 Builders:
-- ``point_to_point``: a straight joint move under a time law (seed 002 eq. 29-32).
-- ``stop_at_each``: seed 000's scheme, one synchronised time-law move per waypoint pair,
+- ``point_to_point``: a straight joint move under a time law (the Jacobians and trajectories report
+  eq. 29-32).
+- ``stop_at_each``: the Mover6 report's scheme, one synchronised time-law move per waypoint pair,
   stopping at every waypoint.
 - ``multipoint_trapezoidal``: linear segments with parabolic blends through via points
-  (Craig, ch. 7.3), the multi-point trapezoid of seed 002.
+  (Craig, ch. 7.3), the multi-point trapezoid of the Jacobians and trajectories report.
 - ``cubic_trajectory``, ``quintic_trajectory``: interpolating splines through every waypoint at
-  rest at both ends (seed 002's multi-point cubic and quintic polynomials).
+  rest at both ends (the Jacobians and trajectories report's multi-point cubic and quintic
+  polynomials).
 - ``bspline_trajectory``: an approximating B-spline with the waypoints as control points.
 - ``ruckig_trajectory``: jerk-limited, time-optimal, synchronised point-to-point by ruckig.
 """
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.rotations import as_finite_array
+from mover6_control.kinematics.rotations import as_finite_array
 import numpy as np
 import ruckig
 from scipy.interpolate import BSpline, CubicSpline, make_interp_spline, PPoly
@@ -239,7 +241,7 @@ def point_to_point(q0, q1, law, duration=None, v_max=None, a_max=None):
 
     Give ``duration`` [s], or ``v_max`` [rad/s] (and optionally ``a_max`` [rad/s^2]) per joint:
     then the duration is the shortest for which no joint exceeds its limits (all joints start
-    and stop together, seed 000 eq. 1-2).
+    and stop together, the Mover6 report eq. 1-2).
     """
     q0 = as_finite_array(q0, (None,), 'q0')
     q1 = as_finite_array(q1, (q0.size,), 'q1')
@@ -259,7 +261,7 @@ def point_to_point(q0, q1, law, duration=None, v_max=None, a_max=None):
 
 def stop_at_each(Q, law, v_max, a_max=None):
     """
-    Return seed 000's scheme: a synchronised ``law`` move per waypoint pair, at rest at each.
+    Return the Mover6 report's scheme: one synchronised ``law`` move per waypoint pair.
 
     ``law`` is a time law or a callable ``law(duration)`` (e.g. ``time_laws.trapezoidal``, whose
     blend is a fraction of each segment's duration either way).
@@ -402,7 +404,8 @@ def bspline_trajectory(Q, duration=None, v_max=None, a_max=None, degree=3):
     Return an approximating B-spline with the waypoints as control points.
 
     It starts and ends on the first and last waypoint at rest and passes near (not through) the
-    inner ones, inside their convex hull: the smoothest of the multi-point options (seed 002).
+    inner ones, inside their convex hull: the smoothest of the multi-point options (the Jacobians
+    and trajectories report).
     """
     Q = validate_waypoints(Q)
     if int(degree) != degree or not 1 <= degree <= 5:

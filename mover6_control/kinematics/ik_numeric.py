@@ -1,9 +1,9 @@
 """
 Numeric inverse kinematics for any serial arm: damped least squares with joint limits, restarts.
 
-The cost is seed 000's eq. 21, a weighted sum of squared pose errors, ``e^T W e`` with
+The cost is the Mover6 report's eq. 21, a weighted sum of squared pose errors, ``e^T W e`` with
 ``e = [p_goal - p; log(R_goal R^T)]`` (metres, then a rotation vector in radians, base frame),
-minimised inside the joint limits (eq. 22). The rotation vector replaces the seed's Euler-angle
+minimised inside the joint limits (eq. 22). The rotation vector replaces the report's Euler-angle
 differences, which jump by 2 pi and are singular at B = +-pi/2 (exactly its example goal).
 
 Steps are Levenberg-Marquardt with error-dependent damping (Sugihara 2011):
@@ -19,7 +19,7 @@ both tolerances wins; otherwise the lowest-cost configuration seen is returned w
 from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.rotations import as_finite_array, validate_transform
+from mover6_control.kinematics.rotations import as_finite_array, validate_transform
 import numpy as np
 
 DEFAULT_WEIGHTS = (1.0, 1.0, 1.0, 0.01, 0.01, 0.01)  # 1 rad weighs as 0.1 m
@@ -155,7 +155,7 @@ def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
     Solve ``T`` (4, 4) numerically from ``q0`` (n,) [rad]; return a ``NumericIKResult``.
 
     ``position_tol`` [m] and ``orientation_tol`` [rad] define success; ``weights`` (6,) weigh
-    the squared errors (seed 000 eq. 21; position in [m], orientation in [rad]).
+    the squared errors (the Mover6 report eq. 21; position in [m], orientation in [rad]).
     ``within_limits`` keeps every iterate inside the joint limits (eq. 22). ``n_seeds`` starts
     run as one batch for at most ``max_iterations``; a start whose cost has not dropped by 1 %
     in ``stall_iterations`` is re-seeded. ``damping`` is the LM floor lambda_0 and
@@ -263,8 +263,8 @@ def closest_within_limits(arm, T, seeds, *, weights=DEFAULT_WEIGHTS, n_seeds=4,
     Return the ``NumericIKResult`` with the lowest weighted cost from several starts.
 
     For a pose that cannot be reached this is the closest pose found inside the joint limits
-    (closest in the ``weights`` sense of seed 000 eq. 21). ``seeds`` (k, n) are tried in turn,
-    each with ``n_seeds`` - 1 random companions; an exact solution ends the search.
+    (closest in the ``weights`` sense of the Mover6 report eq. 21). ``seeds`` (k, n) are tried in
+    turn, each with ``n_seeds`` - 1 random companions; an exact solution ends the search.
     """
     seeds = as_finite_array(seeds, (None, arm.n_joints), 'seeds')
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)

@@ -5,11 +5,11 @@ Subscribes /joint_states (sensor_msgs/JointState, mapped by name) and /joint_dem
 (std_msgs/Float32MultiArray, N x 6 with layout or flat); publishes /JointJog
 (control_msgs/JointJog: all six joints, stamped, velocities only) at ``rate`` on the node's clock
 and /controller/status (diagnostic_msgs/DiagnosticStatus, transient local, on every change and
-at ``status_rate``). Services ~/stop and ~/reset (std_srvs/Trigger). All the logic is in
-``mover6_control.controller_core``; this node converts, calls it and publishes. For the Mover6's
-vendor driver set ``jog_units`` to fraction_of_max; ``driver_tick_size`` and ``driver_cycle``
-(defaults: the Mover6's) let the core move joints that a command under one encoder tick per
-cycle would leave standing, and widen the goal tolerance to one tick.
+at ``status_rate``). Services ~/stop and ~/reset (std_srvs/Trigger). All the logic is
+in ``mover6_control.control.controller_core``; this node converts, calls it and publishes. For
+the Mover6's vendor driver set ``jog_units`` to fraction_of_max; ``driver_tick_size`` and
+``driver_cycle`` (defaults: the Mover6's) let the core move joints that a command under one
+encoder tick per cycle would leave standing, and widen the goal tolerance to one tick.
 
 The tick runs in its own thread that sleeps on the node's clock (``Clock.sleep_until``, so sim
 time works): that costs less CPU and jitter than an executor timer; the executor thread serves
@@ -38,11 +38,11 @@ import threading
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
-from mover6_control import conversions
-from mover6_control.arm import LIMIT_SETS, mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
-from mover6_control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.velocity_laws import JOG_UNITS, LawConfig, PROFILES
 from mover6_control.errors import InvalidInputError, Mover6Error
-from mover6_control.velocity_laws import JOG_UNITS, LawConfig, PROFILES
+from mover6_control.kinematics.arm import LIMIT_SETS, mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
+from mover6_control.nodes import conversions
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 import rclpy
 from rclpy.duration import Duration
@@ -70,7 +70,7 @@ PARAMETERS = (
     ('rate', 100.0, DOUBLE, 'control rate: one /JointJog per tick [Hz]'),
     ('profile', 'continuous', STRING, 'velocity law: ' + ', '.join(PROFILES)),
     ('lambda_max', 0.5, DOUBLE, 'synchronised: speed of the joint with the furthest to go '
-                                '[rad/s] (seed 000 eq. 1)'),
+                                '[rad/s] (the Mover6 report eq. 1)'),
     ('t_max', 1.0, DOUBLE, 'trapezoidal: time of each move [s] (stretched to respect the '
                            'velocity limits)'),
     ('t_blend', 0.0, DOUBLE, 'trapezoidal: ramp time [s]; 0 = t_max / 4'),
@@ -88,7 +88,8 @@ PARAMETERS = (
      'fraction_of_max: one encoder tick per joint [rad] (default the Mover6): commands under one '
      'tick per cycle are lifted to it near the goal; goal tolerance at least one tick'),
     ('driver_cycle', MOVER6_DRIVER_CYCLE, DOUBLE, 'fraction_of_max: cycle of the driver [s]'),
-    ('limit_set', 'seed', STRING, 'joint limits: seed ([-pi/2, pi/2]) or hardware (vendor)'),
+    ('limit_set', 'within_90_deg', STRING,
+     'joint limits: within_90_deg (every joint in [-pi/2, pi/2]) or hardware (vendor)'),
     ('status_rate', 5.0, DOUBLE, 'rate of /controller/status between state changes [Hz]'),
 )
 

@@ -1,16 +1,16 @@
 """
-The robot as seed 000's ``Robot`` class holds it: its joints, and the time-synchronised law.
+The robot as the Mover6 report's ``Robot`` class holds it: its joints, the synchronised law.
 
-Seed 000 eq. 1-2: the joint with the furthest to go sets the time ``t_max = max |demand - q| /
-lambda_max``; every joint then moves at ``(demand - q) / t_max`` so all arrive together. The
-controller itself works on arrays (``velocity_laws``); this class is the readable, per-joint
-view of the same facts, built from an ``ArmModel`` and used for demands and checks.
+The Mover6 report eq. 1-2: the joint with the furthest to go sets the time ``t_max = max |demand -
+q| / lambda_max``; every joint then moves at ``(demand - q) / t_max`` so all arrive together. The
+controller itself works on arrays (``velocity_laws``); this class is the readable, per-joint view
+of the same facts, built from an ``ArmModel`` and used for demands and checks.
 """
 
 from dataclasses import dataclass
 
+from mover6_control.control.joint import Joint
 from mover6_control.errors import InvalidInputError
-from mover6_control.joint import Joint
 import numpy as np
 
 
@@ -121,7 +121,7 @@ class Robot:
 
     def max_time(self, lambda_max):
         """
-        Return ``t_max`` [s] of seed 000 eq. 1 for the furthest joint at ``lambda_max`` [rad/s].
+        Return ``t_max`` [s] (Mover6 report eq. 1) for the furthest joint at ``lambda_max``.
 
         ``t_max = max_m |demand_m - q_m| / lambda_max``; 0 when every joint is at its demand.
         """
@@ -131,7 +131,7 @@ class Robot:
 
     def synchronised_velocities(self, lambda_max):
         """
-        Return the joint speeds (n,) [rad/s] of seed 000 eq. 2: ``(demand - q) / t_max``.
+        Return the joint speeds (n,) [rad/s] of the Mover6 report eq. 2: ``(demand - q) / t_max``.
 
         The furthest joint moves at ``lambda_max``; all joints arrive together. Zero when every
         joint is already at its demand.

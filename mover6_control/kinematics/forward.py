@@ -4,13 +4,13 @@ Forward and velocity kinematics of an ``ArmModel``: poses, Jacobian, rates, stat
 Twist ordering: every twist, Jacobian row block and wrench here is ``[linear; angular]``, all in
 the base frame. ``J = jacobian(arm, q)`` (6, n) maps joint rates ``qd`` [rad/s] to
 ``[v; w]`` where ``v`` [m/s] is the velocity of the tip-link origin and ``w`` [rad/s] the
-angular velocity (seed 004's ``eta = (v, omega)``). A wrench is ``[f; m]``: force [N] at the
-tip-link origin and moment [N m], so the joint torques that balance it are ``J^T [f; m]``
-(seed 002, eq. 20).
+angular velocity (the miniBOT report's ``eta = (v, omega)``). A wrench is ``[f; m]``: force [N] at
+the tip-link origin and moment [N m], so the joint torques that balance it are ``J^T [f; m]`` (the
+Jacobians and trajectories report, eq. 20).
 """
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.rotations import as_finite_array
+from mover6_control.kinematics.rotations import as_finite_array
 import numpy as np
 
 
@@ -181,8 +181,8 @@ def joint_rates(arm, q, twist, damping=1e-3):
     Return joint rates ``qd`` (n,) [rad/s] that produce ``twist`` = [v; w] [m/s; rad/s].
 
     Damped least squares: ``qd = J^T (J J^T + damping^2 I)^-1 twist``; ``damping`` = 0 gives
-    the Moore-Penrose pseudo-inverse (seed 004's ``pinv(J) @ twist``). Damping keeps the rates
-    bounded near a singularity at the price of a small twist error there.
+    the Moore-Penrose pseudo-inverse (the miniBOT report's ``pinv(J) @ twist``). Damping keeps the
+    rates bounded near a singularity at the price of a small twist error there.
     """
     twist = as_finite_array(twist, (6,), 'twist')
     if not np.isfinite(damping) or damping < 0.0:

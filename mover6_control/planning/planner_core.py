@@ -8,13 +8,13 @@ clock-free.
 
 from dataclasses import dataclass
 
-from mover6_control import paths
 from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.ik import ik_closed_form, pose_errors_batch
-from mover6_control.kinematics import condition_number, fk, fk_batch, jacobian
-from mover6_control.path_ik import solve_path
-from mover6_control.reachability import check_pose
-from mover6_control.rotations import pose_error, validate_transform
+from mover6_control.kinematics.forward import condition_number, fk, fk_batch, jacobian
+from mover6_control.kinematics.ik_closed_form import ik_closed_form, pose_errors_batch
+from mover6_control.kinematics.path_ik import solve_path
+from mover6_control.kinematics.reachability import check_pose
+from mover6_control.kinematics.rotations import pose_error, validate_transform
+from mover6_control.motion import paths
 import numpy as np
 
 POSE_MOTIONS = ('linear', 'parabolic', 'joint')

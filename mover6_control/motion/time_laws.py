@@ -1,16 +1,18 @@
 """
 Time laws: normalised progress ``s(tau)`` from 0 to 1 over normalised time ``tau`` in [0, 1].
 
-A time law turns a straight joint move into a trajectory (seed 002 eq. 29-32)::
+A time law turns a straight joint move into a trajectory (the Jacobians and trajectories report eq.
+29-32)::
 
     q(t)    = q_i + (q_f - q_i) s(tau),   tau = t / T
     qd(t)   = (q_f - q_i) s'(tau) / T
     qdd(t)  = (q_f - q_i) s''(tau) / T**2
     qddd(t) = (q_f - q_i) s'''(tau) / T**3
 
-Laws here: the cubic ``-2 tau^3 + 3 tau^2``, the quintic 3-4-5, the septic 4-5-6-7, the seed 000
-trapezoid with a blend time (eq. 16-18), the sharp trapezoid of seed 002 (three equal thirds) and
-seed 002's via-point polynomial of degree 6 through ``s(tau_via) = S``.
+Laws here: the cubic ``-2 tau^3 + 3 tau^2``, the quintic 3-4-5, the septic 4-5-6-7, the Mover6
+report trapezoid with a blend time (eq. 16-18), the sharp trapezoid of the Jacobians and
+trajectories report (three equal thirds) and the Jacobians and trajectories report's via-point
+polynomial of degree 6 through ``s(tau_via) = S``.
 """
 
 from dataclasses import dataclass
@@ -60,7 +62,7 @@ class TrapezoidalTimeLaw:
     """
     Trapezoidal velocity law: ramp up for ``blend`` of the time, cruise, ramp down.
 
-    ``blend`` = t_blend / t_max in (0, 0.5). Seed 000 eq. 16: the cruise speed
+    ``blend`` = t_blend / t_max in (0, 0.5). The Mover6 report eq. 16: the cruise speed
     ``s' = 1 / (1 - blend)`` makes the area under the trapezoid exactly 1 (eq. 19).
     """
 
@@ -77,7 +79,7 @@ class TrapezoidalTimeLaw:
 
     @property
     def peak_rate(self):
-        """Return the cruise value of ``s'`` (seed 000 eq. 16 with t_max = 1)."""
+        """Return the cruise value of ``s'`` (the Mover6 report eq. 16 with t_max = 1)."""
         return 1.0 / (1.0 - self.blend)
 
     def evaluate(self, tau, derivative=0):
@@ -105,7 +107,7 @@ class TrapezoidalTimeLaw:
 
 
 def cubic():
-    """Return the cubic law ``3 tau^2 - 2 tau^3`` (seed 002's 'trapezoidal polynomial')."""
+    """Return the cubic law ``3 tau^2 - 2 tau^3`` (the 'trapezoidal polynomial' of the report)."""
     return PolynomialTimeLaw('cubic', (0.0, 0.0, 3.0, -2.0))
 
 
@@ -121,10 +123,10 @@ def septic():
 
 def trapezoidal(t_max=1.0, t_blend=None):
     """
-    Return seed 000's trapezoid for a move of ``t_max`` [s] with blend time ``t_blend`` [s].
+    Return the Mover6 report's trapezoid for a move of ``t_max`` [s], blend time ``t_blend`` [s].
 
-    ``t_blend`` defaults to ``t_max / 4`` (the seed's choice); ``0 < t_blend < t_max / 2`` is
-    enforced (seed 000 section 2.2.4).
+    ``t_blend`` defaults to ``t_max / 4`` (the Mover6 report's choice); ``0 < t_blend < t_max / 2``
+    is enforced (the Mover6 report section 2.2.4).
     """
     t_max = float(t_max)
     if not np.isfinite(t_max) or t_max <= 0.0:
@@ -139,15 +141,18 @@ def trapezoidal(t_max=1.0, t_blend=None):
 
 
 def sharp_trapezoid():
-    """Return seed 002's sharp trapezoid: accelerate, cruise, decelerate in equal thirds."""
+    """Return the sharp trapezoid: accelerate, cruise, decelerate in equal thirds."""
     return TrapezoidalTimeLaw('sharp_trapezoid', 1.0 / 3.0)
 
 
 def via_fraction(theta_start, theta_via, theta_goal):
     """
-    Return ``S`` with ``theta_via = theta_start + (theta_goal - theta_start) S`` (seed 002).
+    Return ``S`` with ``theta_via = theta_start + (theta_goal - theta_start) S``.
 
-    Seed 002's example: ``via_fraction(83.14, 90, 173.37)`` = 0.0760279.
+    As the Jacobians and trajectories report defines it.
+
+    The Jacobians and trajectories report's example: ``via_fraction(83.14, 90, 173.37)`` =
+    0.0760279.
     """
     vals = np.asarray([theta_start, theta_via, theta_goal], dtype=float)
     if not np.all(np.isfinite(vals)):
@@ -160,11 +165,11 @@ def via_fraction(theta_start, theta_via, theta_goal):
 
 def via_point_polynomial(s_via, tau_via=0.5):
     """
-    Return seed 002's degree-6 law through ``s(tau_via) = s_via``.
+    Return the Jacobians and trajectories report's degree-6 law through ``s(tau_via) = s_via``.
 
     Seven conditions: s(0) = s'(0) = s''(0) = 0, s(1) = 1, s'(1) = s''(1) = 0 and the via
-    point. With ``s_via = 0.0760279`` at ``tau_via = 0.5`` the solution is seed 002's
-    ``27.13 tau^6 - 75.40 tau^5 + 66.40 tau^4 - 17.13 tau^3``.
+    point. With ``s_via = 0.0760279`` at ``tau_via = 0.5`` the solution is the Jacobians and
+    trajectories report's ``27.13 tau^6 - 75.40 tau^5 + 66.40 tau^4 - 17.13 tau^3``.
     """
     s_via = float(s_via)
     tau_via = float(tau_via)

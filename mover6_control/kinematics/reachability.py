@@ -11,11 +11,12 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from mover6_control.errors import UnreachableError
-from mover6_control.ik import has_spherical_wrist, ik_closed_form, wrist_geometry
-from mover6_control.ik_numeric import DEFAULT_WEIGHTS, ik_numeric
-from mover6_control.kinematics import condition_number, fk
-from mover6_control.path_ik import solve_path, unreachable_error, validate_poses
-from mover6_control.rotations import pose_error, validate_transform
+from mover6_control.kinematics.forward import condition_number, fk
+from mover6_control.kinematics.ik_closed_form import (has_spherical_wrist, ik_closed_form,
+                                                      wrist_geometry)
+from mover6_control.kinematics.ik_numeric import DEFAULT_WEIGHTS, ik_numeric
+from mover6_control.kinematics.path_ik import solve_path, unreachable_error, validate_poses
+from mover6_control.kinematics.rotations import pose_error, validate_transform
 import numpy as np
 
 REASONS = ('reachable', 'out_of_reach', 'joint_limits', 'singularity', 'discontinuity')

@@ -4,17 +4,17 @@ The planner node: pose goals in, joint waypoints (N x 6) out on /joint_demands.
 Subscribes /pose_goal (geometry_msgs/PoseStamped), /path_goal (geometry_msgs/PoseArray) and
 /joint_states; publishes /joint_demands (std_msgs/Float32MultiArray) and /planner/status
 (diagnostic_msgs/DiagnosticStatus, transient local). All the planning is in
-``mover6_control.planning``; this node converts, calls it and reports.
+``mover6_control.planning.planner_core``; this node converts, calls it and reports.
 """
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
-from mover6_control import conversions
-from mover6_control.arm import LIMIT_SETS, mover6
 from mover6_control.errors import Mover6Error, UnreachableError
-from mover6_control.planning import (PATH_MOTIONS, plan_path_goal, plan_pose_goal,
-                                     PlannerSettings, POSE_MOTIONS)
-from mover6_control.rotations import matrix_to_euler_zyx
+from mover6_control.kinematics.arm import LIMIT_SETS, mover6
+from mover6_control.kinematics.rotations import matrix_to_euler_zyx
+from mover6_control.nodes import conversions
+from mover6_control.planning.planner_core import (PATH_MOTIONS, plan_path_goal, plan_pose_goal,
+                                                  PlannerSettings, POSE_MOTIONS)
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 import rclpy
@@ -48,8 +48,9 @@ PARAMETERS = (
      'largest position error of any waypoint, the last included [m]'),
     ('orientation_tolerance', 0.01, ParameterType.PARAMETER_DOUBLE,
      'largest orientation error of any waypoint, the last included [rad]'),
-    ('limit_set', 'seed', ParameterType.PARAMETER_STRING,
-     'joint limits: seed ([-pi/2, pi/2] as seed 000) or hardware (vendor limits)'),
+    ('limit_set', 'within_90_deg', ParameterType.PARAMETER_STRING,
+     'joint limits: within_90_deg (every joint in [-pi/2, pi/2], as the Mover6 report)'
+     ' or hardware (vendor limits)'),
     ('frame_id', 'base_link', ParameterType.PARAMETER_STRING,
      'the only frame goals are accepted in'),
     ('state_timeout', 1.0, ParameterType.PARAMETER_DOUBLE,

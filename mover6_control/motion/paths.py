@@ -6,14 +6,15 @@ Positions [m] follow the path's curve; orientations are interpolated by SLERP (s
 keep each step within ``max_step`` [m] and ``max_angle_step`` [rad] (give one of the two
 forms). The first pose is the start and the last the goal, exactly.
 
-Shapes: linear (seed 000 eq. 3-10), parabolic through a lifted mid-point (seed 000 eq. 11-15),
-cubic spline through any number of via poses (seed 000 section 2.3.2), circular arc through a
-via point, directional move and hold (seed 004 appendix A).
+Shapes: linear (the Mover6 report eq. 3-10), parabolic through a lifted mid-point (the Mover6
+report eq. 11-15), cubic spline through any number of via poses (the Mover6 report section 2.3.2),
+circular arc through a via point, directional move and hold (the miniBOT report appendix A).
 """
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.rotations import (as_finite_array, euler_zyx_to_matrix, make_transform,
-                                      rotation_angle_between, validate_transform)
+from mover6_control.kinematics.rotations import (as_finite_array, euler_zyx_to_matrix,
+                                                 make_transform, rotation_angle_between,
+                                                 validate_transform)
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation, Slerp
@@ -77,8 +78,8 @@ def linear_path(T_start, T_goal, n=None, max_step=None, max_angle_step=None):
     """
     Return poses (n, 4, 4) on the straight line from ``T_start`` to ``T_goal``.
 
-    Position ``p(t) = (1 - t) p_start + t p_goal`` (seed 000 eq. 4) and SLERPed orientation,
-    ``t`` evenly spaced in [0, 1].
+    Position ``p(t) = (1 - t) p_start + t p_goal`` (the Mover6 report eq. 4) and SLERPed
+    orientation, ``t`` evenly spaced in [0, 1].
     """
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
@@ -94,7 +95,7 @@ def parabola_coefficients(p_start, p_mid, p_goal):
     """
     Return (a, b, c) (3,) each with ``r(t) = a t^2 + b t + c`` through the three points.
 
-    ``r(0) = p_start``, ``r(0.5) = p_mid``, ``r(1) = p_goal`` (seed 000 eq. 12-15).
+    ``r(0) = p_start``, ``r(0.5) = p_mid``, ``r(1) = p_goal`` (the Mover6 report eq. 12-15).
     """
     M = np.array([[0.0, 0.0, 1.0], [1.0, 1.0, 1.0], [0.25, 0.5, 1.0]])
     rhs = np.vstack([as_finite_array(p_start, (3,), 'p_start'),
@@ -106,10 +107,11 @@ def parabola_coefficients(p_start, p_mid, p_goal):
 
 def parabolic_path(T_start, T_goal, peak_height, n=None, max_step=None, max_angle_step=None):
     """
-    Return poses (n, 4, 4) on seed 000's parabola from ``T_start`` to ``T_goal``.
+    Return poses (n, 4, 4) on the Mover6 report's parabola from ``T_start`` to ``T_goal``.
 
     The curve passes at ``t = 0.5`` through the mid-point of start and goal raised by
-    ``peak_height`` [m] along the base z axis (seed 000 eq. 11-15); ``t`` is evenly spaced.
+    ``peak_height`` [m] along the base z axis (the Mover6 report eq. 11-15); ``t`` is evenly
+    spaced.
     """
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
@@ -231,7 +233,7 @@ def directional_path(T_start, direction, distance, n=None, max_step=None):
     """
     Return poses (n, 4, 4) moving ``distance`` [m] along ``direction`` (3,) in the base frame.
 
-    The orientation is held (seed 004's directional linear path).
+    The orientation is held (the miniBOT report's directional linear path).
     """
     T_start = validate_transform(T_start, 'T_start')
     d = as_finite_array(direction, (3,), 'direction')
@@ -247,7 +249,7 @@ def directional_path(T_start, direction, distance, n=None, max_step=None):
 
 
 def hold_path(T, n):
-    """Return ``n`` copies (n, 4, 4) of pose ``T``: stay put for n samples (seed 004)."""
+    """Return ``n`` copies (n, 4, 4) of pose ``T``: stay put for n samples (the miniBOT report)."""
     T = validate_transform(T, 'T')
     if int(n) != n or n < 1:
         raise InvalidInputError(f'n must be an integer >= 1, got {n}')
@@ -269,10 +271,10 @@ def concatenate(*paths):
 
 def goal_relative_to_start(T_start, x, y, z, a, b, c):
     """
-    Return the goal pose as seed 000's MATLAB builds it, rotation relative to the start.
+    Return the goal pose as the Mover6 report's MATLAB builds it, rotation relative to the start.
 
     Position X Y Z [m] is absolute; the rotation is ``R_start @ Rz(a) Ry(b) Rx(c)``, so
-    ``a = b = c = 0`` keeps the start orientation (seed 000:
+    ``a = b = c = 0`` keeps the start orientation (the Mover6 report:
     ``tform2rotm(initial_Pos) * eul2rotm([A, B, C])``).
     """
     T_start = validate_transform(T_start, 'T_start')

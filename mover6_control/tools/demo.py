@@ -16,10 +16,10 @@ import subprocess
 import sys
 import time
 
-from mover6_control.arm import mover6
-from mover6_control.goal_cli import EXIT_REFUSED, format_outcome, GoalClient
-from mover6_control.kinematics import fk_batch
-from mover6_control.rotations import pose_from_xyzabc
+from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.forward import fk_batch
+from mover6_control.kinematics.rotations import pose_from_xyzabc
+from mover6_control.tools.goal_cli import EXIT_REFUSED, format_outcome, GoalClient
 import numpy as np
 import rclpy
 from sensor_msgs.msg import JointState
@@ -88,7 +88,7 @@ def stop_stack(proc):
 
 def deviation_from_polyline(points, polyline):
     """Return the largest distance [m] of ``points`` (m, 3) from a polyline (k, 3)."""
-    from mover6_control.metrics import max_deviation_from_polyline
+    from mover6_control.motion.metrics import max_deviation_from_polyline
     return max_deviation_from_polyline(points, polyline)
 
 
@@ -128,7 +128,7 @@ def run_step(client, recorder, arm, step, say):
 
 def write_report(report_dir, rows, arm):
     """Write metrics.json, metrics.md and the plots; return the list of files written."""
-    from mover6_control import plots
+    from mover6_control.tools import plots
     files = []
     for row in rows:
         if 'samples' not in row or not row['samples']['t']:

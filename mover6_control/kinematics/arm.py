@@ -209,7 +209,7 @@ MOVER6_HARDWARE_LIMITS_DEG = {
     'upper': [130.0, 60.0, 75.0, 140.0, 60.0, 120.0],
     'velocity': [30.0, 30.0, 30.0, 30.0, 40.0, 100.0],
 }
-LIMIT_SETS = ('seed', 'hardware')
+LIMIT_SETS = ('within_90_deg', 'hardware')
 
 # The vendor driver (cpr_robot, CPRMover6.cpp) moves whole encoder ticks once per cycle. One tick
 # of each joint [rad] is 2 pi / (gear ratio * ticks per motor turn); the cycle is 50 ms (20 Hz).
@@ -221,18 +221,19 @@ MOVER6_TICK_SIZE = tuple(2.0 * np.pi / (gear * ticks) for gear, ticks in
 MOVER6_DRIVER_CYCLE = 0.05
 
 
-def mover6(limit_set='seed', urdf_path=None):
+def mover6(limit_set='within_90_deg', urdf_path=None):
     """
     Return the Mover6 model from the shipped URDF.
 
-    ``limit_set`` 'seed' keeps every joint in [-1.571, 1.571] rad as seed 000 does; 'hardware'
+    ``limit_set`` 'within_90_deg' keeps every joint in [-1.571, 1.571] rad as the Mover6 report
+    does; 'hardware'
     uses the vendor's software limits. Velocity limits are the vendor's speeds in both.
     """
     arm = load_urdf(urdf_path or os.path.join(CONFIG_DIR, 'mover6.urdf'), tip_link='link6',
                     name='mover6')
     lim = MOVER6_HARDWARE_LIMITS_DEG
     velocity = np.radians(lim['velocity'])
-    if limit_set == 'seed':
+    if limit_set == 'within_90_deg':
         return arm.with_limits(velocity_limits=velocity)
     if limit_set == 'hardware':
         return arm.with_limits(lower=np.radians(lim['lower']), upper=np.radians(lim['upper']),
@@ -357,5 +358,5 @@ def load_dh_yaml(path):
 
 
 def minibot(path=None):
-    """Return seed 004's NeXCOM miniBOT from its DH table (config/minibot_dh.yaml)."""
+    """Return the miniBOT report's NeXCOM miniBOT from its DH table (config/minibot_dh.yaml)."""
     return load_dh_yaml(path or os.path.join(CONFIG_DIR, 'minibot_dh.yaml'))

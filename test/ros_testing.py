@@ -16,8 +16,9 @@ import time
 from mover6_control.resources import CONFIG_DIR
 
 ROOT = os.path.dirname(CONFIG_DIR)
-MODULES = {'sim_bridge': 'sim_bridge.bridge_node', 'controller': 'mover6_control.controller_node',
-           'planner': 'mover6_control.planner_node'}
+MODULES = {'sim_bridge': 'sim_bridge.bridge_node',
+           'controller': 'mover6_control.nodes.controller_node',
+           'planner': 'mover6_control.nodes.planner_node'}
 
 
 def node_command(name):

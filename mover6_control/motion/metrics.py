@@ -10,7 +10,7 @@ acceleration of size ``da`` shows as ``da / dt``: trajectories with acceleration
 from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.rotations import as_finite_array
+from mover6_control.kinematics.rotations import as_finite_array
 import numpy as np
 
 # Points x segments handled per block when measuring distances to a polyline.

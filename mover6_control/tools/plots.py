@@ -10,7 +10,7 @@ import os
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from mover6_control.errors import InvalidInputError
-from mover6_control.rotations import as_finite_array
+from mover6_control.kinematics.rotations import as_finite_array
 import numpy as np
 
 
@@ -26,7 +26,9 @@ def _save(fig, path):
 
 def plot_time_law(laws, path, n=501):
     """
-    Plot ``s(tau)`` and its first three derivatives for each law (seed 002 Fig. 5).
+    Plot ``s(tau)`` and its first three derivatives for each law.
+
+    As the Jacobians and trajectories report's Fig. 5.
 
     ``laws`` is one time law, a sequence of them, or a dict label -> law.
     """
@@ -56,7 +58,7 @@ def plot_joint_trajectories(t, Q, lower, upper, path, QD=None, QDD=None, names=N
     Plot joint positions (m, n) [rad] over ``t`` (m,) [s] with dashed joint limits (n,).
 
     Velocity and acceleration panels are added when ``QD`` / ``QDD`` (m, n) are given
-    (seed 000 Fig. 5-7, seed 002 Fig. 6-10).
+    (the Mover6 report Fig. 5-7, the Jacobians and trajectories report Fig. 6-10).
     """
     Q = as_finite_array(Q, (None, None), 'Q')
     m, n = Q.shape
@@ -89,7 +91,7 @@ def plot_joint_trajectories(t, Q, lower, upper, path, QD=None, QDD=None, names=N
 
 
 def plot_path_3d(desired, realised, path, waypoints=None):
-    """Plot the desired tool path (k, 3) [m] against the realised one (m, 3) (seed 000 Fig. 1)."""
+    """Plot the desired tool path (k, 3) [m] against the realised one (m, 3), as Fig. 1 does."""
     desired = as_finite_array(desired, (None, 3), 'desired')
     realised = as_finite_array(realised, (None, 3), 'realised')
     fig = Figure(figsize=(7, 6))

@@ -11,7 +11,7 @@ from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Pose
 from mover6_control.errors import InvalidInputError
-from mover6_control.rotations import matrix_to_quaternion, quaternion_to_matrix
+from mover6_control.kinematics.rotations import matrix_to_quaternion, quaternion_to_matrix
 import numpy as np
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -97,7 +97,8 @@ def demands_from_msg(msg, n_joints=6):
     Return the waypoints (n, n_joints) [rad] of a Float32MultiArray.
 
     Accepts the layout of design.md (dim[0] waypoints, dim[1] joints) or a flat array with no
-    layout whose length is a multiple of ``n_joints`` (the seed's MATLAB and terminal usage).
+    layout whose length is a multiple of ``n_joints`` (the Mover6 report's MATLAB and terminal
+    usage).
     """
     data = np.asarray(msg.data, dtype=float)
     dims = list(msg.layout.dim)

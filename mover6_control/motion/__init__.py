@@ -1,0 +1,5 @@
+"""
+Motion layer: Cartesian pose paths, time laws, joint trajectories, continuous timing, metrics.
+
+Imports the base modules and ``kinematics``; nothing above it.
+"""

@@ -1,0 +1,125 @@
+"""
+The layers of the package import only downwards, as docs/architecture.md draws them.
+
+Each module belongs to one layer by its folder; every import statement in it (at module level or
+inside a function) may name only its own layer or the layers its layer builds on. A module that
+reaches up (the kinematics importing the controller, the core importing a node, the product
+importing the test harness) fails here, just as a ROS import in the core fails
+``test_core_is_ros_free.py``.
+"""
+
+import ast
+import os
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+# Layer of a module, by the longest matching dotted prefix.
+LAYER_OF = {
+    'mover6_control': 'base',            # errors, resources, validation, parameters
+    'mover6_control.kinematics': 'kinematics',
+    'mover6_control.motion': 'motion',
+    'mover6_control.control': 'control',
+    'mover6_control.planning': 'planning',
+    'mover6_control.nodes': 'nodes',
+    'mover6_control.tools': 'tools',
+    'sim_bridge': 'sim',
+    'sim_bridge.bridge_node': 'sim_node',
+}
+
+# What each layer may import (besides itself and third-party packages).
+MAY_IMPORT = {
+    'base': set(),
+    'kinematics': {'base'},
+    'motion': {'base', 'kinematics'},
+    'control': {'base', 'kinematics', 'motion'},
+    'planning': {'base', 'kinematics', 'motion'},
+    'sim': {'base', 'kinematics'},
+    'nodes': {'base', 'kinematics', 'motion', 'control', 'planning'},
+    'sim_node': {'base', 'kinematics', 'sim', 'nodes'},
+    'tools': {'base', 'kinematics', 'motion', 'control', 'planning', 'nodes', 'sim'},
+}
+
+
+def layer_of(module):
+    """Return the layer of a dotted module name of this project, or None for anything else."""
+    best = None
+    for prefix in LAYER_OF:
+        if module == prefix or module.startswith(prefix + '.'):
+            if best is None or len(prefix) > len(best):
+                best = prefix
+    return LAYER_OF[best] if best else None
+
+
+def project_modules():
+    """Return (dotted name, path) of every module of the two Python packages."""
+    out = []
+    for package in ('mover6_control', 'sim_bridge'):
+        for folder, dirs, files in os.walk(os.path.join(ROOT, package)):
+            dirs[:] = sorted(d for d in dirs if not d.startswith(('.', '__')))
+            dotted = os.path.relpath(folder, ROOT).replace(os.sep, '.')
+            for name in sorted(files):
+                stem, ext = os.path.splitext(name)
+                if ext == '.py':
+                    module = dotted if stem == '__init__' else f'{dotted}.{stem}'
+                    out.append((module, os.path.join(folder, name)))
+    return out
+
+
+def imports_of(module, path):
+    """Return every absolute module name that an import statement in ``path`` names."""
+    with open(path) as f:
+        tree = ast.parse(f.read(), path)
+    package = module if path.endswith('__init__.py') else module.rpartition('.')[0]
+    names = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ''
+            if node.level:
+                parts = package.split('.')
+                parent = '.'.join(parts[:len(parts) - node.level + 1])
+                base = f'{parent}.{base}' if base else parent
+            names.append(base)
+            # ``from mover6_control import motion`` names the subpackage itself.
+            names += [f'{base}.{alias.name}' for alias in node.names
+                      if layer_of(f'{base}.{alias.name}') not in (None, layer_of(base))]
+    return names
+
+
+def test_every_folder_has_a_layer():
+    """Each module lands in a known layer, and each layer holds at least one module."""
+    modules = project_modules()
+    seen = {layer_of(m) for m, _ in modules}
+    assert None not in seen
+    assert seen == set(MAY_IMPORT), f'layers without modules: {set(MAY_IMPORT) - seen}'
+
+
+def test_the_check_can_fail():
+    """The rule is not vacuous: a reach upwards is caught, a reach downwards is not."""
+    assert layer_of('mover6_control.nodes.conversions') not in MAY_IMPORT['control']
+    assert layer_of('mover6_control.control.robot') not in MAY_IMPORT['kinematics']
+    assert layer_of('sim_bridge.model') not in MAY_IMPORT['planning']
+    assert layer_of('mover6_control.kinematics.arm') in MAY_IMPORT['motion']
+
+
+@pytest.mark.parametrize('module,path', project_modules(), ids=lambda v: str(v))
+def test_imports_only_downwards(module, path):
+    """Every import names the module's own layer, a layer below it, or a third party."""
+    layer = layer_of(module)
+    allowed = MAY_IMPORT[layer] | {layer}
+    bad = []
+    for name in imports_of(module, path):
+        target = layer_of(name)
+        if target is not None and target not in allowed:
+            bad.append(f'{name} ({target})')
+    assert bad == [], f'{module} ({layer} layer) imports from above: {bad}'
+
+
+def test_the_harness_is_not_product():
+    """The process harness of the tests lives in test/, and nothing in the product imports it."""
+    assert os.path.exists(os.path.join(ROOT, 'test', 'ros_testing.py'))
+    for module, path in project_modules():
+        assert not any(n.split('.')[0] == 'ros_testing' for n in imports_of(module, path)), module
