@@ -8,7 +8,7 @@ Run: ``python -m bench.bench_motion [--quick]``. Prints tables and writes
    (continuous TOPP timing, cubic, quintic, B-spline, multi-point trapezoid, the Mover6 report's
    stop-at-each trapezoids, ruckig point-to-point).
 2. The Mover6 report's linear example: X=0.445 Y=0 Z=0.4425 A=B=C=0 from home (q = 0), 20
-   waypoints, the Mover6 hardware speed limits (design.md) and a_max = 1 rad/s^2 (the controller's
+   waypoints, the Mover6 hardware speed limits (arm.py) and a_max = 1 rad/s^2 (the controller's
    default). A B C are composed relative to the home orientation as the seed's MATLAB does (R_goal
    = R_home Rzyx(A, B, C)): the tool keeps its orientation and moves 0.1 m along +x. Compared: the
    seed's scheme (a trapezoid per waypoint, t_blend = t_max / 4, stop at each; both the seed's

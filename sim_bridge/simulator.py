@@ -14,7 +14,7 @@ ROS-free and clock-free: the caller steps the physics, passes the receive time o
     never driven past the joint limits: near a limit a joint glides onto it. ``state()``
     reads the physics: q, qd, motor torque.
 
-``'vendor_driver'`` (the Mover6's own cpr_robot driver, design.md)
+``'vendor_driver'`` (the Mover6's own cpr_robot driver)
     A command gives fractions of each joint's maximum speed (clamped to [-1, 1]); joints it does
     not name keep their last fraction, and the last command is held with no timeout (send zeros
     to stop). Every ``vendor_cycle`` (50 ms, 20 Hz) the driver reads the encoders (positions in
@@ -27,8 +27,8 @@ ROS-free and clock-free: the caller steps the physics, passes the receive time o
 Encoder ticks of the Mover6: the vendor driver (cpr_robot, CPRMover6.cpp) sets gear ratios 528.2,
 528.2, 528.2, 499.1, 1, 1 and 1440, 1440, 1440, 1440, 1024, 1024 encoder ticks per motor turn,
 so one tick is 2 pi / (gear * ticks) of the joint: 8.26e-6 rad for J1 to J3, 8.74e-6 rad for J4
-and 6.14e-3 rad (0.352 deg) for J5 and J6. The J5/J6 figures are consistent with the 7 deg/s
-threshold design.md reports (0.352 deg / 0.05 s = 7.0 deg/s).
+and 6.14e-3 rad (0.352 deg) for J5 and J6. The J5/J6 figures are consistent with the real arm,
+whose J5 and J6 stand still under about 7 deg/s (0.352 deg / 0.05 s = 7.0 deg/s).
 """
 
 from dataclasses import dataclass, field

@@ -40,7 +40,7 @@ def test_fk_agrees_with_core(limit_set, data):
 
 
 def test_fk_home_is_the_seed_flange_position():
-    """At q = 0 MuJoCo puts the flange at (0.345, 0, 0.4425) m, as design.md states."""
+    """At q = 0 MuJoCo puts the flange at (0.345, 0, 0.4425) m (the Mover6 report's URDF)."""
     arm = ARMS['within_90_deg']
     T_mj, _ = _mujoco_fk(MODELS['within_90_deg'], arm, np.zeros(6))
     np.testing.assert_allclose(T_mj[:3, 3], [0.345, 0.0, 0.4425], atol=1e-12)

@@ -105,7 +105,7 @@ def assert_arrives_and_holds(loop, goal):
 def test_tick_sizes_match_the_simulated_driver():
     np.testing.assert_allclose(MOVER6_TICK_SIZE, SimConfig().tick_size, rtol=1e-15)
     assert MOVER6_DRIVER_CYCLE == SimConfig().vendor_cycle
-    # design.md: J5/J6 do not move under about 7 deg/s (one tick per 50 ms cycle).
+    # The vendor driver: J5/J6 do not move under about 7 deg/s (one tick per 50 ms cycle).
     np.testing.assert_allclose(np.degrees(MOVER6_TICK_SIZE[4:]) / MOVER6_DRIVER_CYCLE, 7.03,
                                atol=0.01)
 

@@ -203,7 +203,7 @@ def load_urdf(path, base_link='base_link', tip_link=None, name=None):
                     velocity_limits=np.array(vel), base_link=base_link, tip_link=tip_link)
 
 
-# The vendor's software limits and speeds (design.md, from CPRMover6.cpp / CPR_Mover6.xml).
+# The vendor's software limits and speeds (its driver's CPRMover6.cpp and CPR_Mover6.xml).
 MOVER6_HARDWARE_LIMITS_DEG = {
     'lower': [-130.0, -50.0, -110.0, -140.0, -70.0, -120.0],
     'upper': [130.0, 60.0, 75.0, 140.0, 60.0, 120.0],

@@ -96,9 +96,9 @@ def demands_from_msg(msg, n_joints=6):
     """
     Return the waypoints (n, n_joints) [rad] of a Float32MultiArray.
 
-    Accepts the layout of design.md (dim[0] waypoints, dim[1] joints) or a flat array with no
-    layout whose length is a multiple of ``n_joints`` (the Mover6 report's MATLAB and terminal
-    usage).
+    Accepts the layout ``make_demands`` writes (dim[0] waypoints, dim[1] joints) or a flat
+    array with no layout whose length is a multiple of ``n_joints`` (the Mover6 report's MATLAB
+    and terminal usage).
     """
     data = np.asarray(msg.data, dtype=float)
     dims = list(msg.layout.dim)
