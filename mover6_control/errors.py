@@ -17,7 +17,8 @@ class InvalidInputError(Mover6Error, ValueError):
 class UnreachableError(Mover6Error, ValueError):
     """A pose or path cannot be reached; ``reason`` is a short machine-readable code."""
 
-    def __init__(self, message, reason='unreachable', details=None):
+    def __init__(self, message: str, reason: str = 'unreachable',
+                 details: dict | None = None) -> None:
         super().__init__(message)
         self.reason = reason
         self.details = dict(details or {})

@@ -7,6 +7,9 @@ its own frame. ``tool`` (4, 4) is the fixed transform from the last joint's fram
 That is URDF's own description, so nothing is lost in translation; a DH table maps onto it too.
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 import os
 
@@ -64,11 +67,12 @@ class ArmModel:
                 f'velocity limits must be positive, got {self.velocity_limits.tolist()}')
 
     @property
-    def n_joints(self):
+    def n_joints(self) -> int:
         """Return the number of joints."""
         return len(self.joint_names)
 
-    def with_limits(self, lower=None, upper=None, velocity_limits=None):
+    def with_limits(self, lower: np.ndarray | None = None, upper: np.ndarray | None = None,
+                    velocity_limits: np.ndarray | None = None) -> ArmModel:
         """Return a copy with other joint [rad] and/or velocity [rad/s] limits."""
         return replace(
             self,
@@ -76,7 +80,7 @@ class ArmModel:
             upper=self.upper if upper is None else upper,
             velocity_limits=self.velocity_limits if velocity_limits is None else velocity_limits)
 
-    def check_q(self, q, name='q'):
+    def check_q(self, q: np.ndarray, name: str = 'q') -> np.ndarray:
         """Return ``q`` as a finite (n,) array or raise a helpful error."""
         q_arr = np.asarray(q, dtype=float)
         if q_arr.shape != (self.n_joints,):
@@ -86,7 +90,7 @@ class ArmModel:
             raise InvalidInputError(f'{name} has non-finite values: {q_arr.tolist()}')
         return q_arr
 
-    def joint_index(self, name):
+    def joint_index(self, name: str) -> int:
         """Return the index of joint ``name`` or raise naming the known joints."""
         try:
             return self.joint_names.index(name)
@@ -95,7 +99,8 @@ class ArmModel:
                 f'unknown joint "{name}" for {self.name}; joints are {list(self.joint_names)}'
             ) from None
 
-    def q_from_names(self, names, values, name='q'):
+    def q_from_names(self, names: Sequence[str], values: Sequence[float],
+                     name: str = 'q') -> np.ndarray:
         """
         Return ``q`` (n,) in model order from joint ``names`` and their ``values``.
 
@@ -116,12 +121,12 @@ class ArmModel:
             raise InvalidInputError(f'{name} lacks joints {missing}')
         return self.check_q(q, name)
 
-    def within_limits(self, q, tol=1e-9):
+    def within_limits(self, q: np.ndarray, tol: float = 1e-9) -> bool:
         """Return True when every joint of ``q`` is inside its limits (with ``tol`` [rad])."""
         q = np.asarray(q, dtype=float)
         return bool(np.all(q >= self.lower - tol) & np.all(q <= self.upper + tol))
 
-    def limit_violations(self, q, tol=1e-9):
+    def limit_violations(self, q: np.ndarray, tol: float = 1e-9) -> list[str]:
         """Return a readable list of the joints of ``q`` that are outside their limits."""
         q = np.asarray(q, dtype=float)
         out = []
@@ -131,7 +136,7 @@ class ArmModel:
         return out
 
 
-def transform_from_xyz_rpy(xyz, rpy):
+def transform_from_xyz_rpy(xyz: Sequence[float], rpy: Sequence[float]) -> np.ndarray:
     """Return the 4x4 transform of a URDF origin: xyz [m], fixed-axis roll-pitch-yaw [rad]."""
     T = np.eye(4)
     T[:3, :3] = Rotation.from_euler('xyz', rpy).as_matrix()
@@ -139,7 +144,8 @@ def transform_from_xyz_rpy(xyz, rpy):
     return T
 
 
-def load_urdf(path, base_link='base_link', tip_link=None, name=None):
+def load_urdf(path: str, base_link: str = 'base_link', tip_link: str | None = None,
+              name: str | None = None) -> ArmModel:
     """
     Load the revolute chain from ``base_link`` to ``tip_link`` of a URDF file.
 
@@ -221,7 +227,7 @@ MOVER6_TICK_SIZE = tuple(2.0 * np.pi / (gear * ticks) for gear, ticks in
 MOVER6_DRIVER_CYCLE = 0.05
 
 
-def mover6(limit_set='within_90_deg', urdf_path=None):
+def mover6(limit_set: str = 'within_90_deg', urdf_path: str | None = None) -> ArmModel:
     """
     Return the Mover6 model from the shipped URDF.
 
@@ -253,7 +259,7 @@ def _rot_z(theta):
     return T
 
 
-def dh_link_transform(a, alpha, d):
+def dh_link_transform(a: float, alpha: float, d: float) -> np.ndarray:
     """Return ``Tz(d) Tx(a) Rx(alpha)`` (4, 4), the fixed part of a standard DH row."""
     c, s = np.cos(alpha), np.sin(alpha)
     return np.array([[1.0, 0.0, 0.0, a],
@@ -262,9 +268,13 @@ def dh_link_transform(a, alpha, d):
                      [0.0, 0.0, 0.0, 1.0]])
 
 
-def from_dh(a, alpha, d, offset=None, *, length_unit='m', angle_unit='rad', lower=None,
-            upper=None, velocity_limits=None, name='dh_arm', joint_names=None,
-            base_link='base_link', tip_link=None, tool=None):
+def from_dh(a: Sequence[float], alpha: Sequence[float], d: Sequence[float],
+            offset: Sequence[float] | None = None, *, length_unit: str = 'm',
+            angle_unit: str = 'rad', lower: Sequence[float] | None = None,
+            upper: Sequence[float] | None = None,
+            velocity_limits: Sequence[float] | None = None, name: str = 'dh_arm',
+            joint_names: Sequence[str] | None = None, base_link: str = 'base_link',
+            tip_link: str | None = None, tool: np.ndarray | None = None) -> ArmModel:
     """
     Build an ``ArmModel`` from a standard (distal) Denavit-Hartenberg table.
 
@@ -331,7 +341,7 @@ DH_KEYS = ('name', 'length_unit', 'angle_unit', 'a', 'alpha', 'd', 'offset', 'lo
            'velocity_limits', 'joint_names', 'base_link', 'tip_link')
 
 
-def load_dh_yaml(path):
+def load_dh_yaml(path: str) -> ArmModel:
     """
     Load an arm from a YAML DH table (keys as ``from_dh``'s arguments, see minibot_dh.yaml).
 
@@ -357,6 +367,6 @@ def load_dh_yaml(path):
     return from_dh(spec['a'], spec['alpha'], spec['d'], spec.get('offset'), **kwargs)
 
 
-def minibot(path=None):
+def minibot(path: str | None = None) -> ArmModel:
     """Return the miniBOT report's NeXCOM miniBOT from its DH table (config/minibot_dh.yaml)."""
     return load_dh_yaml(path or os.path.join(CONFIG_DIR, 'minibot_dh.yaml'))

@@ -9,12 +9,19 @@ the tip-link origin and moment [N m], so the joint torques that balance it are `
 Jacobians and trajectories report, eq. 20).
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import as_finite_array
 import numpy as np
 
+if TYPE_CHECKING:
+    from mover6_control.kinematics.arm import ArmModel
 
-def axis_rotations(axes, q):
+
+def axis_rotations(axes: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Return rotation matrices (..., n, 3, 3) about unit ``axes`` (n, 3) by ``q`` (..., n)."""
     q = np.asarray(q, dtype=float)
     c = np.cos(q)[..., None, None]
@@ -100,7 +107,7 @@ def _chain(arm, Q, keep_frames):
     return out
 
 
-def fk_frames_batch(arm, Q):
+def fk_frames_batch(arm: ArmModel, Q: np.ndarray) -> np.ndarray:
     """
     Return the frame of every joint and the tip, (m, n + 1, 4, 4), for configurations (m, n).
 
@@ -109,24 +116,24 @@ def fk_frames_batch(arm, Q):
     return _chain(arm, Q, keep_frames=True)
 
 
-def fk_batch(arm, Q):
+def fk_batch(arm: ArmModel, Q: np.ndarray) -> np.ndarray:
     """Return ``T_base_tip`` (m, 4, 4) for configurations ``Q`` (m, n) [rad]."""
     return _chain(arm, Q, keep_frames=False)
 
 
-def fk(arm, q):
+def fk(arm: ArmModel, q: np.ndarray) -> np.ndarray:
     """Return ``T_base_tip`` (4, 4) for one configuration ``q`` (n,) [rad]."""
     q = arm.check_q(q)
     return fk_batch(arm, q[None, :])[0]
 
 
-def fk_frames(arm, q):
+def fk_frames(arm: ArmModel, q: np.ndarray) -> np.ndarray:
     """Return every joint frame and the tip frame (n + 1, 4, 4) for ``q`` (n,) [rad]."""
     q = arm.check_q(q)
     return fk_frames_batch(arm, q[None, :])[0]
 
 
-def jacobian_batch(arm, Q):
+def jacobian_batch(arm: ArmModel, Q: np.ndarray) -> np.ndarray:
     """
     Return geometric Jacobians (m, 6, n) in the base frame for configurations ``Q`` (m, n).
 
@@ -144,18 +151,18 @@ def jacobian_batch(arm, Q):
     return J
 
 
-def jacobian(arm, q):
+def jacobian(arm: ArmModel, q: np.ndarray) -> np.ndarray:
     """Return the geometric Jacobian (6, n) at ``q`` (n,) [rad]: rows ``[v; w]``, base frame."""
     q = arm.check_q(q)
     return jacobian_batch(arm, q[None, :])[0]
 
 
-def singular_values(arm, q):
+def singular_values(arm: ArmModel, q: np.ndarray) -> np.ndarray:
     """Return the singular values (min(6, n),) of the Jacobian at ``q``, largest first."""
     return np.linalg.svd(jacobian(arm, q), compute_uv=False)
 
 
-def manipulability(arm, q):
+def manipulability(arm: ArmModel, q: np.ndarray) -> float:
     """
     Return Yoshikawa's manipulability at ``q``: the product of the Jacobian's singular values.
 
@@ -165,7 +172,7 @@ def manipulability(arm, q):
     return float(np.prod(singular_values(arm, q)))
 
 
-def condition_number(arm, q):
+def condition_number(arm: ArmModel, q: np.ndarray) -> float:
     """
     Return the Jacobian's condition number ``s_max / s_min`` at ``q`` (inf when singular).
 
@@ -176,7 +183,8 @@ def condition_number(arm, q):
     return float(s[0] / s[-1]) if s[-1] > 0.0 else float('inf')
 
 
-def joint_rates(arm, q, twist, damping=1e-3):
+def joint_rates(arm: ArmModel, q: np.ndarray, twist: np.ndarray,
+                damping: float = 1e-3) -> np.ndarray:
     """
     Return joint rates ``qd`` (n,) [rad/s] that produce ``twist`` = [v; w] [m/s; rad/s].
 
@@ -193,7 +201,7 @@ def joint_rates(arm, q, twist, damping=1e-3):
     return J.T @ np.linalg.solve(J @ J.T + damping ** 2 * np.eye(6), twist)
 
 
-def joint_torques(arm, q, wrench):
+def joint_torques(arm: ArmModel, q: np.ndarray, wrench: np.ndarray) -> np.ndarray:
     """
     Return joint torques ``tau = J^T wrench`` (n,) [N m] at ``q`` [rad].
 

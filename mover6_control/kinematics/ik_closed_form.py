@@ -27,12 +27,18 @@ singularity (axes 4 and 6 aligned) only q4 + q6 matters: q4 is taken from ``q_re
 at a shoulder singularity (wrist centre on axis 1).
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.forward import fk_batch
 from mover6_control.kinematics.rotations import as_finite_array, validate_transform
 import numpy as np
+
+if TYPE_CHECKING:
+    from mover6_control.kinematics.arm import ArmModel
 
 N_BRANCHES = 8
 VERIFY_TOL = 1e-6        # [m] and [rad]: an FK round trip worse than this is not a solution
@@ -116,7 +122,7 @@ def _cos_sin(a, b, c, tol):
     return np.stack([phi + delta, phi - delta], axis=-1), ok, rho
 
 
-def wrist_geometry(arm):
+def wrist_geometry(arm: ArmModel) -> WristGeometry:
     """
     Return the ``WristGeometry`` of ``arm`` or raise ``InvalidInputError`` saying what is missing.
 
@@ -172,7 +178,7 @@ def wrist_geometry(arm):
     return geometry
 
 
-def has_spherical_wrist(arm):
+def has_spherical_wrist(arm: ArmModel) -> bool:
     """Return True when ``ik_closed_form`` can solve ``arm``."""
     try:
         wrist_geometry(arm)
@@ -186,7 +192,8 @@ def _wrap(q):
     return (q + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def nearest_alias(arm, Q, q_ref, within_limits=True):
+def nearest_alias(arm: ArmModel, Q: np.ndarray, q_ref: np.ndarray,
+                  within_limits: bool = True) -> np.ndarray:
     """
     Return ``Q`` (..., n) with each angle moved by whole turns to lie nearest ``q_ref``.
 
@@ -207,7 +214,7 @@ def _into_limits(arm, Q):
     return np.where((Q > hi) & (down >= lo) & (down <= hi), down, Q)
 
 
-def pose_errors_batch(T_goal, T):
+def pose_errors_batch(T_goal: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     Return position [m] and orientation [rad] errors between poses (..., 4, 4).
 
@@ -300,8 +307,9 @@ def _as_q_ref(arm, q_ref, m):
     return as_finite_array(q_ref, (m, arm.n_joints), 'q_ref')
 
 
-def ik_closed_form_batch(arm, T, within_limits=True, q_ref=None, tol=VERIFY_TOL,
-                         chunk=1024):
+def ik_closed_form_batch(arm: ArmModel, T: np.ndarray, within_limits: bool = True,
+                         q_ref: np.ndarray | None = None, tol: float = VERIFY_TOL,
+                         chunk: int = 1024) -> tuple[np.ndarray, np.ndarray]:
     """
     Solve many poses at once: ``T`` (m, 4, 4) -> ``(Q (m, 8, 6), valid (m, 8))``.
 
@@ -324,8 +332,9 @@ def ik_closed_form_batch(arm, T, within_limits=True, q_ref=None, tol=VERIFY_TOL,
     return Q, ok
 
 
-def solve_candidates(arm, geo, T, q_ref, within_limits=True, tol=VERIFY_TOL,
-                     return_ref_used=False):
+def solve_candidates(arm: ArmModel, geo: WristGeometry, T: np.ndarray, q_ref: np.ndarray,
+                     within_limits: bool = True, tol: float = VERIFY_TOL,
+                     return_ref_used: bool = False) -> tuple[np.ndarray, ...]:
     """
     Return the 8 candidates (m, 8, 6) of poses ``T`` (m, 4, 4) and the mask of verified ones.
 
@@ -353,7 +362,8 @@ def solve_candidates(arm, geo, T, q_ref, within_limits=True, tol=VERIFY_TOL,
     return (Q, ok, used_ref) if return_ref_used else (Q, ok)
 
 
-def ik_closed_form(arm, T, within_limits=True, q_ref=None, tol=VERIFY_TOL):
+def ik_closed_form(arm: ArmModel, T: np.ndarray, within_limits: bool = True,
+                   q_ref: np.ndarray | None = None, tol: float = VERIFY_TOL) -> np.ndarray:
     """
     Return every solution (k, 6) [rad] for the pose ``T`` (4, 4); k = 0 when there is none.
 

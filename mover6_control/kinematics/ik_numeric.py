@@ -16,11 +16,18 @@ both tolerances wins; otherwise the lowest-cost configuration seen is returned w
 ``success = False`` (the closest pose found).
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import as_finite_array, validate_transform
 import numpy as np
+
+if TYPE_CHECKING:
+    from mover6_control.kinematics.arm import ArmModel
 
 DEFAULT_WEIGHTS = (1.0, 1.0, 1.0, 0.01, 0.01, 0.01)  # 1 rad weighs as 0.1 m
 _LEVI_CIVITA = np.zeros((3, 3, 3))
@@ -42,7 +49,7 @@ class NumericIKResult:
     cost: float                # weighted cost e^T W e at q
 
 
-def rotation_log_batch(R):
+def rotation_log_batch(R: np.ndarray) -> np.ndarray:
     """
     Return rotation vectors (..., 3) [rad] of rotation matrices (..., 3, 3).
 
@@ -87,7 +94,7 @@ class ScrewChain:
     M: np.ndarray       # (4, 4) tip pose at q = 0
 
 
-def screw_chain(arm):
+def screw_chain(arm: ArmModel) -> ScrewChain:
     """Return the ``ScrewChain`` of ``arm`` (one FK at q = 0)."""
     n = arm.n_joints
     frames = np.empty((n + 1, 4, 4))   # at q = 0 every joint rotation is the identity
@@ -111,7 +118,8 @@ def screw_chain(arm):
     return ScrewChain(A=A, B=B, axis_point=axis_point, M=frames[n])
 
 
-def pose_residual_batch(chain, Q, T_goal):
+def pose_residual_batch(chain: ScrewChain, Q: np.ndarray,
+                        T_goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     Return errors (m, 6) ``[p_goal - p; log(R_goal R^T)]`` and Jacobians (m, 6, n) at ``Q``.
 
@@ -147,10 +155,12 @@ def _check_weights(weights):
     return w
 
 
-def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
-               weights=DEFAULT_WEIGHTS, within_limits=True, n_seeds=4, max_iterations=300,
-               stall_iterations=12, damping=1e-9, error_damping=0.1, max_step=None,
-               n_candidates=0, rng=0):
+def ik_numeric(arm: ArmModel, T: np.ndarray, q0: np.ndarray, *, position_tol: float = 1e-6,
+               orientation_tol: float = 1e-6, weights: Sequence[float] = DEFAULT_WEIGHTS,
+               within_limits: bool = True, n_seeds: int = 4, max_iterations: int = 300,
+               stall_iterations: int = 12, damping: float = 1e-9, error_damping: float = 0.1,
+               max_step: float | None = None, n_candidates: int = 0,
+               rng: int | np.random.Generator = 0) -> NumericIKResult:
     """
     Solve ``T`` (4, 4) numerically from ``q0`` (n,) [rad]; return a ``NumericIKResult``.
 
@@ -257,8 +267,10 @@ def ik_numeric(arm, T, q0, *, position_tol=1e-6, orientation_tol=1e-6,
                            restarts=restarts, cost=best_cost)
 
 
-def closest_within_limits(arm, T, seeds, *, weights=DEFAULT_WEIGHTS, n_seeds=4,
-                          max_iterations=300, rng=0):
+def closest_within_limits(arm: ArmModel, T: np.ndarray, seeds: np.ndarray, *,
+                          weights: Sequence[float] = DEFAULT_WEIGHTS, n_seeds: int = 4,
+                          max_iterations: int = 300,
+                          rng: int | np.random.Generator = 0) -> NumericIKResult:
     """
     Return the ``NumericIKResult`` with the lowest weighted cost from several starts.
 

@@ -25,7 +25,11 @@ Failures raise ``UnreachableError`` with ``reason`` in ``REASONS`` and ``details
 (the nearest configuration found inside the joint limits and its pose), plus 'message'.
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.kinematics.forward import condition_number, fk, fk_batch, jacobian_batch
@@ -34,6 +38,10 @@ from mover6_control.kinematics.ik_closed_form import (nearest_alias, pose_errors
 from mover6_control.kinematics.ik_numeric import closest_within_limits, DEFAULT_WEIGHTS, ik_numeric
 from mover6_control.kinematics.rotations import as_finite_array, ORTHONORMAL_TOL, pose_error
 import numpy as np
+
+if TYPE_CHECKING:
+    from mover6_control.kinematics.arm import ArmModel
+    from mover6_control.kinematics.ik_closed_form import WristGeometry
 
 REASONS = ('out_of_reach', 'joint_limits', 'singularity', 'discontinuity')
 
@@ -53,24 +61,24 @@ class PathSolution:
     self_motion: np.ndarray = None
 
     @property
-    def max_joint_step(self):
+    def max_joint_step(self) -> float:
         """Return the largest joint change between neighbouring waypoints [rad]."""
         return float(self.joint_step.max())
 
     @property
-    def max_moving_step(self):
+    def max_moving_step(self) -> float:
         """Return the largest joint change on steps that move the tool [rad]."""
         moving = self.joint_step if self.self_motion is None else np.where(
             self.self_motion, 0.0, self.joint_step)
         return float(moving.max())
 
     @property
-    def max_condition(self):
+    def max_condition(self) -> float:
         """Return the largest Jacobian condition number along the path."""
         return float(self.condition.max())
 
 
-def validate_poses(poses, name='poses'):
+def validate_poses(poses: np.ndarray, name: str = 'poses') -> np.ndarray:
     """Return ``poses`` as a (m, 4, 4) array of proper transforms (m >= 1) or raise."""
     P = as_finite_array(poses, (None, 4, 4), name)
     if len(P) == 0:
@@ -90,7 +98,7 @@ def validate_poses(poses, name='poses'):
     return P
 
 
-def single_turn(arm):
+def single_turn(arm: ArmModel) -> bool:
     """
     Return True when no joint's range reaches a full turn (with the 1e-9 rad limit slack).
 
@@ -100,7 +108,7 @@ def single_turn(arm):
     return bool(np.all(arm.upper - arm.lower < 2.0 * np.pi - 4e-9))
 
 
-def branch_steps(arm, Q, valid):
+def branch_steps(arm: ArmModel, Q: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """
     Return every step between the branches of neighbouring waypoints (m - 1, b, b) [rad].
 
@@ -157,8 +165,10 @@ def _closest(arm, T, seeds, weights):
     return res.q, pose, pos, rot
 
 
-def unreachable_error(arm, T, q_seed, waypoint, weights=DEFAULT_WEIGHTS, geometry=None,
-                      what='the pose'):
+def unreachable_error(arm: ArmModel, T: np.ndarray, q_seed: np.ndarray, waypoint: int,
+                      weights: Sequence[float] = DEFAULT_WEIGHTS,
+                      geometry: WristGeometry | None = None,
+                      what: str = 'the pose') -> UnreachableError:
     """
     Return the ``UnreachableError`` for a pose with no solution inside the limits.
 
@@ -196,8 +206,10 @@ def unreachable_error(arm, T, q_seed, waypoint, weights=DEFAULT_WEIGHTS, geometr
     return UnreachableError(message, reason=reason, details=details)
 
 
-def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
-               position_tol=1e-3, orientation_tol=0.01, weights=DEFAULT_WEIGHTS):
+def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
+               max_joint_step: float = 0.35, max_condition: float | None = None,
+               position_tol: float = 1e-3, orientation_tol: float = 0.01,
+               weights: Sequence[float] = DEFAULT_WEIGHTS) -> PathSolution:
     """
     Return a ``PathSolution`` for ``poses`` (m, 4, 4) starting from ``q_start`` (n,) [rad].
 
@@ -332,7 +344,8 @@ def solve_path(arm, poses, q_start, *, max_joint_step=0.35, max_condition=None,
                         self_motion=self_motion)
 
 
-def holds_pose(arm, q_a, q_b, T, position_tol, orientation_tol, samples=11):
+def holds_pose(arm: ArmModel, q_a: np.ndarray, q_b: np.ndarray, T: np.ndarray,
+               position_tol: float, orientation_tol: float, samples: int = 11) -> bool:
     """Return True when the joint-space segment ``q_a`` -> ``q_b`` keeps the tool at ``T``."""
     s = np.linspace(0.0, 1.0, samples)[:, None]
     poses = fk_batch(arm, q_a + s * (q_b - q_a))

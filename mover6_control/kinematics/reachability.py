@@ -7,8 +7,11 @@ orientation [rad] errors when there is none. ``check_path`` wraps ``path_ik.solv
 turns its ``UnreachableError`` into a verdict.
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Optional, TYPE_CHECKING
 
 from mover6_control.errors import UnreachableError
 from mover6_control.kinematics.forward import condition_number, fk
@@ -18,6 +21,9 @@ from mover6_control.kinematics.ik_numeric import DEFAULT_WEIGHTS, ik_numeric
 from mover6_control.kinematics.path_ik import solve_path, unreachable_error, validate_poses
 from mover6_control.kinematics.rotations import pose_error, validate_transform
 import numpy as np
+
+if TYPE_CHECKING:
+    from mover6_control.kinematics.arm import ArmModel
 
 REASONS = ('reachable', 'out_of_reach', 'joint_limits', 'singularity', 'discontinuity')
 
@@ -47,8 +53,10 @@ def _from_error(err, q=None):
                    waypoint=d.get('waypoint'), details=dict(d))
 
 
-def check_pose(arm, T, q_ref=None, *, max_condition=None, position_tol=1e-3,
-               orientation_tol=0.01, weights=DEFAULT_WEIGHTS):
+def check_pose(arm: ArmModel, T: np.ndarray, q_ref: np.ndarray | None = None, *,
+               max_condition: float | None = None, position_tol: float = 1e-3,
+               orientation_tol: float = 0.01,
+               weights: Sequence[float] = DEFAULT_WEIGHTS) -> Verdict:
     """
     Return the ``Verdict`` for one pose ``T`` (4, 4) [m].
 
@@ -95,7 +103,8 @@ def check_pose(arm, T, q_ref=None, *, max_condition=None, position_tol=1e-3,
                    solutions=sols, details={'condition': float(conds[k])})
 
 
-def check_path(arm, poses, q_start, **settings):
+def check_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray,
+               **settings: object) -> Verdict:
     """
     Return the ``Verdict`` for a pose path (m, 4, 4) from ``q_start`` (n,) [rad].
 

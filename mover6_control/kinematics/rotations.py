@@ -8,6 +8,8 @@ Conventions:
 - Quaternions are in ROS order ``(x, y, z, w)``.
 """
 
+from collections.abc import Sequence
+
 from mover6_control.errors import InvalidInputError
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -34,7 +36,7 @@ def as_finite_array(value, shape, name):
     return arr
 
 
-def validate_rotation(R, name='rotation'):
+def validate_rotation(R: np.ndarray, name: str = 'rotation') -> np.ndarray:
     """Check that ``R`` is a finite 3x3 proper rotation matrix and return it as an array."""
     R = as_finite_array(R, (3, 3), name)
     err = np.abs(R.T @ R - np.eye(3)).max()
@@ -45,7 +47,7 @@ def validate_rotation(R, name='rotation'):
     return R
 
 
-def validate_transform(T, name='transform'):
+def validate_transform(T: np.ndarray, name: str = 'transform') -> np.ndarray:
     """Check that ``T`` is a finite 4x4 homogeneous transform and return it as an array."""
     T = as_finite_array(T, (4, 4), name)
     validate_rotation(T[:3, :3], name + ' rotation')
@@ -54,7 +56,7 @@ def validate_transform(T, name='transform'):
     return T
 
 
-def make_transform(position, R=None):
+def make_transform(position: Sequence[float], R: np.ndarray | None = None) -> np.ndarray:
     """Build ``T`` (4, 4) from a position (3,) [m] and a rotation matrix (3, 3)."""
     T = np.eye(4)
     T[:3, 3] = as_finite_array(position, (3,), 'position')
@@ -63,19 +65,19 @@ def make_transform(position, R=None):
     return T
 
 
-def euler_zyx_to_matrix(a, b, c):
+def euler_zyx_to_matrix(a: float, b: float, c: float) -> np.ndarray:
     """Return ``Rz(a) @ Ry(b) @ Rx(c)`` (3, 3) for angles [rad] in MATLAB's default ZYX order."""
     angles = as_finite_array([a, b, c], (3,), 'euler angles')
     return Rotation.from_euler('ZYX', angles).as_matrix()
 
 
-def matrix_to_euler_zyx(R):
+def matrix_to_euler_zyx(R: np.ndarray) -> tuple[float, float, float]:
     """Return (A, B, C) [rad] with ``R = Rz(A) Ry(B) Rx(C)``; B in [-pi/2, pi/2]."""
     R = validate_rotation(R)
     return tuple(float(x) for x in Rotation.from_matrix(R).as_euler('ZYX'))
 
 
-def quaternion_to_matrix(q_xyzw):
+def quaternion_to_matrix(q_xyzw: Sequence[float]) -> np.ndarray:
     """
     Return the rotation matrix of a quaternion ``(x, y, z, w)``; rejects a zero quaternion.
 
@@ -91,25 +93,25 @@ def quaternion_to_matrix(q_xyzw):
     return Rotation.from_quat(q / norm).as_matrix()
 
 
-def matrix_to_quaternion(R):
+def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
     """Return the quaternion ``(x, y, z, w)`` of a rotation matrix, with ``w >= 0``."""
     q = Rotation.from_matrix(validate_rotation(R)).as_quat()
     return q if q[3] >= 0.0 else -q
 
 
-def pose_from_xyzabc(x, y, z, a, b, c):
+def pose_from_xyzabc(x: float, y: float, z: float, a: float, b: float, c: float) -> np.ndarray:
     """Return ``T`` (4, 4) from the Mover6 report's goal form X Y Z [m] A B C [rad] (ZYX Euler)."""
     return make_transform([x, y, z], euler_zyx_to_matrix(a, b, c))
 
 
-def rotation_angle_between(R_a, R_b):
+def rotation_angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
     """Return the angle [rad] of the rotation taking ``R_a`` to ``R_b`` (0 .. pi)."""
     # Rotation.magnitude is accurate near zero, where arccos of the trace loses half the digits.
     R = np.asarray(R_a).T @ np.asarray(R_b)
     return float(Rotation.from_matrix(R).magnitude())
 
 
-def pose_error(T_a, T_b):
+def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> tuple[float, float]:
     """Return (position error [m], orientation error [rad]) between two poses."""
     T_a = np.asarray(T_a)
     T_b = np.asarray(T_b)

@@ -6,7 +6,10 @@ messages, calls these, and publishes the result or the refusal. Everything here 
 clock-free.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.kinematics.forward import condition_number, fk, fk_batch, jacobian
@@ -16,6 +19,9 @@ from mover6_control.kinematics.reachability import check_pose
 from mover6_control.kinematics.rotations import pose_error, validate_transform
 from mover6_control.motion import paths
 import numpy as np
+
+if TYPE_CHECKING:
+    from mover6_control.kinematics.arm import ArmModel
 
 POSE_MOTIONS = ('linear', 'parabolic', 'joint')
 PATH_MOTIONS = ('spline', 'arc')
@@ -53,7 +59,7 @@ class PlannerSettings:
             if not np.isfinite(value) or value <= 0.0:
                 raise InvalidInputError(f'{name} must be > 0, got {value}')
 
-    def sampling(self):
+    def sampling(self) -> dict[str, float | int | None]:
         """Return the keyword arguments that sample a path (by count or by step)."""
         if self.max_step > 0.0 or self.max_angle_step > 0.0:
             return {'max_step': self.max_step or None,
@@ -74,18 +80,18 @@ class Plan:
     final_orientation_error: float  # [rad]
 
     @property
-    def n_waypoints(self):
+    def n_waypoints(self) -> int:
         """Return the number of waypoints."""
         return int(self.q.shape[0])
 
 
-def polyline_length(points):
+def polyline_length(points: np.ndarray) -> float:
     """Return the length [m] of a polyline (n, 3)."""
     points = np.asarray(points, dtype=float)
     return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
 
 
-def predicted_duration(arm, q, velocity_scale=1.0):
+def predicted_duration(arm: ArmModel, q: np.ndarray, velocity_scale: float = 1.0) -> float:
     """Return the time [s] to visit waypoints (n, 6), each segment at the slowest joint's pace."""
     steps = np.abs(np.diff(np.asarray(q, dtype=float), axis=0))
     return float((steps / (arm.velocity_limits * velocity_scale)).max(axis=1).sum())
@@ -174,7 +180,8 @@ def _poses_for(arm, q, poses):
     return np.concatenate([np.repeat(poses[:1], extra, axis=0), poses])
 
 
-def plan_joint_move(arm, q_current, T_goal, settings):
+def plan_joint_move(arm: ArmModel, q_current: np.ndarray, T_goal: np.ndarray,
+                    settings: PlannerSettings):
     """Plan a straight line in joint space to the IK solution closest to ``q_current``."""
     solutions = ik_closed_form(arm, T_goal, within_limits=True)
     if len(solutions) == 0:
@@ -197,7 +204,8 @@ def plan_joint_move(arm, q_current, T_goal, settings):
     return _finish(arm, 'joint', q, fk_batch(arm, q), T_goal, settings)
 
 
-def check_goal(arm, T_goal, q_current, settings, what='goal', singular_ok=False):
+def check_goal(arm: ArmModel, T_goal: np.ndarray, q_current: np.ndarray,
+               settings: PlannerSettings, what: str = 'goal', singular_ok: bool = False) -> None:
     """
     Raise ``UnreachableError`` when ``T_goal`` itself cannot be reached.
 
@@ -217,7 +225,8 @@ def check_goal(arm, T_goal, q_current, settings, what='goal', singular_ok=False)
                                reason=verdict.reason, details=details)
 
 
-def plan_pose_goal(arm, q_current, T_goal, motion='linear', settings=PlannerSettings()):
+def plan_pose_goal(arm: ArmModel, q_current: np.ndarray, T_goal: np.ndarray,
+                   motion: str = 'linear', settings: PlannerSettings = PlannerSettings()):
     """
     Plan a move of the tool from FK(``q_current``) to ``T_goal`` (4, 4).
 
@@ -248,7 +257,9 @@ def plan_pose_goal(arm, q_current, T_goal, motion='linear', settings=PlannerSett
     return _finish(arm, motion, q, _poses_for(arm, q, poses), T_goal, settings)
 
 
-def plan_path_goal(arm, q_current, T_vias, T_goal, motion='spline', settings=PlannerSettings()):
+def plan_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
+                   T_goal: np.ndarray, motion: str = 'spline',
+                   settings: PlannerSettings = PlannerSettings()):
     """
     Plan a move through via poses (k, 4, 4) to ``T_goal``: 'spline' or 'arc' (one via pose).
 
