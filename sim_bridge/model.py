@@ -23,9 +23,13 @@ on the command side (``Simulator``) instead.
 Contacts are off: the bridge stands in for the drives, not for collision checking.
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.arm import ArmModel
 import mujoco
 import numpy as np
 
@@ -90,7 +94,7 @@ def _capsule(name, p_end, radius, mass):
             'rgba="0.95 0.55 0.1 1"/>')
 
 
-def build_mjcf(arm, options=None):
+def build_mjcf(arm: ArmModel, options: ModelOptions | None = None) -> str:
     """
     Return the MJCF text (str) of ``arm`` (an ``ArmModel``) with ``options``.
 
@@ -156,12 +160,13 @@ def build_mjcf(arm, options=None):
     return '\n'.join(lines) + '\n'
 
 
-def build_model(arm, options=None):
+def build_model(arm: ArmModel, options: ModelOptions | None = None) -> mujoco.MjModel:
     """Return a compiled ``mujoco.MjModel`` of ``arm``; see ``build_mjcf``."""
     return mujoco.MjModel.from_xml_string(build_mjcf(arm, options))
 
 
-def joint_qpos_addresses(model, joint_names):
+def joint_qpos_addresses(model: mujoco.MjModel,
+                         joint_names: Sequence[str]) -> np.ndarray:
     """Return the qpos indices (n,) of the named hinge joints of a compiled ``model``."""
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in joint_names]
     missing = [name for name, i in zip(joint_names, ids) if i < 0]
@@ -170,7 +175,8 @@ def joint_qpos_addresses(model, joint_names):
     return np.array([model.jnt_qposadr[i] for i in ids])
 
 
-def joint_dof_addresses(model, joint_names):
+def joint_dof_addresses(model: mujoco.MjModel,
+                        joint_names: Sequence[str]) -> np.ndarray:
     """Return the dof (qvel) indices (n,) of the named hinge joints of a compiled ``model``."""
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in joint_names]
     missing = [name for name, i in zip(joint_names, ids) if i < 0]
@@ -179,7 +185,8 @@ def joint_dof_addresses(model, joint_names):
     return np.array([model.jnt_dofadr[i] for i in ids])
 
 
-def site_transform(model, data, site_name):
+def site_transform(model: mujoco.MjModel, data: mujoco.MjData,
+                   site_name: str) -> np.ndarray:
     """Return the world transform (4, 4) of a site after ``mj_forward``/``mj_kinematics``."""
     sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name)
     if sid < 0:

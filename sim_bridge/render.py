@@ -13,18 +13,22 @@ A recorded motion is positions ``Q`` (m, n) [rad] at increasing times (m,) [s]; 
 sampled from it at ``fps`` by linear interpolation, so any recording rate works.
 """
 
+from __future__ import annotations
+
 import argparse
+from collections.abc import Sequence
 import os
 import sys
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.arm import LIMIT_SETS, mover6
+from mover6_control.kinematics.arm import ArmModel, LIMIT_SETS, mover6
 import mujoco
 import numpy as np
 from sim_bridge.model import build_model, joint_qpos_addresses
 
 
-def make_camera(lookat=(0.1, 0.0, 0.3), distance=1.3, azimuth=140.0, elevation=-20.0):
+def make_camera(lookat: Sequence[float] = (0.1, 0.0, 0.3), distance: float = 1.3,
+                azimuth: float = 140.0, elevation: float = -20.0) -> mujoco.MjvCamera:
     """Return a free ``mujoco.MjvCamera`` looking at ``lookat`` [m] from ``distance`` [m]."""
     camera = mujoco.MjvCamera()
     camera.type = mujoco.mjtCamera.mjCAMERA_FREE
@@ -35,7 +39,7 @@ def make_camera(lookat=(0.1, 0.0, 0.3), distance=1.3, azimuth=140.0, elevation=-
     return camera
 
 
-def resample(times, Q, fps):
+def resample(times: np.ndarray, Q: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
     """
     Return frame times (k,) [s] and configurations (k, n) of a recording sampled at ``fps``.
 
@@ -59,7 +63,8 @@ def resample(times, Q, fps):
     return t_frames, Q_frames
 
 
-def render_frames(arm, Q, width=320, height=240, camera=None):
+def render_frames(arm: ArmModel, Q: np.ndarray, width: int = 320, height: int = 240,
+                  camera: mujoco.MjvCamera | None = None) -> list[np.ndarray]:
     """Return one RGB image (height, width, 3) uint8 per configuration of ``Q`` (k, n) [rad]."""
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     if Q.shape[1] != arm.n_joints:
@@ -78,7 +83,8 @@ def render_frames(arm, Q, width=320, height=240, camera=None):
     return frames
 
 
-def save_png(arm, q, path, width=640, height=480, camera=None):
+def save_png(arm: ArmModel, q: np.ndarray, path: str, width: int = 640, height: int = 480,
+             camera: mujoco.MjvCamera | None = None) -> np.ndarray:
     """Render ``arm`` at ``q`` (n,) [rad] to a PNG file at ``path``; return the image."""
     from PIL import Image
 
@@ -87,7 +93,9 @@ def save_png(arm, q, path, width=640, height=480, camera=None):
     return image
 
 
-def save_gif(arm, times, Q, path, fps=20.0, width=320, height=240, camera=None):
+def save_gif(arm: ArmModel, times: np.ndarray, Q: np.ndarray, path: str, fps: float = 20.0,
+             width: int = 320, height: int = 240,
+             camera: mujoco.MjvCamera | None = None) -> int:
     """Render a recorded motion (times (m,) [s], Q (m, n) [rad]) to an animated GIF."""
     from PIL import Image
 
@@ -98,7 +106,8 @@ def save_gif(arm, times, Q, path, fps=20.0, width=320, height=240, camera=None):
     return len(images)
 
 
-def demo_recording(arm, duration=2.0, rate=50.0):
+def demo_recording(arm: ArmModel, duration: float = 2.0,
+                   rate: float = 50.0) -> tuple[np.ndarray, np.ndarray]:
     """Return (times, Q) of a simulated jog: every joint swings out and back, as recorded."""
     from sim_bridge.simulator import Simulator
 
@@ -115,7 +124,7 @@ def demo_recording(arm, duration=2.0, rate=50.0):
     return np.array(times), np.array(Q)
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Render a PNG and/or a GIF from the command line (see the module docstring)."""
     parser = argparse.ArgumentParser(description='Render the Mover6 offscreen (MuJoCo).')
     parser.add_argument('--q', type=float, nargs='+', help='configuration for --png [rad]')

@@ -31,11 +31,14 @@ and 6.14e-3 rad (0.352 deg) for J5 and J6. The J5/J6 figures are consistent with
 whose J5 and J6 stand still under about 7 deg/s (0.352 deg / 0.05 s = 7.0 deg/s).
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 import math
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.arm import MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
+from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 import mujoco
 import numpy as np
 from sim_bridge.model import build_model, joint_dof_addresses, joint_qpos_addresses, ModelOptions
@@ -84,7 +87,7 @@ class SimConfig:
                 f'tracking_gain must be positive, got {self.tracking_gain}')
 
     @property
-    def physics_dt(self):
+    def physics_dt(self) -> float:
         """Return the physics step [s]."""
         return self.model.physics_dt
 
@@ -99,7 +102,8 @@ class JointReading:
     effort: np.ndarray
 
 
-def steps_due(sim_elapsed, wall_elapsed, real_time_factor, physics_dt, max_steps=1000):
+def steps_due(sim_elapsed: float, wall_elapsed: float, real_time_factor: float,
+              physics_dt: float, max_steps: int = 1000) -> int:
     """
     Return how many physics steps to run now to keep sim time at ``real_time_factor`` x wall.
 
@@ -118,7 +122,7 @@ def steps_due(sim_elapsed, wall_elapsed, real_time_factor, physics_dt, max_steps
     return int(min(max(n, 0), max_steps))
 
 
-def wall_time_of(sim_elapsed, real_time_factor):
+def wall_time_of(sim_elapsed: float, real_time_factor: float) -> float:
     """Return the wall time [s] since the anchor at which sim time reaches ``sim_elapsed``."""
     if not (math.isfinite(real_time_factor) and real_time_factor > 0.0):
         raise InvalidInputError(f'real_time_factor must be > 0, got {real_time_factor}')
@@ -140,7 +144,8 @@ class Simulator:
     Not thread-safe: a caller that commands from one thread and steps from another holds a lock.
     """
 
-    def __init__(self, arm, config=None, home_q=None):
+    def __init__(self, arm: ArmModel, config: SimConfig | None = None,
+                 home_q: np.ndarray | None = None) -> None:
         """Build the model of ``arm`` and start at rest at ``home_q`` (n,) [rad] (zeros)."""
         self.arm = arm
         self.config = config or SimConfig()
@@ -174,50 +179,50 @@ class Simulator:
     # --- state ---------------------------------------------------------------------------
 
     @property
-    def time(self):
+    def time(self) -> float:
         """Return the simulated time [s]; monotonic, also across resets."""
         return float(self.data.time)
 
     @property
-    def q(self):
+    def q(self) -> np.ndarray:
         """Return the joint positions (n,) [rad] of the physics."""
         return self.data.qpos[self._qadr].copy()
 
     @property
-    def qd(self):
+    def qd(self) -> np.ndarray:
         """Return the joint velocities (n,) [rad/s] of the physics."""
         return self.data.qvel[self._dadr].copy()
 
     @property
-    def effort(self):
+    def effort(self) -> np.ndarray:
         """Return the motor torques (n,) [N m], gravity load included."""
         return self.data.qfrc_actuator[self._dadr].copy()
 
     @property
-    def ctrl(self):
+    def ctrl(self) -> np.ndarray:
         """Return the velocity (n,) [rad/s] the joint servos were last asked for."""
         return np.array(self._demand, dtype=float)
 
     @property
-    def held_command(self):
+    def held_command(self) -> np.ndarray:
         """Return the held command (n,): [rad/s] or fractions, by mode."""
         return self._cmd.copy()
 
     @property
-    def control_period(self):
+    def control_period(self) -> float:
         """Return the drive's own cycle [s]: the vendor cycle, or one physics step."""
         if self.config.mode == 'vendor_driver':
             return self.config.vendor_cycle
         return self.config.physics_dt
 
-    def is_stale(self):
+    def is_stale(self) -> bool:
         """Return True when no command is active ('rad_per_s': none yet or timed out)."""
         if self.config.mode == 'vendor_driver':
             return False
         return self._cmd_time is None or (
             self.time - self._cmd_time > self.config.command_timeout + _EPS)
 
-    def warnings(self):
+    def warnings(self) -> dict[str, int]:
         """
         Return MuJoCo's warnings so far as {name: count}, e.g. {'mjWARN_BADQACC': 1}.
 
@@ -231,7 +236,7 @@ class Simulator:
                 out[name] = int(self.data.warning[i].number)
         return out
 
-    def state(self):
+    def state(self) -> JointReading:
         """Return the ``JointReading`` the arm reports now (the driver's view in vendor mode)."""
         if self.config.mode == 'vendor_driver':
             return JointReading(self._read_time, self._read_q.copy(), self._read_qd.copy(),
@@ -240,7 +245,8 @@ class Simulator:
 
     # --- commands ------------------------------------------------------------------------
 
-    def set_command(self, names, velocities, receive_time):
+    def set_command(self, names: Sequence[str], velocities: Sequence[float],
+                    receive_time: float) -> list[str]:
         """
         Take a velocity command by joint name, received at ``receive_time`` [s] (sim clock).
 
@@ -289,7 +295,7 @@ class Simulator:
         self.command_count += 1
         return warnings
 
-    def halt(self):
+    def halt(self) -> None:
         """Drop the command: zero velocity (also the held command in vendor mode)."""
         self._set_held(np.zeros(self.arm.n_joints))
         self._cmd_time = None
@@ -301,7 +307,7 @@ class Simulator:
 
     # --- stepping ------------------------------------------------------------------------
 
-    def step(self, n_steps=1):
+    def step(self, n_steps: int = 1) -> None:
         """Advance the physics by ``n_steps`` steps of ``physics_dt``."""
         for _ in range(int(n_steps)):
             if self.config.mode == 'vendor_driver':
@@ -311,7 +317,7 @@ class Simulator:
             mujoco.mj_step(self.model, self.data)
             self.step_count += 1
 
-    def run_for(self, duration):
+    def run_for(self, duration: float) -> None:
         """Advance the physics by ``duration`` [s] (rounded to whole steps)."""
         self.step(int(round(duration / self.config.physics_dt)))
 
@@ -390,7 +396,7 @@ class Simulator:
 
     # --- reset ---------------------------------------------------------------------------
 
-    def reset(self, q=None):
+    def reset(self, q: np.ndarray | None = None) -> None:
         """
         Put the arm at rest at ``q`` (n,) [rad] (default ``home_q``) and drop every command.
 
