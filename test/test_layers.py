@@ -123,3 +123,17 @@ def test_the_harness_is_not_product():
     assert os.path.exists(os.path.join(ROOT, 'test', 'ros_testing.py'))
     for module, path in project_modules():
         assert not any(n.split('.')[0] == 'ros_testing' for n in imports_of(module, path)), module
+
+
+def test_the_architecture_page_draws_the_rule():
+    """The mermaid arrows of docs/architecture.md are exactly the MAY_IMPORT table."""
+    with open(os.path.join(ROOT, 'docs', 'architecture.md')) as f:
+        text = f.read()
+    block = text.split('```mermaid', 1)[1].split('```', 1)[0]
+    drawn = set()
+    for line in block.splitlines():
+        parts = line.split('-->')
+        if len(parts) == 2:
+            drawn.add((parts[0].strip(), parts[1].strip()))
+    rule = {(layer, below) for layer, allowed in MAY_IMPORT.items() for below in allowed}
+    assert drawn == rule, f'missing arrows {rule - drawn}, extra arrows {drawn - rule}'
