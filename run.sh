@@ -94,7 +94,7 @@ check_python() {
         || version=''
     [ "$version" = 3.11 ] && return 0
     if [ -z "$version" ]; then
-        log "no Python found at PYTHON=$PYTHON_BIN."
+        log "no Python found at PYTHON=$PYTHON_BIN; ROS 2 Jazzy from PyPI needs Python 3.11."
     else
         log "$PYTHON_BIN is Python $version, but ROS 2 Jazzy from PyPI needs Python 3.11 (its wheels are built for 3.11 only)."
     fi
@@ -166,8 +166,10 @@ fix_wheel_cmake_paths() {
 setup_system_libs() {
     # Offscreen rendering needs EGL and GL (Debian's Mesa). Installed once, when missing and
     # when we may (root); otherwise say what to install.
-    if ldconfig -p 2>/dev/null | grep -q 'libEGL.so.1' \
-        && ldconfig -p 2>/dev/null | grep -q 'libEGL_mesa.so.0'; then
+    # ldconfig lives in /sbin, which a user's PATH often lacks.
+    local libs
+    libs=$(PATH="$PATH:/usr/sbin:/sbin" ldconfig -p 2>/dev/null || true)
+    if grep -q 'libEGL.so.1' <<<"$libs" && grep -q 'libEGL_mesa.so.0' <<<"$libs"; then
         return 0
     fi
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
