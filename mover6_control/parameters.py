@@ -33,7 +33,7 @@ class ParameterSpec:
     """
 
     name: str
-    type: str
+    type: str     # noqa: A003 - the word users read in the table
     default: object
     unit: str
     description: str
@@ -118,7 +118,7 @@ P = ParameterSpec
 PI = math.pi
 LIMIT_SETS = ('within_90_deg', 'hardware')
 LIMIT_SET_TEXT = ('joint limits: within_90_deg (every joint in [-pi/2, pi/2], the limits of the '
-                  'Mover6 report) or hardware (the vendor\'s limits); set at start')
+                  "Mover6 report) or hardware (the vendor's limits); set at start")
 # One encoder tick of each Mover6 joint [rad], as the vendor driver moves them (kinematics.arm
 # derives them from the gear ratios as MOVER6_TICK_SIZE; a test checks they agree).
 MOVER6_TICKS = (8.260740495997393e-06, 8.260740495997393e-06, 8.260740495997393e-06,
@@ -186,11 +186,11 @@ CONTROLLER = _table(
       'tracking error that aborts a motion with a controlled stop', 0.001, 2.0 * PI),
     P('jog_units', 'str', 'rad_per_s', '',
       'JointJog velocities: rad_per_s (ROS standard) or fraction_of_max (the vendor driver: '
-      'fractions of each joint\'s maximum speed)', allowed=('rad_per_s', 'fraction_of_max')),
+      "fractions of each joint's maximum speed)", allowed=('rad_per_s', 'fraction_of_max')),
     P('speed_override', 'float', 0.25, '',
       'fraction_of_max: speed override of the vendor driver', 0.01, 1.0),
     P('driver_tick_size', 'float_list', MOVER6_TICKS, 'rad',
-      'fraction_of_max: one encoder tick per joint (default the Mover6\'s): commands under one '
+      "fraction_of_max: one encoder tick per joint (default the Mover6's): commands under one "
       'tick per cycle are lifted to it near the goal; goal tolerance at least one tick',
       1e-9, 1.0),
     P('driver_cycle', 'float', 0.05, 's',

@@ -29,8 +29,9 @@ STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 class PlannerNode(Node):
     """Plan pose and path goals into joint waypoints, refuse what cannot be reached."""
 
-    def __init__(self):
-        super().__init__('planner')
+    def __init__(self, **kwargs):
+        """Declare the parameters, build the arm, start the topics."""
+        super().__init__('planner', **kwargs)
         params.declare(self, PLANNER)     # refuses invalid values, at start and later
         limit_set = self.get_parameter('limit_set').value
         self.arm = mover6(limit_set)
