@@ -25,48 +25,17 @@ import time
 from control_msgs.msg import JointJog
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import LIMIT_SETS, load_urdf, mover6
-from mover6_control.nodes import conversions
+from mover6_control.nodes import conversions, params
+from mover6_control.parameters import SIM_BRIDGE
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from sim_bridge.model import ModelOptions
-from sim_bridge.simulator import MODES, SimConfig, Simulator, steps_due
+from sim_bridge.simulator import SimConfig, Simulator, steps_due
 from std_srvs.srv import SetBool, Trigger
-
-PARAMETERS = (
-    # name, default, type, description
-    ('physics_dt', 0.002, ParameterType.PARAMETER_DOUBLE,
-     'fixed physics step [s] (0.001 to 0.002 recommended)'),
-    ('real_time_factor', 1.0, ParameterType.PARAMETER_DOUBLE,
-     'sim time per wall time; 0 runs as fast as it can'),
-    ('publish_rate', 100.0, ParameterType.PARAMETER_DOUBLE,
-     '/joint_states rate [Hz] of sim time, up to 500 (rad_per_s mode)'),
-    ('command_timeout', 0.2, ParameterType.PARAMETER_DOUBLE,
-     'a /JointJog older than this (by receive time, sim clock) halts the joints [s]'),
-    ('mode', 'rad_per_s', ParameterType.PARAMETER_STRING,
-     'JointJog units and driver behaviour: ' + ' | '.join(MODES)),
-    ('speed_override', 0.25, ParameterType.PARAMETER_DOUBLE,
-     'vendor_driver: speed = fraction * max speed * speed_override'),
-    ('limit_set', 'within_90_deg', ParameterType.PARAMETER_STRING,
-     'joint limits: within_90_deg (every joint in [-pi/2, pi/2], as the Mover6 report)'
-     ' or hardware (vendor limits)'),
-    ('urdf_path', '', ParameterType.PARAMETER_STRING,
-     'URDF of the arm; empty = the shipped Mover6 (config/mover6.urdf) with limit_set'),
-    ('initial_q', [0.0] * 6, ParameterType.PARAMETER_DOUBLE_ARRAY,
-     'start and home configuration [rad], one value per joint'),
-    ('publish_clock', False, ParameterType.PARAMETER_BOOL,
-     'publish /clock after every physics step and stamp with sim time'),
-    ('viewer', False, ParameterType.PARAMETER_BOOL,
-     'open the MuJoCo viewer when a display exists (headless otherwise)'),
-    ('kv', 1000.0, ParameterType.PARAMETER_DOUBLE,
-     'joint velocity servo gain [N m s/rad]'),
-    ('damping', 0.5, ParameterType.PARAMETER_DOUBLE,
-     'joint viscous damping [N m s/rad]'),
-)
 
 MAX_PUBLISH_RATE = 500.0
 MAX_BATCH = 200           # physics steps per loop pass before pacing gives up and re-anchors
@@ -79,10 +48,8 @@ class SimBridgeNode(Node):
     def __init__(self, **kwargs):
         """Declare the parameters, build the simulator, start the physics thread."""
         super().__init__('sim_bridge', **kwargs)
-        for name, default, ptype, text in PARAMETERS:
-            self.declare_parameter(name, default, ParameterDescriptor(type=ptype,
-                                                                      description=text))
-        p = {name: self.get_parameter(name).value for name, *_ in PARAMETERS}
+        params.declare(self, SIM_BRIDGE)  # refuses invalid values, at start and later
+        p = {name: self.get_parameter(name).value for name in SIM_BRIDGE}
         self.arm = self._make_arm(p['limit_set'], p['urdf_path'])
         self.rtf = float(p['real_time_factor'])
         if not (np.isfinite(self.rtf) and self.rtf >= 0.0):

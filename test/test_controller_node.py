@@ -118,6 +118,61 @@ def test_rate_is_about_the_parameter(ros):
     assert 50 <= count <= 130, count
 
 
+def test_parameter_service_refuses_bad_values_and_describes_ranges(ros):
+    """
+    Parameter services: a bad value is refused with a reason and changes nothing.
+
+    As ``ros2 param set`` would set it; and the descriptors carry the ranges and allowed values,
+    as ``ros2 param describe`` shows them.
+    """
+    from rclpy.parameter_client import AsyncParameterClient
+    controller, arm, spin_until = ros
+    client = AsyncParameterClient(arm, 'controller')
+    spin_until(client.services_are_ready)
+
+    def set_remotely(name, value):
+        future = client.set_parameters([Parameter(name, value=value)])
+        spin_until(future.done)
+        return future.result().results[0]
+
+    for name, value, words in (
+            ('rate', -5.0, 'rate'), ('rate', 100, 'type'),
+            ('profile', 'banana', 'one of: synchronised, trapezoidal'),
+            ('driver_tick_size', [0.001, -0.001, 0.001, 0.001, 0.001, 0.001], 'each value'),
+            ('limit_set', 'hardware', 'read-only')):
+        result = set_remotely(name, value)
+        assert not result.successful, (name, value)
+        assert words in result.reason, result.reason
+    assert controller.get_parameter('rate').value == 100.0
+    assert controller.get_parameter('profile').value == 'trapezoidal'
+    assert controller.get_parameter('limit_set').value == 'within_90_deg'
+    assert len(controller.get_parameter('driver_tick_size').value) == 6
+    assert controller.core.config.rate == 100.0
+
+    future = client.describe_parameters(['rate', 'profile', 'jog_units'])
+    spin_until(future.done)
+    rate, profile, jog_units = future.result().descriptors
+    span = rate.floating_point_range[0]
+    assert (span.from_value, span.to_value) == (1.0, 1000.0)
+    assert rate.description.endswith('[Hz]')
+    assert profile.additional_constraints == (
+        'one of: synchronised, trapezoidal, jerk_limited, continuous')
+    assert jog_units.additional_constraints == 'one of: rad_per_s, fraction_of_max'
+    assert not rate.read_only
+
+
+def test_bad_start_parameters_stop_the_controller():
+    """A value refused at run time is refused at start, saying why (a ValueError)."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        with pytest.raises(ValueError, match='rate'):
+            ControllerNode(context=context, namespace=NS + '_bad',
+                           parameter_overrides=[Parameter('rate', value=-5.0)])
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
 def test_flat_and_bad_demands(ros):
     controller, arm, spin_until = ros
     bad = Float32MultiArray(data=[0.1] * 7)

@@ -222,3 +222,58 @@ def test_plan_with_nobody_listening_is_refused(nodes):
     assert status.level == DiagnosticStatus.ERROR, status.message
     assert conversions.status_values(status)['reason'] == 'no_controller'
     assert 'controller' in status.message
+
+
+def set_remotely(executor, client, name, value):
+    """Set one planner parameter through its parameter service; return the SetParametersResult."""
+    future = client.set_parameters([Parameter(name, value=value)])
+    assert spin_until(executor, future.done), f'setting {name} not answered'
+    return future.result().results[0]
+
+
+def test_parameter_service_refuses_bad_values_and_describes_ranges(nodes):
+    """
+    Parameter services: a bad value is refused with a reason and changes nothing.
+
+    As ``ros2 param set`` would set it; and the descriptors carry the ranges and allowed values,
+    as ``ros2 param describe`` shows them.
+    """
+    from rclpy.parameter_client import AsyncParameterClient
+    executor, planner, probe = nodes
+    client = AsyncParameterClient(probe, 'planner')
+    assert spin_until(executor, lambda: client.services_are_ready())
+    for name, value, words in (('motion', 'banana', 'one of: linear, parabolic, joint'),
+                               ('n_waypoints', 1, 'n_waypoints'),
+                               ('max_step', 'far', 'type'),
+                               ('limit_set', 'hardware', 'read-only')):
+        result = set_remotely(executor, client, name, value)
+        assert not result.successful, name
+        assert words in result.reason, result.reason
+    assert planner.get_parameter('motion').value == 'linear'
+    assert planner.get_parameter('n_waypoints').value == 20
+    assert planner.get_parameter('max_step').value == 0.0
+    assert planner.get_parameter('limit_set').value == 'within_90_deg'
+
+    future = client.describe_parameters(['motion', 'n_waypoints', 'max_step', 'limit_set'])
+    assert spin_until(executor, future.done)
+    motion, n_waypoints, max_step, limit_set = future.result().descriptors
+    assert motion.additional_constraints == 'one of: linear, parabolic, joint'
+    assert 'shape' in motion.description
+    assert (n_waypoints.integer_range[0].from_value, n_waypoints.integer_range[0].to_value) \
+        == (2, 10000)
+    assert max_step.floating_point_range[0].from_value == 0.0
+    assert max_step.description.endswith('[m]')
+    assert limit_set.read_only and 'within_90_deg' in limit_set.additional_constraints
+
+    assert set_remotely(executor, client, 'motion', 'joint').successful   # a good one is taken
+    assert planner.get_parameter('motion').value == 'joint'
+
+
+def test_bad_start_parameters_stop_the_planner():
+    """A value refused at run time is refused at start too, saying why."""
+    rclpy.init()
+    try:
+        with pytest.raises(ValueError, match='one of: linear'):
+            PlannerNode(parameter_overrides=[Parameter('motion', value='banana')])
+    finally:
+        rclpy.try_shutdown()

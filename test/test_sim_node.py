@@ -247,6 +247,46 @@ def test_viewer_without_a_display_runs_headless(harness):
     assert h.spin_until(lambda: len(h.states) > count + 20)
 
 
+def test_parameter_service_refuses_bad_values_and_describes_ranges(harness):
+    """
+    Parameter services: a bad value is refused with a reason and changes nothing.
+
+    As ``ros2 param set`` would set it; and the descriptors carry the ranges and allowed values,
+    as ``ros2 param describe`` shows them.
+    """
+    from rclpy.parameter_client import AsyncParameterClient
+    h = harness
+    client = AsyncParameterClient(h.node, 'sim_bridge')
+    assert h.spin_until(client.services_are_ready)
+
+    def set_remotely(name, value):
+        future = client.set_parameters([Parameter(name, value=value)])
+        assert h.spin_until(future.done)
+        return future.result().results[0]
+
+    for name, value, words in (('publish_rate', 1000.0, 'publish_rate'),
+                               ('real_time_factor', -1.0, 'real_time_factor'),
+                               ('initial_q', [0.0, 4.0, 0.0, 0.0, 0.0, 0.0], 'each value'),
+                               ('kv', 'stiff', 'type'),
+                               ('mode', 'vendor_driver', 'read-only')):
+        result = set_remotely(name, value)
+        assert not result.successful, (name, value)
+        assert words in result.reason, result.reason
+    assert h.bridge.get_parameter('publish_rate').value == 100.0
+    assert h.bridge.get_parameter('real_time_factor').value == 1.0
+    assert list(h.bridge.get_parameter('initial_q').value) == [0.0] * 6
+    assert h.bridge.get_parameter('mode').value == 'rad_per_s'
+
+    future = client.describe_parameters(['publish_rate', 'mode', 'initial_q'])
+    assert h.spin_until(future.done)
+    publish_rate, mode, initial_q = future.result().descriptors
+    span = publish_rate.floating_point_range[0]
+    assert (span.from_value, span.to_value) == (0.1, 500.0)
+    assert mode.additional_constraints == 'one of: rad_per_s, vendor_driver' and mode.read_only
+    assert initial_q.additional_constraints.startswith('each value from -3.14159')
+    assert initial_q.description.endswith('[rad]')
+
+
 @pytest.mark.parametrize('bad', [{'mode': 'turbo'}, {'publish_rate': 1000.0},
                                  {'limit_set': 'lax'}, {'initial_q': [0.0, 0.0]},
                                  {'real_time_factor': -1.0}])

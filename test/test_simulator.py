@@ -4,6 +4,7 @@ import math
 
 from hypothesis import given, settings, strategies as st
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6, MOVER6_TICK_SIZE
 import mujoco
@@ -300,7 +301,8 @@ def test_controller_fraction_of_max_drives_vendor_mode_to_the_goal():
     """
     sim = Simulator(ARM, VENDOR)
     tol = np.maximum(0.002, TICK)
-    ctl = ControllerCore(ARM, ControllerConfig(jog_units='fraction_of_max', position_gain=10.0,
+    ctl = ControllerCore(ARM, ControllerConfig(law=LawConfig(profile='synchronised'),
+                                               jog_units='fraction_of_max', position_gain=10.0,
                                                goal_tolerance=tol,
                                                speed_override=VENDOR.speed_override))
     goal = np.array([0.4, -0.3, 0.5, 0.6, -0.7, 0.9])

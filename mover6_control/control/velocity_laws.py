@@ -47,15 +47,15 @@ class LawConfig:
     """
     Which law and its parameters.
 
-    ``lambda_max`` [rad/s] (synchronised), ``t_max`` [s] and ``t_blend`` [s] (trapezoidal; None
-    means ``t_max / 4``), ``a_max`` [rad/s^2] and ``j_max`` [rad/s^3] (jerk-limited, continuous,
-    and the deceleration of every law when stopping or replacing a motion).
+    ``lambda_max`` [rad/s] (synchronised), ``t_max`` [s] and ``t_blend`` [s] (trapezoidal; 0 or
+    None means ``t_max / 4``), ``a_max`` [rad/s^2] and ``j_max`` [rad/s^3] (jerk-limited,
+    continuous, and the deceleration of every law when stopping or replacing a motion).
     """
 
-    profile: str = 'synchronised'
+    profile: str = 'continuous'
     lambda_max: float = 0.5
     t_max: float = 1.0
-    t_blend: float = None
+    t_blend: float = 0.0
     a_max: float = 1.0
     j_max: float = 5.0
 

@@ -39,11 +39,11 @@ import threading
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
-from mover6_control.control.velocity_laws import JOG_UNITS, LawConfig, PROFILES
+from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError, Mover6Error
-from mover6_control.kinematics.arm import LIMIT_SETS, mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
-from mover6_control.nodes import conversions
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+from mover6_control.kinematics.arm import LIMIT_SETS, mover6
+from mover6_control.nodes import conversions, params
+from mover6_control.parameters import CONTROLLER
 import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -61,43 +61,12 @@ TICK_GAP_WARN = 0.05
 DEMAND_ATTEMPTS = 3
 WATCHDOG_ENV = 'MOVER6_TICK_WATCHDOG'
 STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-DOUBLE = ParameterType.PARAMETER_DOUBLE
-DOUBLES = ParameterType.PARAMETER_DOUBLE_ARRAY
-STRING = ParameterType.PARAMETER_STRING
-
-PARAMETERS = (
-    # name, default, type, description (defaults mirrored in config/controller.yaml)
-    ('rate', 100.0, DOUBLE, 'control rate: one /JointJog per tick [Hz]'),
-    ('profile', 'continuous', STRING, 'velocity law: ' + ', '.join(PROFILES)),
-    ('lambda_max', 0.5, DOUBLE, 'synchronised: speed of the joint with the furthest to go '
-                                '[rad/s] (the Mover6 report eq. 1)'),
-    ('t_max', 1.0, DOUBLE, 'trapezoidal: time of each move [s] (stretched to respect the '
-                           'velocity limits)'),
-    ('t_blend', 0.0, DOUBLE, 'trapezoidal: ramp time [s]; 0 = t_max / 4'),
-    ('a_max', 1.0, DOUBLE, 'acceleration limit of jerk_limited, continuous and of every stop '
-                           '[rad/s^2]'),
-    ('j_max', 5.0, DOUBLE, 'jerk limit of jerk_limited [rad/s^3]'),
-    ('goal_tolerance', 0.002, DOUBLE, 'arrived when every joint is this close [rad]'),
-    ('state_timeout', 0.25, DOUBLE, '/joint_states older than this: zero command, fault [s]'),
-    ('position_gain', 2.0, DOUBLE, 'closed-loop gain on the position error [1/s]'),
-    ('settle_timeout', 3.0, DOUBLE, 'give up settling into the goal tolerance after [s]'),
-    ('path_tolerance', 0.3, DOUBLE, 'tracking error that aborts a motion with a stop [rad]'),
-    ('jog_units', 'rad_per_s', STRING, 'JointJog velocities: ' + ', '.join(JOG_UNITS)),
-    ('speed_override', 0.25, DOUBLE, 'fraction_of_max: speed override of the vendor driver'),
-    ('driver_tick_size', list(MOVER6_TICK_SIZE), DOUBLES,
-     'fraction_of_max: one encoder tick per joint [rad] (default the Mover6): commands under one '
-     'tick per cycle are lifted to it near the goal; goal tolerance at least one tick'),
-    ('driver_cycle', MOVER6_DRIVER_CYCLE, DOUBLE, 'fraction_of_max: cycle of the driver [s]'),
-    ('limit_set', 'within_90_deg', STRING,
-     'joint limits: within_90_deg (every joint in [-pi/2, pi/2]) or hardware (vendor)'),
-    ('status_rate', 5.0, DOUBLE, 'rate of /controller/status between state changes [Hz]'),
-)
 
 
 def config_from_parameters(get):
     """Return ``(limit_set, ControllerConfig)`` from a parameter getter ``get(name)``."""
     law = LawConfig(profile=get('profile'), lambda_max=get('lambda_max'), t_max=get('t_max'),
-                    t_blend=get('t_blend') or None, a_max=get('a_max'), j_max=get('j_max'))
+                    t_blend=get('t_blend'), a_max=get('a_max'), j_max=get('j_max'))
     config = ControllerConfig(
         law=law, goal_tolerance=get('goal_tolerance'), state_timeout=get('state_timeout'),
         position_gain=get('position_gain'), settle_timeout=get('settle_timeout'),
@@ -116,9 +85,7 @@ class ControllerNode(Node):
     def __init__(self, **kwargs):
         """Declare the parameters, build the core, start the topics, services and tick thread."""
         super().__init__('controller', **kwargs)
-        for name, default, ptype, text in PARAMETERS:
-            self.declare_parameter(name, default, ParameterDescriptor(type=ptype,
-                                                                      description=text))
+        params.declare(self, CONTROLLER)  # refuses invalid values, at start and later
         limit_set, config = config_from_parameters(lambda n: self.get_parameter(n).value)
         self.core = ControllerCore(mover6(limit_set), config)
         self.joint_names = list(self.core.arm.joint_names)

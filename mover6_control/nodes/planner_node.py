@@ -10,13 +10,12 @@ Subscribes /pose_goal (geometry_msgs/PoseStamped), /path_goal (geometry_msgs/Pos
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from mover6_control.errors import Mover6Error, UnreachableError
-from mover6_control.kinematics.arm import LIMIT_SETS, mover6
+from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
-from mover6_control.nodes import conversions
-from mover6_control.planning.planner_core import (PATH_MOTIONS, plan_path_goal, plan_pose_goal,
-                                                  PlannerSettings, POSE_MOTIONS)
+from mover6_control.nodes import conversions, params
+from mover6_control.parameters import PLANNER
+from mover6_control.planning.planner_core import plan_path_goal, plan_pose_goal, PlannerSettings
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -26,51 +25,15 @@ from std_msgs.msg import Float32MultiArray
 
 STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
-PARAMETERS = (
-    # name, default, type, description
-    ('motion', 'linear', ParameterType.PARAMETER_STRING,
-     'shape of /pose_goal moves: ' + ', '.join(POSE_MOTIONS)),
-    ('path_motion', 'spline', ParameterType.PARAMETER_STRING,
-     'shape of /path_goal moves: ' + ', '.join(PATH_MOTIONS)),
-    ('n_waypoints', 20, ParameterType.PARAMETER_INTEGER,
-     'poses sampled along a Cartesian path (when max_step and max_angle_step are 0)'),
-    ('max_step', 0.0, ParameterType.PARAMETER_DOUBLE,
-     'largest Cartesian step between waypoints [m]; 0 = use n_waypoints'),
-    ('max_angle_step', 0.0, ParameterType.PARAMETER_DOUBLE,
-     'largest orientation step between waypoints [rad]; 0 = use n_waypoints'),
-    ('peak_height', 0.05, ParameterType.PARAMETER_DOUBLE,
-     'height of the parabolic path peak above the straight line mid-point, along base z [m]'),
-    ('max_joint_step', 0.35, ParameterType.PARAMETER_DOUBLE,
-     'largest joint jump between neighbouring waypoints before a path is refused [rad]'),
-    ('max_condition', 1000.0, ParameterType.PARAMETER_DOUBLE,
-     'largest Jacobian condition number allowed along the path (singularity margin)'),
-    ('position_tolerance', 0.001, ParameterType.PARAMETER_DOUBLE,
-     'largest position error of any waypoint, the last included [m]'),
-    ('orientation_tolerance', 0.01, ParameterType.PARAMETER_DOUBLE,
-     'largest orientation error of any waypoint, the last included [rad]'),
-    ('limit_set', 'within_90_deg', ParameterType.PARAMETER_STRING,
-     'joint limits: within_90_deg (every joint in [-pi/2, pi/2], as the Mover6 report)'
-     ' or hardware (vendor limits)'),
-    ('frame_id', 'base_link', ParameterType.PARAMETER_STRING,
-     'the only frame goals are accepted in'),
-    ('state_timeout', 1.0, ParameterType.PARAMETER_DOUBLE,
-     '/joint_states older than this are too old to plan from [s]'),
-    ('match_timeout', 3.0, ParameterType.PARAMETER_DOUBLE,
-     'longest wait for /joint_demands readers to be matched before publishing a plan [s]'),
-)
-
 
 class PlannerNode(Node):
     """Plan pose and path goals into joint waypoints, refuse what cannot be reached."""
 
-    def __init__(self):
-        super().__init__('planner')
-        for name, default, ptype, text in PARAMETERS:
-            self.declare_parameter(name, default, ParameterDescriptor(type=ptype,
-                                                                      description=text))
+    def __init__(self, **kwargs):
+        """Declare the parameters, build the arm, start the topics."""
+        super().__init__('planner', **kwargs)
+        params.declare(self, PLANNER)     # refuses invalid values, at start and later
         limit_set = self.get_parameter('limit_set').value
-        if limit_set not in LIMIT_SETS:
-            raise ValueError(f'limit_set must be one of {LIMIT_SETS}, got {limit_set!r}')
         self.arm = mover6(limit_set)
         self.q = None
         self.q_time = None
@@ -123,7 +86,7 @@ class PlannerNode(Node):
 
     def settings(self):
         """Return the planner settings from the current parameters."""
-        p = {name: self.get_parameter(name).value for name, *_ in PARAMETERS}
+        p = {name: self.get_parameter(name).value for name in PLANNER}
         return PlannerSettings(
             n_waypoints=p['n_waypoints'], max_step=p['max_step'],
             max_angle_step=p['max_angle_step'], peak_height=p['peak_height'],

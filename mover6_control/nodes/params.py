@@ -1,0 +1,83 @@
+"""
+Node parameters from ``mover6_control.parameters``: descriptors, declaration, the set check.
+
+The one place where a ``ParameterSpec`` becomes a ROS ``ParameterDescriptor`` (description with
+the unit, ``floating_point_range`` / ``integer_range``, allowed values as
+``additional_constraints``, ``read_only``), used by the planner, the controller and the sim
+bridge alike.
+"""
+
+from mover6_control.errors import InvalidInputError
+from mover6_control.parameters import check_value
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                ParameterType, SetParametersResult)
+from rclpy.exceptions import ParameterException
+
+ROS_TYPES = {
+    'bool': ParameterType.PARAMETER_BOOL,
+    'int': ParameterType.PARAMETER_INTEGER,
+    'float': ParameterType.PARAMETER_DOUBLE,
+    'str': ParameterType.PARAMETER_STRING,
+    'float_list': ParameterType.PARAMETER_DOUBLE_ARRAY,
+}
+
+
+def descriptor(spec):
+    """Return the ``ParameterDescriptor`` of a ``ParameterSpec``."""
+    text = spec.description + (f' [{spec.unit}]' if spec.unit else '')
+    d = ParameterDescriptor(name=spec.name, type=ROS_TYPES[spec.type], description=text,
+                            additional_constraints=spec.constraints(),
+                            read_only=spec.read_only)
+    if spec.has_range and spec.type == 'float':
+        d.floating_point_range = [FloatingPointRange(
+            from_value=float(spec.minimum), to_value=float(spec.maximum), step=0.0)]
+    elif spec.has_range and spec.type == 'int':
+        d.integer_range = [IntegerRange(
+            from_value=int(spec.minimum), to_value=int(spec.maximum), step=0)]
+    return d
+
+
+def ros_value(value):
+    """Return a default as rclpy takes it (a tuple becomes a list)."""
+    return list(value) if isinstance(value, tuple) else value
+
+
+def declare(node, table):
+    """
+    Declare every parameter of ``table`` on ``node`` and refuse invalid values from then on.
+
+    The set-parameters check is in place before the declarations, so a bad start value (from a
+    parameter file or ``-p``) stops the node too. Raises ``InvalidInputError`` (a ValueError)
+    saying why.
+    """
+    callback = make_set_callback(table)
+    node.add_on_set_parameters_callback(callback)
+    for spec in table.values():
+        try:
+            node.declare_parameter(spec.name, ros_value(spec.default), descriptor(spec))
+        except ParameterException as err:
+            raise InvalidInputError(f'parameter {spec.name}: {err}') from err
+    return callback
+
+
+def make_set_callback(table):
+    """
+    Return an ``on_set_parameters`` callback that refuses values ``table`` does not allow.
+
+    One bad value refuses the whole set, with the reason; nothing changes. Parameters not in
+    the table (``use_sim_time`` ...) are left to rclpy.
+    """
+    def on_set_parameters(parameters):
+        for parameter in parameters:
+            spec = table.get(parameter.name)
+            if spec is None:
+                continue
+            value = parameter.value
+            if spec.type == 'float_list' and value is not None:
+                value = list(value)       # rclpy gives an array.array
+            try:
+                check_value(spec, value)
+            except InvalidInputError as err:
+                return SetParametersResult(successful=False, reason=str(err))
+        return SetParametersResult(successful=True)
+    return on_set_parameters

@@ -1,0 +1,237 @@
+"""
+The parameters of the three nodes, declared once: name, type, default, unit, range, meaning.
+
+``PLANNER``, ``CONTROLLER`` and ``SIM_BRIDGE`` map each parameter name to a frozen
+``ParameterSpec``. The nodes declare their ROS parameters from these tables (with the range or
+the allowed values in the descriptor, ``ros2 param describe`` shows them) and refuse a value that
+``check_value`` refuses; ``config/<node>.yaml``, the README's Parameters table and the defaults of
+the core's settings dataclasses are checked against them by the tests.
+
+ROS-free and in the base layer: the allowed values are written out here (the tests check that
+they are the core's ``PROFILES``, ``POSE_MOTIONS``, ``LIMIT_SETS`` ... and that the Mover6's
+encoder ticks are ``MOVER6_TICK_SIZE``).
+"""
+
+from dataclasses import dataclass
+import math
+
+from mover6_control.errors import InvalidInputError
+
+TYPES = ('bool', 'int', 'float', 'str', 'float_list')
+
+_PYTHON_TYPES = {'bool': (bool,), 'int': (int,), 'float': (float,), 'str': (str,)}
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """
+    One node parameter.
+
+    ``type`` is one of ``TYPES``. ``minimum`` and ``maximum`` (inclusive, numbers only; for a
+    ``float_list`` they bound every element) or ``allowed`` (strings only) say which values are
+    valid; ``read_only`` parameters are set at start and cannot change while the node runs.
+    """
+
+    name: str
+    type: str     # noqa: A003 - the word users read in the table
+    default: object
+    unit: str
+    description: str
+    minimum: float = None
+    maximum: float = None
+    allowed: tuple = ()
+    read_only: bool = False
+
+    def __post_init__(self):
+        """Check the spec itself, and that its default is a valid value."""
+        if self.type not in TYPES:
+            raise InvalidInputError(f'{self.name}: type must be one of {TYPES}, got {self.type}')
+        if (self.minimum is None) != (self.maximum is None):
+            raise InvalidInputError(f'{self.name}: give both minimum and maximum, or neither')
+        if self.minimum is not None and self.type not in ('int', 'float', 'float_list'):
+            raise InvalidInputError(f'{self.name}: a range needs a numeric type')
+        if self.allowed and self.type != 'str':
+            raise InvalidInputError(f'{self.name}: allowed values need type str')
+        if isinstance(self.default, list):
+            object.__setattr__(self, 'default', tuple(self.default))
+        check_value(self, self.default)
+
+    @property
+    def has_range(self):
+        """Return True when the value (or every element) must lie in [minimum, maximum]."""
+        return self.minimum is not None
+
+    def constraints(self):
+        """Return the constraints in words ('' when there are none)."""
+        if self.allowed:
+            return 'one of: ' + ', '.join(self.allowed)
+        if self.has_range:
+            each = 'each value ' if self.type == 'float_list' else ''
+            return f'{each}from {self.minimum:g} to {self.maximum:g}'
+        return ''
+
+
+def _type_ok(spec, value):
+    if spec.type == 'float_list':
+        return (isinstance(value, (list, tuple)) and len(value) > 0
+                and all(isinstance(v, float) for v in value))
+    if spec.type in ('int', 'float') and isinstance(value, bool):
+        return False
+    return isinstance(value, _PYTHON_TYPES[spec.type])
+
+
+def check_value(spec, value):
+    """
+    Raise ``InvalidInputError`` saying why ``value`` is not valid for ``spec``.
+
+    Valid: of the spec's type (a float is not an int and back; a ``float_list`` is a non-empty
+    list of floats), finite, within [minimum, maximum] (every element for a list), and among
+    the allowed values.
+    """
+    if not _type_ok(spec, value):
+        raise InvalidInputError(
+            f'{spec.name} must be of type {spec.type}, got {value!r} ({type(value).__name__})')
+    numbers = value if spec.type == 'float_list' else (
+        [value] if spec.type in ('int', 'float') else [])
+    for number in numbers:
+        if not math.isfinite(number):
+            raise InvalidInputError(f'{spec.name} must be finite, got {value!r}')
+        if spec.has_range and not spec.minimum <= number <= spec.maximum:
+            raise InvalidInputError(
+                f'{spec.name} must be {spec.constraints()} {spec.unit}'.rstrip()
+                + f', got {value!r}')
+    if spec.allowed and value not in spec.allowed:
+        raise InvalidInputError(f'{spec.name} must be {spec.constraints()}, got {value!r}')
+
+
+def _table(*specs):
+    """Return ``{name: spec}`` in the given order, refusing a name given twice."""
+    table = {}
+    for spec in specs:
+        if spec.name in table:
+            raise InvalidInputError(f'parameter {spec.name} declared twice')
+        table[spec.name] = spec
+    return table
+
+
+P = ParameterSpec
+PI = math.pi
+LIMIT_SETS = ('within_90_deg', 'hardware')
+LIMIT_SET_TEXT = ('joint limits: within_90_deg (every joint in [-pi/2, pi/2], the limits of the '
+                  "Mover6 report) or hardware (the vendor's limits); set at start")
+# One encoder tick of each Mover6 joint [rad], as the vendor driver moves them (kinematics.arm
+# derives them from the gear ratios as MOVER6_TICK_SIZE; a test checks they agree).
+MOVER6_TICKS = (8.260740495997393e-06, 8.260740495997393e-06, 8.260740495997393e-06,
+                8.742382548559054e-06, 0.006135923151542565, 0.006135923151542565)
+
+PLANNER = _table(
+    P('motion', 'str', 'linear', '', 'shape of /pose_goal moves',
+      allowed=('linear', 'parabolic', 'joint')),
+    P('path_motion', 'str', 'spline', '', 'shape of /path_goal moves (through the via poses)',
+      allowed=('spline', 'arc')),
+    P('n_waypoints', 'int', 20, '',
+      'poses sampled along a Cartesian path (when max_step and max_angle_step are 0)', 2, 10000),
+    P('max_step', 'float', 0.0, 'm',
+      'largest Cartesian step between waypoints; 0 = use n_waypoints', 0.0, 1.0),
+    P('max_angle_step', 'float', 0.0, 'rad',
+      'largest orientation step between waypoints; 0 = use n_waypoints', 0.0, PI),
+    P('peak_height', 'float', 0.05, 'm',
+      'parabolic moves: height of the peak above the straight line mid-point, along base z',
+      -0.5, 0.5),
+    P('max_joint_step', 'float', 0.35, 'rad',
+      'largest joint jump between neighbouring waypoints before a path is refused', 0.001, PI),
+    P('max_condition', 'float', 1000.0, '',
+      'largest Jacobian condition number allowed along the path (margin to singularities)',
+      1.0, 1e9),
+    P('position_tolerance', 'float', 0.001, 'm',
+      'largest position error of any waypoint, the last included', 1e-6, 0.1),
+    P('orientation_tolerance', 'float', 0.01, 'rad',
+      'largest orientation error of any waypoint, the last included', 1e-6, 1.0),
+    P('limit_set', 'str', 'within_90_deg', '', LIMIT_SET_TEXT, allowed=LIMIT_SETS,
+      read_only=True),
+    P('frame_id', 'str', 'base_link', '', 'the only frame goals are accepted in'),
+    P('state_timeout', 'float', 1.0, 's',
+      '/joint_states older than this are too old to plan from', 0.01, 60.0),
+    P('match_timeout', 'float', 3.0, 's',
+      'longest wait for /joint_demands readers to be matched before publishing a plan',
+      0.0, 60.0),
+)
+
+CONTROLLER = _table(
+    P('rate', 'float', 100.0, 'Hz', 'control rate: one /JointJog per tick', 1.0, 1000.0),
+    P('profile', 'str', 'continuous', '',
+      'velocity law: continuous (through every waypoint, time-optimal), synchronised (all '
+      'joints arrive together), trapezoidal (stop at each waypoint, as the Mover6 report), '
+      'jerk_limited', allowed=('synchronised', 'trapezoidal', 'jerk_limited', 'continuous')),
+    P('lambda_max', 'float', 0.5, 'rad/s',
+      'synchronised: speed of the joint with the furthest to go (the Mover6 report eq. 1)',
+      0.001, 10.0),
+    P('t_max', 'float', 1.0, 's',
+      'trapezoidal: time of each move (stretched to respect the velocity limits)', 0.01, 600.0),
+    P('t_blend', 'float', 0.0, 's',
+      'trapezoidal: ramp time, at most t_max / 2; 0 = t_max / 4 (the Mover6 report)',
+      0.0, 300.0),
+    P('a_max', 'float', 1.0, 'rad/s^2',
+      'acceleration limit of jerk_limited, continuous and of every stop', 0.001, 100.0),
+    P('j_max', 'float', 5.0, 'rad/s^3', 'jerk limit of jerk_limited', 0.001, 1000.0),
+    P('goal_tolerance', 'float', 0.002, 'rad', 'arrived when every joint is this close',
+      1e-6, 0.5),
+    P('state_timeout', 'float', 0.25, 's',
+      '/joint_states older than this: zero command and fault', 0.001, 10.0),
+    P('position_gain', 'float', 2.0, '1/s', 'closed-loop gain on the position error',
+      0.0, 100.0),
+    P('settle_timeout', 'float', 3.0, 's', 'give up settling into the goal tolerance after',
+      0.01, 600.0),
+    P('path_tolerance', 'float', 0.3, 'rad',
+      'tracking error that aborts a motion with a controlled stop', 0.001, 2.0 * PI),
+    P('jog_units', 'str', 'rad_per_s', '',
+      'JointJog velocities: rad_per_s (ROS standard) or fraction_of_max (the vendor driver: '
+      "fractions of each joint's maximum speed)", allowed=('rad_per_s', 'fraction_of_max')),
+    P('speed_override', 'float', 0.25, '',
+      'fraction_of_max: speed override of the vendor driver', 0.01, 1.0),
+    P('driver_tick_size', 'float_list', MOVER6_TICKS, 'rad',
+      "fraction_of_max: one encoder tick per joint (default the Mover6's): commands under one "
+      'tick per cycle are lifted to it near the goal; goal tolerance at least one tick',
+      1e-9, 1.0),
+    P('driver_cycle', 'float', 0.05, 's',
+      'fraction_of_max: cycle of the vendor driver (20 Hz)', 0.001, 1.0),
+    P('limit_set', 'str', 'within_90_deg', '', LIMIT_SET_TEXT, allowed=LIMIT_SETS,
+      read_only=True),
+    P('status_rate', 'float', 5.0, 'Hz', 'rate of /controller/status between state changes',
+      0.1, 100.0),
+)
+
+SIM_BRIDGE = _table(
+    P('physics_dt', 'float', 0.002, 's',
+      'fixed physics step (0.001 to 0.002 recommended); set at start', 0.0001, 0.01,
+      read_only=True),
+    P('real_time_factor', 'float', 1.0, '',
+      'sim time per wall time; 0 runs as fast as it can', 0.0, 100.0),
+    P('publish_rate', 'float', 100.0, 'Hz',
+      '/joint_states rate of sim time (rad_per_s mode)', 0.1, 500.0),
+    P('command_timeout', 'float', 0.2, 's',
+      'a /JointJog older than this (by receive time, sim clock) halts the joints', 0.001, 10.0),
+    P('mode', 'str', 'rad_per_s', '',
+      'JointJog units and driver behaviour: rad_per_s (ROS standard) or vendor_driver (behaves '
+      'like the vendor driver: fractions, 20 Hz cycle, whole encoder ticks); set at start',
+      allowed=('rad_per_s', 'vendor_driver'), read_only=True),
+    P('speed_override', 'float', 0.25, '',
+      'vendor_driver: speed = fraction * max speed * speed_override', 0.01, 1.0),
+    P('limit_set', 'str', 'within_90_deg', '', LIMIT_SET_TEXT, allowed=LIMIT_SETS,
+      read_only=True),
+    P('urdf_path', 'str', '', '',
+      'URDF of the arm; empty = the shipped Mover6 (config/mover6.urdf) with limit_set; '
+      'set at start', read_only=True),
+    P('initial_q', 'float_list', (0.0,) * 6, 'rad',
+      'start and home configuration, one value per joint', -PI, PI),
+    P('publish_clock', 'bool', False, '',
+      'publish /clock after every physics step and stamp with sim time; set at start',
+      read_only=True),
+    P('viewer', 'bool', False, '',
+      'open the MuJoCo viewer when a display exists (headless otherwise); set at start',
+      read_only=True),
+    P('kv', 'float', 1000.0, 'N m s/rad', 'joint velocity servo gain', 0.001, 1e6),
+    P('damping', 'float', 0.5, 'N m s/rad', 'joint viscous damping', 0.0, 1e4),
+)
+
+NODES = {'planner': PLANNER, 'controller': CONTROLLER, 'sim_bridge': SIM_BRIDGE}

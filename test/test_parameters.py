@@ -1,0 +1,168 @@
+"""
+One source of truth per parameter: ``mover6_control.parameters`` against everything else.
+
+The tables must agree with the core (allowed values, the Mover6's encoder ticks, the defaults of
+the settings dataclasses), with ``config/<node>.yaml`` and with the README's Parameters table;
+``check_value`` must refuse what a node must refuse.
+"""
+
+import dataclasses
+import math
+import os
+import re
+
+from mover6_control.control.controller_core import ControllerConfig
+from mover6_control.control.velocity_laws import JOG_UNITS, LawConfig, PROFILES
+from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.arm import LIMIT_SETS, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
+from mover6_control.parameters import (check_value, CONTROLLER, NODES, ParameterSpec, PLANNER,
+                                       SIM_BRIDGE)
+from mover6_control.planning.planner_core import PATH_MOTIONS, PlannerSettings, POSE_MOTIONS
+import pytest
+from sim_bridge.model import ModelOptions
+from sim_bridge.simulator import MODES, SimConfig
+import yaml
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+# (dataclass, field, table, parameter): each dataclass default that a parameter sets.
+DATACLASS_DEFAULTS = (
+    [(LawConfig, name, CONTROLLER, name)
+     for name in ('profile', 'lambda_max', 't_max', 't_blend', 'a_max', 'j_max')]
+    + [(ControllerConfig, name, CONTROLLER, name)
+       for name in ('goal_tolerance', 'state_timeout', 'position_gain', 'settle_timeout',
+                    'path_tolerance', 'rate', 'jog_units', 'speed_override',
+                    'driver_tick_size', 'driver_cycle')]
+    + [(PlannerSettings, name, PLANNER, name)
+       for name in ('n_waypoints', 'max_step', 'max_angle_step', 'peak_height',
+                    'max_joint_step', 'max_condition', 'position_tolerance',
+                    'orientation_tolerance')]
+    + [(SimConfig, name, SIM_BRIDGE, name)
+       for name in ('mode', 'command_timeout', 'speed_override')]
+    + [(ModelOptions, name, SIM_BRIDGE, name) for name in ('physics_dt', 'kv', 'damping')]
+)
+
+
+def default_of(cls, name):
+    """Return the default of dataclass field ``name`` of ``cls``."""
+    field = {f.name: f for f in dataclasses.fields(cls)}[name]
+    if field.default_factory is not dataclasses.MISSING:
+        return field.default_factory()
+    return field.default
+
+
+@pytest.mark.parametrize('cls,name,table,param', DATACLASS_DEFAULTS,
+                         ids=lambda v: getattr(v, '__name__', str(v)))
+def test_dataclass_defaults_are_the_node_defaults(cls, name, table, param):
+    """Each core setting a parameter sets defaults to the parameter's default."""
+    value = default_of(cls, name)
+    if isinstance(value, tuple):
+        value = tuple(value)
+    assert value == table[param].default, f'{cls.__name__}.{name}'
+
+
+def test_the_law_defaults_to_what_the_node_runs():
+    """The disagreement that started this: the law defaults to continuous, as the node does."""
+    assert LawConfig().profile == 'continuous' == CONTROLLER['profile'].default
+    assert ControllerConfig().law.profile == 'continuous'
+
+
+def test_allowed_values_are_the_core_names():
+    """The allowed strings are exactly the names the core accepts."""
+    assert PLANNER['motion'].allowed == POSE_MOTIONS
+    assert PLANNER['path_motion'].allowed == PATH_MOTIONS
+    assert set(CONTROLLER['profile'].allowed) == set(PROFILES)
+    assert CONTROLLER['jog_units'].allowed == JOG_UNITS
+    assert SIM_BRIDGE['mode'].allowed == MODES
+    for table in NODES.values():
+        assert table['limit_set'].allowed == LIMIT_SETS
+        assert table['limit_set'].read_only
+
+
+def test_mover6_driver_constants_are_the_arms():
+    """The controller's driver defaults are the Mover6's ticks and cycle from the arm model."""
+    assert CONTROLLER['driver_tick_size'].default == MOVER6_TICK_SIZE
+    assert CONTROLLER['driver_cycle'].default == MOVER6_DRIVER_CYCLE
+
+
+@pytest.mark.parametrize('node', sorted(NODES))
+def test_config_file_matches_the_table(node):
+    """config/<node>.yaml: every parameter, no other key, each valid and the default."""
+    with open(os.path.join(ROOT, 'config', f'{node}.yaml')) as f:
+        values = yaml.safe_load(f)[node]['ros__parameters']
+    table = NODES[node]
+    assert list(values) == list(table), 'same parameters, in the same order'
+    for name, value in values.items():
+        check_value(table[name], value)
+        default = table[name].default
+        assert (tuple(value) if isinstance(value, list) else value) == default, name
+
+
+def readme_parameters_section():
+    """Return the README's '## Parameters' section."""
+    with open(os.path.join(ROOT, 'README.md')) as f:
+        text = f.read()
+    match = re.search(r'^## Parameters\n(.*?)(?=^## )', text, re.M | re.S)
+    assert match, 'README has no Parameters section'
+    return match.group(1)
+
+
+@pytest.mark.parametrize('node', sorted(NODES))
+def test_readme_lists_every_parameter(node):
+    """Every parameter of the node appears in a row of its node in the README's table."""
+    rows = [line for line in readme_parameters_section().splitlines()
+            if line.startswith(f'| {node} |')]
+    names = set()
+    for row in rows:
+        names.update(re.findall(r'`(\w+)`', row.split('|')[2]))
+    assert names == set(NODES[node]), f'missing {set(NODES[node]) - names}, ' \
+                                      f'unknown {names - set(NODES[node])}'
+
+
+def test_descriptions_use_words_a_user_knows():
+    """Every parameter is described, with no internal words."""
+    for table in NODES.values():
+        for spec in table.values():
+            assert spec.description
+            assert 'seed' not in spec.description.lower(), spec.name
+
+
+@pytest.mark.parametrize('spec,value,words', [
+    (CONTROLLER['rate'], -5.0, 'from 1 to 1000 Hz'),
+    (CONTROLLER['rate'], 100, 'type float'),
+    (CONTROLLER['rate'], math.nan, 'finite'),
+    (PLANNER['motion'], 'banana', 'one of: linear, parabolic, joint'),
+    (PLANNER['n_waypoints'], 1, 'from 2 to 10000'),
+    (PLANNER['n_waypoints'], 20.0, 'type int'),
+    (PLANNER['n_waypoints'], True, 'type int'),
+    (SIM_BRIDGE['publish_clock'], 1, 'type bool'),
+    (SIM_BRIDGE['initial_q'], [0.0, 4.0], 'each value from'),
+    (SIM_BRIDGE['initial_q'], [0, 0], 'type float_list'),
+    (SIM_BRIDGE['initial_q'], [], 'type float_list'),
+    (CONTROLLER['driver_tick_size'], [0.001, -0.001], 'each value from'),
+])
+def test_check_value_refuses_with_a_reason(spec, value, words):
+    """A bad value is refused, and the reason names the parameter and what is allowed."""
+    with pytest.raises(InvalidInputError) as err:
+        check_value(spec, value)
+    assert spec.name in str(err.value)
+    assert words in str(err.value)
+
+
+def test_check_value_takes_valid_values():
+    """Values at the ends of the range and allowed names pass."""
+    check_value(CONTROLLER['rate'], 1.0)
+    check_value(CONTROLLER['rate'], 1000.0)
+    check_value(PLANNER['motion'], 'parabolic')
+    check_value(SIM_BRIDGE['initial_q'], [0.0, -1.0, 1.0])
+    check_value(PLANNER['frame_id'], 'world')
+
+
+def test_a_spec_refuses_a_bad_default():
+    """The table cannot declare a default its own check would refuse."""
+    with pytest.raises(InvalidInputError, match='one of'):
+        ParameterSpec('x', 'str', 'c', '', 'text', allowed=('a', 'b'))
+    with pytest.raises(InvalidInputError, match='from 0 to 1'):
+        ParameterSpec('x', 'float', 2.0, '', 'text', 0.0, 1.0)
+    with pytest.raises(InvalidInputError, match='type'):
+        ParameterSpec('x', 'complex', 2.0, '', 'text')
