@@ -32,7 +32,6 @@ needs no interpreter lock for it; wall time, so a paused sim clock trips it too)
 import faulthandler
 import os
 import queue
-import signal
 import sys
 import threading
 
@@ -42,14 +41,11 @@ from mover6_control.control.controller_core import ControllerConfig, ControllerC
 from mover6_control.control.velocity_laws import JOG_UNITS, LawConfig, PROFILES
 from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.kinematics.arm import LIMIT_SETS, mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
-from mover6_control.nodes import conversions
+from mover6_control.nodes import conversions, shutdown
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
-import rclpy
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
@@ -310,38 +306,19 @@ class ControllerNode(Node):
                 'controller', level or status.level, message or status.message, values))
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
 def main(args=None):
     """
     Run the controller node until Ctrl-C, SIGTERM or shutdown; then send a zero command.
 
     rclpy's own signal handlers would shut the context down before the node could publish that
-    zero (and the vendor driver keeps the last command forever), so SIGINT and SIGTERM raise
-    KeyboardInterrupt here instead and the executor spins in short slices to notice them.
+    zero (and the vendor driver keeps the last command forever); ``shutdown.run_node`` keeps the
+    context valid until ``destroy_node()`` has sent it, and ignores any further signal meanwhile.
     """
     # The tick thread must get the interpreter promptly when its deadline comes, not after the
     # default 5 ms switch interval while the executor thread runs Python: this keeps the period
     # error p99 well under a millisecond at 100 Hz (bench/bench_controller.py).
     sys.setswitchinterval(0.0005)
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGINT, _interrupt)
-    signal.signal(signal.SIGTERM, _interrupt)
-    node = None
-    try:
-        node = ControllerNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()      # stops the tick thread and sends the zero command
-        rclpy.try_shutdown()
+    shutdown.run_node(ControllerNode, args)
 
 
 if __name__ == '__main__':
