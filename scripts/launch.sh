@@ -2,11 +2,17 @@
 # Start the three mover6_control nodes (sim_bridge, controller, planner) and keep them running
 # until Ctrl-C. Stops all of them on exit, on Ctrl-C / SIGTERM, and as soon as one dies.
 #
-# Usage: scripts/launch.sh [--no-sim] [--log-dir DIR]
-#   --no-sim        do not start the MuJoCo bridge (drive a real arm's driver instead)
-#   --log-dir DIR   also write each node's output to DIR/<node>.log
+# Usage: scripts/launch.sh [--no-sim] [--profile P] [--jog-units U] [--limit-set L]
+#                          [--log-dir DIR]
+#   --no-sim         do not start the MuJoCo bridge (drive a real arm's driver instead)
+#   --profile P      controller profile: continuous (default) | synchronised | trapezoidal |
+#                    jerk_limited
+#   --jog-units U    rad_per_s (default) | fraction_of_max (vendor driver; the sim acts as it)
+#   --limit-set L    joint limits of every node: within_90_deg (default) | hardware
+#   --log-dir DIR    also write each node's output to DIR/<node>.log
 # Extra ROS arguments per node: MOVER6_SIM_ARGS, MOVER6_CONTROLLER_ARGS, MOVER6_PLANNER_ARGS,
-# e.g. MOVER6_CONTROLLER_ARGS="-p profile:=trapezoidal". Parameter files: config/<node>.yaml.
+# e.g. MOVER6_CONTROLLER_ARGS="-p t_max:=2.0". Parameter files: config/<node>.yaml.
+# launch/mover6.launch.py (ros2 launch) starts the same (test/test_launch_file.py checks).
 #
 # Needs an environment where the package is built and sourced (./run.sh launch does that).
 set -uo pipefail
@@ -14,17 +20,44 @@ set -uo pipefail
 # DDS discovery stays on this machine unless the user chose otherwise (robot network).
 export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
 
+# The choices, and the defaults (the shipped parameter files' values).
+PROFILES='continuous synchronised trapezoidal jerk_limited'
+JOG_UNITS='rad_per_s fraction_of_max'
+LIMIT_SETS='within_90_deg hardware'
 with_sim=1
+profile=continuous
+jog_units=rad_per_s
+limit_set=within_90_deg
 log_dir=''
+one_of() {
+    # one_of OPTION VALUE CHOICES...: exit 2 unless VALUE is one of CHOICES
+    local option=$1 value=$2 choice
+    shift 2
+    for choice in "$@"; do [ "$value" = "$choice" ] && return 0; done
+    echo "launch.sh: $option must be one of: $*; got '$value'" >&2
+    exit 2
+}
 while [ $# -gt 0 ]; do
     case "$1" in
         --no-sim) with_sim=0 ;;
-        --log-dir) log_dir=$2; shift ;;
-        -h | --help) sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        --profile) profile=${2:-}; shift ;;
+        --jog-units) jog_units=${2:-}; shift ;;
+        --limit-set) limit_set=${2:-}; shift ;;
+        --log-dir) log_dir=${2:-}; shift ;;
+        -h | --help) sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "launch.sh: unknown argument '$1'" >&2; exit 2 ;;
     esac
     shift
 done
+# shellcheck disable=SC2086
+one_of --profile "$profile" $PROFILES
+# shellcheck disable=SC2086
+one_of --jog-units "$jog_units" $JOG_UNITS
+# shellcheck disable=SC2086
+one_of --limit-set "$limit_set" $LIMIT_SETS
+# The simulator stands in for the vendor driver when the controller speaks its units.
+sim_mode=rad_per_s
+[ "$jog_units" = fraction_of_max ] && sim_mode=vendor_driver
 
 prefix=$(python3 -c 'from ament_index_python.packages import get_package_prefix as p; print(p("mover6_control"))' 2>/dev/null) || {
     echo 'launch.sh: package mover6_control not found: build and source it (./run.sh launch)' >&2
@@ -74,11 +107,14 @@ trap 'stop_all; exit 143' TERM
 trap 'stop_all' EXIT
 
 # shellcheck disable=SC2086
-[ "$with_sim" = 1 ] && start sim_bridge sim_bridge ${MOVER6_SIM_ARGS:-}
+[ "$with_sim" = 1 ] && start sim_bridge sim_bridge \
+    -p "limit_set:=$limit_set" -p "mode:=$sim_mode" ${MOVER6_SIM_ARGS:-}
 # shellcheck disable=SC2086
-start controller controller ${MOVER6_CONTROLLER_ARGS:-}
+start controller controller \
+    -p "profile:=$profile" -p "jog_units:=$jog_units" -p "limit_set:=$limit_set" \
+    ${MOVER6_CONTROLLER_ARGS:-}
 # shellcheck disable=SC2086
-start planner planner ${MOVER6_PLANNER_ARGS:-}
+start planner planner -p "limit_set:=$limit_set" ${MOVER6_PLANNER_ARGS:-}
 
 # Wait until any node exits; then stop the rest and report which one it was.
 wait -n "${pids[@]}"

@@ -25,11 +25,9 @@ import time
 from control_msgs.msg import JointJog
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import LIMIT_SETS, load_urdf, mover6
-from mover6_control.nodes import conversions, params
+from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.parameters import SIM_BRIDGE
 import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -310,18 +308,8 @@ class SimBridgeNode(Node):
 
 
 def main(args=None):
-    """Run the sim_bridge node until Ctrl-C or shutdown."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SimBridgeNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Run the sim_bridge node until Ctrl-C, SIGTERM or shutdown (one or more signals: exit 0)."""
+    shutdown.run_node(SimBridgeNode, args)
 
 
 if __name__ == '__main__':

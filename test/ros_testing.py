@@ -34,19 +34,27 @@ def node_command(name):
 
 
 class NodeProcess:
-    """One node in its own process, output to a log file."""
+    """
+    One node in its own process, output to a log file.
 
-    def __init__(self, name, log_dir, params=None):
+    ``ros_args`` are added after the parameters (e.g. remappings ``('-r', 'a:=b')``);
+    ``new_session`` starts it in its own session and process group, with no controlling terminal,
+    as a launch system or a service manager runs it; ``log_name`` names the log file (default:
+    the node's name).
+    """
+
+    def __init__(self, name, log_dir, params=None, ros_args=(), new_session=False, log_name=None):
         self.name = name
-        self.log_path = os.path.join(log_dir, f'{name}.log')
+        self.log_path = os.path.join(log_dir, f'{log_name or name}.log')
         cmd = node_command(name) + ['--ros-args', '--params-file',
                                     os.path.join(CONFIG_DIR, f'{name}.yaml')]
         for key, value in (params or {}).items():
             cmd += ['-p', f'{key}:={value}']
+        cmd += list(ros_args)
         self.log = open(self.log_path, 'w')
         env = dict(os.environ, PYTHONUNBUFFERED='1')
         self.proc = subprocess.Popen(cmd, stdout=self.log, stderr=subprocess.STDOUT, env=env,
-                                     cwd=ROOT)
+                                     cwd=ROOT, start_new_session=new_session)
 
     @property
     def pid(self):

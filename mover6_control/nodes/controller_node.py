@@ -32,7 +32,6 @@ needs no interpreter lock for it; wall time, so a paused sim clock trips it too)
 import faulthandler
 import os
 import queue
-import signal
 import sys
 import threading
 
@@ -42,14 +41,11 @@ from mover6_control.control.controller_core import ControllerConfig, ControllerC
 from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.kinematics.arm import LIMIT_SETS, mover6
-from mover6_control.nodes import conversions, params
+from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.parameters import CONTROLLER
-import rclpy
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
@@ -60,6 +56,8 @@ TICK_GAP_WARN = 0.05
 # under the lock when the controller moved on yet again: only when motions end that often).
 DEMAND_ATTEMPTS = 3
 WATCHDOG_ENV = 'MOVER6_TICK_WATCHDOG'
+# Longest wait [s] at shutdown for the readers of /JointJog to acknowledge the last zero command.
+ZERO_ACK_TIMEOUT = 1.0
 STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
@@ -221,6 +219,9 @@ class ControllerNode(Node):
                 thread.join(timeout=1.0)
         if self.context.ok():
             self.send_zero()
+            # Destroying the writer at once drops a sample not yet acknowledged: the driver
+            # would never see the zero (2 of 7 stops in test_shutdown.py lost it).
+            self.jog_pub.wait_for_all_acked(Duration(seconds=ZERO_ACK_TIMEOUT))
         super().destroy_node()
 
     def on_tick(self):
@@ -277,38 +278,19 @@ class ControllerNode(Node):
                 'controller', level or status.level, message or status.message, values))
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
 def main(args=None):
     """
     Run the controller node until Ctrl-C, SIGTERM or shutdown; then send a zero command.
 
     rclpy's own signal handlers would shut the context down before the node could publish that
-    zero (and the vendor driver keeps the last command forever), so SIGINT and SIGTERM raise
-    KeyboardInterrupt here instead and the executor spins in short slices to notice them.
+    zero (and the vendor driver keeps the last command forever); ``shutdown.run_node`` keeps the
+    context valid until ``destroy_node()`` has sent it, and ignores any further signal meanwhile.
     """
     # The tick thread must get the interpreter promptly when its deadline comes, not after the
     # default 5 ms switch interval while the executor thread runs Python: this keeps the period
     # error p99 well under a millisecond at 100 Hz (bench/bench_controller.py).
     sys.setswitchinterval(0.0005)
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGINT, _interrupt)
-    signal.signal(signal.SIGTERM, _interrupt)
-    node = None
-    try:
-        node = ControllerNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()      # stops the tick thread and sends the zero command
-        rclpy.try_shutdown()
+    shutdown.run_node(ControllerNode, args)
 
 
 if __name__ == '__main__':

@@ -12,12 +12,10 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 from mover6_control.errors import Mover6Error, UnreachableError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
-from mover6_control.nodes import conversions, params
+from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.parameters import PLANNER
 from mover6_control.planning.planner_core import plan_path_goal, plan_pose_goal, PlannerSettings
 import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
@@ -175,18 +173,8 @@ class PlannerNode(Node):
 
 
 def main(args=None):
-    """Run the planner node until Ctrl-C or shutdown."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = PlannerNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Run the planner node until Ctrl-C, SIGTERM or shutdown (one or more signals: exit 0)."""
+    shutdown.run_node(PlannerNode, args)
 
 
 if __name__ == '__main__':

@@ -1,0 +1,74 @@
+"""
+Run one node in its process until SIGINT, SIGTERM or shutdown; then tear it down once, cleanly.
+
+``ros2 launch`` (and a terminal's Ctrl-C) can deliver a signal twice: the terminal sends SIGINT
+to the whole process group and launch forwards its own SIGINT to each node tens of milliseconds
+later, then escalates to SIGTERM. With rclpy's own handlers the first signal shuts the context
+down at once (too early for the controller's last zero JointJog) and the second lands inside
+``destroy_node()`` as a ``KeyboardInterrupt``: exit code -2 and a half-destroyed node. Here rclpy
+installs no handlers; ours only notes the first SIGINT or SIGTERM and ignores every later one, and
+the main thread spins in short slices and checks the note between them (a Python signal handler
+runs only when the main thread runs Python code, never inside the DDS wait). Teardown then runs
+to its end with the context still valid, and the process exits 0.
+"""
+
+import signal
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+# Longest time [s] between a stop signal and the start of teardown (plus a running callback).
+SPIN_SLICE = 0.1
+
+
+class StopSignals:
+    """Note the first SIGINT or SIGTERM; from then on, ignore both (teardown must finish)."""
+
+    def __init__(self):
+        self.signum = None
+        for signum in STOP_SIGNALS:
+            signal.signal(signum, self.on_signal)
+
+    def on_signal(self, signum, frame):
+        """Record the signal and ignore any further one."""
+        self.ignore()
+        self.signum = signum
+
+    @staticmethod
+    def ignore():
+        """Ignore SIGINT and SIGTERM from now on."""
+        for signum in STOP_SIGNALS:
+            signal.signal(signum, signal.SIG_IGN)
+
+    @property
+    def received(self) -> bool:
+        """Return True once a stop signal came."""
+        return self.signum is not None
+
+
+def run_node(make_node, args=None):
+    """
+    Init rclpy, make the node with ``make_node()``, spin it until a stop; destroy it, shut down.
+
+    Returns normally (exit code 0) on SIGINT, SIGTERM (once or repeatedly) and external
+    shutdown; errors while making or running the node propagate.
+    """
+    stop = StopSignals()
+    node = None
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        if not stop.received:
+            node = make_node()
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
+            while not stop.received and rclpy.ok():
+                executor.spin_once(timeout_sec=SPIN_SLICE)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        stop.ignore()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()

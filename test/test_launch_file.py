@@ -1,0 +1,169 @@
+"""
+launch/mover6.launch.py and scripts/launch.sh start the same nodes with the same choices.
+
+The launch file needs the ``launch`` and ``launch_ros`` packages, which this environment may not
+have, so it is read with ``ast``, not imported; launch.sh is read as text. Both must start the
+same executables with the same parameter files, the same per-node overrides and environment
+hooks, and offer the same choices (sim, profile, jog_units, limit_set) with the same defaults,
+which are the package's own constants and the shipped parameter files' values.
+"""
+
+import ast
+import os
+import re
+
+from mover6_control.control.velocity_laws import JOG_UNITS, PROFILES
+from mover6_control.kinematics.arm import LIMIT_SETS
+from mover6_control.resources import CONFIG_DIR
+import pytest
+import yaml
+
+ROOT = os.path.dirname(CONFIG_DIR)
+LAUNCH_FILE = os.path.join(ROOT, 'launch', 'mover6.launch.py')
+LAUNCH_SH = os.path.join(ROOT, 'scripts', 'launch.sh')
+NODES = ('sim_bridge', 'controller', 'planner')
+CHOICES = {'profile': PROFILES, 'jog_units': JOG_UNITS, 'limit_set': LIMIT_SETS}
+# launch.sh's option and choice variable for each launch argument.
+SH_NAMES = {'profile': ('--profile', 'PROFILES'), 'jog_units': ('--jog-units', 'JOG_UNITS'),
+            'limit_set': ('--limit-set', 'LIMIT_SETS')}
+
+
+def read(path):
+    """Return the text of ``path``."""
+    with open(path) as f:
+        return f.read()
+
+
+@pytest.fixture(scope='module')
+def tree():
+    """Return the launch file's syntax tree."""
+    return ast.parse(read(LAUNCH_FILE), LAUNCH_FILE)
+
+
+def calls(tree, name):
+    """Return every call of function ``name`` in ``tree``."""
+    return [n for n in ast.walk(tree) if isinstance(n, ast.Call)
+            and isinstance(n.func, ast.Name) and n.func.id == name]
+
+
+def keyword(call, name):
+    """Return the value node of keyword argument ``name`` of ``call`` (None when absent)."""
+    return next((k.value for k in call.keywords if k.arg == name), None)
+
+
+def launch_arguments(tree):
+    """Return {name: DeclareLaunchArgument call} of the launch file."""
+    return {ast.literal_eval(c.args[0]): c for c in calls(tree, 'DeclareLaunchArgument')}
+
+
+def launch_nodes(tree):
+    """Return {executable: Node call} of this package's nodes in the launch file."""
+    out = {}
+    for call in calls(tree, 'Node'):
+        package = keyword(call, 'package')
+        if isinstance(package, ast.Name) and package.id == 'PACKAGE':
+            out[ast.literal_eval(keyword(call, 'executable'))] = call
+    return out
+
+
+def sh_starts():
+    """Return {node: (executable, text of the rest of its start line)} from launch.sh."""
+    text = read(LAUNCH_SH).replace('\\\n', ' ')
+    return {m.group(1): (m.group(2), m.group(3))
+            for m in re.finditer(r'^(?!\s*#).*\bstart (\w+) (\w+)(.*)$', text, re.MULTILINE)}
+
+
+def sh_variable(name):
+    """Return the value of a plain assignment ``name=value`` in launch.sh (quotes stripped)."""
+    m = re.search(rf'^{name}=(.*)$', read(LAUNCH_SH), re.MULTILINE)
+    assert m, f'launch.sh assigns no {name}'
+    return m.group(1).strip('\'"')
+
+
+def test_launch_file_compiles_and_defines_generate_launch_description(tree):
+    compile(read(LAUNCH_FILE), LAUNCH_FILE, 'exec')
+    functions = [n.name for n in tree.body if isinstance(n, ast.FunctionDef)]
+    assert 'generate_launch_description' in functions
+
+
+def test_launch_file_is_installed():
+    assert "glob('launch/*.launch.py')" in read(os.path.join(ROOT, 'setup.py'))
+
+
+def test_same_executables():
+    starts = sh_starts()
+    assert set(starts) == set(NODES)
+    assert {exe for exe, _ in starts.values()} == set(launch_nodes(
+        ast.parse(read(LAUNCH_FILE))))
+
+
+def test_same_parameter_files(tree):
+    """launch.sh passes config/<node>.yaml; the launch file's file argument defaults to it."""
+    assert '"$share/$name.yaml"' in read(LAUNCH_SH)
+    arguments = launch_arguments(tree)
+    for exe, call in launch_nodes(tree).items():
+        node = next(n for n, (e, _) in sh_starts().items() if e == exe)
+        first = keyword(call, 'parameters').elts[0]
+        assert ast.unparse(first) == f"LaunchConfiguration('{node}_params')"
+        default = ast.unparse(keyword(arguments[f'{node}_params'], 'default_value'))
+        assert default == f"config_file('{node}.yaml')"
+        assert os.path.isfile(os.path.join(CONFIG_DIR, f'{node}.yaml'))
+
+
+def test_same_overrides_and_environment_hooks(tree):
+    """Every node gets the same parameter overrides and the same MOVER6_*_ARGS hook."""
+    for exe, call in launch_nodes(tree).items():
+        node = next(n for n, (e, _) in sh_starts().items() if e == exe)
+        rest = sh_starts()[node][1]
+        overrides = keyword(call, 'parameters').elts[1]
+        assert sorted(ast.literal_eval(k) for k in overrides.keys) \
+            == sorted(re.findall(r'-p "(\w+):=', rest)), node
+        hooks = [ast.literal_eval(c.args[0]) for c in calls(keyword(call, 'ros_arguments'),
+                                                            'extra_ros_args')]
+        assert hooks == re.findall(r'\$\{(MOVER6_\w+_ARGS):-\}', rest), node
+
+
+@pytest.mark.parametrize('name', CHOICES)
+def test_same_choices_and_defaults(tree, name):
+    """profile, jog_units, limit_set: the package's choices, the parameter files' defaults."""
+    call = launch_arguments(tree)[name]
+    option, variable = SH_NAMES[name]
+    choices = ast.literal_eval(keyword(call, 'choices'))
+    assert sorted(choices) == sorted(CHOICES[name])
+    assert sorted(sh_variable(variable).split()) == sorted(CHOICES[name])
+    assert f'{option})' in read(LAUNCH_SH)
+    default = ast.literal_eval(keyword(call, 'default_value'))
+    assert default == sh_variable(name)
+    for node in NODES:
+        values = yaml.safe_load(read(os.path.join(CONFIG_DIR, f'{node}.yaml')))
+        value = values[node]['ros__parameters'].get(name)
+        assert value in (None, default), f'{node}.yaml has {name}: {value}, default {default}'
+
+
+def test_same_sim_choice(tree):
+    """sim:=true|false (default true) is launch.sh's --no-sim: only sim_bridge depends on it."""
+    call = launch_arguments(tree)['sim']
+    assert ast.literal_eval(keyword(call, 'choices')) == ['true', 'false']
+    assert ast.literal_eval(keyword(call, 'default_value')) == 'true'
+    assert sh_variable('with_sim') == '1'
+    assert re.search(r'--no-sim\) with_sim=0', read(LAUNCH_SH))
+    for exe, call in launch_nodes(tree).items():
+        condition = keyword(call, 'condition')
+        if exe == 'sim_bridge':
+            assert ast.unparse(condition) == 'IfCondition(sim)'
+        else:
+            assert condition is None, exe
+    guarded = re.findall(r'^\[ "\$with_sim" = 1 \] && start (\w+)', read(LAUNCH_SH), re.MULTILINE)
+    assert guarded == ['sim_bridge']
+
+
+def test_robot_state_publisher_only_when_installed(tree):
+    """robot_state_publisher is started from an OpaqueFunction that looks the package up."""
+    function = next(n for n in tree.body
+                    if isinstance(n, ast.FunctionDef) and n.name == 'robot_state_publisher')
+    source = ast.unparse(function)
+    assert "get_package_prefix('robot_state_publisher')" in source
+    assert 'except PackageNotFoundError' in source
+    assert "'mover6.urdf'" in source
+    assert [ast.unparse(keyword(c, 'function')) for c in calls(tree, 'OpaqueFunction')] \
+        == ['robot_state_publisher']
