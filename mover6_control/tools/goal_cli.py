@@ -32,7 +32,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
-from mover6_control.kinematics.rotations import (euler_zyx_near, make_transform,
+from mover6_control.kinematics.rotations import (euler_zyx_near, make_transform, pose_error,
                                                  pose_from_xyzabc, quaternion_to_matrix)
 from mover6_control.motion.paths import goal_relative_to_start
 from mover6_control.nodes import conversions
@@ -310,8 +310,8 @@ class GoalClient(Node):
         if self.q is not None:
             figures['reached_pose'] = fk(self.arm, self.q)
         if T_goal is not None and self.q is not None:
-            figures['final_position_error'] = float(
-                np.linalg.norm(figures['reached_pose'][:3, 3] - T_goal[:3, 3]))
+            figures['final_position_error'], figures['final_orientation_error'] = pose_error(
+                figures['reached_pose'], T_goal)
         if v.get('result') != 'arrived':
             return Outcome(EXIT_FAILED, self.controller_status.message, **figures)
         return Outcome(EXIT_ARRIVED, 'arrived', **figures)
@@ -497,6 +497,8 @@ def format_outcome(outcome, convention=None):
         parts.append(f'final joint error {f["final_joint_error"]:.4f} rad')
     if 'final_position_error' in f:
         parts.append(f'final tool position error {f["final_position_error"] * 1e3:.2f} mm')
+    if 'final_orientation_error' in f:
+        parts.append(f'orientation error {f["final_orientation_error"]:.4f} rad')
     if 'duration' in f:
         parts.append(f'{f["duration"]:.2f} s')
     word = {EXIT_ARRIVED: 'arrived', EXIT_REFUSED: 'refused'}.get(outcome.code, 'failed')
