@@ -16,7 +16,7 @@ from mover6_control.kinematics.rotations import (euler_zyx_near, euler_zyx_to_ma
 from mover6_control.tools.goal_cli import (build_parser, EXIT_ARRIVED, EXIT_REFUSED,
                                            format_numbers, format_outcome, goal_from_pose,
                                            home_pose, Outcome, pose_from_goal,
-                                           poses_from_numbers)
+                                           poses_from_numbers, run)
 import numpy as np
 import pytest
 
@@ -136,3 +136,40 @@ def test_result_line_gives_the_reached_pose_in_the_goals_convention():
     line = format_outcome(refused, (ARM, False, (0.0, 0.0, 0.0)))
     assert 'closest pose inside the joint limits' in line
     assert line.endswith('0.4450 0.0000 0.4425 0.0000 0.0000 0.0000')
+
+
+class FakeClient:
+    """Stands in for GoalClient: records the poses sent, 'arrives' exactly at the goal."""
+
+    arm = ARM
+
+    def __init__(self):
+        self.sent = []
+
+    def wait_ready(self, **kwargs):
+        return None
+
+    def set_planner_parameters(self, params):
+        return None
+
+    def send_pose(self, T, frame_id='base_link', **kwargs):
+        self.sent.append(T)
+        return Outcome(EXIT_ARRIVED, 'arrived', reached_pose=T, final_position_error=0.0)
+
+    def send_path(self, poses, frame_id='base_link', **kwargs):
+        self.sent.append(poses)
+        return Outcome(EXIT_ARRIVED, 'arrived', reached_pose=poses[-1], final_position_error=0.0)
+
+
+@pytest.mark.parametrize('argv, absolute', (
+    (['0.1', '0.1', '0.2', '0', '1.5708', '0'], False),
+    (['pose', '0.1', '0.1', '0.2', '0', '1.5708', '0', '--absolute'], True),
+    (['path', '--via', '0.3', '0', '0.3', '0', '0', '0', '0.1', '0.1', '0.2', '0', '1.5708', '0'],
+     False)))
+def test_run_sends_the_goal_and_prints_it_back(argv, absolute):
+    client, lines = FakeClient(), []
+    assert run(argv, client, out=lines.append) == EXIT_ARRIVED
+    sent = client.sent[0] if argv[0] != 'path' else client.sent[0][-1]
+    np.testing.assert_allclose(sent, pose_from_goal(ARM, *IK_EXAMPLE, absolute=absolute),
+                               atol=1e-15)
+    assert lines[-1].endswith('0.1000 0.1000 0.2000 0.0000 1.5708 0.0000'), lines

@@ -393,7 +393,8 @@ def build_parser():
     pose.add_argument('--peak-height', type=float, help='parabolic peak height [m]')
     path = sub.add_parser('path', parents=[common, angles],
                           help='move through via poses to the last pose (/path_goal)')
-    path.add_argument('numbers', type=float, nargs='+', metavar='N',
+    # nargs='*': '--via' takes every number after it, goal included (the README's spelling).
+    path.add_argument('numbers', type=float, nargs='*', metavar='N',
                       help='poses one after another; the last one is the goal')
     path.add_argument('--via', type=float, nargs='+', default=[], metavar='N',
                       help='via poses (alternative spelling: put them before the goal)')
@@ -472,7 +473,7 @@ def run(argv, client=None, out=print):
     if args.command in ('pose', 'path'):
         ref = (0.0, 0.0, 0.0)
         if not args.quat:
-            ref = tuple((args.via + args.numbers)[-3:])
+            ref = tuple((getattr(args, 'via', []) + args.numbers)[-3:])
         convention = (client_arm(client), args.absolute or args.quat, ref)
     out(format_outcome(outcome, convention))
     return outcome.code
