@@ -95,9 +95,9 @@ def test_goal_cli_arrives_and_refuses_with_exit_codes(stack, client):
     code, out = run_cli('pose', '0.1', '0.1', '0.2', '0', '0', '0')
     assert code == 2, out
     assert 'RESULT refused' in out and 'joint_limits' in out
+    assert 'closest pose inside the joint limits' in out, out
     code, out = run_cli('pose', '0.3', '0.0')   # malformed: not six numbers
     assert code == 2 and 'X Y Z A B C' in out, out
-    assert 'closest pose inside the joint limits' in out, out
     # The same goal with base-frame angles (--absolute): home orientation is 0 1.5708 0.
     code, out = run_cli('pose', '0.1', '0.1', '0.2', '0', '1.5708', '0', '--absolute')
     assert code == 2 and 'joint_limits' in out, out
