@@ -6,15 +6,16 @@ from the planner, the status topics.
 """
 
 import os
+import re
 import subprocess
 import sys
 
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
-from mover6_control.kinematics.rotations import pose_from_xyzabc
+from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc
 from mover6_control.nodes.conversions import status_values
 from mover6_control.resources import CONFIG_DIR
-from mover6_control.tools.goal_cli import EXIT_REFUSED, GoalClient
+from mover6_control.tools.goal_cli import EXIT_REFUSED, GoalClient, pose_from_goal
 import numpy as np
 import pytest
 import rclpy
@@ -85,12 +86,52 @@ def run_cli(*args):
 
 def test_goal_cli_arrives_and_refuses_with_exit_codes(stack, client):
     """The goal command line: exit 0 and a RESULT line on arrival, exit 2 with the reason."""
-    code, out = run_cli('0.30', '-0.08', '0.32', '0', '1.5708', '0', '--timeout', '60')
+    # A B C relative to the home orientation (the Mover6 report's reading): 0 0 0 keeps it.
+    code, out = run_cli('0.30', '-0.08', '0.32', '0', '0', '0', '--timeout', '60')
     assert code == 0, f'{out}\n{stack.report()}'
     assert 'RESULT arrived' in out and 'final joint error' in out
     assert 'final tool position error' in out and 'waypoint' in out   # progress was shown
-    code, out = run_cli('pose', '0.1', '0.1', '0.2', '0', '1.5708', '0')
+    # The IK example's position with the home orientation: only outside the joint limits.
+    code, out = run_cli('pose', '0.1', '0.1', '0.2', '0', '0', '0')
     assert code == 2, out
     assert 'RESULT refused' in out and 'joint_limits' in out
+    assert 'closest pose inside the joint limits' in out, out
     code, out = run_cli('pose', '0.3', '0.0')   # malformed: not six numbers
     assert code == 2 and 'X Y Z A B C' in out, out
+    # The same goal with base-frame angles (--absolute): home orientation is 0 1.5708 0.
+    code, out = run_cli('pose', '0.1', '0.1', '0.2', '0', '1.5708', '0', '--absolute')
+    assert code == 2 and 'joint_limits' in out, out
+
+
+# The Mover6 report's two examples, typed as in the report, and where it says they end.
+REPORT_EXAMPLES = (
+    (('0.445', '0', '0.4425', '0', '0', '0'), [0.0, 0.614, -0.735, 0.0, 0.121, 0.0]),
+    (('0.1', '0.1', '0.2', '0', '1.5708', '0'), [-0.785, -0.907, 1.296, 0.0, 1.181, 0.785]),
+)
+
+
+def test_goal_cli_runs_the_mover6_reports_examples(stack, client):
+    """From home, the report's linear then IK example: exit 0, at the report's pose and q."""
+    home = client.send_joints(np.zeros((1, 6)), timeout=60.0)
+    assert home.arrived, f'{home}\n{stack.report()}'
+    for numbers, q_report in REPORT_EXAMPLES:
+        code, out = run_cli(*numbers, '--timeout', '60')
+        assert code == 0, f'{out}\n{stack.report()}'
+        assert 'RESULT arrived' in out, out
+        assert 'Gimbal lock' not in out, out
+        # Progress shows this goal's motion only: not the one-waypoint move home (issue 13).
+        counts = set(re.findall(r'waypoint \d+ of (\d+)', out))
+        assert counts and '1' not in counts and len(counts) == 1, out
+        client.spin_until(lambda: False, 0.5)   # a fresh /joint_states
+        T_goal = pose_from_goal(ARM, *(float(v) for v in numbers))
+        position_error, orientation_error = pose_error(fk(ARM, client.q), T_goal)
+        assert position_error < 1e-3 and orientation_error < 0.01, (
+            position_error, orientation_error, out)
+        np.testing.assert_allclose(client.q, q_report, atol=0.01, err_msg=out)
+        # The RESULT line gives the pose reached in the goal's convention (near B = pi/2 the
+        # A/C split follows the arm's tiny error, so compare the poses the numbers describe).
+        reached = out.split('reached X Y Z A B C from home: ')[1].split()[:6]
+        printed = pose_from_goal(ARM, *(float(v) for v in reached))
+        position_error, orientation_error = pose_error(printed, fk(ARM, client.q))
+        assert position_error < 1e-4 and orientation_error < 1e-3, (
+            position_error, orientation_error, out)

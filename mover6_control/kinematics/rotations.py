@@ -74,7 +74,7 @@ def euler_zyx_to_matrix(a: float, b: float, c: float) -> np.ndarray:
 def matrix_to_euler_zyx(R: np.ndarray) -> tuple[float, float, float]:
     """Return (A, B, C) [rad] with ``R = Rz(A) Ry(B) Rx(C)``; B in [-pi/2, pi/2]."""
     R = validate_rotation(R)
-    return tuple(float(x) for x in Rotation.from_matrix(R).as_euler('ZYX'))
+    return euler_zyx_closed_form(R)
 
 
 def quaternion_to_matrix(q_xyzw: Sequence[float]) -> np.ndarray:
@@ -117,3 +117,64 @@ def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> tuple[float, float]:
     T_b = np.asarray(T_b)
     return (float(np.linalg.norm(T_a[:3, 3] - T_b[:3, 3])),
             rotation_angle_between(T_a[:3, :3], T_b[:3, :3]))
+
+
+# Below this |cos B| the ZYX angles are at gimbal lock: only A - C (B = +pi/2) or A + C
+# (B = -pi/2) is defined, and C is set to 0.
+GIMBAL_LOCK_TOL = 1e-9
+
+
+def euler_zyx_closed_form(R):
+    """
+    Return (A, B, C) [rad] with ``R = Rz(A) Ry(B) Rx(C)`` in closed form; B in [-pi/2, pi/2].
+
+    Unlike scipy's ``as_euler`` it prints no warning at gimbal lock (B = +-pi/2, the Mover6's
+    home orientation): there it returns the deterministic split C = 0, which gives back ``R``.
+    """
+    R = np.asarray(R, dtype=float)
+    cos_b = float(np.hypot(R[0, 0], R[1, 0]))
+    b = float(np.arctan2(-R[2, 0], cos_b))
+    if cos_b > GIMBAL_LOCK_TOL:
+        a = float(np.arctan2(R[1, 0], R[0, 0]))
+        c = float(np.arctan2(R[2, 1], R[2, 2]))
+    else:
+        b = float(np.copysign(np.pi / 2, -R[2, 0]))
+        a = float(np.arctan2(-R[0, 1], R[1, 1]))
+        c = 0.0
+    return a, b, c
+
+
+def _near(angle, ref):
+    """Return ``angle`` plus the multiple of 2 pi that brings it nearest ``ref`` [rad]."""
+    return float(angle + 2.0 * np.pi * np.round((ref - angle) / (2.0 * np.pi)))
+
+
+def euler_zyx_near(R, ref, lock_tol=GIMBAL_LOCK_TOL):
+    """
+    Return the (A, B, C) [rad] of ``R = Rz(A) Ry(B) Rx(C)`` nearest the angles ``ref`` (3,).
+
+    Every rotation has two ZYX triples, (A, B, C) and (A + pi, pi - B, C + pi), each up to
+    multiples of 2 pi; this picks the one nearest ``ref`` (say the angles a user typed), so a
+    goal typed with B = 1.5708 is not printed back as (pi, 1.5707926, pi). Where ``|cos B| <=
+    lock_tol`` (gimbal lock) B is taken as +-pi/2 and only A - C (B = pi/2) or A + C
+    (B = -pi/2) is defined: the split nearest ``ref`` is returned, deterministic, and off the
+    exact angles by at most about ``lock_tol`` [rad].
+    """
+    R = validate_rotation(R)
+    ref_a, ref_b, ref_c = (float(v) for v in as_finite_array(ref, (3,), 'ref'))
+    if float(np.hypot(R[0, 0], R[1, 0])) <= lock_tol:
+        if R[2, 0] < 0.0:        # B = pi/2: R depends on C - A only
+            diff = _near(float(np.arctan2(R[0, 1], R[1, 1])), ref_c - ref_a)
+            k = diff - (ref_c - ref_a)
+            return ref_a - k / 2.0, _near(np.pi / 2, ref_b), ref_c + k / 2.0
+        total = _near(float(np.arctan2(-R[0, 1], R[1, 1])), ref_a + ref_c)   # B = -pi/2: A + C
+        k = total - (ref_a + ref_c)
+        return ref_a + k / 2.0, _near(-np.pi / 2, ref_b), ref_c + k / 2.0
+    a, b, c = euler_zyx_closed_form(R)
+    best = None
+    for cand in ((a, b, c), (a + np.pi, np.pi - b, c + np.pi)):
+        cand = tuple(_near(v, r) for v, r in zip(cand, (ref_a, ref_b, ref_c)))
+        dist = (cand[0] - ref_a) ** 2 + (cand[1] - ref_b) ** 2 + (cand[2] - ref_c) ** 2
+        if best is None or dist < best[0]:
+            best = (dist, cand)
+    return best[1]

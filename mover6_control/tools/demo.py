@@ -1,11 +1,14 @@
 """
 The showcase a new user runs first (``./run.sh demo``).
 
-Starts the three nodes headless through ``scripts/launch.sh``, sends a linear move, a parabolic
-move, a spline through via poses, a joint move and one unreachable goal through the real nodes,
-records /joint_states, and writes a report folder: plots of what ran, an animation of the arm and
-a metrics table (Markdown and JSON). Exits 0 only when every move arrived within tolerance and
-the unreachable goal was refused.
+Starts the three nodes headless through ``scripts/launch.sh`` and sends, through the real nodes,
+the Mover6 report's two examples (its linear example and its IK example), then a parabolic
+move, a spline through via poses and a joint move home, then two goals that must be refused: one
+out of reach and one reachable only outside the joint limits (the closest pose inside them is
+printed). Goals are written as the goal CLI reads them (X Y Z A B C, A B C relative to the home
+orientation, as the Mover6 report). Records /joint_states and writes a report folder: plots of
+what ran, an animation of the arm and a metrics table (Markdown and JSON). Exits 0 only when
+every move arrived within tolerance and each refusal was refused for its reason.
 """
 
 import argparse
@@ -18,27 +21,52 @@ import time
 
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk_batch
-from mover6_control.kinematics.rotations import pose_from_xyzabc
-from mover6_control.tools.goal_cli import EXIT_REFUSED, format_outcome, GoalClient
+from mover6_control.resources import CONFIG_DIR
+from mover6_control.tools.goal_cli import (EXIT_REFUSED, format_numbers, format_outcome,
+                                           GoalClient, poses_from_numbers)
 import numpy as np
 import rclpy
 from sensor_msgs.msg import JointState
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-HALF_PI = np.pi / 2
+# The folder that holds config/ and scripts/: the repository, or share/mover6_control installed
+# (two folders up from this file is mover6_control/ itself since the layers became folders).
+ROOT = os.path.dirname(CONFIG_DIR)
 
-# Each step: (name, kind, planner parameters, poses as X Y Z A B C; the last one is the goal).
+
+class Step:
+    """One showcase step: a goal and what must become of it ('arrived' or a refusal reason)."""
+
+    def __init__(self, name, title, kind, params, poses, expect='arrived'):
+        self.name = name          # file names and the metrics table
+        self.title = title        # what the console says
+        self.kind = kind          # 'pose' or 'path'
+        self.params = params      # planner parameters set first
+        self.poses = poses        # X Y Z A B C (A B C from home) per pose; the last is the goal
+        self.expect = expect
+
+
+# In order from home (q = 0) and back: each move starts where the one before ended.
 SHOWCASE = (
-    ('linear', 'pose', {'motion': 'linear'}, [(0.30, 0.05, 0.36, 0.0, HALF_PI, 0.0)]),
-    ('parabolic', 'pose', {'motion': 'parabolic', 'peak_height': 0.04},
-     [(0.30, -0.08, 0.32, 0.0, HALF_PI, 0.0)]),
-    ('spline', 'path', {'path_motion': 'spline'},
-     [(0.32, -0.03, 0.36, 0.0, HALF_PI, 0.0), (0.32, 0.04, 0.38, 0.0, HALF_PI, 0.0),
-      (0.29, 0.10, 0.35, 0.0, HALF_PI, 0.0)]),
-    ('joint', 'pose', {'motion': 'joint'}, [(0.345, 0.0, 0.4425, 0.0, HALF_PI, 0.0)]),
-    ('unreachable', 'pose', {'motion': 'linear'}, [(0.10, 0.10, 0.20, 0.0, 1.5708, 0.0)]),
+    Step('report_linear', "the Mover6 report's linear example (10 cm along x, orientation kept)",
+         'pose', {'motion': 'linear'}, [(0.445, 0.0, 0.4425, 0.0, 0.0, 0.0)]),
+    Step('report_ik', "the Mover6 report's IK example (its one solution inside +-90 deg)",
+         'pose', {'motion': 'linear'}, [(0.1, 0.1, 0.2, 0.0, 1.5708, 0.0)]),
+    Step('parabolic', 'a parabolic move (4 cm peak), tool pointing down', 'pose',
+         {'motion': 'parabolic', 'peak_height': 0.04}, [(0.30, -0.08, 0.32, 0.0, 1.5708, 0.0)]),
+    Step('spline', 'a spline through two via poses, tool pointing down', 'path',
+         {'path_motion': 'spline'},
+         [(0.28, -0.05, 0.30, 0.0, 1.5708, 0.0), (0.25, 0.0, 0.32, 0.0, 1.5708, 0.0),
+          (0.22, 0.08, 0.28, 0.0, 1.5708, 0.0)]),
+    Step('joint', 'a joint-space move back home', 'pose', {'motion': 'joint'},
+         [(0.345, 0.0, 0.4425, 0.0, 0.0, 0.0)]),
+    Step('out_of_reach', 'a goal out of reach (must be refused)', 'pose', {'motion': 'linear'},
+         [(0.9, 0.0, 0.4, 0.0, 0.0, 0.0)], expect='out_of_reach'),
+    # The IK example's position with the home orientation: its only solutions need joint3 at
+    # 1.654 rad or beyond, past +-pi/2 (kinematics.reachability.check_pose).
+    Step('joint_limits', 'a goal reachable only outside the joint limits (must be refused)',
+         'pose', {'motion': 'linear'}, [(0.1, 0.1, 0.2, 0.0, 0.0, 0.0)], expect='joint_limits'),
 )
-QUICK = SHOWCASE[:1] + SHOWCASE[-1:]
+QUICK = (SHOWCASE[0], SHOWCASE[-2])
 JOINT_TOLERANCE = 0.01     # [rad] the demo's pass mark for the final joint error
 
 
@@ -94,24 +122,25 @@ def deviation_from_polyline(points, polyline):
 
 def run_step(client, recorder, arm, step, say):
     """Run one showcase step; return its metrics row."""
-    name, kind, params, poses = step
-    Ts = np.stack([pose_from_xyzabc(*p) for p in poses])
-    problem = (client.set_planner_parameters(params)
+    Ts = poses_from_numbers([v for p in step.poses for v in p], quat=False, arm=arm)
+    goal = format_numbers(step.poses[-1])
+    problem = (client.set_planner_parameters(step.params)
                or client.wait_ready(timeout=30.0, steady=0.5))
     if problem:
-        return {'motion': name, 'result': 'failed', 'reason': problem}
-    say(f'--- {name}: goal {np.round(Ts[-1][:3, 3], 3).tolist()} m')
+        return {'motion': step.name, 'goal': goal, 'result': 'failed', 'reason': problem}
+    say(f'--- {step.title}: goal {goal}')
     t0 = time.monotonic()
-    if kind == 'pose':
+    if step.kind == 'pose':
         outcome = client.send_pose(Ts[-1], timeout=60.0, progress=lambda s: say('  ' + s))
     else:
         outcome = client.send_path(Ts, timeout=60.0, progress=lambda s: say('  ' + s))
     t1 = time.monotonic()
-    say('  ' + format_outcome(outcome))
-    row = {'motion': name, 'result': outcome.figures.get('result') or (
+    say('  ' + format_outcome(outcome, (arm, False, step.poses[-1][3:])))
+    row = {'motion': step.name, 'goal': goal, 'result': outcome.figures.get('result') or (
         'refused' if outcome.code == EXIT_REFUSED else 'failed')}
     if outcome.code == EXIT_REFUSED:
-        row['reason'] = outcome.text
+        row['reason'] = outcome.figures.get('reason', outcome.text)
+        row['message'] = outcome.text
         return row
     row.update({k: outcome.figures[k] for k in
                 ('duration', 'final_joint_error', 'final_position_error')
@@ -147,13 +176,16 @@ def write_report(report_dir, rows, arm):
              for row in rows]
     with open(os.path.join(report_dir, 'metrics.json'), 'w') as f:
         json.dump(table, f, indent=2)
-    lines = ['| motion | result | duration [s] | final joint error [rad] | '
-             'final tool position error [mm] | max deviation from planned path [mm] |',
-             '|---|---|---|---|---|---|']
+    lines = ['| motion | goal X Y Z A B C (A B C from home) | result | duration [s] | '
+             'final joint error [rad] | final tool position error [mm] | '
+             'max deviation from planned path [mm] |',
+             '|---|---|---|---|---|---|---|']
     for row in table:
         def num(key, scale=1.0, fmt='.4f'):
             return format(row[key] * scale, fmt) if key in row else '-'
-        lines.append(f'| {row["motion"]} | {row["result"]} | {num("duration", fmt=".2f")} | '
+        result = row['result'] + (f' ({row["reason"]})' if row['result'] == 'refused' else '')
+        lines.append(f'| {row["motion"]} | {row.get("goal", "-")} | {result} | '
+                     f'{num("duration", fmt=".2f")} | '
                      f'{num("final_joint_error")} | {num("final_position_error", 1e3, ".2f")} | '
                      f'{num("max_path_deviation", 1e3, ".2f")} |')
     with open(os.path.join(report_dir, 'metrics.md'), 'w') as f:
@@ -180,10 +212,10 @@ def render_animation(report_dir, rows, arm):
 
 
 def passed(rows, steps):
-    """Return True when every move arrived within tolerance and the refusal was refused."""
+    """Return True when every move arrived within tolerance and each refusal had its reason."""
     for row, step in zip(rows, steps):
-        if step[0] == 'unreachable':
-            if row['result'] != 'refused':
+        if step.expect != 'arrived':
+            if row['result'] != 'refused' or row.get('reason') != step.expect:
                 return False
         elif row['result'] != 'arrived' or row.get('final_joint_error', 1.0) > JOINT_TOLERANCE:
             return False
@@ -196,7 +228,7 @@ def main(argv=None):
     parser.add_argument('--report', default=os.path.join(os.getcwd(), 'report'),
                         help='folder for plots, animation and metrics (default ./report)')
     parser.add_argument('--quick', action='store_true',
-                        help='only the linear move and the refused goal')
+                        help="only the Mover6 report's linear example and a refused goal")
     parser.add_argument('--no-render', action='store_true', help='skip the animation')
     args = parser.parse_args(argv)
     steps = QUICK if args.quick else SHOWCASE

@@ -1,16 +1,22 @@
 """
 The goal command line: send a goal, follow the motion, exit 0 only when the arm arrived.
 
-Examples (poses in base_link; X Y Z [m] then A B C [rad], ZYX Euler as the Mover6 report:
-R = Rz(A) Ry(B) Rx(C), so A is yaw, B pitch, C roll)::
+Poses are the flange (link6) in base_link: X Y Z [m], then A B C [rad] as the Mover6 report
+writes goals: ZYX Euler angles applied to the flange's home orientation, R = R_home Rz(A) Ry(B)
+Rx(C), R_home the flange orientation at q = 0 (the flange z axis along +x), so ``0 0 0`` keeps
+the home orientation. With ``--absolute`` A B C are base-frame ZYX angles, R = Rz(A) Ry(B) Rx(C)
+(home is then 0 1.5708 0). ``--quat`` takes a base-frame quaternion. Examples::
 
-    goal 0.40 0.05 0.35 0 1.5708 0                    # linear move (planner's default)
-    goal pose 0.40 0.05 0.35 0 1.5708 0 --motion parabolic --peak-height 0.05
-    goal pose --quat 0.40 0.05 0.35 0 0.7071068 0 0.7071068
-    goal path --shape spline --via 0.38 0.05 0.40 0 1.5708 0 0.35 0.10 0.35 0 1.5708 0
-    goal path --shape arc --via 0.38 0.05 0.40 0 1.5708 0 0.35 0.10 0.35 0 1.5708 0
+    goal 0.445 0 0.4425 0 0 0                         # the Mover6 report's linear example
+    goal 0.1 0.1 0.2 0 1.5708 0                       # the Mover6 report's IK example
+    goal 0.445 0 0.4425 0 1.5708 0 --absolute         # base-frame angles: the home orientation
+    goal pose 0.30 -0.08 0.32 0 0 0 --motion parabolic --peak-height 0.04
+    goal pose --quat 0.30 0.05 0.36 0 0.7071068 0 0.7071068
+    goal path --shape spline --via 0.32 -0.03 0.36 0 0 0 0.29 0.10 0.35 0 0 0
     goal joints 0.2 0.1 0.3 0 0.4 0                   # straight to /joint_demands
     goal stop                                         # the controller's ~/stop service
+
+The RESULT line gives the pose reached, in the goal's own convention.
 
 Exit codes: 0 arrived, 1 motion failed (fault, aborted, stopped, timed out), 2 goal refused or
 malformed, 3 nodes not found.
@@ -26,8 +32,9 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
-from mover6_control.kinematics.rotations import (make_transform, pose_from_xyzabc,
-                                                 quaternion_to_matrix)
+from mover6_control.kinematics.rotations import (euler_zyx_near, make_transform, pose_error,
+                                                 pose_from_xyzabc, quaternion_to_matrix)
+from mover6_control.motion.paths import goal_relative_to_start
 from mover6_control.nodes import conversions
 import numpy as np
 import rclpy
@@ -45,6 +52,43 @@ from std_srvs.srv import Trigger
 STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 EXIT_ARRIVED, EXIT_FAILED, EXIT_REFUSED, EXIT_NO_NODES = 0, 1, 2, 3
 FINAL_RESULTS = ('arrived', 'fault', 'aborted', 'stopped')
+# Within this [rad] of gimbal lock (B = +-pi/2) a reached pose is printed with B = +-pi/2 and the
+# A/C split nearest the goal's angles: closer to lock the split follows the arm's tiny error.
+PRINT_LOCK_TOL = 1e-3
+
+
+def home_pose(arm):
+    """Return the flange pose (4, 4) at q = 0, by forward kinematics of ``arm``."""
+    return fk(arm, np.zeros(arm.n_joints))
+
+
+def pose_from_goal(arm, x, y, z, a, b, c, absolute=False):
+    """
+    Return the pose (4, 4) of a goal typed as X Y Z [m] A B C [rad].
+
+    By default as the Mover6 report: ``R = R_home Rz(A) Ry(B) Rx(C)``, ``R_home`` the flange
+    orientation at q = 0; with ``absolute`` base-frame ZYX angles, ``R = Rz(A) Ry(B) Rx(C)``.
+    """
+    if absolute:
+        return pose_from_xyzabc(x, y, z, a, b, c)
+    return goal_relative_to_start(home_pose(arm), x, y, z, a, b, c)
+
+
+def goal_from_pose(arm, T, absolute=False, ref=(0.0, 0.0, 0.0)):
+    """
+    Return X Y Z [m] A B C [rad] of pose ``T`` (4, 4) in the goal convention (``pose_from_goal``).
+
+    Of the equivalent angle triples the one nearest ``ref`` (the goal's angles) is returned.
+    """
+    T = np.asarray(T, dtype=float)
+    R = T[:3, :3] if absolute else home_pose(arm)[:3, :3].T @ T[:3, :3]
+    angles = euler_zyx_near(R, ref, lock_tol=PRINT_LOCK_TOL)
+    return tuple(float(v) for v in T[:3, 3]) + tuple(angles)
+
+
+def format_numbers(values):
+    """Return numbers as text with 4 decimals and no negative zero."""
+    return ' '.join('0.0000' if abs(v) < 5e-5 else f'{v:.4f}' for v in values)
 
 
 class Outcome:
@@ -239,8 +283,10 @@ class GoalClient(Node):
         def tick():
             if progress is None or time.monotonic() - last_print[0] < 0.5:
                 return
-            last_print[0] = time.monotonic()
             v = self.values(self.controller_status)
+            if int(v.get('motion_id', 0)) <= motion0:
+                return   # the status still describes the previous motion
+            last_print[0] = time.monotonic()
             text = (f'{v.get("state", "?")}: waypoint {v.get("waypoint", "?")} of '
                     f'{v.get("waypoints", "?")}')
             if T_goal is not None and self.q is not None:
@@ -261,9 +307,11 @@ class GoalClient(Node):
             demands = self.last_demands
         if demands is not None and self.q is not None:
             figures['final_joint_error'] = float(np.abs(self.q - demands[-1]).max())
+        if self.q is not None:
+            figures['reached_pose'] = fk(self.arm, self.q)
         if T_goal is not None and self.q is not None:
-            figures['final_position_error'] = float(
-                np.linalg.norm(fk(self.arm, self.q)[:3, 3] - T_goal[:3, 3]))
+            figures['final_position_error'], figures['final_orientation_error'] = pose_error(
+                figures['reached_pose'], T_goal)
         if v.get('result') != 'arrived':
             return Outcome(EXIT_FAILED, self.controller_status.message, **figures)
         return Outcome(EXIT_ARRIVED, 'arrived', **figures)
@@ -296,8 +344,14 @@ class GoalClient(Node):
 
 # --- command line ----------------------------------------------------------------------------
 
-def poses_from_numbers(numbers, quat):
-    """Return poses (k, 4, 4) from groups of 6 numbers (X Y Z A B C) or 7 (X Y Z qx qy qz qw)."""
+def poses_from_numbers(numbers, quat, arm=None, absolute=False):
+    """
+    Return poses (k, 4, 4) from groups of 6 numbers (X Y Z A B C) or 7 (X Y Z qx qy qz qw).
+
+    A B C follow ``pose_from_goal`` (relative to the home orientation of ``arm``, default the
+    Mover6, unless ``absolute``); a quaternion is in the base frame.
+    """
+    arm = mover6() if arm is None else arm
     size = 7 if quat else 6
     if len(numbers) == 0 or len(numbers) % size:
         form = 'X Y Z QX QY QZ QW' if quat else 'X Y Z A B C'
@@ -310,7 +364,7 @@ def poses_from_numbers(numbers, quat):
         if quat:
             out.append(make_transform(group[:3], quaternion_to_matrix(group[3:])))
         else:
-            out.append(pose_from_xyzabc(*group))
+            out.append(pose_from_goal(arm, *group, absolute=absolute))
     return np.stack(out)
 
 
@@ -318,25 +372,29 @@ def build_parser():
     """Return the argument parser of the goal command."""
     parser = argparse.ArgumentParser(
         prog='goal', description=__doc__.split('\n\n')[0],
-        epilog='Poses: X Y Z [m] in base_link, then A B C [rad] with R = Rz(A) Ry(B) Rx(C) '
-               '(the Mover6 report, MATLAB ZYX: A yaw, B pitch, C roll), or with --quat a '
-               'quaternion QX QY QZ QW.', formatter_class=argparse.RawDescriptionHelpFormatter)
+        epilog=__doc__.split('\n\n', 1)[1], formatter_class=argparse.RawDescriptionHelpFormatter)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument('--timeout', type=float, default=60.0,
                         help='seconds to wait for the motion to finish (default 60)')
     common.add_argument('--frame', default='base_link', help='frame of the goal (base_link)')
     common.add_argument('--quiet', action='store_true', help='print only the result line')
+    angles = argparse.ArgumentParser(add_help=False)
+    angles.add_argument('--absolute', action='store_true',
+                        help='A B C are base-frame ZYX angles, R = Rz(A) Ry(B) Rx(C) (home is '
+                             '0 1.5708 0), not relative to the home orientation')
     sub = parser.add_subparsers(dest='command')
-    pose = sub.add_parser('pose', parents=[common], help='move the tool to a pose (/pose_goal)')
+    pose = sub.add_parser('pose', parents=[common, angles],
+                          help='move the tool to a pose (/pose_goal)')
     pose.add_argument('numbers', type=float, nargs='+', metavar='N',
                       help='X Y Z A B C, or X Y Z QX QY QZ QW with --quat')
     pose.add_argument('--quat', action='store_true', help='orientation as a quaternion')
     pose.add_argument('--motion', choices=('linear', 'parabolic', 'joint'),
                       help="set the planner's motion shape first")
     pose.add_argument('--peak-height', type=float, help='parabolic peak height [m]')
-    path = sub.add_parser('path', parents=[common],
+    path = sub.add_parser('path', parents=[common, angles],
                           help='move through via poses to the last pose (/path_goal)')
-    path.add_argument('numbers', type=float, nargs='+', metavar='N',
+    # nargs='*': '--via' takes every number after it, goal included (the README's spelling).
+    path.add_argument('numbers', type=float, nargs='*', metavar='N',
                       help='poses one after another; the last one is the goal')
     path.add_argument('--via', type=float, nargs='+', default=[], metavar='N',
                       help='via poses (alternative spelling: put them before the goal)')
@@ -362,11 +420,13 @@ def run(argv, client=None, out=print):
     say = (lambda text: None) if args.quiet else out
     try:
         if args.command == 'pose':
-            targets = poses_from_numbers(args.numbers, args.quat)
+            targets = poses_from_numbers(args.numbers, args.quat, client_arm(client),
+                                         args.absolute)
             if len(targets) != 1:
                 raise Mover6Error('pose takes exactly one pose')
         elif args.command == 'path':
-            targets = poses_from_numbers(args.via + args.numbers, args.quat)
+            targets = poses_from_numbers(args.via + args.numbers, args.quat, client_arm(client),
+                                         args.absolute)
         elif args.command == 'joints':
             if len(args.numbers) % 6:
                 raise Mover6Error(f'joints takes 6 angles per waypoint, got {len(args.numbers)}')
@@ -409,23 +469,54 @@ def run(argv, client=None, out=print):
     else:
         say(f'sending {len(targets)} joint waypoints')
         outcome = client.send_joints(targets, **kwargs)
-    out(format_outcome(outcome))
+    convention = None
+    if args.command in ('pose', 'path'):
+        ref = (0.0, 0.0, 0.0)
+        if not args.quat:
+            ref = tuple((getattr(args, 'via', []) + args.numbers)[-3:])
+        convention = (client_arm(client), args.absolute or args.quat, ref)
+    out(format_outcome(outcome, convention))
     return outcome.code
 
 
-def format_outcome(outcome):
-    """Return the one result line of an outcome."""
+def client_arm(client):
+    """Return the arm of ``client`` (the Mover6 when there is no client)."""
+    return getattr(client, 'arm', None) or mover6()
+
+
+def format_outcome(outcome, convention=None):
+    """
+    Return the one result line of an outcome.
+
+    ``convention`` (arm, absolute, reference angles) adds the pose reached, or for a refusal the
+    closest pose the planner found, as ``X Y Z A B C`` in the goal's convention
+    (``goal_from_pose``).
+    """
     f = outcome.figures
     parts = []
     if 'final_joint_error' in f:
         parts.append(f'final joint error {f["final_joint_error"]:.4f} rad')
     if 'final_position_error' in f:
         parts.append(f'final tool position error {f["final_position_error"] * 1e3:.2f} mm')
+    if 'final_orientation_error' in f:
+        parts.append(f'orientation error {f["final_orientation_error"]:.4f} rad')
     if 'duration' in f:
         parts.append(f'{f["duration"]:.2f} s')
     word = {EXIT_ARRIVED: 'arrived', EXIT_REFUSED: 'refused'}.get(outcome.code, 'failed')
     text = '' if outcome.arrived else f' {outcome.text}'
-    return f'RESULT {word}:{text}' + (' (' + ', '.join(parts) + ')' if parts else '')
+    line = f'RESULT {word}:{text}' + (' (' + ', '.join(parts) + ')' if parts else '')
+    if convention is not None:
+        arm, absolute, ref = convention
+        form = 'A B C base frame' if absolute else 'A B C from home'
+        if 'reached_pose' in f:
+            pose = goal_from_pose(arm, f['reached_pose'], absolute, ref)
+            line += f'; reached X Y Z {form}: {format_numbers(pose)}'
+        closest = str(f.get('closest_pose_xyzabc', '')).split()
+        if len(closest) == 6:
+            T = pose_from_xyzabc(*(float(v) for v in closest))
+            pose = goal_from_pose(arm, T, absolute, ref)
+            line += f'; closest pose inside the joint limits, X Y Z {form}: {format_numbers(pose)}'
+    return line
 
 
 def main(args=None):
