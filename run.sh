@@ -24,7 +24,7 @@ mover6_control: the one entry point.
 
 On a machine with a sourced ROS 2 Jazzy install it uses that install. Otherwise it makes a
 project-local virtual environment (.venv) with ROS 2 Jazzy from PyPI wheels (these need
-Python 3.11), builds a local control_msgs (JointJog only) when none is found, and builds this
+Python 3.11), builds a local control_msgs (JointJog, FollowJointTrajectory) when none is found, and builds this
 package with colcon into .colcon/. What it installs is listed in requirements/*.txt.
 Re-running is quick and changes nothing. It works from any directory.
 
