@@ -5,7 +5,11 @@ Subscribes /joint_states (sensor_msgs/JointState, mapped by name) and /joint_dem
 (std_msgs/Float32MultiArray, N x 6 with layout or flat); publishes /JointJog
 (control_msgs/JointJog: all six joints, stamped, velocities only) at ``rate`` on the node's clock
 and /controller/status (diagnostic_msgs/DiagnosticStatus, transient local, on every change and
-at ``status_rate``). Services ~/stop and ~/reset (std_srvs/Trigger). All the logic is
+at ``status_rate``). Services ~/stop and ~/reset (std_srvs/Trigger); the action
+~/follow_joint_trajectory (control_msgs/FollowJointTrajectory, ``trajectory_action``). A demand
+may name the goal it is for (``layout.dim[0].label`` = ``waypoints goal <id>``, as the planner
+writes it): the status then carries it as ``goal_id`` next to the ``motion_id`` it became.
+All the logic is
 in ``mover6_control.control.controller_core``; this node converts, calls it and publishes. For
 the Mover6's vendor driver set ``jog_units`` to fraction_of_max; ``driver_tick_size`` and
 ``driver_cycle`` (defaults: the Mover6's) let the core move joints that a command under one
@@ -42,6 +46,7 @@ from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.kinematics.arm import LIMIT_SETS, mover6
 from mover6_control.nodes import conversions, params, shutdown
+from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from mover6_control.parameters import CONTROLLER
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -108,6 +113,13 @@ class ControllerNode(Node):
         self.demands = queue.SimpleQueue()   # /joint_demands messages not yet taken; None: end
         self.demand_thread = threading.Thread(target=self.demand_loop, daemon=True)
         self.demand_thread.start()
+        # Goal ids (the planner's, or an action goal's) of the demands: echoed in the status.
+        self.motion_goals = {}       # motion_id -> goal id ('' for none)
+        self.goal_motions = {}       # goal id -> motion_id
+        self.goal_rejections = {}    # goal id -> why its demand was refused
+        self.motion_starts = {}      # motion_id -> node clock [s] its plan counts from
+        self.last_q = None           # the latest valid joint positions, for the action
+        self.trajectory_server = FollowJointTrajectoryServer(self)
         ticks = ''
         if config.jog_units == 'fraction_of_max':
             ticks = (' (whole ticks; goal tolerance '
@@ -128,6 +140,7 @@ class ControllerNode(Node):
             q, qd = conversions.joint_state_from_msg(msg, self.joint_names)
             with self.lock:
                 self.core.on_joint_states(now, q, qd)
+            self.last_q = q
         except InvalidInputError as err:
             with self.lock:
                 self.core.on_invalid_states(now, str(err))
@@ -151,6 +164,7 @@ class ControllerNode(Node):
     def take_demand(self, msg):
         """Accept waypoints or log why they were rejected (the running motion is untouched)."""
         now = self.now()
+        goal_id = conversions.demand_id_from_msg(msg)
         try:
             Q = conversions.demands_from_msg(msg, len(self.joint_names))
             # Plan without the lock so the ticks go on (the continuous law plans for tens of
@@ -161,14 +175,22 @@ class ControllerNode(Node):
                 with self.lock:
                     if attempt + 1 == DEMAND_ATTEMPTS or self.core.is_current(pending):
                         motion_id = self.core.commit_demand(pending)
+                        self.motion_goals[motion_id] = goal_id
+                        self.motion_starts[motion_id] = pending.now
+                        if goal_id:
+                            self.goal_motions[goal_id] = motion_id
                         break
                 now = self.now()
         except Mover6Error as err:
             self.get_logger().warning(f'rejected /joint_demands: {err}')
-            self.publish_status(now, {'rejected': str(err)}, level='WARN',
+            if goal_id:
+                self.goal_rejections[goal_id] = str(err)
+            self.publish_status(now, {'rejected': str(err), 'rejected_goal_id': goal_id},
+                                level='WARN',
                                 message=f'rejected demand: {err}')
             return
-        self.get_logger().info(f'motion {motion_id}: {len(Q)} waypoint(s) accepted')
+        self.get_logger().info(f'motion {motion_id}: {len(Q)} waypoint(s) accepted'
+                               + (f' (goal {goal_id})' if goal_id else ''))
         self.publish_status(now)
 
     def on_stop(self, request, response):
@@ -214,6 +236,7 @@ class ControllerNode(Node):
         self.destroyed = True
         self.running = False
         self.demands.put(None)
+        self.trajectory_server.destroy()
         for thread in (self.tick_thread, self.demand_thread):
             if thread.is_alive() and thread is not threading.current_thread():
                 thread.join(timeout=1.0)
@@ -272,6 +295,7 @@ class ControllerNode(Node):
                 status = self.core.status()
                 self.last_status = now
             values = dict(status.values)
+            values['goal_id'] = self.motion_goals.get(int(values.get('motion_id', 0)), '')
             values['max_tick_gap'] = f'{self.max_tick_gap:.4f}'
             values.update(extra or {})
             self.status_pub.publish(conversions.make_status(

@@ -122,17 +122,35 @@ def demands_from_msg(msg, n_joints=6):
     return data.reshape(-1, n_joints)
 
 
-def make_demands(Q):
-    """Build a Float32MultiArray (with layout) from waypoints (n, 6) [rad]."""
+DEMAND_LABEL = 'waypoints'
+DEMAND_ID_MARK = ' goal '
+
+
+def make_demands(Q, goal_id=''):
+    """
+    Build a Float32MultiArray (with layout) from waypoints (n, 6) [rad].
+
+    A ``goal_id`` goes into the first dimension's label, ``waypoints goal <goal_id>``, where
+    ``ros2 topic echo`` shows it; ``demand_id_from_msg`` reads it back.
+    """
     Q = np.asarray(Q, dtype=float)
     n, m = Q.shape
     msg = Float32MultiArray()
+    label = DEMAND_LABEL + (DEMAND_ID_MARK + goal_id if goal_id else '')
     msg.layout.dim = [
-        MultiArrayDimension(label='waypoints', size=n, stride=n * m),
+        MultiArrayDimension(label=label, size=n, stride=n * m),
         MultiArrayDimension(label='joints', size=m, stride=m),
     ]
     msg.data = [float(x) for x in Q.ravel()]
     return msg
+
+
+def demand_id_from_msg(msg):
+    """Return the goal id a demand carries (``make_demands``), '' when it carries none."""
+    dims = list(msg.layout.dim)
+    label = dims[0].label if dims else ''
+    head, mark, goal_id = label.partition(DEMAND_ID_MARK)
+    return goal_id.strip() if mark and head == DEMAND_LABEL else ''
 
 
 # --- poses ---------------------------------------------------------------------------------

@@ -1,0 +1,221 @@
+"""
+The controller's ``control_msgs/action/FollowJointTrajectory`` server (``follow_joint_trajectory``).
+
+What MoveIt and every tool that executes joint trajectories talk to, at the name
+joint_trajectory_controller uses (``/controller/follow_joint_trajectory``). A goal's joints come
+in any order and are mapped by name (the set must be the arm's six: INVALID_JOINTS otherwise);
+its points become one demand of the controller, through the same queue as /joint_demands
+(labelled ``waypoints goal fjt-<uuid>`` so the controller's status names it), so a goal outside
+the joint limits is refused with the core's reason (INVALID_GOAL). The motion goes through the
+points with the controller's velocity law (``profile``; the continuous law is time-optimal
+within the limits); ``time_from_start`` and ``velocities`` are checked (finite, non-decreasing)
+but not tracked: the arm never moves slower than its law (see the README).
+
+While the motion runs, feedback at ``FEEDBACK_PERIOD`` carries desired (the law's reference),
+actual (the latest /joint_states) and their difference. Results: SUCCESSFUL when the controller
+reports the motion arrived and every joint is within its goal tolerance;
+GOAL_TOLERANCE_VIOLATED when a joint is not (or settling timed out); PATH_TOLERANCE_VIOLATED when
+a joint leaves its path tolerance (the arm then stops with the usual deceleration) or the
+controller aborted the motion (tracking error, stale states). Tolerances come from the goal by
+joint name (0: the default, -1: none); the defaults are the controller's ``path_tolerance`` and
+``goal_tolerance`` parameters. A cancel stops the arm with the usual deceleration and the goal
+ends canceled once the arm is at rest. A new goal, or a /joint_demands message, preempts the
+running goal: it is aborted with INVALID_GOAL (as joint_trajectory_controller) and the reason.
+"""
+
+from control_msgs.action import FollowJointTrajectory
+from mover6_control.nodes import conversions
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.task import Future
+from trajectory_msgs.msg import JointTrajectoryPoint
+
+Result = FollowJointTrajectory.Result
+FEEDBACK_PERIOD = 0.1    # [s]
+# Longest wait [s] for the demand thread to accept or refuse a goal's demand.
+ACCEPT_TIMEOUT = 10.0
+FINAL_RESULTS = ('arrived', 'aborted', 'stopped', 'fault')
+
+
+def map_goal(trajectory, joint_names):
+    """
+    Return the waypoints (N, n) [rad] of a JointTrajectory in ``joint_names`` order.
+
+    Raises ``ValueError`` with ``(error_code, reason)`` as its arguments when the joints or the
+    points are not usable.
+    """
+    names = list(trajectory.joint_names)
+    if sorted(names) != sorted(joint_names) or len(set(names)) != len(names):
+        raise ValueError(Result.INVALID_JOINTS,
+                         f'the goal names joints {names}; this controller drives exactly '
+                         f'{list(joint_names)} (any order, each once)')
+    if not trajectory.points:
+        raise ValueError(Result.INVALID_GOAL, 'the trajectory has no points')
+    order = [names.index(name) for name in joint_names]
+    rows, last = [], -1.0
+    for k, point in enumerate(trajectory.points):
+        if len(point.positions) != len(names):
+            raise ValueError(Result.INVALID_GOAL, f'point {k} has {len(point.positions)} '
+                                                  f'positions for {len(names)} joints')
+        if point.velocities and len(point.velocities) != len(names):
+            raise ValueError(Result.INVALID_GOAL, f'point {k} has {len(point.velocities)} '
+                                                  f'velocities for {len(names)} joints')
+        t = point.time_from_start.sec + point.time_from_start.nanosec * 1e-9
+        if t < last:
+            raise ValueError(Result.INVALID_GOAL,
+                             f'point {k}: time_from_start {t:.3f} s is before the point before')
+        last = t
+        rows.append([float(point.positions[i]) for i in order])
+    return rows
+
+
+def tolerances(entries, joint_names, default):
+    """Return the position tolerance per joint [rad] (None: unchecked) from JointTolerance[]."""
+    tol = {name: default for name in joint_names}
+    for entry in entries:
+        if entry.name in tol and entry.position > 0.0:
+            tol[entry.name] = entry.position
+        elif entry.name in tol and entry.position < 0.0:
+            tol[entry.name] = None
+    return [tol[name] for name in joint_names]
+
+
+def violations(error, tol, joint_names):
+    """Return the words for each joint whose |error| exceeds its tolerance ('' when none)."""
+    return '; '.join(f'{name} off by {abs(e):.4f} rad (tolerance {t:g})'
+                     for name, e, t in zip(joint_names, error, tol)
+                     if t is not None and abs(e) > t)
+
+
+class FollowJointTrajectoryServer:
+    """The action server of a ``ControllerNode``; see the module docstring."""
+
+    def __init__(self, node):
+        """Serve ``<node>/follow_joint_trajectory`` for ``node`` (a ``ControllerNode``)."""
+        self.node = node
+        self.group = ReentrantCallbackGroup()
+        self.active = None       # the goal handle being executed
+        self.server = ActionServer(
+            node, FollowJointTrajectory, '~/follow_joint_trajectory', self.execute,
+            goal_callback=lambda goal: GoalResponse.ACCEPT,
+            cancel_callback=lambda handle: CancelResponse.ACCEPT,
+            callback_group=self.group)
+
+    def destroy(self):
+        """Destroy the action server."""
+        self.server.destroy()
+
+    async def sleep(self, seconds):
+        """Wait ``seconds`` on the node's clock without holding the executor."""
+        future = Future()
+        timer = self.node.create_timer(seconds, lambda: future.done() or future.set_result(1),
+                                       callback_group=self.group)
+        try:
+            await future
+        finally:
+            self.node.destroy_timer(timer)
+
+    def finish(self, handle, code, text, how='abort'):
+        """End ``handle`` (abort, succeed or canceled) with ``code`` and ``text``."""
+        getattr(handle, {'abort': 'abort', 'succeed': 'succeed', 'cancel': 'canceled'}[how])()
+        # Two call sites: rclpy refuses one call site logging at two severities.
+        if code == Result.SUCCESSFUL:
+            self.node.get_logger().info(f'follow_joint_trajectory: {text}')
+        else:
+            self.node.get_logger().warning(f'follow_joint_trajectory: {text}')
+        return Result(error_code=code, error_string=text)
+
+    async def execute(self, handle):
+        """Run one goal to its end; return its ``Result``."""
+        node = self.node
+        names = node.joint_names
+        goal = handle.request
+        goal_id = 'fjt-' + bytes(handle.goal_id.uuid).hex()[:12]
+        try:
+            rows = map_goal(goal.trajectory, names)
+        except ValueError as err:
+            return self.finish(handle, err.args[0], err.args[1])
+        path_tol = tolerances(goal.path_tolerance, names,
+                              node.get_parameter('path_tolerance').value)
+        goal_tol = tolerances(goal.goal_tolerance, names,
+                              node.get_parameter('goal_tolerance').value)
+        self.active = handle
+        node.demands.put(conversions.make_demands(rows, goal_id))
+        waited = 0.0
+        while goal_id not in node.goal_motions and goal_id not in node.goal_rejections:
+            if waited > ACCEPT_TIMEOUT or not node.running:
+                return self.finish(handle, Result.INVALID_GOAL, 'the controller did not take '
+                                                                'the demand in time')
+            await self.sleep(0.01)
+            waited += 0.01
+        if goal_id in node.goal_rejections:
+            return self.finish(handle, Result.INVALID_GOAL,
+                               f'refused: {node.goal_rejections.pop(goal_id)}')
+        motion_id = node.goal_motions[goal_id]
+        stopping = None          # why the arm is being stopped: (code, text, how)
+        while node.running:
+            with node.lock:
+                status = node.core.status()
+                plan = node.core.plan
+            values = status.values
+            if int(values['motion_id']) != motion_id:
+                other = node.motion_goals.get(int(values['motion_id']), '') or '/joint_demands'
+                # As joint_trajectory_controller: INVALID_GOAL, aborted, with the reason.
+                return self.finish(handle, Result.INVALID_GOAL,
+                                   f'goal {goal_id} preempted by {other} '
+                                   f'(motion {values["motion_id"]})')
+            desired, actual = self.reference(plan, motion_id), node.last_q
+            if actual is not None and desired is not None:
+                error = [d - a for d, a in zip(desired, actual)]
+                handle.publish_feedback(self.feedback(desired, actual, error))
+                bad = violations(error, path_tol, names)
+                if bad and stopping is None and values['state'] == 'executing':
+                    stopping = (Result.PATH_TOLERANCE_VIOLATED, f'path tolerance: {bad}',
+                                'abort')
+                    with node.lock:
+                        node.core.request_stop(node.now())
+            if handle.is_cancel_requested and stopping is None:
+                stopping = (Result.SUCCESSFUL, 'canceled: stopped with the usual deceleration',
+                            'cancel')
+                with node.lock:
+                    node.core.request_stop(node.now())
+            result = values.get('result')
+            if result in FINAL_RESULTS and values['state'] not in ('executing', 'settling',
+                                                                   'stopping'):
+                if stopping is not None:
+                    return self.finish(handle, *stopping)
+                if result == 'arrived':
+                    q_goal = [float(v) for v in rows[-1]]
+                    q = node.last_q
+                    bad = violations([g - a for g, a in zip(q_goal, q)], goal_tol, names)
+                    if bad:
+                        return self.finish(handle, Result.GOAL_TOLERANCE_VIOLATED,
+                                           f'goal tolerance: {bad}')
+                    return self.finish(handle, Result.SUCCESSFUL,
+                                       f'goal {goal_id} reached (motion {motion_id})', 'succeed')
+                code = (Result.GOAL_TOLERANCE_VIOLATED if 'goal tolerance' in
+                        values.get('reason', '') else Result.PATH_TOLERANCE_VIOLATED)
+                return self.finish(handle, code, f'motion {motion_id} {result}: '
+                                                 f'{values.get("reason", status.message)}')
+            await self.sleep(FEEDBACK_PERIOD)
+        return self.finish(handle, Result.PATH_TOLERANCE_VIOLATED, 'the controller closed')
+
+    def reference(self, plan, motion_id):
+        """Return the law's reference positions now (the goal once the reference ended)."""
+        start = self.node.motion_starts.get(motion_id)
+        if plan is None or start is None:
+            return None
+        t = min(max(self.node.now() - start, 0.0), plan.duration)
+        q_ref, _ = plan.sample(t)
+        return [float(v) for v in q_ref]
+
+    def feedback(self, desired, actual, error):
+        """Build a feedback message (joint order: the controller's)."""
+        msg = FollowJointTrajectory.Feedback()
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        msg.joint_names = list(self.node.joint_names)
+        msg.desired = JointTrajectoryPoint(positions=desired)
+        msg.actual = JointTrajectoryPoint(positions=[float(v) for v in actual])
+        msg.error = JointTrajectoryPoint(positions=error)
+        return msg
+

@@ -1,0 +1,149 @@
+"""
+End to end: the controller's FollowJointTrajectory action, as MoveIt would use it.
+
+The three nodes run as processes; an rclpy ``ActionClient`` in this process sends goals with the
+joint names in reversed order and follows feedback and results.
+"""
+
+from control_msgs.action import FollowJointTrajectory
+from mover6_control.kinematics.arm import mover6
+from mover6_control.tools.goal_cli import GoalClient
+import numpy as np
+import pytest
+import rclpy
+from rclpy.action import ActionClient
+from ros_testing import Stack, wait_until
+from trajectory_msgs.msg import JointTrajectoryPoint
+
+pytestmark = pytest.mark.e2e
+
+ARM = mover6()
+Result = FollowJointTrajectory.Result
+NAMES = list(ARM.joint_names)
+
+
+@pytest.fixture(scope='module')
+def stack(tmp_path_factory):
+    """Start sim_bridge, controller and planner as processes for this module's tests."""
+    with Stack(tmp_path_factory.mktemp('fjt_logs')) as running:
+        yield running
+
+
+@pytest.fixture(scope='module')
+def client(stack):
+    """Return (goal client node, action client) once every node answers."""
+    rclpy.init()
+    node = GoalClient(name='fjt_client')
+    problem = node.wait_ready(timeout=30.0)
+    assert problem is None, problem + '\n' + stack.report()
+    action = ActionClient(node, FollowJointTrajectory, '/controller/follow_joint_trajectory')
+    assert action.wait_for_server(timeout_sec=20.0), stack.report()
+    yield node, action
+    action.destroy()
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def make_goal(*rows):
+    """Return a goal through ``rows`` (each in the arm's joint order), names reversed."""
+    goal = FollowJointTrajectory.Goal()
+    goal.trajectory.joint_names = NAMES[::-1]
+    for k, q in enumerate(rows):
+        point = JointTrajectoryPoint(positions=[float(v) for v in q[::-1]])
+        point.time_from_start.sec = k + 1
+        goal.trajectory.points.append(point)
+    return goal
+
+
+def send(node, action, goal, feedback=None, timeout=20.0):
+    """Send ``goal``; return its accepted goal handle."""
+    future = action.send_goal_async(goal, feedback_callback=feedback)
+    assert wait_until(future.done, timeout, lambda t: rclpy.spin_once(node, timeout_sec=t))
+    handle = future.result()
+    assert handle.accepted
+    return handle
+
+
+def result_of(node, handle, timeout=60.0):
+    """Wait for and return ``(status, Result)`` of ``handle``."""
+    future = handle.get_result_async()
+    assert wait_until(future.done, timeout, lambda t: rclpy.spin_once(node, timeout_sec=t))
+    response = future.result()
+    return response.status, response.result
+
+
+def test_goal_reached_with_feedback(stack, client):
+    """Joint names reversed, two points: SUCCESSFUL, feedback on the way, the arm there."""
+    node, action = client
+    q_goal = np.array([0.3, -0.2, 0.25, 0.1, 0.3, -0.2])
+    feedback = []
+    handle = send(node, action, make_goal(q_goal / 2, q_goal),
+                  feedback=lambda msg: feedback.append(msg.feedback))
+    status, result = result_of(node, handle)
+    assert result.error_code == Result.SUCCESSFUL, f'{result.error_string}\n{stack.report()}'
+    assert len(feedback) >= 3
+    last = feedback[-1]
+    assert list(last.joint_names) == NAMES
+    assert len(last.desired.positions) == 6 and len(last.actual.positions) == 6
+    err = np.array(last.desired.positions) - np.array(last.actual.positions)
+    assert np.allclose(err, last.error.positions, atol=1e-9)
+    assert np.abs(node.q - q_goal).max() < 0.01
+
+
+def test_out_of_limits_goal_is_invalid(stack, client):
+    """A point beyond the joint limits: INVALID_GOAL with the core's reason; nothing moves."""
+    node, action = client
+    q_before = node.q.copy()
+    handle = send(node, action, make_goal(np.array([2.5, 0.0, 0.0, 0.0, 0.0, 0.0])))
+    status, result = result_of(node, handle)
+    assert result.error_code == Result.INVALID_GOAL, stack.report()
+    assert 'joint limits' in result.error_string
+    rclpy.spin_once(node, timeout_sec=0.5)
+    assert np.abs(node.q - q_before).max() < 0.01
+
+
+def test_wrong_joints_are_invalid_joints(stack, client):
+    """A goal naming other joints: INVALID_JOINTS with the reason."""
+    node, action = client
+    goal = make_goal(np.zeros(6))
+    goal.trajectory.joint_names = ['a', 'b', 'c', 'd', 'e', 'f']
+    status, result = result_of(node, send(node, action, goal))
+    assert result.error_code == Result.INVALID_JOINTS
+    assert 'joint1' in result.error_string
+
+
+def test_cancel_stops_the_arm(stack, client):
+    """Cancel during a long move: the goal ends canceled, the arm at rest short of the goal."""
+    node, action = client
+    q_start = node.q.copy()
+    q_goal = np.array([-1.2, 0.0, 0.0, 0.0, 0.0, 0.0])
+    handle = send(node, action, make_goal(q_goal))
+    assert wait_until(lambda: np.abs(node.q - q_start).max() > 0.1, 20.0,
+                      lambda t: rclpy.spin_once(node, timeout_sec=t)), stack.report()
+    cancel = handle.cancel_goal_async()
+    assert wait_until(cancel.done, 10.0, lambda t: rclpy.spin_once(node, timeout_sec=t))
+    status, result = result_of(node, handle)
+    from action_msgs.msg import GoalStatus
+    assert status == GoalStatus.STATUS_CANCELED, result.error_string
+    q_stop = node.q.copy()
+    assert np.abs(q_stop - q_goal).max() > 0.1          # stopped short of the goal
+    wait_until(lambda: False, 1.0, lambda t: rclpy.spin_once(node, timeout_sec=t))
+    assert np.abs(node.q - q_stop).max() < 0.01         # and at rest
+
+
+def test_second_goal_preempts_the_first(stack, client):
+    """A second goal while the first runs: the first aborted with the reason, the second done."""
+    node, action = client
+    q_start = node.q.copy()
+    first = send(node, action, make_goal(np.array([1.2, 0.0, 0.0, 0.0, 0.0, 0.0])))
+    assert wait_until(lambda: np.abs(node.q - q_start).max() > 0.05, 20.0,
+                      lambda t: rclpy.spin_once(node, timeout_sec=t)), stack.report()
+    q_goal = np.array([0.2, 0.1, 0.0, 0.0, 0.0, 0.0])
+    second = send(node, action, make_goal(q_goal))
+    from action_msgs.msg import GoalStatus
+    status, result = result_of(node, first)
+    assert status == GoalStatus.STATUS_ABORTED
+    assert 'preempted' in result.error_string
+    status, result = result_of(node, second)
+    assert result.error_code == Result.SUCCESSFUL, result.error_string
+    assert np.abs(node.q - q_goal).max() < 0.01
