@@ -127,8 +127,9 @@ MOVER6_TICKS = (8.260740495997393e-06, 8.260740495997393e-06, 8.260740495997393e
 PLANNER = _table(
     P('motion', 'str', 'linear', '', 'shape of /pose_goal moves',
       allowed=('linear', 'parabolic', 'joint')),
-    P('path_motion', 'str', 'spline', '', 'shape of /path_goal moves (through the via poses)',
-      allowed=('spline', 'arc')),
+    P('path_motion', 'str', 'spline', '',
+      'shape of /path_goal moves (through the via poses; parabolic: one via pose, the peak)',
+      allowed=('spline', 'arc', 'parabolic')),
     P('n_waypoints', 'int', 20, '',
       'poses sampled along a Cartesian path (when max_step and max_angle_step are 0)', 2, 10000),
     P('max_step', 'float', 0.0, 'm',

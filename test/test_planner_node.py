@@ -111,9 +111,12 @@ def test_reachable_goal_publishes_layout_and_ok(nodes):
     assert status.level == DiagnosticStatus.OK, status.message
     assert spin_until(executor, lambda: len(probe.demands) == 1)
     msg = probe.demands[0]
-    assert [d.label for d in msg.layout.dim] == ['waypoints', 'joints']
-    Q = conversions.demands_from_msg(msg)
     values = conversions.status_values(status)
+    # The first dimension names the goal the demand is for, as the status does.
+    assert values['goal_id'] == '0.000000000-1'
+    assert [d.label for d in msg.layout.dim] == ['waypoints goal 0.000000000-1', 'joints']
+    assert conversions.demand_id_from_msg(msg) == values['goal_id']
+    Q = conversions.demands_from_msg(msg)
     # 20 path poses, plus the wrist turn that leaves the singular home pose.
     assert int(values['waypoints']) == Q.shape[0] >= 20
     assert float(values['path_length']) > 0.0 and float(values['predicted_duration']) > 0.0

@@ -116,9 +116,23 @@ def parabolic_path(T_start, T_goal, peak_height, n=None, max_step=None, max_angl
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
     peak = float(as_finite_array(peak_height, (), 'peak_height'))
+    mid = 0.5 * (T_start[:3, 3] + T_goal[:3, 3]) + np.array([0.0, 0.0, peak])
+    return parabolic_path_through(T_start, mid, T_goal, n, max_step, max_angle_step)
+
+
+def parabolic_path_through(T_start, p_peak, T_goal, n=None, max_step=None,
+                           max_angle_step=None):
+    """
+    Return poses (n, 4, 4) on the parabola through start, ``p_peak`` (3,) [m] and goal.
+
+    The Mover6 report's eq. 12: ``r(0)`` the start, ``r(0.5)`` the peak, ``r(1)`` the goal;
+    the orientation is SLERPed from start to goal and ``t`` is evenly spaced.
+    """
+    T_start = validate_transform(T_start, 'T_start')
+    T_goal = validate_transform(T_goal, 'T_goal')
+    mid = as_finite_array(p_peak, (3,), 'p_peak')
     _check_distinct(T_start, T_goal, 'start and goal poses')
     p0, p1 = T_start[:3, 3], T_goal[:3, 3]
-    mid = 0.5 * (p0 + p1) + np.array([0.0, 0.0, peak])
     a, b, c = parabola_coefficients(p0, mid, p1)
     # |r'(t)| = |2 a t + b| is convex in t: its largest value is at an end.
     top_rate = max(np.linalg.norm(b), np.linalg.norm(2.0 * a + b))

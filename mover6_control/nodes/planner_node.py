@@ -5,6 +5,16 @@ Subscribes /pose_goal (geometry_msgs/PoseStamped), /path_goal (geometry_msgs/Pos
 /joint_states; publishes /joint_demands (std_msgs/Float32MultiArray) and /planner/status
 (diagnostic_msgs/DiagnosticStatus, transient local). All the planning is in
 ``mover6_control.planning.planner_core``; this node converts, calls it and reports.
+
+A goal's shape travels with the goal, never through the parameters: /pose_goal/linear,
+/pose_goal/parabolic (peak ``peak_height`` above the mid-point), /pose_goal/joint, and
+/path_goal/spline, /path_goal/arc, /path_goal/parabolic (PoseArray [peak, goal]: the Mover6
+report's eq. 12) plan that shape; /pose_goal and /path_goal plan the default shapes, the
+``motion`` and ``path_motion`` parameters. Each goal gets a ``goal_id``: its header stamp and
+the planner's goal counter, ``<sec>.<nanosec>-<seq>`` (``ros2 topic echo`` shows both). The
+status about a goal carries it (``goal_id``, ``goal_stamp``, ``goal_seq``) and so do the
+demands planned for it (``layout.dim[0].label`` = ``waypoints goal <goal_id>``), which the
+controller echoes in its status next to its ``motion_id``.
 """
 
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -14,7 +24,8 @@ from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.parameters import PLANNER
-from mover6_control.planning.planner_core import plan_path_goal, plan_pose_goal, PlannerSettings
+from mover6_control.planning.planner_core import (PATH_MOTIONS, plan_path_goal, plan_pose_goal,
+                                                  PlannerSettings, POSE_MOTIONS)
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -36,6 +47,7 @@ class PlannerNode(Node):
         self.q = None
         self.q_time = None
         self.goal_seq = 0
+        self.goal = {'goal_id': '', 'goal_stamp': '', 'goal_seq': 0}   # the latest goal
         self.pending = None      # a plan waiting for /joint_demands readers to be matched
         self.create_timer(0.02, self.publish_pending)
         self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
@@ -43,6 +55,12 @@ class PlannerNode(Node):
         self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
         self.create_subscription(PoseStamped, 'pose_goal', self.on_pose_goal, 10)
         self.create_subscription(PoseArray, 'path_goal', self.on_path_goal, 10)
+        for shape in POSE_MOTIONS:
+            self.create_subscription(PoseStamped, f'pose_goal/{shape}',
+                                     lambda msg, shape=shape: self.on_pose_goal(msg, shape), 10)
+        for shape in PATH_MOTIONS:
+            self.create_subscription(PoseArray, f'path_goal/{shape}',
+                                     lambda msg, shape=shape: self.on_path_goal(msg, shape), 10)
         self.publish_status('OK', 'waiting for goals', {'result': 'ready'})
         self.get_logger().info(
             f'planner ready: motion={self.get_parameter("motion").value}, '
@@ -60,21 +78,21 @@ class PlannerNode(Node):
         self.q = q
         self.q_time = self.get_clock().now()
 
-    def on_pose_goal(self, msg):
-        """Plan a /pose_goal with the shape of the ``motion`` parameter."""
-        motion = self.get_parameter('motion').value
-        self.handle_goal(motion, lambda q, settings: plan_pose_goal(
+    def on_pose_goal(self, msg, motion=None):
+        """Plan a pose goal with ``motion``, by default the shape of the ``motion`` parameter."""
+        motion = motion or self.get_parameter('motion').value
+        self.handle_goal(msg.header, motion, lambda q, settings: plan_pose_goal(
             self.arm, q, conversions.pose_stamped_to_matrix(msg, self.frame_id()), motion,
             settings))
 
-    def on_path_goal(self, msg):
-        """Plan a /path_goal (via poses then the goal) with the ``path_motion`` shape."""
-        motion = self.get_parameter('path_motion').value
+    def on_path_goal(self, msg, motion=None):
+        """Plan a path goal (via poses then the goal) with ``motion`` (or ``path_motion``)."""
+        motion = motion or self.get_parameter('path_motion').value
 
         def plan(q, settings):
             poses = conversions.pose_array_to_matrices(msg, self.frame_id())
             return plan_path_goal(self.arm, q, poses[:-1], poses[-1], motion, settings)
-        self.handle_goal(motion, plan)
+        self.handle_goal(msg.header, motion, plan)
 
     # --- planning --------------------------------------------------------------------------
 
@@ -103,9 +121,12 @@ class PlannerNode(Node):
                               'the current pose is uncertain')
         return self.q.copy()
 
-    def handle_goal(self, motion, plan_fn):
+    def handle_goal(self, header, motion, plan_fn):
         """Plan, then publish the waypoints and OK, or nothing and ERROR with the reason."""
         self.goal_seq += 1
+        stamp = f'{header.stamp.sec}.{header.stamp.nanosec:09d}'
+        self.goal = {'goal_id': f'{stamp}-{self.goal_seq}', 'goal_stamp': stamp,
+                     'goal_seq': self.goal_seq}
         try:
             plan = plan_fn(self.current_q(), self.settings())
         except UnreachableError as err:
@@ -114,7 +135,7 @@ class PlannerNode(Node):
         except (Mover6Error, ValueError) as err:
             self.refuse(motion, str(err), 'invalid_goal', {})
             return
-        self.pending = (self.goal_seq, motion, plan, self.get_clock().now())
+        self.pending = (dict(self.goal), motion, plan, self.get_clock().now())
         self.publish_pending()
 
     def subscribers_matched(self):
@@ -131,7 +152,7 @@ class PlannerNode(Node):
         """Publish the pending plan once every known reader of /joint_demands is matched."""
         if self.pending is None:
             return
-        seq, motion, plan, since = self.pending
+        goal, motion, plan, since = self.pending
         matched, known = self.subscribers_matched()
         waited = (self.get_clock().now() - since).nanoseconds * 1e-9
         if matched < max(known, 1) and waited < self.get_parameter('match_timeout').value:
@@ -139,9 +160,9 @@ class PlannerNode(Node):
         self.pending = None
         if matched == 0:
             self.refuse(motion, 'nobody subscribes to /joint_demands: is the controller running?',
-                        'no_controller', {})
+                        'no_controller', {}, goal)
             return
-        self.demands_pub.publish(conversions.make_demands(plan.q))
+        self.demands_pub.publish(conversions.make_demands(plan.q, goal['goal_id']))
         values = {'result': 'planned', 'motion': motion, 'waypoints': plan.n_waypoints,
                   'path_length': f'{plan.path_length:.6f}',
                   'predicted_duration': f'{plan.predicted_duration:.3f}',
@@ -149,10 +170,10 @@ class PlannerNode(Node):
                   'orientation_error': f'{plan.final_orientation_error:.3e}'}
         text = (f'planned {motion} move: {plan.n_waypoints} waypoints, '
                 f'{plan.path_length * 1e3:.1f} mm, about {plan.predicted_duration:.2f} s')
-        self.get_logger().info(f'goal {seq}: {text}')
-        self.publish_status('OK', text, values)
+        self.get_logger().info(f'goal {goal["goal_id"]}: {text}')
+        self.publish_status('OK', text, values, goal)
 
-    def refuse(self, motion, text, reason, details):
+    def refuse(self, motion, text, reason, details, goal=None):
         """Report a refused goal on /planner/status and in the log; publish no demands."""
         values = {'result': 'refused', 'motion': motion, 'reason': reason}
         for key in ('waypoint', 'position_error', 'orientation_error'):
@@ -163,12 +184,13 @@ class PlannerNode(Node):
             T = np.asarray(closest)
             values['closest_pose_xyzabc'] = ' '.join(
                 f'{v:.4f}' for v in list(T[:3, 3]) + list(matrix_to_euler_zyx(T[:3, :3])))
-        self.get_logger().error(f'goal {self.goal_seq} refused ({reason}): {text}')
-        self.publish_status('ERROR', f'goal refused ({reason}): {text}', values)
+        goal = goal or self.goal
+        self.get_logger().error(f'goal {goal["goal_id"]} refused ({reason}): {text}')
+        self.publish_status('ERROR', f'goal refused ({reason}): {text}', values, goal)
 
-    def publish_status(self, level, text, values):
-        """Publish /planner/status with the goal counter added to the values."""
-        values = dict(values, goal_seq=self.goal_seq)
+    def publish_status(self, level, text, values, goal=None):
+        """Publish /planner/status with the id of the goal it is about added to the values."""
+        values = dict(values, **(goal or self.goal))
         self.status_pub.publish(conversions.make_status('planner', level, text, values))
 
 

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from mover6_control.kinematics.arm import ArmModel
 
 POSE_MOTIONS = ('linear', 'parabolic', 'joint')
-PATH_MOTIONS = ('spline', 'arc')
+PATH_MOTIONS = ('spline', 'arc', 'parabolic')
 
 
 @dataclass(frozen=True)
@@ -261,7 +261,8 @@ def plan_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
                    T_goal: np.ndarray, motion: str = 'spline',
                    settings: PlannerSettings = PlannerSettings()):
     """
-    Plan a move through via poses (k, 4, 4) to ``T_goal``: 'spline' or 'arc' (one via pose).
+    Plan a move through via poses (k, 4, 4) to ``T_goal``: 'spline', 'arc' (one via pose) or
+    'parabolic' (one via pose: the peak, the Mover6 report's eq. 12; its position is used).
 
     Raises ``UnreachableError`` or ``InvalidInputError`` as ``plan_pose_goal`` does.
     """
@@ -276,10 +277,14 @@ def plan_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
         check_goal(arm, T, q_current, settings, what=f'via pose {i}')
     check_goal(arm, T_goal, q_current, settings)
     T_start = fk(arm, q_current)
-    if motion == 'arc':
+    if motion in ('arc', 'parabolic'):
         if len(T_vias) != 1:
-            raise InvalidInputError(f'an arc needs exactly one via pose, got {len(T_vias)}')
-        poses = paths.arc_path(T_start, T_vias[0], T_goal, **settings.sampling())
+            raise InvalidInputError(f'{motion} needs exactly one via pose, got {len(T_vias)}')
+        if motion == 'arc':
+            poses = paths.arc_path(T_start, T_vias[0], T_goal, **settings.sampling())
+        else:
+            poses = paths.parabolic_path_through(T_start, T_vias[0][:3, 3], T_goal,
+                                                 **settings.sampling())
     else:
         if len(T_vias) == 0:
             poses = paths.linear_path(T_start, T_goal, **settings.sampling())
