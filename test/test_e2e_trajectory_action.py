@@ -147,3 +147,35 @@ def test_second_goal_preempts_the_first(stack, client):
     status, result = result_of(node, second)
     assert result.error_code == Result.SUCCESSFUL, result.error_string
     assert np.abs(node.q - q_goal).max() < 0.01
+
+
+def planner_parameters(node, names):
+    """Return the planner's values of ``names`` through its parameter service."""
+    from rclpy.parameter_client import AsyncParameterClient
+    params = AsyncParameterClient(node, 'planner')
+    assert params.wait_for_services(timeout_sec=10.0)
+    future = params.get_parameters(names)
+    assert wait_until(future.done, 10.0, lambda t: rclpy.spin_once(node, timeout_sec=t))
+    return [v.string_value or v.double_value for v in future.result().values]
+
+
+@pytest.mark.parametrize('extra', (['--peak-height', '0.03'], []))
+def test_cli_parabolic_leaves_the_planner_parameters(stack, client, extra):
+    """``goal pose ... --motion parabolic``: arrives, and the planner's parameters are as before."""
+    from mover6_control.tools.goal_cli import EXIT_ARRIVED, run
+    node, _ = client
+    home = node.send_joints(np.zeros((1, 6)), timeout=60.0)     # the goal is planned from home
+    assert home.arrived, f'{home}\n{stack.report()}'
+    assert node.values(node.controller_status)['goal_id'] == node.goal_id   # its own id
+    lines = []
+    assert run(['0.30', '0.05', '0.36', '0', '0', '0'], node, out=lines.append) == EXIT_ARRIVED
+    names = ['motion', 'peak_height', 'path_motion']
+    before = planner_parameters(node, names)
+    code = run(['pose', '0.30', '-0.08', '0.32', '0', '0', '0', '--motion', 'parabolic'] + extra,
+               node, out=lines.append)
+    assert code == EXIT_ARRIVED, '\n'.join(lines) + stack.report()
+    assert planner_parameters(node, names) == before == ['linear', 0.05, 'spline']
+    # The planner's status named this goal; the controller's status the same goal id.
+    planner = node.values(node.planner_status)
+    assert planner['motion'] == 'parabolic' and planner['goal_id'] == node.goal_id
+    assert node.values(node.controller_status)['goal_id'] == node.goal_id

@@ -16,7 +16,12 @@ the home orientation. With ``--absolute`` A B C are base-frame ZYX angles, R = R
     goal joints 0.2 0.1 0.3 0 0.4 0                   # straight to /joint_demands
     goal stop                                         # the controller's ~/stop service
 
-The RESULT line gives the pose reached, in the goal's own convention.
+The RESULT line gives the pose reached, in the goal's own convention. ``--motion`` and
+``--shape`` pick the topic of that shape (/pose_goal/parabolic, /path_goal/arc ...);
+``--peak-height`` sends the parabola by its peak pose (/path_goal/parabolic, the Mover6 report's
+eq. 12). No node's parameters change. The command follows only its own goal: the planner's
+status names it by its stamp (``goal_stamp``), and the controller's status by the ``goal_id``
+the planner gave it.
 
 Exit codes: 0 arrived, 1 motion failed (fault, aborted, stopped, timed out), 2 goal refused or
 malformed, 3 nodes not found.
@@ -120,6 +125,7 @@ class GoalClient(Node):
         self.q = None
         self.last_demands = None
         self.rejection = None
+        self.goal_id = None          # the id of the goal being followed
         self.pose_pub = self.create_publisher(PoseStamped, 'pose_goal', 10)
         self.path_pub = self.create_publisher(PoseArray, 'path_goal', 10)
         self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
@@ -128,6 +134,7 @@ class GoalClient(Node):
                                  STATUS_QOS)
         self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
         self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
+        self.shape_pubs = {}         # topic -> publisher of the goal topics of one shape
         self.planner_params = AsyncParameterClient(self, planner_node)
         self.stop_client = self.create_client(Trigger, f'{controller_node}/stop')
 
@@ -140,8 +147,10 @@ class GoalClient(Node):
     def on_controller(self, msg):
         """Keep the controller's latest status, and note when it rejected a demand."""
         self.controller_status = msg
-        rejected = self.values(msg).get('rejected')
-        if rejected:
+        values = self.values(msg)
+        rejected = values.get('rejected')
+        if rejected and self.goal_id is not None and values.get('rejected_goal_id') in (
+                self.goal_id, ''):
             self.rejection = rejected
 
     def on_joint_states(self, msg):
@@ -247,36 +256,48 @@ class GoalClient(Node):
 
     # --- goals -----------------------------------------------------------------------------
 
-    def run_goal(self, publish, T_goal=None, planned=True, timeout=60.0, progress=None):
-        """
-        Publish a goal with ``publish()``, then follow it to its end.
+    def publisher(self, msg_type, topic):
+        """Return the publisher of ``topic`` (made on first use)."""
+        if topic not in self.shape_pubs:
+            self.shape_pubs[topic] = self.create_publisher(msg_type, topic, 10)
+        return self.shape_pubs[topic]
 
-        ``planned`` goals go through the planner (its status says planned or refused); others go
-        straight to /joint_demands. ``T_goal`` (4, 4), when given, yields the tool position error.
-        ``progress(text)`` is called about twice a second while the arm moves.
+    def run_goal(self, publish, T_goal=None, planned=True, timeout=60.0, progress=None,
+                 stamp=None, goal_id=None):
         """
-        seq0 = int(self.values(self.planner_status).get('goal_seq', 0))
-        motion0 = int(self.values(self.controller_status).get('motion_id', 0))
+        Publish a goal with ``publish()``, then follow it, and only it, to its end.
+
+        ``planned`` goals go through the planner: its status about the goal stamped ``stamp``
+        (a ``builtin_interfaces/Time``) says planned or refused and gives the goal's id; others
+        go straight to /joint_demands labelled ``goal_id``. The controller's status about that
+        id says how the motion ended. ``T_goal`` (4, 4), when given, yields the tool position
+        error. ``progress(text)`` is called about twice a second while the arm moves.
+        """
         self.last_demands = None
         self.rejection = None
+        self.goal_id = goal_id
         t0 = time.monotonic()
         publish()
         demands = None
         if planned:
+            mine = f'{stamp.sec}.{stamp.nanosec:09d}'
             if not self.spin_until(
-                    lambda: int(self.values(self.planner_status).get('goal_seq', 0)) > seq0,
-                    15.0):
+                    lambda: self.values(self.planner_status).get('goal_stamp') == mine, 15.0):
                 return Outcome(EXIT_FAILED, 'the planner did not answer within 15 s')
             status = self.planner_status
+            self.goal_id = self.values(status).get('goal_id')
             if status.level != DiagnosticStatus.OK:
                 return Outcome(EXIT_REFUSED, status.message, **self.values(status))
             self.spin_until(lambda: self.last_demands is not None, 5.0)
             demands = self.last_demands
 
+        def mine_now():
+            return self.values(self.controller_status).get('goal_id') == self.goal_id
+
         def motion_done():
             v = self.values(self.controller_status)
             return self.rejection is not None or (
-                int(v.get('motion_id', 0)) > motion0 and v.get('result') in FINAL_RESULTS)
+                mine_now() and v.get('result') in FINAL_RESULTS)
 
         last_print = [0.0]
 
@@ -284,8 +305,8 @@ class GoalClient(Node):
             if progress is None or time.monotonic() - last_print[0] < 0.5:
                 return
             v = self.values(self.controller_status)
-            if int(v.get('motion_id', 0)) <= motion0:
-                return   # the status still describes the previous motion
+            if not mine_now():
+                return   # the status still describes another motion
             last_print[0] = time.monotonic()
             text = (f'{v.get("state", "?")}: waypoint {v.get("waypoint", "?")} of '
                     f'{v.get("waypoints", "?")}')
@@ -316,29 +337,59 @@ class GoalClient(Node):
             return Outcome(EXIT_FAILED, self.controller_status.message, **figures)
         return Outcome(EXIT_ARRIVED, 'arrived', **figures)
 
-    def send_pose(self, T_goal, frame_id='base_link', **kwargs):
-        """Send a /pose_goal and follow it; see ``run_goal``."""
+    def send_pose(self, T_goal, frame_id='base_link', motion=None, peak_height=None,
+                  **kwargs):
+        """
+        Send a pose goal and follow it; see ``run_goal``.
+
+        ``motion`` None goes to /pose_goal (the planner's default shape), otherwise to
+        /pose_goal/<motion>. A ``peak_height`` [m] makes it a parabola through the mid-point of
+        the present tool position and the goal raised by that much along base z, sent by its
+        peak pose on /path_goal/parabolic.
+        """
+        if peak_height is not None:
+            if self.q is None:
+                return Outcome(EXIT_NO_NODES, 'no /joint_states: the start pose is unknown')
+            T_peak = fk(self.arm, self.q)
+            T_peak[:3, 3] = (0.5 * (T_peak[:3, 3] + T_goal[:3, 3])
+                             + np.array([0.0, 0.0, peak_height]))
+            return self.send_path(np.stack([T_peak, T_goal]), frame_id, shape='parabolic',
+                                  **kwargs)
         msg = PoseStamped()
         msg.header.frame_id = frame_id
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.pose = conversions.matrix_to_pose(T_goal)
-        return self.run_goal(lambda: self.pose_pub.publish(msg), T_goal=T_goal, **kwargs)
+        pub = self.pose_pub if motion is None else self.publisher(PoseStamped,
+                                                                  f'pose_goal/{motion}')
+        self.wait_matched(pub)
+        return self.run_goal(lambda: pub.publish(msg), T_goal=T_goal, stamp=msg.header.stamp,
+                             **kwargs)
 
-    def send_path(self, poses, frame_id='base_link', **kwargs):
-        """Send a /path_goal (via poses then the goal, (k, 4, 4)) and follow it."""
+    def send_path(self, poses, frame_id='base_link', shape=None, **kwargs):
+        """Send a path goal (via poses then the goal, (k, 4, 4)) and follow it."""
         msg = PoseArray()
         msg.header.frame_id = frame_id
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.poses = [conversions.matrix_to_pose(T) for T in poses]
-        return self.run_goal(lambda: self.path_pub.publish(msg), T_goal=poses[-1], **kwargs)
+        pub = self.path_pub if shape is None else self.publisher(PoseArray, f'path_goal/{shape}')
+        self.wait_matched(pub)
+        return self.run_goal(lambda: pub.publish(msg), T_goal=poses[-1], stamp=msg.header.stamp,
+                             **kwargs)
+
+    def wait_matched(self, pub, timeout=10.0):
+        """Wait until ``pub`` is matched with a reader (a topic made just now is not yet)."""
+        self.spin_until(lambda: pub.get_subscription_count() > 0, timeout)
 
     def send_joints(self, Q, **kwargs):
         """Send joint waypoints (n, 6) straight to /joint_demands and follow them."""
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
-        msg = conversions.make_demands(Q)
+        stamp = self.get_clock().now().to_msg()
+        goal_id = f'{self.get_name()}-{stamp.sec}.{stamp.nanosec:09d}'
+        msg = conversions.make_demands(Q, goal_id)
         if not self.spin_until(lambda: self.demands_pub.get_subscription_count() > 0, 10.0):
             return Outcome(EXIT_NO_NODES, 'no subscriber on /joint_demands')
         return self.run_goal(lambda: self.demands_pub.publish(msg), planned=False,
+                             goal_id=goal_id,
                              T_goal=fk(self.arm, Q[-1]), **kwargs)
 
 
@@ -389,8 +440,11 @@ def build_parser():
                       help='X Y Z A B C, or X Y Z QX QY QZ QW with --quat')
     pose.add_argument('--quat', action='store_true', help='orientation as a quaternion')
     pose.add_argument('--motion', choices=('linear', 'parabolic', 'joint'),
-                      help="set the planner's motion shape first")
-    pose.add_argument('--peak-height', type=float, help='parabolic peak height [m]')
+                      help="the goal's shape (its topic /pose_goal/<shape>; default: the "
+                           "planner's motion parameter)")
+    pose.add_argument('--peak-height', type=float,
+                      help='parabolic peak height [m] (sent as the peak pose on '
+                           '/path_goal/parabolic; default: the planner\'s peak_height)')
     path = sub.add_parser('path', parents=[common, angles],
                           help='move through via poses to the last pose (/path_goal)')
     # nargs='*': '--via' takes every number after it, goal included (the README's spelling).
@@ -399,7 +453,9 @@ def build_parser():
     path.add_argument('--via', type=float, nargs='+', default=[], metavar='N',
                       help='via poses (alternative spelling: put them before the goal)')
     path.add_argument('--quat', action='store_true', help='orientations as quaternions')
-    path.add_argument('--shape', choices=('spline', 'arc'), help="set the planner's path shape")
+    path.add_argument('--shape', choices=('spline', 'arc', 'parabolic'),
+                      help="the path's shape (its topic /path_goal/<shape>; parabolic: one via "
+                           "pose, the peak; default: the planner's path_motion parameter)")
     joints = sub.add_parser('joints', parents=[common],
                             help='send joint waypoints straight to /joint_demands')
     joints.add_argument('numbers', type=float, nargs='+', metavar='Q',
@@ -447,25 +503,17 @@ def run(argv, client=None, out=print):
     if problem:
         out(f'RESULT failed: {problem}')
         return EXIT_NO_NODES
-    params = {}
-    if args.command == 'pose' and args.motion:
-        params['motion'] = args.motion
-    if args.command == 'pose' and args.peak_height is not None:
-        params['peak_height'] = args.peak_height
-    if args.command == 'path' and args.shape:
-        params['path_motion'] = args.shape
-    problem = client.set_planner_parameters(params)
-    if problem:
-        out(f'RESULT failed: {problem}')
-        return EXIT_NO_NODES
-
     kwargs = {'timeout': args.timeout, 'progress': say}
     if args.command == 'pose':
+        if args.peak_height is not None and args.motion not in (None, 'parabolic'):
+            out(f'RESULT refused: --peak-height is for parabolic moves, not {args.motion}')
+            return EXIT_REFUSED
         say(f'sending pose goal {np.round(targets[0][:3, 3], 4).tolist()} m')
-        outcome = client.send_pose(targets[0], frame_id=args.frame, **kwargs)
+        outcome = client.send_pose(targets[0], frame_id=args.frame, motion=args.motion,
+                                   peak_height=args.peak_height, **kwargs)
     elif args.command == 'path':
         say(f'sending path goal with {len(targets) - 1} via poses')
-        outcome = client.send_path(targets, frame_id=args.frame, **kwargs)
+        outcome = client.send_path(targets, frame_id=args.frame, shape=args.shape, **kwargs)
     else:
         say(f'sending {len(targets)} joint waypoints')
         outcome = client.send_joints(targets, **kwargs)
