@@ -1,5 +1,5 @@
 """
-The controller's ``control_msgs/action/FollowJointTrajectory`` server (``follow_joint_trajectory``).
+The controller's ``control_msgs/action/FollowJointTrajectory`` server.
 
 What MoveIt and every tool that executes joint trajectories talk to, at the name
 joint_trajectory_controller uses (``/controller/follow_joint_trajectory``). A goal's joints come
@@ -218,4 +218,3 @@ class FollowJointTrajectoryServer:
         msg.actual = JointTrajectoryPoint(positions=[float(v) for v in actual])
         msg.error = JointTrajectoryPoint(positions=error)
         return msg
-

@@ -261,8 +261,10 @@ def plan_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
                    T_goal: np.ndarray, motion: str = 'spline',
                    settings: PlannerSettings = PlannerSettings()):
     """
-    Plan a move through via poses (k, 4, 4) to ``T_goal``: 'spline', 'arc' (one via pose) or
-    'parabolic' (one via pose: the peak, the Mover6 report's eq. 12; its position is used).
+    Plan a move through via poses (k, 4, 4) to ``T_goal``.
+
+    ``motion`` is 'spline', 'arc' (one via pose) or 'parabolic' (one via pose: the peak, the
+    Mover6 report's eq. 12; its position is used).
 
     Raises ``UnreachableError`` or ``InvalidInputError`` as ``plan_pose_goal`` does.
     """

@@ -444,7 +444,7 @@ def build_parser():
                            "planner's motion parameter)")
     pose.add_argument('--peak-height', type=float,
                       help='parabolic peak height [m] (sent as the peak pose on '
-                           '/path_goal/parabolic; default: the planner\'s peak_height)')
+                           "/path_goal/parabolic; default: the planner's peak_height)")
     path = sub.add_parser('path', parents=[common, angles],
                           help='move through via poses to the last pose (/path_goal)')
     # nargs='*': '--via' takes every number after it, goal included (the README's spelling).
