@@ -200,6 +200,10 @@ CONTROLLER = _table(
       read_only=True),
     P('status_rate', 'float', 5.0, 'Hz', 'rate of /controller/status between state changes',
       0.1, 100.0),
+    P('tick_priority', 'int', 0, '',
+      'real-time priority (SCHED_FIFO 1 to 99) of the tick thread; 0 = off (normal '
+      'scheduling); refused without the right (logged once); set at start', 0, 99,
+      read_only=True),
 )
 
 SIM_BRIDGE = _table(

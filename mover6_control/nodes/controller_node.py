@@ -209,6 +209,7 @@ class ControllerNode(Node):
 
     def tick_loop(self, period):
         """Call ``on_tick`` every ``period`` [s] of the node's clock until the node closes."""
+        self.set_tick_priority(self.get_parameter('tick_priority').value)
         clock = self.get_clock()
         step = Duration(seconds=period)
         deadline = clock.now()
@@ -228,6 +229,26 @@ class ControllerNode(Node):
                 self.on_tick()
         if watchdog > 0.0:
             faulthandler.cancel_dump_traceback_later()
+
+    def set_tick_priority(self, priority):
+        """
+        Run the calling (tick) thread at real-time priority ``priority`` (SCHED_FIFO); 0: as is.
+
+        As ros2_control's controller manager does: where the system refuses it (no
+        CAP_SYS_NICE, no rtprio limit), say so once and go on with normal scheduling.
+        """
+        if priority <= 0:
+            return
+        try:
+            os.sched_setscheduler(threading.get_native_id(), os.SCHED_FIFO,
+                                  os.sched_param(priority))
+        except (OSError, AttributeError) as err:
+            self.get_logger().warning(
+                f'tick_priority {priority}: real-time scheduling refused ({err}); the tick '
+                'thread runs at normal priority (allow it with an rtprio limit in '
+                '/etc/security/limits.conf or CAP_SYS_NICE)')
+            return
+        self.get_logger().info(f'tick thread at SCHED_FIFO priority {priority}')
 
     def destroy_node(self):
         """Stop the tick thread, send a last zero command, then destroy the node."""
