@@ -1,9 +1,28 @@
 """
-Exceptions shared by the ROS-free core.
+Exceptions shared by the ROS-free core, and the one table of reasons for refusing a goal.
 
 Every error raised by the core on bad input is a ``ValueError`` subclass, so callers (the nodes)
 can catch one type, log ``str(err)`` and drop the input.
 """
+
+from __future__ import annotations
+
+# The reason codes of ``UnreachableError.reason`` and of a reachability verdict
+# (``kinematics.reachability.Verdict.reason``), each with its meaning. The planner node sends the
+# code with its refusal; the goal CLI and the demo print it.
+REASONS = {
+    'reachable': 'not a refusal: the verdict of a pose or path that can be reached',
+    'out_of_reach': 'no configuration puts the tool at the pose, within the joint limits or not '
+                    '(outside the workspace), or the last waypoint misses the goal',
+    'joint_limits': 'the pose is reachable only with a joint outside its limits',
+    'singularity': 'the pose or path needs the arm at or moving towards a singular '
+                   'configuration (Jacobian condition number above max_condition)',
+    'discontinuity': 'two consecutive waypoints need a joint step above max_joint_step (the '
+                     'path would switch IK branch)',
+    'not_controllable': 'the joint path cannot be timed within the velocity and acceleration '
+                        'limits (continuous timing)',
+    'unreachable': 'unreachable, for no more specific reason (the default)',
+}
 
 
 class Mover6Error(Exception):
@@ -15,9 +34,9 @@ class InvalidInputError(Mover6Error, ValueError):
 
 
 class UnreachableError(Mover6Error, ValueError):
-    """A pose or path cannot be reached; ``reason`` is a short machine-readable code."""
+    """A pose or path cannot be reached; ``reason`` is a code of ``REASONS``."""
 
-    def __init__(self, message, reason='unreachable', details=None):
+    def __init__(self, message: str, reason: str = 'unreachable', details: dict | None = None):
         super().__init__(message)
         self.reason = reason
         self.details = dict(details or {})

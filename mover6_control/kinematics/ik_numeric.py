@@ -19,7 +19,8 @@ both tolerances wins; otherwise the lowest-cost configuration seen is returned w
 from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.rotations import as_finite_array, validate_transform
+from mover6_control.kinematics.rotations import validate_transform
+from mover6_control.validation import as_finite_array
 import numpy as np
 
 DEFAULT_WEIGHTS = (1.0, 1.0, 1.0, 0.01, 0.01, 0.01)  # 1 rad weighs as 0.1 m
