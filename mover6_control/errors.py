@@ -7,9 +7,10 @@ can catch one type, log ``str(err)`` and drop the input.
 
 from __future__ import annotations
 
-# The reason codes of ``UnreachableError.reason`` and of a reachability verdict
-# (``kinematics.reachability.Verdict.reason``), each with its meaning. The planner node sends the
-# code with its refusal; the goal CLI and the demo print it.
+# The reason codes of ``UnreachableError.reason``, of a reachability verdict
+# (``kinematics.reachability.Verdict.reason``) and of the planner node's refusals, each with its
+# meaning. The planner node sends the code with its refusal on /planner/status; the goal CLI and
+# the demo print it.
 REASONS = {
     'reachable': 'not a refusal: the verdict of a pose or path that can be reached',
     'out_of_reach': 'no configuration puts the tool at the pose, within the joint limits or not '
@@ -22,6 +23,9 @@ REASONS = {
     'not_controllable': 'the joint path cannot be timed within the velocity and acceleration '
                         'limits (continuous timing)',
     'unreachable': 'unreachable, for no more specific reason (the default)',
+    'invalid_goal': 'the goal or the present state cannot be planned from: a malformed pose, '
+                    'a bad setting, or joint states too old to know the current pose',
+    'no_controller': 'nothing subscribes to /joint_demands: the plan would reach no controller',
 }
 
 

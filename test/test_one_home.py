@@ -8,6 +8,8 @@ make every reader ask which one is meant; two copies of a table (``REASONS``) dr
 import ast
 import os
 
+from mover6_control.errors import REASONS
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
@@ -52,3 +54,26 @@ def test_shared_concepts_are_defined_once():
         if name in found:
             found[name].append(path.replace(os.sep, '/'))
     assert found == homes
+
+
+def test_every_reason_code_is_in_the_one_table():
+    """Each literal reason given to UnreachableError, a Verdict or a refusal has a meaning."""
+    codes = set()
+    for package in ('mover6_control', 'sim_bridge'):
+        for folder, _, files in os.walk(os.path.join(ROOT, package)):
+            for name in (f for f in files if f.endswith('.py')):
+                path = os.path.join(folder, name)
+                with open(path) as f:
+                    tree = ast.parse(f.read(), path)
+                for node in ast.walk(tree):
+                    if not isinstance(node, ast.Call):
+                        continue
+                    args = [k.value for k in node.keywords if k.arg == 'reason']
+                    func = node.func.attr if isinstance(node.func, ast.Attribute) else \
+                        getattr(node.func, 'id', '')
+                    if func == 'refuse' and len(node.args) >= 3:
+                        args.append(node.args[2])
+                    codes |= {a.value for a in args
+                              if isinstance(a, ast.Constant) and isinstance(a.value, str)}
+    assert {'out_of_reach', 'joint_limits', 'invalid_goal'} <= codes      # the scan finds them
+    assert codes - set(REASONS) == set()
