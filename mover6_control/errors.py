@@ -1,9 +1,32 @@
 """
-Exceptions shared by the ROS-free core.
+Exceptions shared by the ROS-free core, and the one table of reasons for refusing a goal.
 
 Every error raised by the core on bad input is a ``ValueError`` subclass, so callers (the nodes)
 can catch one type, log ``str(err)`` and drop the input.
 """
+
+from __future__ import annotations
+
+# The reason codes of ``UnreachableError.reason``, of a reachability verdict
+# (``kinematics.reachability.Verdict.reason``) and of the planner node's refusals, each with its
+# meaning. The planner node sends the code with its refusal on /planner/status; the goal CLI and
+# the demo print it.
+REASONS = {
+    'reachable': 'not a refusal: the verdict of a pose or path that can be reached',
+    'out_of_reach': 'no configuration puts the tool at the pose, within the joint limits or not '
+                    '(outside the workspace), or the last waypoint misses the goal',
+    'joint_limits': 'the pose is reachable only with a joint outside its limits',
+    'singularity': 'the pose or path needs the arm at or moving towards a singular '
+                   'configuration (Jacobian condition number above max_condition)',
+    'discontinuity': 'two consecutive waypoints need a joint step above max_joint_step (the '
+                     'path would switch IK branch)',
+    'not_controllable': 'the joint path cannot be timed within the velocity and acceleration '
+                        'limits (continuous timing)',
+    'unreachable': 'unreachable, for no more specific reason (the default)',
+    'invalid_goal': 'the goal or the present state cannot be planned from: a malformed pose, '
+                    'a bad setting, or joint states too old to know the current pose',
+    'no_controller': 'nothing subscribes to /joint_demands: the plan would reach no controller',
+}
 
 
 class Mover6Error(Exception):
@@ -15,7 +38,7 @@ class InvalidInputError(Mover6Error, ValueError):
 
 
 class UnreachableError(Mover6Error, ValueError):
-    """A pose or path cannot be reached; ``reason`` is a short machine-readable code."""
+    """A pose or path cannot be reached; ``reason`` is a code of ``REASONS``."""
 
     def __init__(self, message: str, reason: str = 'unreachable',
                  details: dict | None = None) -> None:

@@ -2,12 +2,12 @@
 
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from mover6_control.errors import InvalidInputError, UnreachableError
+from mover6_control.errors import InvalidInputError, REASONS, UnreachableError
 from mover6_control.kinematics.arm import from_dh, minibot, mover6
 from mover6_control.kinematics.forward import condition_number, fk, fk_batch
 from mover6_control.kinematics.ik_closed_form import (ik_closed_form, nearest_alias,
                                                       solve_candidates, wrist_geometry)
-from mover6_control.kinematics.path_ik import (branch_steps, holds_pose, PathSolution, REASONS,
+from mover6_control.kinematics.path_ik import (branch_steps, holds_pose, PathSolution,
                                                single_turn, solve_path)
 from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc
 import numpy as np

@@ -124,17 +124,6 @@ def test_circle_of_known_points():
     assert ang_b == pytest.approx(np.pi / 2) and ang_c == pytest.approx(np.pi)
 
 
-def test_directional_and_hold():
-    poses = paths.directional_path(T0, [0.0, 0.0, 2.0], 0.2, max_step=0.01)
-    assert len(poses) == 21
-    assert np.allclose(poses[-1, :3, 3] - T0[:3, 3], [0.0, 0.0, 0.2])
-    assert np.allclose(poses[:, :3, :3], T0[:3, :3])
-    held = paths.hold_path(T0, 5)
-    assert held.shape == (5, 4, 4) and np.all(held == T0)
-    joined = paths.concatenate(poses, paths.hold_path(poses[-1], 3))
-    assert len(joined) == len(poses) + 2
-
-
 @settings(max_examples=30, deadline=None)
 @given(st.lists(st.floats(-1.0, 1.0), min_size=6, max_size=6),
        st.lists(st.floats(-3.0, 3.0), min_size=6, max_size=6), st.integers(2, 40))
@@ -169,9 +158,6 @@ BAD[0, 0] = 2.0
     lambda: paths.spline_path(T0, np.zeros((1, 3)), T1, n=5),
     lambda: paths.arc_path(T0, (T0[:3, 3] + T1[:3, 3]) / 2, T1, n=5),
     lambda: paths.arc_path(T0, T1[:3, 3], T1, n=5),
-    lambda: paths.directional_path(T0, [0.0, 0.0, 0.0], 0.1, n=5),
-    lambda: paths.directional_path(T0, [0.0, 0.0, 1.0], -0.1, n=5),
-    lambda: paths.hold_path(T0, 0),
 ])
 def test_bad_input_raises(call):
     with pytest.raises(InvalidInputError):

@@ -1,9 +1,9 @@
 """Reachability verdicts: the Mover6 report's example goal in both readings, and every reason."""
 
-from mover6_control.errors import InvalidInputError
+from mover6_control.errors import InvalidInputError, REASONS
 from mover6_control.kinematics.arm import from_dh, mover6
 from mover6_control.kinematics.forward import fk, fk_batch
-from mover6_control.kinematics.reachability import check_path, check_pose, REASONS, Verdict
+from mover6_control.kinematics.reachability import check_path, check_pose, Verdict
 from mover6_control.kinematics.rotations import euler_zyx_to_matrix, pose_error, pose_from_xyzabc
 import numpy as np
 import pytest

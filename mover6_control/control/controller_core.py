@@ -1,7 +1,7 @@
 """
 The controller without ROS: joint states and demands in, one velocity command per tick out.
 
-``ControllerCore`` owns the state machine (``state_machine``), the running ``Plan``
+``ControllerCore`` owns the state machine (``state_machine``), the running ``MotionPlan``
 (``velocity_laws``) and the safety checks. The node calls ``on_joint_states``,
 ``on_invalid_states``, ``on_demands``, ``request_stop`` and ``reset`` from its callbacks and
 ``tick(now)`` from its timer, and publishes what comes back. Time is always an argument [s], so
@@ -38,16 +38,20 @@ move two ticks, a wrist goal between two ticks may not settle, and the motion th
 'aborted' after ``settle_timeout`` rather than 'arrived' out of tolerance.
 """
 
+from __future__ import annotations
+
 from collections import deque
 from dataclasses import dataclass, field
+from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
 from mover6_control.control.velocity_laws import (closed_loop_command, dead_zone_command,
                                                   driver_velocity_limits, guard_position_limits,
-                                                  JOG_UNITS, LawConfig, min_jog_speed, plan_motion,
-                                                  plan_stop, to_jog_units)
+                                                  JOG_UNITS, LawConfig, min_jog_speed, MotionPlan,
+                                                  plan_motion, plan_stop, to_jog_units)
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.arm import MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
+from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
+from mover6_control.validation import as_positive
 import numpy as np
 
 
@@ -82,9 +86,7 @@ class ControllerConfig:
     def __post_init__(self):
         """Check every setting."""
         for name in ('state_timeout', 'settle_timeout', 'path_tolerance', 'rate'):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0.0):
-                raise InvalidInputError(f'{name} must be positive, got {value}')
+            as_positive(getattr(self, name), name)
         if not (np.isfinite(self.position_gain) and self.position_gain >= 0.0):
             raise InvalidInputError(f'position_gain must be >= 0, got {self.position_gain}')
         tol = np.asarray(self.goal_tolerance, dtype=float)
@@ -135,7 +137,7 @@ class PendingDemand:
 
     now: float
     waypoints: np.ndarray
-    plan: object
+    plan: MotionPlan
     moving: bool
     motion_id: int
 
@@ -143,7 +145,7 @@ class PendingDemand:
 class ControllerCore:
     """The controller's logic for one arm; see the module docstring."""
 
-    def __init__(self, arm, config=None):
+    def __init__(self, arm: ArmModel, config: Optional[ControllerConfig] = None):
         """Make a controller for ``arm`` (an ``ArmModel``) with ``config``."""
         self.arm = arm
         self.config = ControllerConfig() if config is None else config
@@ -201,28 +203,29 @@ class ControllerCore:
         self._tol = np.maximum(self._tol, ticks)
 
     @property
-    def goal_tolerance(self):
+    def goal_tolerance(self) -> np.ndarray:
         """Return the goal tolerance (n,) [rad] in use (at least one tick in fraction_of_max)."""
         return self._tol.copy()
 
     # --- inputs -------------------------------------------------------------------------------
 
     @property
-    def state(self):
+    def state(self) -> str:
         """Return the current state name (``state_machine.STATES``)."""
         return self._state
 
     @property
-    def motion_id(self):
+    def motion_id(self) -> int:
         """Return the id of the latest accepted demand (0 before any)."""
         return self._motion_id
 
     @property
-    def plan(self):
-        """Return the running ``Plan`` (None when none)."""
+    def plan(self) -> Optional[MotionPlan]:
+        """Return the running ``MotionPlan`` (None when none)."""
         return self._plan
 
-    def on_joint_states(self, now, q, qd=None):
+    def on_joint_states(self, now: float, q: Sequence[float],
+                        qd: Optional[Sequence[float]] = None) -> None:
         """Take valid measured positions (n,) [rad] received at ``now`` [s]."""
         q = self.arm.check_q(q, 'joint_states position')
         self._q = q
@@ -233,11 +236,11 @@ class ControllerCore:
         self._bad_states = None
         self._n_states += 1
 
-    def on_invalid_states(self, now, reason):
+    def on_invalid_states(self, now: float, reason: str) -> None:
         """Note joint states rejected at ``now`` [s] (missing joints, non-finite): fault."""
         self._bad_states = str(reason)
 
-    def on_demands(self, now, waypoints):
+    def on_demands(self, now: float, waypoints: np.ndarray) -> int:
         """
         Accept waypoints (N, n) [rad] at ``now`` [s] and return the new motion id.
 
@@ -248,7 +251,7 @@ class ControllerCore:
         """
         return self.commit_demand(self.prepare_demand(now, waypoints))
 
-    def prepare_demand(self, now, waypoints):
+    def prepare_demand(self, now: float, waypoints: np.ndarray) -> PendingDemand:
         """
         Check a demand and plan it from the present reference; return a ``PendingDemand``.
 
@@ -279,7 +282,7 @@ class ControllerCore:
         plan = plan_motion(self.config.law, q_start, Q, self._vlim, qd_start)
         return PendingDemand(now, Q, plan, moving, self._motion_id)
 
-    def commit_demand(self, pending):
+    def commit_demand(self, pending: PendingDemand) -> int:
         """
         Start a prepared demand (time counts from when it was prepared); return the motion id.
 
@@ -301,7 +304,7 @@ class ControllerCore:
                                    f'{plan.duration:.2f} s')
         return self._motion_id
 
-    def is_current(self, pending):
+    def is_current(self, pending: PendingDemand) -> bool:
         """
         Return whether ``pending`` still fits the controller (``commit_demand`` would not re-plan).
 
@@ -317,7 +320,7 @@ class ControllerCore:
             raise InvalidInputError(f'cannot take a demand while {self._state}: '
                                     f'{self._message}')
 
-    def request_stop(self, now):
+    def request_stop(self, now: float) -> tuple[bool, str]:
         """Decelerate to rest and hold; return ``(True, message)`` or why nothing moved."""
         if self._state not in (sm.EXECUTING, sm.SETTLING):
             return True, f'not moving ({self._state}); command is zero'
@@ -327,7 +330,7 @@ class ControllerCore:
         self._set(sm.STOP, 'OK', f'stopping motion {self._motion_id} on request')
         return True, f'stopping within {self._plan.duration:.2f} s'
 
-    def reset(self, now):
+    def reset(self, now: float) -> None:
         """Leave fault: wait for fresh joint states again."""
         if self._state == sm.FAULT:
             self._q = None
@@ -335,7 +338,7 @@ class ControllerCore:
 
     # --- the tick -----------------------------------------------------------------------------
 
-    def tick(self, now):
+    def tick(self, now: float) -> TickOutput:
         """Return the ``TickOutput`` at ``now`` [s]: check the states, run the law."""
         self._check_states(now)
         state = self._state
@@ -498,7 +501,7 @@ class ControllerCore:
 
     # --- status -------------------------------------------------------------------------------
 
-    def status(self):
+    def status(self) -> Status:
         """Return the ``Status`` to publish now (state, level, reason, figures)."""
         moving = self._state in sm.MOVING_STATES
         error = self._error if moving else np.zeros(self.arm.n_joints)

@@ -4,13 +4,19 @@ One joint of the arm: what the Mover6 report's ``Joint`` class holds, as a small
 The Mover6 report keeps per joint a name, the measured value, the demand, the state at the start of
 the move and a velocity, and computes the sign of the move and the trapezoidal velocity (eq.
 16-18). This keeps the same facts plus the joint's limits, and fixes the report's sign at zero
-distance (a division by zero there: here a joint at its demand has direction 0).
+distance (a division by zero there: here a joint at its demand has direction 0). The trapezoid
+itself is the one of ``motion.time_laws``.
 """
+
+from __future__ import annotations
 
 from dataclasses import dataclass, replace
 import math
+from typing import Optional
 
 from mover6_control.errors import InvalidInputError
+from mover6_control.motion.time_laws import trapezoidal
+from mover6_control.validation import as_positive
 
 
 @dataclass(frozen=True)
@@ -40,18 +46,16 @@ class Joint:
         if math.isnan(self.lower) or math.isnan(self.upper) or self.lower > self.upper:
             raise InvalidInputError(
                 f'joint {self.name}: limits [{self.lower}, {self.upper}] are not an interval')
-        if not (math.isfinite(self.velocity_limit) and self.velocity_limit > 0.0):
-            raise InvalidInputError(
-                f'joint {self.name}: velocity limit must be positive, got {self.velocity_limit}')
+        as_positive(self.velocity_limit, f'joint {self.name}: velocity limit')
         for field in ('q', 'qd', 'demand', 'q_initial'):
             if not math.isfinite(getattr(self, field)):
                 raise InvalidInputError(f'joint {self.name}: {field} is not finite')
 
-    def with_measurement(self, q, qd=0.0):
+    def with_measurement(self, q: float, qd: float = 0.0) -> Joint:
         """Return a copy with a new measured position [rad] and velocity [rad/s]."""
         return replace(self, q=float(q), qd=float(qd))
 
-    def with_demand(self, demand):
+    def with_demand(self, demand: float) -> Joint:
         """
         Return a copy sent to ``demand`` [rad], remembering the present position as the start.
 
@@ -64,49 +68,34 @@ class Joint:
                 f'[{self.lower:.4f}, {self.upper:.4f}]')
         return replace(self, demand=demand, q_initial=self.q)
 
-    def within_limits(self, q, tol=1e-9):
+    def within_limits(self, q: float, tol: float = 1e-9) -> bool:
         """Return True when ``q`` [rad] is inside the limits, with ``tol`` [rad]."""
         return self.lower - tol <= q <= self.upper + tol
 
     @property
-    def distance_to_go(self):
+    def distance_to_go(self) -> float:
         """Return ``demand - q`` [rad], signed."""
         return self.demand - self.q
 
     @property
-    def direction(self):
+    def direction(self) -> float:
         """Return the sign of the move still to go: -1, 0 or +1 (the Mover6 report's ``Sign``)."""
         d = self.distance_to_go
         return 0.0 if d == 0.0 else math.copysign(1.0, d)
 
-    def trapezoidal_velocity(self, t, t_max, t_blend=None):
+    def trapezoidal_velocity(self, t: float, t_max: float,
+                             t_blend: Optional[float] = None) -> float:
         """
         Return the trapezoidal velocity [rad/s] at ``t`` [s] after the start (Mover6 report 16-18).
 
         ``V_max = |demand - q_initial| / (t_max - t_blend)`` (eq. 16); the velocity ramps up
-        over ``t_blend``, holds ``V_max`` and ramps down to zero at ``t_max`` (eq. 18), so its
-        integral is ``demand - q_initial`` (eq. 19). The sign is that of ``demand - q_initial``
-        (the planned move): unlike the report's ``Sign()`` of the remaining distance, it does not
-        flip when the joint overshoots; correcting that is the closed loop's job.
+        over ``t_blend`` (default ``t_max / 4``), holds ``V_max`` and ramps down to zero at
+        ``t_max`` (eq. 18), so its integral is ``demand - q_initial`` (eq. 19): the profile of
+        ``time_laws.trapezoidal``. The sign is that of ``demand - q_initial`` (the planned move):
+        unlike the report's ``Sign()`` of the remaining distance, it does not flip when the joint
+        overshoots; correcting that is the closed loop's job.
         """
-        t_blend = t_max / 4.0 if t_blend is None else t_blend
-        check_trapezoid_times(t_max, t_blend)
-        delta = self.demand - self.q_initial
-        v_max = abs(delta) / (t_max - t_blend)
-        sign = 0.0 if delta == 0.0 else math.copysign(1.0, delta)
+        law = trapezoidal(t_max, t_blend)
         if t < 0.0 or t >= t_max:
             return 0.0
-        if t < t_blend:
-            return sign * v_max / t_blend * t
-        if t < t_max - t_blend:
-            return sign * v_max
-        return sign * v_max * (1.0 - (t - (t_max - t_blend)) / t_blend)
-
-
-def check_trapezoid_times(t_max, t_blend):
-    """Raise unless ``0 < t_blend < t_max / 2`` (the Mover6 report: a symmetric trapezoid)."""
-    if not (math.isfinite(t_max) and t_max > 0.0):
-        raise InvalidInputError(f't_max must be positive, got {t_max}')
-    if not (math.isfinite(t_blend) and 0.0 < t_blend < t_max / 2.0):
-        raise InvalidInputError(
-            f't_blend must satisfy 0 < t_blend < t_max / 2 = {t_max / 2.0}, got {t_blend}')
+        return float((self.demand - self.q_initial) * law.evaluate(t / t_max, 1) / t_max)

@@ -14,6 +14,8 @@ Any (state, event) pair not in ``TRANSITIONS`` leaves the state unchanged: that 
 (for example a stop request while idle, or a stale-state event while already in fault).
 """
 
+from __future__ import annotations
+
 WAITING_FOR_STATES = 'waiting_for_states'
 IDLE = 'idle'
 EXECUTING = 'executing'
@@ -66,7 +68,7 @@ MOVING_STATES = frozenset({EXECUTING, SETTLING, STOPPING})
 ACCEPTS_DEMANDS = frozenset(state for state, event in TRANSITIONS if event == DEMAND)
 
 
-def step(state, event):
+def step(state: str, event: str) -> str:
     """
     Return the state after ``event`` in ``state`` (unchanged when the table has no entry).
 
@@ -79,6 +81,6 @@ def step(state, event):
     return TRANSITIONS.get((state, event), state)
 
 
-def accepts(state, event):
+def accepts(state: str, event: str) -> bool:
     """Return True when ``event`` has a transition out of ``state`` in the table."""
     return (state, event) in TRANSITIONS

@@ -1,17 +1,19 @@
 """
 The controller's velocity laws behind one small interface, plus closed loop and limits.
 
-A law turns the start state and the waypoints (N, n) [rad] into a ``Plan``: a reference
+A law turns the start state and the waypoints (N, n) [rad] into a ``MotionPlan``: a reference
 ``sample(t) -> (q_ref, qd_ref)`` over ``[0, duration]`` [s]. The four laws:
 
 - ``synchronised``: the Mover6 report eq. 1-2. Per waypoint, the joint with the furthest to go
   moves at ``lambda_max`` and sets ``t_max``; every joint moves at ``(q_k - q_{k-1}) / t_max`` so
   all arrive together; the arm stops at each waypoint.
 - ``trapezoidal``: the Mover6 report eq. 16-18 per waypoint: ``V_max = |dq| / (t_max - t_blend)``,
-  ramps of ``t_blend`` (default ``t_max / 4``); stops at each waypoint.
-- ``jerk_limited``: ruckig, rest to rest per waypoint, within velocity, ``a_max`` and ``j_max``.
+  ramps of ``t_blend`` (default ``t_max / 4``); stops at each waypoint. The profile is the one
+  of ``motion.time_laws.trapezoidal``.
+- ``jerk_limited``: ruckig, rest to rest per waypoint, within velocity, ``a_max`` and ``j_max``
+  (``motion.trajectories.ruckig_trajectory``).
 - ``continuous``: the motion library's time-parameterised trajectory through all waypoints,
-  without stopping at each (``mover6_control.timing.time_parameterize``).
+  without stopping at each (``motion.timing.time_parameterize``).
 
 Every law respects the joints' velocity limits by one common factor that stretches time (so the
 direction of motion and the synchronised arrival are kept). A plan started while the arm moves
@@ -28,14 +30,20 @@ per cycle (the Mover6's vendor driver), ``dead_zone_command`` lifts commands too
 tick up to ``min_jog_speed`` while the error exceeds half a tick (see ``controller_core``).
 """
 
+from __future__ import annotations
+
 import bisect
 from dataclasses import dataclass
+from typing import Optional, Sequence
 
+from mover6_control.errors import InvalidInputError
 # Imported with this module, not lazily in the first continuous demand's callback: that import
 # (scipy.interpolate; 0.1 s idle, far longer on a loaded machine) held up the controller.
-from mover6_control.control.joint import check_trapezoid_times
-from mover6_control.errors import InvalidInputError
 from mover6_control.motion import timing
+from mover6_control.motion.time_laws import trapezoid_times, trapezoidal
+from mover6_control.motion.trajectories import (JointTrajectory, ruckig_trajectory,
+                                                TimeLawTrajectory)
+from mover6_control.validation import as_positive
 import numpy as np
 
 PROFILES = ('synchronised', 'trapezoidal', 'jerk_limited', 'continuous')
@@ -64,13 +72,11 @@ class LawConfig:
         if self.profile not in PROFILES:
             raise InvalidInputError(f'profile must be one of {PROFILES}, got "{self.profile}"')
         for name in ('lambda_max', 't_max', 'a_max', 'j_max'):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0.0):
-                raise InvalidInputError(f'{name} must be positive, got {value}')
-        check_trapezoid_times(self.t_max, self.blend)
+            as_positive(getattr(self, name), name)
+        trapezoid_times(self.t_max, self.blend)
 
     @property
-    def blend(self):
+    def blend(self) -> float:
         """Return ``t_blend`` [s], defaulting to ``t_max / 4`` (the Mover6 report)."""
         return self.t_max / 4.0 if self.t_blend in (None, 0.0) else float(self.t_blend)
 
@@ -85,39 +91,12 @@ class ConstantVelocitySegment:
     q1: np.ndarray
     duration: float
 
-    def sample(self, tau):
+    def sample(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(q, qd)`` at ``tau`` [s] into the segment."""
         if self.duration <= 0.0:
             return self.q1, np.zeros_like(self.q1)
         qd = (self.q1 - self.q0) / self.duration
         return self.q0 + qd * tau, qd
-
-
-@dataclass(frozen=True, eq=False)
-class TrapezoidSegment:
-    """Mover6 report eq. 16-18 for every joint over the common ``duration`` and ``blend``."""
-
-    q0: np.ndarray
-    q1: np.ndarray
-    duration: float
-    blend: float
-
-    @property
-    def v_max(self):
-        """Return the signed plateau velocities (n,) [rad/s] of eq. 16."""
-        return (self.q1 - self.q0) / (self.duration - self.blend)
-
-    def sample(self, tau):
-        """Return ``(q, qd)`` at ``tau`` [s]: eq. 18 and its integral (eq. 19)."""
-        T, tb, v = self.duration, self.blend, self.v_max
-        if tau < tb:
-            return self.q0 + v * tau * tau / (2.0 * tb), v * (tau / tb)
-        if tau < T - tb:
-            return self.q0 + v * (tau - tb / 2.0), v
-        if tau < T:
-            rest = T - tau
-            return self.q1 - v * rest * rest / (2.0 * tb), v * (rest / tb)
-        return self.q1, np.zeros_like(self.q1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,11 +108,11 @@ class DecelerationSegment:
     duration: float
 
     @property
-    def q1(self):
+    def q1(self) -> np.ndarray:
         """Return the position [rad] where the ramp comes to rest."""
         return self.q0 + self.qd0 * self.duration / 2.0
 
-    def sample(self, tau):
+    def sample(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(q, qd)`` at ``tau`` [s]."""
         if tau >= self.duration:
             return self.q1, np.zeros_like(self.q0)
@@ -143,27 +122,24 @@ class DecelerationSegment:
 
 @dataclass(frozen=True, eq=False)
 class TrajectorySegment:
-    """A trajectory object with ``duration`` and ``sample(t) -> (q, qd, ...)`` or ruckig's."""
+    """A ``motion.trajectories.JointTrajectory`` played until ``duration``, then held at ``q1``."""
 
-    trajectory: object
+    trajectory: JointTrajectory
     duration: float
     q1: np.ndarray
 
-    def sample(self, tau):
+    def sample(self, tau: float) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(q, qd)`` at ``tau`` [s]."""
         if tau >= self.duration:
             return self.q1, np.zeros_like(self.q1)
-        if hasattr(self.trajectory, 'at_time'):      # ruckig.Trajectory
-            q, qd, _ = self.trajectory.at_time(tau)
-        else:                                        # mover6_control JointTrajectory
-            q, qd = self.trajectory.sample(tau)[:2]
+        q, qd = self.trajectory.sample(tau)[:2]
         return np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
 
 
 # --- the plan: segments in a row ------------------------------------------------------------
 
 @dataclass(frozen=True, eq=False)
-class Plan:
+class MotionPlan:
     """
     A reference made of segments in a row, and when each waypoint is reached.
 
@@ -185,36 +161,36 @@ class Plan:
         object.__setattr__(self, '_duration', t)
 
     @property
-    def duration(self):
+    def duration(self) -> float:
         """Return the total duration [s]."""
         return self._duration
 
     @property
-    def q_goal(self):
+    def q_goal(self) -> np.ndarray:
         """Return the last waypoint (n,) [rad]."""
         return self.waypoints[-1]
 
-    def sample(self, t):
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(q_ref, qd_ref)`` (n,) [rad], [rad/s] at ``t`` [s] after the start."""
         if t >= self._duration or not self.segments:
             return self.q_goal.copy(), np.zeros_like(self.q_goal)
         i = max(0, bisect.bisect_right(self._starts, t) - 1)
         return self.segments[i].sample(max(0.0, t - self._starts[i]))
 
-    def waypoints_reached(self, t):
+    def waypoints_reached(self, t: float) -> int:
         """Return how many waypoints the reference has reached at ``t`` [s] (0..N)."""
         return int(np.searchsorted(self.waypoint_times, t, side='right'))
 
 
 # --- limits ---------------------------------------------------------------------------------
 
-def common_scale(qd, velocity_limits):
+def common_scale(qd: np.ndarray, velocity_limits: np.ndarray) -> float:
     """Return the factor >= 1 by which ``qd`` (n,) must be divided to respect the limits."""
     ratio = np.max(np.abs(qd) / velocity_limits)
     return max(1.0, float(ratio))
 
 
-def scale_to_limits(qd, velocity_limits):
+def scale_to_limits(qd: np.ndarray, velocity_limits: np.ndarray) -> np.ndarray:
     """
     Return ``qd`` (n,) [rad/s] divided by one common factor so every ``|qd_i| <= limit_i``.
 
@@ -223,7 +199,8 @@ def scale_to_limits(qd, velocity_limits):
     return qd / common_scale(qd, velocity_limits)
 
 
-def guard_position_limits(qd, q, lower, upper, dt):
+def guard_position_limits(qd: np.ndarray, q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                          dt: float) -> np.ndarray:
     """
     Return ``qd`` (n,) with no joint driven further past a limit, nor across it within ``dt``.
 
@@ -236,7 +213,8 @@ def guard_position_limits(qd, q, lower, upper, dt):
     return np.clip(qd, room_down, room_up)
 
 
-def closed_loop_command(q_ref, qd_ref, q, gain, velocity_limits):
+def closed_loop_command(q_ref: np.ndarray, qd_ref: np.ndarray, q: np.ndarray, gain: float,
+                        velocity_limits: np.ndarray) -> np.ndarray:
     """
     Return the velocity command (n,) [rad/s]: feedforward plus correction, within the limits.
 
@@ -246,7 +224,8 @@ def closed_loop_command(q_ref, qd_ref, q, gain, velocity_limits):
     return scale_to_limits(qd_ref + gain * (q_ref - q), velocity_limits)
 
 
-def to_jog_units(qd, velocity_limits, units='rad_per_s', speed_override=0.25):
+def to_jog_units(qd: np.ndarray, velocity_limits: np.ndarray, units: str = 'rad_per_s',
+                 speed_override: float = 0.25) -> np.ndarray:
     """
     Return the JointJog velocities for ``qd`` (n,) [rad/s] in the driver's ``units``.
 
@@ -260,7 +239,8 @@ def to_jog_units(qd, velocity_limits, units='rad_per_s', speed_override=0.25):
     raise InvalidInputError(f'jog_units must be one of {JOG_UNITS}, got "{units}"')
 
 
-def driver_velocity_limits(velocity_limits, units='rad_per_s', speed_override=0.25):
+def driver_velocity_limits(velocity_limits: Sequence[float], units: str = 'rad_per_s',
+                           speed_override: float = 0.25) -> np.ndarray:
     """Return the speeds (n,) [rad/s] the driver can reach in ``units`` (override applied)."""
     velocity_limits = np.asarray(velocity_limits, dtype=float)
     if units == 'fraction_of_max':
@@ -277,7 +257,7 @@ def driver_velocity_limits(velocity_limits, units='rad_per_s', speed_override=0.
 TICK_MARGIN = 1.05
 
 
-def min_jog_speed(tick_size, driver_cycle):
+def min_jog_speed(tick_size: Sequence[float], driver_cycle: float) -> np.ndarray:
     """
     Return the smallest speed (n,) [rad/s] that moves each joint one whole tick per cycle.
 
@@ -285,15 +265,13 @@ def min_jog_speed(tick_size, driver_cycle):
     result is ``TICK_MARGIN * tick_size / driver_cycle`` (Mover6 J5/J6: 0.129 rad/s, 7.4 deg/s).
     A driver that moves whole ticks per cycle does not move a joint commanded less.
     """
-    tick_size = np.asarray(tick_size, dtype=float)
-    if not (np.all(np.isfinite(tick_size)) and np.all(tick_size > 0.0)):
-        raise InvalidInputError(f'tick_size must be positive, got {tick_size.tolist()}')
-    if not (np.isfinite(driver_cycle) and driver_cycle > 0.0):
-        raise InvalidInputError(f'driver_cycle must be positive, got {driver_cycle}')
-    return TICK_MARGIN * tick_size / driver_cycle
+    tick_size = as_positive(tick_size, 'tick_size', np.size(tick_size))
+    return TICK_MARGIN * tick_size / as_positive(driver_cycle, 'driver_cycle')
 
 
-def dead_zone_command(qd, error, tick_size, min_speed, may_move):
+def dead_zone_command(qd: np.ndarray, error: np.ndarray, tick_size: np.ndarray,
+                      min_speed: np.ndarray,
+                      may_move: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     Return ``(qd, in_dead_zone)``: the command (n,) [rad/s] for a driver that moves whole ticks.
 
@@ -313,13 +291,6 @@ def dead_zone_command(qd, error, tick_size, min_speed, may_move):
 
 # --- laws -----------------------------------------------------------------------------------
 
-def _as_vector(value, n, name):
-    arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
-    if not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
-        raise InvalidInputError(f'{name} must be positive, got {arr.tolist()}')
-    return arr
-
-
 def _check_inputs(q_start, waypoints, velocity_limits, qd_start):
     q_start = np.asarray(q_start, dtype=float)
     n = q_start.shape[0] if q_start.ndim == 1 else -1
@@ -332,10 +303,11 @@ def _check_inputs(q_start, waypoints, velocity_limits, qd_start):
     qd_start = np.zeros(n) if qd_start is None else np.asarray(qd_start, dtype=float)
     if qd_start.shape != (n,) or not np.all(np.isfinite(qd_start)):
         raise InvalidInputError(f'qd_start must be a finite ({n},) array')
-    return q_start, waypoints, _as_vector(velocity_limits, n, 'velocity_limits'), qd_start
+    return q_start, waypoints, as_positive(velocity_limits, 'velocity_limits', n), qd_start
 
 
-def stop_segment(q_start, qd_start, a_max):
+def stop_segment(q_start: np.ndarray, qd_start: np.ndarray,
+                 a_max: float | Sequence[float]) -> DecelerationSegment:
     """
     Return the ramp from ``qd_start`` (n,) [rad/s] to rest within ``a_max`` [rad/s^2].
 
@@ -343,18 +315,20 @@ def stop_segment(q_start, qd_start, a_max):
     """
     q_start = np.asarray(q_start, dtype=float)
     qd_start = np.asarray(qd_start, dtype=float)
-    a_max = _as_vector(a_max, q_start.shape[0], 'a_max')
+    a_max = as_positive(a_max, 'a_max', q_start.shape[0])
     duration = float(np.max(np.abs(qd_start) / a_max))
     return DecelerationSegment(q_start, qd_start, duration)
 
 
-def plan_stop(q_start, qd_start, a_max):
-    """Return a ``Plan`` that brings the arm from ``qd_start`` to rest within ``a_max``."""
+def plan_stop(q_start: np.ndarray, qd_start: np.ndarray,
+              a_max: float | Sequence[float]) -> MotionPlan:
+    """Return a ``MotionPlan`` that brings the arm from ``qd_start`` to rest within ``a_max``."""
     seg = stop_segment(q_start, qd_start, a_max)
-    return Plan((seg,), seg.q1[None, :], np.array([seg.duration]))
+    return MotionPlan((seg,), seg.q1[None, :], np.array([seg.duration]))
 
 
-def synchronised_segment(q0, q1, lambda_max, velocity_limits):
+def synchronised_segment(q0: np.ndarray, q1: np.ndarray, lambda_max: float,
+                         velocity_limits: np.ndarray) -> ConstantVelocitySegment:
     """
     Return the constant-velocity segment of the Mover6 report eq. 1-2 from ``q0`` to ``q1``.
 
@@ -368,38 +342,23 @@ def synchronised_segment(q0, q1, lambda_max, velocity_limits):
     return ConstantVelocitySegment(q0, q1, t_max)
 
 
-def trapezoid_segment(q0, q1, t_max, t_blend, velocity_limits):
+def trapezoid_segment(q0: np.ndarray, q1: np.ndarray, t_max: float, t_blend: float,
+                      velocity_limits: np.ndarray) -> ConstantVelocitySegment | TrajectorySegment:
     """
     Return the trapezoid of the Mover6 report eq. 16-18 from ``q0`` to ``q1`` over ``t_max`` [s].
 
-    When a joint's ``V_max`` (eq. 16) exceeds its velocity limit, ``t_max`` and ``t_blend`` are
-    stretched by one common factor (the shape and synchronised arrival are kept). A move of
-    zero length takes no time.
+    Every joint follows ``time_laws.trapezoidal(t_max, t_blend)``, so its plateau velocity is
+    ``V_max = (q1 - q0) / (t_max - t_blend)`` (eq. 16). When a joint's ``V_max`` exceeds its
+    velocity limit, ``t_max`` and ``t_blend`` are stretched by one common factor (the shape and
+    synchronised arrival are kept). A move of zero length takes no time.
     """
     delta = q1 - q0
     if not np.any(delta):
-        return TrapezoidSegment(q0, q1, 0.0, 0.0)
+        return ConstantVelocitySegment(q0, q1, 0.0)
     scale = common_scale(delta / (t_max - t_blend), velocity_limits)
-    return TrapezoidSegment(q0, q1, t_max * scale, t_blend * scale)
-
-
-def ruckig_segment(q0, q1, velocity_limits, a_max, j_max, qd0=None):
-    """Return a ruckig (jerk-limited, time-optimal, synchronised) segment from ``q0`` to rest."""
-    from ruckig import InputParameter, Result, Ruckig, Trajectory
-
-    n = q0.shape[0]
-    inp = InputParameter(n)
-    inp.current_position = q0.tolist()
-    inp.current_velocity = (np.zeros(n) if qd0 is None else qd0).tolist()
-    inp.target_position = q1.tolist()
-    inp.max_velocity = velocity_limits.tolist()
-    inp.max_acceleration = _as_vector(a_max, n, 'a_max').tolist()
-    inp.max_jerk = _as_vector(j_max, n, 'j_max').tolist()
-    trajectory = Trajectory(n)
-    result = Ruckig(n).calculate(inp, trajectory)
-    if result not in (Result.Working, Result.Finished):
-        raise InvalidInputError(f'ruckig could not plan the move: {result}')
-    return TrajectorySegment(trajectory, float(trajectory.duration), q1.copy())
+    law = trapezoidal(t_max * scale, t_blend * scale)
+    return TrajectorySegment(TimeLawTrajectory(q0, q1, t_max * scale, law), t_max * scale,
+                             q1.copy())
 
 
 def _per_waypoint(q_start, waypoints, make, first=()):
@@ -411,17 +370,17 @@ def _per_waypoint(q_start, waypoints, make, first=()):
         t += seg.duration
         times.append(t)
         q0 = q1
-    return Plan(tuple(segments), waypoints, np.array(times))
+    return MotionPlan(tuple(segments), waypoints, np.array(times))
 
 
 def _continuous_plan(q_start, waypoints, velocity_limits, config, qd_start):
     n = q_start.shape[0]
-    a_max = _as_vector(config.a_max, n, 'a_max')
+    a_max = as_positive(config.a_max, 'a_max', n)
     first = ()
     path = np.vstack([q_start, waypoints])
     keep = np.concatenate([[True], np.any(np.abs(np.diff(path, axis=0)) > 1e-12, axis=1)])
     if keep.sum() < 2:
-        return Plan((), waypoints, np.zeros(len(waypoints)))
+        return MotionPlan((), waypoints, np.zeros(len(waypoints)))
     trajectory = timing.time_parameterize(path[keep], velocity_limits, a_max, qd_start=qd_start)
     # The library keeps only the part of qd_start along the path; when the rest is more than
     # one small step, decelerate first (common factor) and start the path from rest.
@@ -439,12 +398,14 @@ def _continuous_plan(q_start, waypoints, velocity_limits, config, qd_start):
     times = t0 + passes[kept_row[1:]]
     times[-1] = t0 + duration
     segment = TrajectorySegment(trajectory, duration, waypoints[-1].copy())
-    return Plan(first + (segment,), waypoints, np.array(times))
+    return MotionPlan(first + (segment,), waypoints, np.array(times))
 
 
-def plan_motion(config, q_start, waypoints, velocity_limits, qd_start=None):
+def plan_motion(config: LawConfig, q_start: Sequence[float], waypoints: np.ndarray,
+                velocity_limits: Sequence[float],
+                qd_start: Optional[Sequence[float]] = None) -> MotionPlan:
     """
-    Return the ``Plan`` of ``config.profile`` from ``q_start`` (n,) through ``waypoints`` (N, n).
+    Return the ``MotionPlan`` of ``config.profile`` from ``q_start`` (n,) via ``waypoints`` (N, n).
 
     ``velocity_limits`` (n,) [rad/s]; ``qd_start`` (n,) [rad/s] is the velocity commanded now
     (None: at rest). The Mover6 report's laws decelerate from it first; ruckig and the continuous
@@ -455,14 +416,15 @@ def plan_motion(config, q_start, waypoints, velocity_limits, qd_start=None):
     if config.profile == 'continuous':
         return _continuous_plan(q_start, waypoints, velocity_limits, config, qd_start)
     if config.profile == 'jerk_limited':
+        # ruckig, rest to rest per waypoint (the first from the present velocity).
         segments, times, q0, qd0, t = [], [], q_start, qd_start, 0.0
         for q1 in waypoints:
-            seg = ruckig_segment(q0, q1, velocity_limits, config.a_max, config.j_max, qd0)
-            segments.append(seg)
-            t += seg.duration
+            move = ruckig_trajectory(q0, q1, velocity_limits, config.a_max, config.j_max, qd0)
+            segments.append(TrajectorySegment(move, move.duration, q1.copy()))
+            t += move.duration
             times.append(t)
             q0, qd0 = q1, None
-        return Plan(tuple(segments), waypoints, np.array(times))
+        return MotionPlan(tuple(segments), waypoints, np.array(times))
     first = ()
     if np.any(qd_start):
         first = (stop_segment(q_start, qd_start, config.a_max),)

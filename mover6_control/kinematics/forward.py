@@ -14,7 +14,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.rotations import as_finite_array
+from mover6_control.validation import as_finite_array
 import numpy as np
 
 if TYPE_CHECKING:

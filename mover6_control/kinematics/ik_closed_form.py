@@ -34,7 +34,8 @@ from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.forward import fk_batch
-from mover6_control.kinematics.rotations import as_finite_array, validate_transform
+from mover6_control.kinematics.rotations import validate_transform
+from mover6_control.validation import as_finite_array
 import numpy as np
 
 if TYPE_CHECKING:

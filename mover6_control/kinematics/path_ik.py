@@ -20,9 +20,10 @@ computed at once (``branch_steps``) and the branch choice is a walk over a small
 table; singular waypoints, numeric fallbacks and steps over the limit take the waypoint-by-
 waypoint way, which gives the same choice.
 
-Failures raise ``UnreachableError`` with ``reason`` in ``REASONS`` and ``details`` holding
-'waypoint', 'position_error' [m], 'orientation_error' [rad], 'closest_q' and 'closest_pose'
-(the nearest configuration found inside the joint limits and its pose), plus 'message'.
+Failures raise ``UnreachableError`` with ``reason`` in ``errors.REASONS`` and ``details``
+holding 'waypoint', 'position_error' [m], 'orientation_error' [rad], 'closest_q' and
+'closest_pose' (the nearest configuration found inside the joint limits and its pose), plus
+'message'.
 """
 
 from __future__ import annotations
@@ -36,14 +37,13 @@ from mover6_control.kinematics.forward import condition_number, fk, fk_batch, ja
 from mover6_control.kinematics.ik_closed_form import (nearest_alias, pose_errors_batch,
                                                       solve_candidates, VERIFY_TOL, wrist_geometry)
 from mover6_control.kinematics.ik_numeric import closest_within_limits, DEFAULT_WEIGHTS, ik_numeric
-from mover6_control.kinematics.rotations import as_finite_array, ORTHONORMAL_TOL, pose_error
+from mover6_control.kinematics.rotations import ORTHONORMAL_TOL, pose_error
+from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 
 if TYPE_CHECKING:
     from mover6_control.kinematics.arm import ArmModel
     from mover6_control.kinematics.ik_closed_form import WristGeometry
-
-REASONS = ('out_of_reach', 'joint_limits', 'singularity', 'discontinuity')
 
 
 @dataclass(frozen=True)
@@ -144,19 +144,6 @@ def branch_steps(arm: ArmModel, Q: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return steps
 
 
-def _positive(name, value, allow_none=False):
-    """Check that a setting is a positive finite number (or None when allowed)."""
-    if value is None and allow_none:
-        return None
-    try:
-        value = float(value)
-    except (TypeError, ValueError) as err:
-        raise InvalidInputError(f'{name} must be a number, got {value!r}') from err
-    if not np.isfinite(value) or value <= 0.0:
-        raise InvalidInputError(f'{name} must be positive and finite, got {value}')
-    return value
-
-
 def _closest(arm, T, seeds, weights):
     """Return (q, pose, position error, orientation error) of the closest in-limit config."""
     res = closest_within_limits(arm, T, seeds, weights=weights)
@@ -221,10 +208,10 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
     """
     P = validate_poses(poses)
     q_prev = arm.check_q(q_start, 'q_start')
-    max_joint_step = _positive('max_joint_step', max_joint_step)
-    max_condition = _positive('max_condition', max_condition, allow_none=True)
-    position_tol = _positive('position_tol', position_tol)
-    orientation_tol = _positive('orientation_tol', orientation_tol)
+    max_joint_step = as_positive(max_joint_step, 'max_joint_step')
+    max_condition = as_positive(max_condition, 'max_condition', allow_none=True)
+    position_tol = as_positive(position_tol, 'position_tol')
+    orientation_tol = as_positive(orientation_tol, 'orientation_tol')
     try:
         geometry = wrist_geometry(arm)
     except InvalidInputError:

@@ -1,8 +1,8 @@
 """
 Reachability verdicts for a pose or a path: reachable, or why not and how close one can get.
 
-A verdict answers with a reason code (``REASONS``), a sentence for a human, the solution when
-there is one, and the closest pose found inside the joint limits with its position [m] and
+A verdict answers with a reason code (``errors.REASONS``), a sentence for a human, the solution
+when there is one, and the closest pose found inside the joint limits with its position [m] and
 orientation [rad] errors when there is none. ``check_path`` wraps ``path_ik.solve_path`` and
 turns its ``UnreachableError`` into a verdict.
 """
@@ -25,15 +25,13 @@ import numpy as np
 if TYPE_CHECKING:
     from mover6_control.kinematics.arm import ArmModel
 
-REASONS = ('reachable', 'out_of_reach', 'joint_limits', 'singularity', 'discontinuity')
-
 
 @dataclass(frozen=True)
 class Verdict:
     """Whether a pose (or path) is reachable; if not, why, and the closest pose found."""
 
     reachable: bool
-    reason: str                  # one of REASONS
+    reason: str                  # one of errors.REASONS
     message: str                 # a sentence for a human
     q: Optional[np.ndarray]      # (n,) for a pose, (m, n) for a path; None when unreachable
     closest_pose: np.ndarray     # (4, 4): the pose reached (== the goal when reachable)

@@ -11,29 +11,11 @@ Conventions:
 from collections.abc import Sequence
 
 from mover6_control.errors import InvalidInputError
+from mover6_control.validation import as_finite_array
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 ORTHONORMAL_TOL = 1e-6
-
-
-def as_finite_array(value, shape, name):
-    """
-    Return ``value`` as a float array of ``shape`` or raise a helpful error.
-
-    ``shape`` may hold ``None`` for an axis of any length.
-    """
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise InvalidInputError(f'{name} must be numeric, got {value!r}') from err
-    if arr.ndim != len(shape) or any(
-            want is not None and got != want for got, want in zip(arr.shape, shape)):
-        want = tuple('n' if s is None else s for s in shape)
-        raise InvalidInputError(f'{name} must have shape {want}, got {arr.shape}')
-    if not np.all(np.isfinite(arr)):
-        raise InvalidInputError(f'{name} has non-finite values: {arr.tolist()}')
-    return arr
 
 
 def validate_rotation(R: np.ndarray, name: str = 'rotation') -> np.ndarray:

@@ -7,11 +7,17 @@ acceleration of size ``da`` shows as ``da / dt``: trajectories with acceleration
 (trapezoids, TOPP) report the jerk a ``dt``-period controller would command.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
+from typing import Callable, Optional, TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.rotations import as_finite_array
+from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
+
+if TYPE_CHECKING:
+    from mover6_control.motion.trajectories import JointTrajectory
 
 # Points x segments handled per block when measuring distances to a polyline.
 _BLOCK = 2_000_000
@@ -30,24 +36,15 @@ class TrajectoryMetrics:
     max_deviation: float            # [m] largest distance of the tool from the intended path
     dt: float                       # [s] sampling step used
 
-    def as_dict(self):
-        """Return the metrics as plain Python values (for JSON)."""
-        out = {}
-        for key, value in self.__dict__.items():
-            out[key] = value.tolist() if isinstance(value, np.ndarray) else float(value)
-        return out
 
-
-def sample_times(duration, dt):
+def sample_times(duration: float, dt: float) -> np.ndarray:
     """Return times (m,) from 0 to ``duration`` [s] every ``dt`` [s], the end included."""
-    dt = float(dt)
-    if not np.isfinite(dt) or dt <= 0.0:
-        raise InvalidInputError(f'dt must be positive, got {dt}')
+    dt = as_positive(dt, 'dt')
     t = np.arange(0.0, duration, dt)
     return np.append(t, duration) if t.size == 0 or t[-1] < duration else t
 
 
-def max_deviation_from_polyline(points, polyline):
+def max_deviation_from_polyline(points: np.ndarray, polyline: np.ndarray) -> float:
     """
     Return the largest distance [m] from any of ``points`` (m, 3) to the polyline (k, 3).
 
@@ -82,7 +79,10 @@ def _tool_positions(fk_fn, Q):
     raise InvalidInputError(f'fk_fn must return (m, 4, 4) poses or (m, 3) points, got {out.shape}')
 
 
-def trajectory_metrics(traj, fk_fn=None, desired_positions=None, dt=1e-3):
+def trajectory_metrics(traj: JointTrajectory,
+                       fk_fn: Optional[Callable[[np.ndarray], np.ndarray]] = None,
+                       desired_positions: Optional[np.ndarray] = None,
+                       dt: float = 1e-3) -> TrajectoryMetrics:
     """
     Return ``TrajectoryMetrics`` of a ``JointTrajectory`` sampled every ``dt`` [s].
 

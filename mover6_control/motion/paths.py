@@ -8,13 +8,17 @@ forms). The first pose is the start and the last the goal, exactly.
 
 Shapes: linear (the Mover6 report eq. 3-10), parabolic through a lifted mid-point (the Mover6
 report eq. 11-15), cubic spline through any number of via poses (the Mover6 report section 2.3.2),
-circular arc through a via point, directional move and hold (the miniBOT report appendix A).
+circular arc through a via point.
 """
 
+from __future__ import annotations
+
+from typing import Optional, Sequence
+
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.rotations import (as_finite_array, euler_zyx_to_matrix,
-                                                 make_transform, rotation_angle_between,
-                                                 validate_transform)
+from mover6_control.kinematics.rotations import (euler_zyx_to_matrix, make_transform,
+                                                 rotation_angle_between, validate_transform)
+from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation, Slerp
@@ -40,9 +44,7 @@ def _count(n, max_step, max_angle_step, length, angle, rate_scale=1.0):
                                 (max_angle_step, angle, 'max_angle_step')):
         if limit is None:
             continue
-        limit = float(limit)
-        if not np.isfinite(limit) or limit <= 0.0:
-            raise InvalidInputError(f'{name} must be positive, got {limit}')
+        limit = as_positive(limit, name)
         steps = max(steps, int(np.ceil(amount / limit - 1e-12)))
     return steps + 1
 
@@ -74,7 +76,9 @@ def _check_distinct(T_a, T_b, what):
     return dp, da
 
 
-def linear_path(T_start, T_goal, n=None, max_step=None, max_angle_step=None):
+def linear_path(T_start: np.ndarray, T_goal: np.ndarray, n: Optional[int] = None,
+                max_step: Optional[float] = None,
+                max_angle_step: Optional[float] = None) -> np.ndarray:
     """
     Return poses (n, 4, 4) on the straight line from ``T_start`` to ``T_goal``.
 
@@ -91,7 +95,8 @@ def linear_path(T_start, T_goal, n=None, max_step=None, max_angle_step=None):
     return _pin_ends(_poses(pos, rot), T_start, T_goal)
 
 
-def parabola_coefficients(p_start, p_mid, p_goal):
+def parabola_coefficients(p_start: Sequence[float], p_mid: Sequence[float],
+                          p_goal: Sequence[float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     Return (a, b, c) (3,) each with ``r(t) = a t^2 + b t + c`` through the three points.
 
@@ -105,7 +110,9 @@ def parabola_coefficients(p_start, p_mid, p_goal):
     return coeff[0], coeff[1], coeff[2]
 
 
-def parabolic_path(T_start, T_goal, peak_height, n=None, max_step=None, max_angle_step=None):
+def parabolic_path(T_start: np.ndarray, T_goal: np.ndarray, peak_height: float,
+                   n: Optional[int] = None, max_step: Optional[float] = None,
+                   max_angle_step: Optional[float] = None) -> np.ndarray:
     """
     Return poses (n, 4, 4) on the Mover6 report's parabola from ``T_start`` to ``T_goal``.
 
@@ -154,7 +161,9 @@ def _resample_by_length(curve, count):
     return np.interp(np.linspace(0.0, cum[-1], count), cum, u), float(cum[-1])
 
 
-def spline_path(T_start, T_vias, T_goal, n=None, max_step=None, max_angle_step=None):
+def spline_path(T_start: np.ndarray, T_vias: np.ndarray, T_goal: np.ndarray,
+                n: Optional[int] = None, max_step: Optional[float] = None,
+                max_angle_step: Optional[float] = None) -> np.ndarray:
     """
     Return poses (n, 4, 4) on a cubic spline through ``T_start``, every via pose and ``T_goal``.
 
@@ -187,7 +196,9 @@ def spline_path(T_start, T_vias, T_goal, n=None, max_step=None, max_angle_step=N
     return _pin_ends(_poses(curve(u), rot), T_start, T_goal)
 
 
-def circle_through(p_a, p_b, p_c):
+def circle_through(p_a: Sequence[float], p_b: Sequence[float],
+                   p_c: Sequence[float]) -> tuple[np.ndarray, float, np.ndarray, np.ndarray,
+                                                  float, float]:
     """
     Return (center (3,), radius [m], e1 (3,), e2 (3,), angle_b, angle_c) of the circle A-B-C.
 
@@ -216,7 +227,9 @@ def circle_through(p_a, p_b, p_c):
     return center, radius, e1, e2, angle(B), angle(C)
 
 
-def arc_path(T_start, T_via, T_goal, n=None, max_step=None, max_angle_step=None):
+def arc_path(T_start: np.ndarray, T_via: np.ndarray, T_goal: np.ndarray,
+             n: Optional[int] = None, max_step: Optional[float] = None,
+             max_angle_step: Optional[float] = None) -> np.ndarray:
     """
     Return poses (n, 4, 4) on the circular arc from ``T_start`` through a via point to ``T_goal``.
 
@@ -243,47 +256,8 @@ def arc_path(T_start, T_via, T_goal, n=None, max_step=None, max_angle_step=None)
     return _pin_ends(_poses(pos, _slerp(keys, R, t)), T_start, T_goal)
 
 
-def directional_path(T_start, direction, distance, n=None, max_step=None):
-    """
-    Return poses (n, 4, 4) moving ``distance`` [m] along ``direction`` (3,) in the base frame.
-
-    The orientation is held (the miniBOT report's directional linear path).
-    """
-    T_start = validate_transform(T_start, 'T_start')
-    d = as_finite_array(direction, (3,), 'direction')
-    norm = np.linalg.norm(d)
-    if norm < COINCIDENT_TOL:
-        raise InvalidInputError('direction must be a non-zero vector')
-    distance = float(as_finite_array(distance, (), 'distance'))
-    if distance <= 0.0:
-        raise InvalidInputError(f'distance must be positive, got {distance}')
-    T_goal = T_start.copy()
-    T_goal[:3, 3] += distance * d / norm
-    return linear_path(T_start, T_goal, n=n, max_step=max_step)
-
-
-def hold_path(T, n):
-    """Return ``n`` copies (n, 4, 4) of pose ``T``: stay put for n samples (the miniBOT report)."""
-    T = validate_transform(T, 'T')
-    if int(n) != n or n < 1:
-        raise InvalidInputError(f'n must be an integer >= 1, got {n}')
-    return np.tile(T, (int(n), 1, 1))
-
-
-def concatenate(*paths):
-    """Join pose paths (k_i, 4, 4) end to start, dropping a pose that repeats the previous end."""
-    if not paths:
-        raise InvalidInputError('concatenate needs at least one path')
-    parts = [as_finite_array(paths[0], (None, 4, 4), 'paths[0]')]
-    for i, p in enumerate(paths[1:], start=1):
-        p = as_finite_array(p, (None, 4, 4), f'paths[{i}]')
-        if p.shape[0] and np.abs(p[0] - parts[-1][-1]).max() < COINCIDENT_TOL:
-            p = p[1:]
-        parts.append(p)
-    return np.concatenate(parts)
-
-
-def goal_relative_to_start(T_start, x, y, z, a, b, c):
+def goal_relative_to_start(T_start: np.ndarray, x: float, y: float, z: float, a: float,
+                           b: float, c: float) -> np.ndarray:
     """
     Return the goal pose as the Mover6 report's MATLAB builds it, rotation relative to the start.
 
@@ -295,6 +269,6 @@ def goal_relative_to_start(T_start, x, y, z, a, b, c):
     return make_transform([x, y, z], T_start[:3, :3] @ euler_zyx_to_matrix(a, b, c))
 
 
-def positions_of(poses):
+def positions_of(poses: np.ndarray) -> np.ndarray:
     """Return the positions (n, 3) [m] of poses (n, 4, 4)."""
     return as_finite_array(poses, (None, 4, 4), 'poses')[:, :3, 3].copy()

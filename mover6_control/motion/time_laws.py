@@ -13,19 +13,30 @@ Laws here: the cubic ``-2 tau^3 + 3 tau^2``, the quintic 3-4-5, the septic 4-5-6
 report trapezoid with a blend time (eq. 16-18), the sharp trapezoid of the Jacobians and
 trajectories report (three equal thirds) and the Jacobians and trajectories report's via-point
 polynomial of degree 6 through ``s(tau_via) = S``.
+
+This module is the one home of the Mover6 report's trapezoid: ``trapezoid_times`` checks
+``0 < t_blend < t_max / 2`` (default ``t_max / 4``) and ``TrapezoidalTimeLaw`` is the profile.
+The controller's trapezoidal law (``control.velocity_laws.trapezoid_segment``), ``Joint`` and
+``Robot`` (``control.joint``, ``control.robot``) and the joint trajectories all play it.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
+from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError
+from mover6_control.validation import as_positive
 import numpy as np
 
 
 def _as_tau(tau):
     tau = np.asarray(tau, dtype=float)
-    if not np.all(np.isfinite(tau)):
+    if not np.isfinite(tau).all():
         raise InvalidInputError(f'tau has non-finite values: {tau.tolist()}')
-    return np.clip(tau, 0.0, 1.0)
+    # np.minimum / np.maximum rather than np.clip: several times faster on the scalars of a
+    # control tick (the controller's trapezoidal law samples this law every tick).
+    return np.minimum(np.maximum(tau, 0.0), 1.0)
 
 
 @dataclass(frozen=True)
@@ -37,7 +48,7 @@ class PolynomialTimeLaw:
     """
 
     name: str
-    coefficients: tuple
+    coefficients: Sequence[float]
 
     def __post_init__(self):
         """Validate and freeze the coefficients."""
@@ -46,13 +57,13 @@ class PolynomialTimeLaw:
             raise InvalidInputError(f'coefficients must be finite, 1-D, length >= 2: {c}')
         object.__setattr__(self, 'coefficients', tuple(float(x) for x in c))
 
-    def evaluate(self, tau, derivative=0):
+    def evaluate(self, tau: float | np.ndarray, derivative: int = 0) -> np.ndarray:
         """Return ``d^k s / d tau^k`` at ``tau`` (scalar or array) for ``derivative`` k."""
         tau = _as_tau(tau)
         poly = np.polynomial.Polynomial(self.coefficients)
         return poly.deriv(derivative)(tau) if derivative else poly(tau)
 
-    def __call__(self, tau):
+    def __call__(self, tau: float | np.ndarray) -> np.ndarray:
         """Return ``s(tau)``."""
         return self.evaluate(tau)
 
@@ -78,11 +89,11 @@ class TrapezoidalTimeLaw:
         object.__setattr__(self, 'blend', b)
 
     @property
-    def peak_rate(self):
+    def peak_rate(self) -> float:
         """Return the cruise value of ``s'`` (the Mover6 report eq. 16 with t_max = 1)."""
         return 1.0 / (1.0 - self.blend)
 
-    def evaluate(self, tau, derivative=0):
+    def evaluate(self, tau: float | np.ndarray, derivative: int = 0) -> np.ndarray:
         """Return ``d^k s / d tau^k`` at ``tau`` for k in 0..3 (jerk is 0 between corners)."""
         tau = _as_tau(tau)
         b, v = self.blend, self.peak_rate
@@ -101,51 +112,57 @@ class TrapezoidalTimeLaw:
             return np.zeros_like(tau)
         raise InvalidInputError(f'derivative must be 0..3, got {derivative}')
 
-    def __call__(self, tau):
+    def __call__(self, tau: float | np.ndarray) -> np.ndarray:
         """Return ``s(tau)``."""
         return self.evaluate(tau)
 
 
-def cubic():
+def cubic() -> PolynomialTimeLaw:
     """Return the cubic law ``3 tau^2 - 2 tau^3`` (the 'trapezoidal polynomial' of the report)."""
     return PolynomialTimeLaw('cubic', (0.0, 0.0, 3.0, -2.0))
 
 
-def quintic():
+def quintic() -> PolynomialTimeLaw:
     """Return the 3-4-5 law ``10 tau^3 - 15 tau^4 + 6 tau^5`` (zero end acceleration)."""
     return PolynomialTimeLaw('quintic_345', (0.0, 0.0, 0.0, 10.0, -15.0, 6.0))
 
 
-def septic():
+def septic() -> PolynomialTimeLaw:
     """Return the 4-5-6-7 law ``35 tau^4 - 84 tau^5 + 70 tau^6 - 20 tau^7`` (zero end jerk)."""
     return PolynomialTimeLaw('septic_4567', (0.0, 0.0, 0.0, 0.0, 35.0, -84.0, 70.0, -20.0))
 
 
-def trapezoidal(t_max=1.0, t_blend=None):
+def trapezoid_times(t_max: float, t_blend: Optional[float] = None) -> tuple[float, float]:
     """
-    Return the Mover6 report's trapezoid for a move of ``t_max`` [s], blend time ``t_blend`` [s].
+    Return ``(t_max, t_blend)`` [s] of the Mover6 report's trapezoid, checked.
 
     ``t_blend`` defaults to ``t_max / 4`` (the Mover6 report's choice); ``0 < t_blend < t_max / 2``
-    is enforced (the Mover6 report section 2.2.4).
+    is enforced (the Mover6 report section 2.2.4: a symmetric trapezoid with a cruise phase).
     """
-    t_max = float(t_max)
-    if not np.isfinite(t_max) or t_max <= 0.0:
-        raise InvalidInputError(f't_max must be positive and finite, got {t_max}')
-    if t_blend is None:
-        t_blend = t_max / 4.0
-    t_blend = float(t_blend)
+    t_max = as_positive(t_max, 't_max')
+    t_blend = t_max / 4.0 if t_blend is None else float(t_blend)
     if not np.isfinite(t_blend) or not 0.0 < t_blend < t_max / 2.0:
         raise InvalidInputError(
             f't_blend must satisfy 0 < t_blend < t_max / 2 = {t_max / 2.0}, got {t_blend}')
+    return t_max, t_blend
+
+
+def trapezoidal(t_max: float = 1.0, t_blend: Optional[float] = None) -> TrapezoidalTimeLaw:
+    """
+    Return the Mover6 report's trapezoid for a move of ``t_max`` [s], blend time ``t_blend`` [s].
+
+    ``t_blend`` defaults to ``t_max / 4``; ``0 < t_blend < t_max / 2`` (``trapezoid_times``).
+    """
+    t_max, t_blend = trapezoid_times(t_max, t_blend)
     return TrapezoidalTimeLaw('trapezoidal', t_blend / t_max)
 
 
-def sharp_trapezoid():
+def sharp_trapezoid() -> TrapezoidalTimeLaw:
     """Return the sharp trapezoid: accelerate, cruise, decelerate in equal thirds."""
     return TrapezoidalTimeLaw('sharp_trapezoid', 1.0 / 3.0)
 
 
-def via_fraction(theta_start, theta_via, theta_goal):
+def via_fraction(theta_start: float, theta_via: float, theta_goal: float) -> float:
     """
     Return ``S`` with ``theta_via = theta_start + (theta_goal - theta_start) S``.
 
@@ -163,7 +180,7 @@ def via_fraction(theta_start, theta_via, theta_goal):
     return float((vals[1] - vals[0]) / span)
 
 
-def via_point_polynomial(s_via, tau_via=0.5):
+def via_point_polynomial(s_via: float, tau_via: float = 0.5) -> PolynomialTimeLaw:
     """
     Return the Jacobians and trajectories report's degree-6 law through ``s(tau_via) = s_via``.
 
@@ -192,7 +209,7 @@ def via_point_polynomial(s_via, tau_via=0.5):
     return PolynomialTimeLaw('via_point', coefficients)
 
 
-def by_name(name, **kwargs):
+def by_name(name: str, **kwargs: float) -> PolynomialTimeLaw | TrapezoidalTimeLaw:
     """Return a time law by name: cubic, quintic, septic, trapezoidal, sharp_trapezoid."""
     table = {'cubic': cubic, 'quintic': quintic, 'septic': septic,
              'trapezoidal': trapezoidal, 'sharp_trapezoid': sharp_trapezoid}

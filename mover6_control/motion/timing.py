@@ -24,11 +24,14 @@ verified (see ``_jerk_limited``). That trajectory keeps every limit but is no lo
 time-optimal.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
+from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.kinematics.rotations import as_finite_array
-from mover6_control.motion.trajectories import JointTrajectory
+from mover6_control.motion.trajectories import JointTrajectory, Limit
+from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 
 # Below this turning angle [rad] a corner is treated as straight: the velocity direction jumps
@@ -80,16 +83,16 @@ class BlendedPath:
     waypoint_s: tuple       # arc length of the path point nearest each waypoint (m,)
 
     @property
-    def length(self):
+    def length(self) -> float:
         """Return the total arc length [rad]."""
         return float(self.starts[-1])
 
     @property
-    def n_joints(self):
+    def n_joints(self) -> int:
         """Return the number of joints."""
         return self.waypoints.shape[1]
 
-    def evaluate(self, s, segment):
+    def evaluate(self, s: np.ndarray, segment: np.ndarray) -> tuple[np.ndarray, ...]:
         """
         Return ``q, q', q'', q'''`` (each (m, n)) at arc lengths ``s`` (m,) on ``segment`` (m,).
 
@@ -124,7 +127,7 @@ class BlendedPath:
                 out[3][mask] = (x * sin - y * cos) / r ** 2
         return tuple(out)
 
-    def turn(self, i):
+    def turn(self, i: int) -> float:
         """Return how far the tangent turns along segment ``i`` [rad] (0 on a line)."""
         if self.kinds[i] == 'line':
             return 0.0
@@ -132,7 +135,7 @@ class BlendedPath:
             return self.params[i][2]
         return float((self.starts[i + 1] - self.starts[i]) / self.params[i][1])
 
-    def segment_of(self, s):
+    def segment_of(self, s: np.ndarray) -> np.ndarray:
         """Return the segment index (m,) holding each arc length ``s`` (m,)."""
         idx = np.searchsorted(self.starts, np.asarray(s, dtype=float), side='right') - 1
         return np.minimum(np.maximum(idx, 0), len(self.kinds) - 1)
@@ -167,7 +170,7 @@ def _quintic_deviation(alpha):
     return max(float(np.max(np.minimum(d_in, d_out))), float(np.min(np.linalg.norm(pts, axis=1))))
 
 
-def blended_path(Q, max_deviation=1e-2, blend='arc'):
+def blended_path(Q: np.ndarray, max_deviation: float = 1e-2, blend: str = 'arc') -> BlendedPath:
     """
     Return the ``BlendedPath`` through waypoints ``Q`` (m, n) [rad].
 
@@ -182,9 +185,7 @@ def blended_path(Q, max_deviation=1e-2, blend='arc'):
     if blend not in ('arc', 'quintic'):
         raise InvalidInputError(f"blend must be 'arc' or 'quintic', got {blend!r}")
     Q = _distinct_waypoints(Q)
-    max_deviation = float(max_deviation)
-    if not np.isfinite(max_deviation) or max_deviation <= 0.0:
-        raise InvalidInputError(f'max_deviation must be positive, got {max_deviation}')
+    max_deviation = as_positive(max_deviation, 'max_deviation')
     diffs = np.diff(Q, axis=0)
     lengths = np.linalg.norm(diffs, axis=1)
     units = diffs / lengths[:, None]
@@ -265,11 +266,11 @@ class GridTiming:
         object.__setattr__(self, '_cum', np.concatenate([[0.0], np.cumsum(pieces)]))
 
     @property
-    def duration(self):
+    def duration(self) -> float:
         """Return the duration [s]."""
         return float(self.t_grid[-1])
 
-    def profile(self, t):
+    def profile(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
         """Return ``s, sdot, sddot, sdddot`` (each (m,)) at times ``t`` (m,) [s]."""
         # np.minimum / np.maximum rather than np.clip: several times faster on the one-element
         # arrays of a control tick.
@@ -289,7 +290,7 @@ class GridTiming:
         sdd[before | after] = 0.0
         return s, sd, sdd, np.zeros_like(s)
 
-    def integral(self, t):
+    def integral(self, t: np.ndarray) -> np.ndarray:
         """Return the integral of ``s`` from 0 to ``t`` (m,) [rad s]; s holds its end after."""
         t = np.asarray(t, dtype=float)
         tc = np.minimum(np.maximum(t, 0.0), self.duration)
@@ -298,7 +299,7 @@ class GridTiming:
         part = self.s_grid[k] * tau + self.sd[k] * tau ** 2 / 2 + self.u[k] * tau ** 3 / 6
         return self._cum[k] + part + self.s_grid[-1] * np.maximum(t - self.duration, 0.0)
 
-    def time_at(self, s):
+    def time_at(self, s: np.ndarray) -> np.ndarray:
         """Return the first time [s] at which the path position reaches ``s`` (m,)."""
         s = np.clip(np.asarray(s, dtype=float), 0.0, self.s_grid[-1])
         k = np.clip(np.searchsorted(self.s_grid, s, side='right') - 1, 0, self.u.size - 1)
@@ -325,11 +326,11 @@ class FilteredTiming:
     window: float           # [s]
 
     @property
-    def duration(self):
+    def duration(self) -> float:
         """Return the duration [s]."""
         return self.base.duration + self.window
 
-    def profile(self, t):
+    def profile(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
         """Return ``s, sdot, sddot, sdddot`` (each (m,)) at times ``t`` (m,) [s]."""
         t = np.asarray(t, dtype=float)
         w = self.window
@@ -339,7 +340,7 @@ class FilteredTiming:
         return (np.minimum(np.maximum(s, 0.0), self.base.s_grid[-1]),) + tuple(
             (a - b) / w for a, b in zip(now[:3], then[:3]))
 
-    def time_at(self, s):
+    def time_at(self, s: np.ndarray) -> np.ndarray:
         """Return the time [s] at which the smoothed path position reaches ``s`` (m,)."""
         s = np.atleast_1d(np.asarray(s, dtype=float))
         t_lo = self.base.time_at(s)               # s_f lags s: s_f(t) = s no earlier ...
@@ -359,16 +360,16 @@ class ScaledTiming:
     factor: float
 
     @property
-    def duration(self):
+    def duration(self) -> float:
         """Return the duration [s]."""
         return self.base.duration * self.factor
 
-    def profile(self, t):
+    def profile(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
         """Return ``s, sdot, sddot, sdddot`` (each (m,)) at times ``t`` (m,) [s]."""
         out = self.base.profile(np.asarray(t, dtype=float) / self.factor)
         return tuple(v / self.factor ** k for k, v in enumerate(out))
 
-    def time_at(self, s):
+    def time_at(self, s: np.ndarray) -> np.ndarray:
         """Return the time [s] at which the path position reaches ``s`` (m,)."""
         return self.base.time_at(s) * self.factor
 
@@ -376,7 +377,7 @@ class ScaledTiming:
 class PathTrajectory(JointTrajectory):
     """A ``BlendedPath`` followed with a timing ``s(t)`` (``GridTiming`` or a smoothing of it)."""
 
-    def __init__(self, path, timing):
+    def __init__(self, path: BlendedPath, timing: GridTiming | FilteredTiming | ScaledTiming):
         super().__init__(timing.duration, path.n_joints)
         self.path = path
         self.timing = timing
@@ -391,7 +392,7 @@ class PathTrajectory(JointTrajectory):
         return q, qd, qdd, qddd
 
     @property
-    def waypoint_times(self):
+    def waypoint_times(self) -> np.ndarray:
         """Return the time [s] at which the arm passes (closest to) each waypoint (m,)."""
         return self.timing.time_at(np.asarray(self.path.waypoint_s))
 
@@ -458,8 +459,9 @@ def _static_range(alpha, beta, gamma, dlt):
     return lo, hi
 
 
-def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=1e-2,
-                      n_grid=None):
+def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional[Limit] = None,
+                      qd_start: Optional[Sequence[float]] = None, max_deviation: float = 1e-2,
+                      n_grid: Optional[int] = None) -> PathTrajectory:
     """
     Return the time-optimal ``PathTrajectory`` along the blended path through ``Q`` (m, n).
 
@@ -481,8 +483,8 @@ def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=
             'trajectories.ruckig_trajectory to blend from the current velocity')
     path = blended_path(Q, max_deviation, 'arc' if j_max is None else 'quintic')
     n = path.n_joints
-    v = _positive(v_max, n, 'v_max') * (1.0 - _LIMIT_MARGIN)
-    a = _positive(a_max, n, 'a_max') * (1.0 - _LIMIT_MARGIN)
+    v = as_positive(v_max, 'v_max', n) * (1.0 - _LIMIT_MARGIN)
+    a = as_positive(a_max, 'a_max', n) * (1.0 - _LIMIT_MARGIN)
     if n_grid is None:
         n_grid = max(400, 20 * path.waypoints.shape[0])
     s_grid, seg = _grid(path, n_grid)
@@ -501,7 +503,7 @@ def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=
     if j_max is not None:
         # Jerk on a curved blend grows with sdot^3 |d3q/ds3|: cap the speed there so that term
         # takes at most half of the jerk budget (the smoothing below handles the rest).
-        j = _positive(j_max, n, 'j_max') * (1.0 - _LIMIT_MARGIN)
+        j = as_positive(j_max, 'j_max', n) * (1.0 - _LIMIT_MARGIN)
         with np.errstate(divide='ignore', over='ignore'):
             jcap0 = np.min((0.5 * j / np.abs(d0[3])) ** (2.0 / 3.0), axis=1)
             jcap1 = np.min((0.5 * j / np.abs(d1[3])) ** (2.0 / 3.0), axis=1)
@@ -564,7 +566,7 @@ def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=
             return traj      # scaling time would change the start velocity it must match
         return _within_limits(path, timing, traj, v / (1.0 - _LIMIT_MARGIN),
                               a / (1.0 - _LIMIT_MARGIN))
-    return _jerk_limited(path, timing, v, a, _positive(j_max, n, 'j_max') * (1.0 - _LIMIT_MARGIN))
+    return _jerk_limited(path, timing, v, a, j)
 
 
 def _within_limits(path, timing, traj, v, a, samples=6):
@@ -629,14 +631,6 @@ def _jerk_limited(path, timing, v, a, j):
     return best
 
 
-def _positive(value, n, name):
-    arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)) if np.ndim(value) == 0 \
-        else as_finite_array(value, (n,), name)
-    if not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
-        raise InvalidInputError(f'{name} must be positive and finite, got {np.asarray(arr)}')
-    return np.array(arr, dtype=float)
-
-
 def _start_x(path, qd_start, lo, hi):
     if qd_start is None:
         return 0.0
@@ -653,7 +647,7 @@ def _rest_to_rest_time(distance, v, a):
     return np.where(full, distance / v + v / a, 2.0 * np.sqrt(distance / a))
 
 
-def time_optimal_bound(Q, v_max, a_max):
+def time_optimal_bound(Q: np.ndarray, v_max: Limit, a_max: Limit) -> float:
     """
     Return a lower bound [s] on the duration of any rest-to-rest motion through ``Q`` in order.
 
@@ -669,8 +663,8 @@ def time_optimal_bound(Q, v_max, a_max):
     """
     Q = _distinct_waypoints(Q)
     n = Q.shape[1]
-    v = _positive(v_max, n, 'v_max')
-    a = _positive(a_max, n, 'a_max')
+    v = as_positive(v_max, 'v_max', n)
+    a = as_positive(a_max, 'a_max', n)
     steps = np.abs(np.diff(Q, axis=0))
     joint_bound = float(np.max(_rest_to_rest_time(steps.sum(axis=0), v, a)))
     segment_bound = float(np.sum(np.max(steps / v, axis=1)))

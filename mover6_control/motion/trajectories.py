@@ -16,15 +16,24 @@ Builders:
   rest at both ends (the Jacobians and trajectories report's multi-point cubic and quintic
   polynomials).
 - ``bspline_trajectory``: an approximating B-spline with the waypoints as control points.
-- ``ruckig_trajectory``: jerk-limited, time-optimal, synchronised point-to-point by ruckig.
+- ``ruckig_trajectory``: jerk-limited, time-optimal, synchronised point-to-point by ruckig (the
+  one ruckig wrapper: the controller's jerk-limited law plays it too).
 """
 
+from __future__ import annotations
+
+from typing import Callable, Optional, Sequence
+
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.rotations import as_finite_array
+from mover6_control.motion.time_laws import PolynomialTimeLaw, TrapezoidalTimeLaw
+from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 import ruckig
 from scipy.interpolate import BSpline, CubicSpline, make_interp_spline, PPoly
 from scipy.optimize import minimize_scalar
+
+TimeLaw = PolynomialTimeLaw | TrapezoidalTimeLaw
+Limit = float | Sequence[float]
 
 # Sampling density used to find peak rates when fitting a trajectory to limits.
 _PEAK_SAMPLES = 4001
@@ -39,7 +48,7 @@ class JointTrajectory:
     [0, duration], returning ``(q, qd, qdd, qddd)`` each (m, n).
     """
 
-    def __init__(self, duration, n_joints):
+    def __init__(self, duration: float, n_joints: int):
         duration = float(duration)
         if not np.isfinite(duration) or duration < 0.0:
             raise InvalidInputError(f'duration must be finite and >= 0, got {duration}')
@@ -47,12 +56,12 @@ class JointTrajectory:
         self._n_joints = int(n_joints)
 
     @property
-    def duration(self):
+    def duration(self) -> float:
         """Return the duration [s]."""
         return self._duration
 
     @property
-    def n_joints(self):
+    def n_joints(self) -> int:
         """Return the number of joints."""
         return self._n_joints
 
@@ -67,7 +76,7 @@ class JointTrajectory:
     def _evaluate(self, t):
         raise NotImplementedError
 
-    def sample(self, t):
+    def sample(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return ``(q, qd, qdd)`` at time(s) ``t`` [s]: (n,) each for a scalar, else (m, n)."""
         times, scalar = self._times(t)
         q, qd, qdd, _ = self._evaluate(times)
@@ -75,7 +84,7 @@ class JointTrajectory:
             return q[0], qd[0], qdd[0]
         return q, qd, qdd
 
-    def sample_jerk(self, t):
+    def sample_jerk(self, t: float | np.ndarray) -> np.ndarray:
         """Return the jerk [rad/s^3] at time(s) ``t``: (n,) for a scalar, else (m, n)."""
         times, scalar = self._times(t)
         jerk = self._evaluate(times)[3]
@@ -85,12 +94,10 @@ class JointTrajectory:
 class TimeLawTrajectory(JointTrajectory):
     """A straight joint move ``q0 -> q1`` in ``duration`` [s] under a time law (eq. 29-32)."""
 
-    def __init__(self, q0, q1, duration, law):
+    def __init__(self, q0: Sequence[float], q1: Sequence[float], duration: float, law: TimeLaw):
         q0 = as_finite_array(q0, (None,), 'q0')
         q1 = as_finite_array(q1, (q0.size,), 'q1')
-        if not float(duration) > 0.0:
-            raise InvalidInputError(f'duration must be positive, got {duration}')
-        super().__init__(duration, q0.size)
+        super().__init__(as_positive(duration, 'duration'), q0.size)
         self.q0, self.q1, self.law = q0, q1, law
 
     def _evaluate(self, t):
@@ -111,13 +118,13 @@ class SplineTrajectory(JointTrajectory):
     each with ``derivative(k)`` (``BSpline``, ``PPoly``, ``CubicSpline``).
     """
 
-    def __init__(self, splines, duration, n_joints):
+    def __init__(self, splines: object, duration: float, n_joints: int):
         super().__init__(duration, n_joints)
         parts = tuple(splines) if isinstance(splines, (list, tuple)) else (splines,)
         self._derivs = [tuple(p.derivative(k) if k else p for k in range(4)) for p in parts]
 
     @property
-    def breakpoints(self):
+    def breakpoints(self) -> np.ndarray:
         """Return the sorted times [s] where any spline piece starts or ends."""
         knots = [np.asarray(getattr(d[0], 'x', None) if hasattr(d[0], 'x') else d[0].t)
                  for d in self._derivs]
@@ -135,7 +142,7 @@ class SplineTrajectory(JointTrajectory):
 class PiecewiseTrajectory(JointTrajectory):
     """Trajectories played one after another; each starts where the previous ended."""
 
-    def __init__(self, segments):
+    def __init__(self, segments: Sequence[JointTrajectory]):
         segments = tuple(segments)
         if not segments:
             raise InvalidInputError('a piecewise trajectory needs at least one segment')
@@ -161,7 +168,7 @@ class PiecewiseTrajectory(JointTrajectory):
 class RuckigTrajectory(JointTrajectory):
     """A ruckig ``Trajectory`` behind the common interface; jerk is piecewise constant."""
 
-    def __init__(self, trajectory, n_joints):
+    def __init__(self, trajectory: object, n_joints: int):
         super().__init__(trajectory.duration, n_joints)
         self._trajectory = trajectory
 
@@ -186,15 +193,7 @@ class RuckigTrajectory(JointTrajectory):
         return jerk
 
 
-def _limits(value, n, name):
-    arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy() if np.ndim(value) == 0 \
-        else as_finite_array(value, (n,), name)
-    if not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
-        raise InvalidInputError(f'{name} must be positive and finite, got {arr.tolist()}')
-    return arr
-
-
-def validate_waypoints(Q, name='Q', allow_repeats=False):
+def validate_waypoints(Q: np.ndarray, name: str = 'Q', allow_repeats: bool = False) -> np.ndarray:
     """
     Return waypoints ``Q`` (m, n) [rad] as an array, checking m >= 2 and finiteness.
 
@@ -216,7 +215,7 @@ def validate_waypoints(Q, name='Q', allow_repeats=False):
     return Q
 
 
-def law_peaks(law):
+def law_peaks(law: TimeLaw) -> tuple[float, float]:
     """
     Return (max |s'|, max |s''|) of a time law over tau in [0, 1].
 
@@ -235,7 +234,9 @@ def law_peaks(law):
     return peaks[0], peaks[1]
 
 
-def point_to_point(q0, q1, law, duration=None, v_max=None, a_max=None):
+def point_to_point(q0: Sequence[float], q1: Sequence[float], law: TimeLaw,
+                   duration: Optional[float] = None, v_max: Optional[Limit] = None,
+                   a_max: Optional[Limit] = None) -> TimeLawTrajectory:
     """
     Return a straight, synchronised joint move from ``q0`` to ``q1`` under ``law``.
 
@@ -252,14 +253,15 @@ def point_to_point(q0, q1, law, duration=None, v_max=None, a_max=None):
         if dq.max() < 1e-12:
             raise InvalidInputError('q0 and q1 coincide: there is no move to time')
         sd, sdd = law_peaks(law)
-        duration = float(np.max(dq * sd / _limits(v_max, q0.size, 'v_max')))
+        duration = float(np.max(dq * sd / as_positive(v_max, 'v_max', q0.size)))
         if a_max is not None:
-            t_acc = np.sqrt(np.max(dq * sdd / _limits(a_max, q0.size, 'a_max')))
+            t_acc = np.sqrt(np.max(dq * sdd / as_positive(a_max, 'a_max', q0.size)))
             duration = max(duration, float(t_acc))
     return TimeLawTrajectory(q0, q1, duration, law)
 
 
-def stop_at_each(Q, law, v_max, a_max=None):
+def stop_at_each(Q: np.ndarray, law: TimeLaw | Callable[[float], TimeLaw], v_max: Limit,
+                 a_max: Optional[Limit] = None) -> PiecewiseTrajectory:
     """
     Return the Mover6 report's scheme: one synchronised ``law`` move per waypoint pair.
 
@@ -378,12 +380,14 @@ def _interpolating(Q, times, v_max, a_max, kind, degree=3):
     build = _spline_builder(Q, kind, degree)
     if fixed is not None:
         return build(np.diff(fixed))
-    v = _limits(v_max, Q.shape[1], 'v_max')
-    a = None if a_max is None else _limits(a_max, Q.shape[1], 'a_max')
+    v = as_positive(v_max, 'v_max', Q.shape[1])
+    a = as_positive(a_max, 'a_max', Q.shape[1], allow_none=True)
     return _fit_to_limits(build, _segment_durations(Q, v), v, a)
 
 
-def cubic_trajectory(Q, times=None, v_max=None, a_max=None):
+def cubic_trajectory(Q: np.ndarray, times: Optional[Sequence[float]] = None,
+                     v_max: Optional[Limit] = None,
+                     a_max: Optional[Limit] = None) -> SplineTrajectory:
     """
     Return a C2 cubic spline through every waypoint of ``Q`` (m, n), at rest at both ends.
 
@@ -394,12 +398,16 @@ def cubic_trajectory(Q, times=None, v_max=None, a_max=None):
     return _interpolating(Q, times, v_max, a_max, 'cubic')
 
 
-def quintic_trajectory(Q, times=None, v_max=None, a_max=None):
+def quintic_trajectory(Q: np.ndarray, times: Optional[Sequence[float]] = None,
+                       v_max: Optional[Limit] = None,
+                       a_max: Optional[Limit] = None) -> SplineTrajectory:
     """Return a C4 quintic spline through every waypoint, at rest with zero end accelerations."""
     return _interpolating(Q, times, v_max, a_max, 'quintic')
 
 
-def bspline_trajectory(Q, duration=None, v_max=None, a_max=None, degree=3):
+def bspline_trajectory(Q: np.ndarray, duration: Optional[float] = None,
+                       v_max: Optional[Limit] = None, a_max: Optional[Limit] = None,
+                       degree: int = 3) -> SplineTrajectory:
     """
     Return an approximating B-spline with the waypoints as control points.
 
@@ -412,13 +420,11 @@ def bspline_trajectory(Q, duration=None, v_max=None, a_max=None, degree=3):
         raise InvalidInputError(f'degree must be an integer in 1..5, got {degree}')
     build = _spline_builder(Q, 'bspline', int(degree))
     if duration is not None:
-        if not float(duration) > 0.0:
-            raise InvalidInputError(f'duration must be positive, got {duration}')
-        return build(np.array([float(duration)]))
+        return build(np.array([as_positive(duration, 'duration')]))
     if v_max is None:
         raise InvalidInputError('bspline_trajectory: give a duration or v_max')
-    v = _limits(v_max, Q.shape[1], 'v_max')
-    a = None if a_max is None else _limits(a_max, Q.shape[1], 'a_max')
+    v = as_positive(v_max, 'v_max', Q.shape[1])
+    a = as_positive(a_max, 'a_max', Q.shape[1], allow_none=True)
     return _fit_to_limits(build, np.array([_segment_durations(Q, v).sum()]), v, a)
 
 
@@ -465,7 +471,8 @@ def _lspb_joint(theta, td, acc):
     return PPoly(coeffs[:, keep], x)
 
 
-def multipoint_trapezoidal(Q, v_max, a_max, durations=None):
+def multipoint_trapezoidal(Q: np.ndarray, v_max: Limit, a_max: Limit,
+                           durations: Optional[Sequence[float]] = None) -> SplineTrajectory:
     """
     Return linear segments joined by parabolic blends through the via points of ``Q``.
 
@@ -477,12 +484,10 @@ def multipoint_trapezoidal(Q, v_max, a_max, durations=None):
     """
     Q = validate_waypoints(Q)
     n = Q.shape[1]
-    v = _limits(v_max, n, 'v_max')
-    a = _limits(a_max, n, 'a_max')
+    v = as_positive(v_max, 'v_max', n)
+    a = as_positive(a_max, 'a_max', n)
     td = _segment_durations(Q, v) if durations is None else \
-        as_finite_array(durations, (Q.shape[0] - 1,), 'durations').copy()
-    if np.any(td <= 0.0):
-        raise InvalidInputError(f'durations must be positive, got {td.tolist()}')
+        as_positive(durations, 'durations', Q.shape[0] - 1)
     for _ in range(200):
         # Blends at either end need td^2 >= 4 |d| / a to fit with room to cruise.
         need = np.sqrt(4.0 * np.abs(Q[[1, -1]] - Q[[0, -2]]) / a).max(axis=1)
@@ -499,12 +504,16 @@ def multipoint_trapezoidal(Q, v_max, a_max, durations=None):
     raise InvalidInputError('could not fit parabolic blends to these waypoints and limits')
 
 
-def ruckig_trajectory(q0, q1, v_max, a_max, j_max, qd0=None, qdd0=None):
+def ruckig_trajectory(q0: Sequence[float], q1: Sequence[float], v_max: Limit, a_max: Limit,
+                      j_max: Limit, qd0: Optional[Sequence[float]] = None,
+                      qdd0: Optional[Sequence[float]] = None) -> RuckigTrajectory:
     """
     Return ruckig's jerk-limited, time-optimal move from ``q0`` to rest at ``q1``.
 
     All joints are synchronised (they finish together); ``qd0`` [rad/s] and ``qdd0``
     [rad/s^2] start it from a moving state, e.g. when a new goal preempts a running motion.
+    ``v_max`` [rad/s], ``a_max`` [rad/s^2] and ``j_max`` [rad/s^3] are per joint (n,) or one
+    value for all.
     """
     q0 = as_finite_array(q0, (None,), 'q0')
     n = q0.size
@@ -518,11 +527,11 @@ def ruckig_trajectory(q0, q1, v_max, a_max, j_max, qd0=None, qdd0=None):
     inp.target_position = q1.tolist()
     inp.target_velocity = [0.0] * n
     inp.target_acceleration = [0.0] * n
-    inp.max_velocity = _limits(v_max, n, 'v_max').tolist()
-    inp.max_acceleration = _limits(a_max, n, 'a_max').tolist()
-    inp.max_jerk = _limits(j_max, n, 'j_max').tolist()
+    inp.max_velocity = as_positive(v_max, 'v_max', n).tolist()
+    inp.max_acceleration = as_positive(a_max, 'a_max', n).tolist()
+    inp.max_jerk = as_positive(j_max, 'j_max', n).tolist()
     traj = ruckig.Trajectory(n)
     result = ruckig.Ruckig(n).calculate(inp, traj)
-    if result != ruckig.Result.Working:
+    if result not in (ruckig.Result.Working, ruckig.Result.Finished):
         raise InvalidInputError(f'ruckig could not plan this move: {result}')
     return RuckigTrajectory(traj, n)

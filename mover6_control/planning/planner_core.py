@@ -68,7 +68,7 @@ class PlannerSettings:
 
 
 @dataclass(frozen=True)
-class Plan:
+class JointPlan:
     """A planned motion: joint waypoints (n, 6) [rad] and the figures reported with it."""
 
     motion: str
@@ -109,10 +109,10 @@ def _finish(arm, motion, q, poses, T_goal, settings):
             reason='out_of_reach',
             details={'waypoint': len(q) - 1, 'position_error': pos_err,
                      'orientation_error': rot_err, 'closest_q': q[-1], 'closest_pose': T_end})
-    return Plan(motion=motion, q=q, poses=np.asarray(poses),
-                path_length=polyline_length(np.asarray(poses)[:, :3, 3]),
-                predicted_duration=predicted_duration(arm, q, settings.velocity_scale),
-                final_position_error=pos_err, final_orientation_error=rot_err)
+    return JointPlan(motion=motion, q=q, poses=np.asarray(poses),
+                     path_length=polyline_length(np.asarray(poses)[:, :3, 3]),
+                     predicted_duration=predicted_duration(arm, q, settings.velocity_scale),
+                     final_position_error=pos_err, final_orientation_error=rot_err)
 
 
 def _solve_path(arm, poses, q_start, settings):

@@ -10,7 +10,7 @@ import os
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.rotations import as_finite_array
+from mover6_control.validation import as_finite_array
 import numpy as np
 
 
