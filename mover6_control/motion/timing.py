@@ -60,6 +60,8 @@ _MAX_TURN = 0.05
 _LIMIT_MARGIN = 1e-3
 # The jerk-limited timing is checked on samples: slow it 1 % more than they ask for.
 _JERK_MARGIN = 1e-2
+# BlendedPath segment kinds, as codes for batch evaluation.
+_KIND_CODE = {'line': 0, 'arc': 1, 'quintic': 2}
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,6 +81,21 @@ class BlendedPath:
     waypoints: np.ndarray   # (m, n) the waypoints actually used (repeats removed)
     waypoint_s: tuple       # arc length of the path point nearest each waypoint (m,)
 
+    def __post_init__(self):
+        """Stack the lines' and arcs' parameters by segment, for ``evaluate`` in one batch."""
+        k, n = len(self.kinds), self.waypoints.shape[1]
+        code = np.array([_KIND_CODE[kind] for kind in self.kinds], dtype=int)
+        stacks = {name: np.zeros((k, n)) for name in ('p', 'u', 'c', 'x', 'y')}
+        radius = np.ones(k)
+        for i, kind in enumerate(self.kinds):
+            if kind == 'line':
+                stacks['p'][i], stacks['u'][i] = self.params[i]
+            elif kind == 'arc':
+                stacks['c'][i], radius[i], stacks['x'][i], stacks['y'][i] = self.params[i]
+        object.__setattr__(self, '_code', code)
+        object.__setattr__(self, '_stacks', stacks)
+        object.__setattr__(self, '_radius', radius)
+
     @property
     def length(self):
         """Return the total arc length [rad]."""
@@ -94,34 +111,46 @@ class BlendedPath:
         Return ``q, q', q'', q'''`` (each (m, n)) at arc lengths ``s`` (m,) on ``segment`` (m,).
 
         Derivatives are with respect to ``s``; each point is evaluated on the given segment,
-        so a point on a boundary gets that segment's one-sided derivatives.
+        so a point on a boundary gets that segment's one-sided derivatives. All lines are
+        evaluated in one batch, all arcs in another (parameters gathered by segment).
         """
-        s = np.asarray(s, dtype=float)
-        segment = np.asarray(segment, dtype=int)
+        s = np.asarray(s, dtype=float).reshape(-1)
+        segment = np.asarray(segment, dtype=int).reshape(-1)
         n = self.n_joints
         out = [np.zeros((s.size, n)) for _ in range(4)]
-        for i in (segment[:1] if segment.size == 1 else np.unique(segment)):
-            mask = segment == i
-            local = (s[mask] - self.starts[i])[:, None]
-            if self.kinds[i] == 'line':
-                p, u = self.params[i]
-                out[0][mask] = p + local * u
-                out[1][mask] = u
-            elif self.kinds[i] == 'quintic':
+        code = self._code[segment]
+        stacks = self._stacks
+        idx = np.flatnonzero(code == 0)
+        if idx.size:
+            seg = segment[idx]
+            local = (s[idx] - self.starts[seg])[:, None]
+            u = stacks['u'][seg]
+            out[0][idx] = stacks['p'][seg] + local * u
+            out[1][idx] = u
+        idx = np.flatnonzero(code == 1)
+        if idx.size:
+            seg = segment[idx]
+            local = (s[idx] - self.starts[seg])[:, None]
+            c, x, y = stacks['c'][seg], stacks['x'][seg], stacks['y'][seg]
+            r = self._radius[seg][:, None]
+            phi = local / r
+            cos, sin = np.cos(phi), np.sin(phi)
+            out[0][idx] = c + r * (x * cos + y * sin)
+            out[1][idx] = -x * sin + y * cos
+            out[2][idx] = -(x * cos + y * sin) / r
+            out[3][idx] = (x * sin - y * cos) / r ** 2
+        idx = np.flatnonzero(code == 2)
+        if idx.size:
+            # Quintic blends (jerk limits only): one batch per segment, points grouped by sort.
+            idx = idx[np.argsort(segment[idx], kind='stable')]
+            for part in np.split(idx, np.flatnonzero(np.diff(segment[idx])) + 1):
+                i = segment[part[0]]
                 coeffs, scale, _ = self.params[i]
-                sigma = local / scale
+                sigma = (s[part] - self.starts[i])[:, None] / scale
                 for k in range(4):
                     poly = coeffs[k:] * _FALLING[k][k:, None]
                     powers = sigma ** np.arange(poly.shape[0])
-                    out[k][mask] = powers @ poly / scale ** k
-            else:
-                c, r, x, y = self.params[i]
-                phi = local / r
-                cos, sin = np.cos(phi), np.sin(phi)
-                out[0][mask] = c + r * (x * cos + y * sin)
-                out[1][mask] = -x * sin + y * cos
-                out[2][mask] = -(x * cos + y * sin) / r
-                out[3][mask] = (x * sin - y * cos) / r ** 2
+                    out[k][part] = powers @ poly / scale ** k
         return tuple(out)
 
     def turn(self, i):
@@ -458,6 +487,90 @@ def _static_range(alpha, beta, gamma, dlt):
     return lo, hi
 
 
+def _members(num, den, member):
+    """
+    Return the entries of ``num`` and ``den`` (N, m) where ``member`` holds, as flat lists.
+
+    Row k's entries are ``[bounds[k]:bounds[k + 1]]`` of each list.
+    """
+    bounds = np.concatenate([[0], np.cumsum(member.sum(axis=1))]).tolist()
+    return num[member].tolist(), den[member].tolist(), bounds
+
+
+def _backward_pass(alpha, beta, gamma, dlt, delta, s_lo, s_hi, s_grid):
+    """
+    Return TOPP-RA's controllable sets ``K_k = [lo[k], hi[k]]`` (N + 1,) each; ``K_N = {0}``.
+
+    Besides the static range ``[s_lo[k], s_hi[k]]``, ``x_k`` must let ``x_k + 2 delta u`` land
+    in ``K_{k+1}`` with an admissible ``u``: the next set's lower line against the joints'
+    upper lines (``gamma + dlt x``), the joints' lower lines (``alpha + beta x``) against its
+    upper line. The recurrence is sequential; everything that does not depend on the next set
+    (the line coefficients, which lines bound from above or below) is computed for all
+    intervals at once beforehand, so each step is a few float operations per joint.
+    """
+    N = delta.size
+    inv = 1.0 / (2.0 * delta)
+    c1 = -inv[:, None] - dlt
+    c2 = beta + inv[:, None]
+    # A line with an infinite offset (no constraint) never bounds x; nor does a line whose
+    # coefficient of x vanishes.
+    ok1, ok2 = np.isfinite(gamma), np.isfinite(alpha)
+    g_up, c_up, b_up = _members(gamma, c1, ok1 & (c1 > 1e-15))
+    g_dn, c_dn, b_dn = _members(gamma, c1, ok1 & (c1 < -1e-15))
+    a_up, e_up, d_up = _members(alpha, c2, ok2 & (c2 > 1e-15))
+    a_dn, e_dn, d_dn = _members(alpha, c2, ok2 & (c2 < -1e-15))
+    inv, s_lo, s_hi = inv.tolist(), s_lo.tolist(), s_hi.tolist()
+    lo = [0.0] * (N + 1)
+    hi = [0.0] * (N + 1)
+    inf = float('inf')
+    for k in range(N - 1, -1, -1):
+        lo_k, hi_k = s_lo[k], s_hi[k]
+        # Offsets of the next set's lines; an infinite one (never, in practice) bounds nothing.
+        l1 = lo[k + 1] * inv[k]
+        if -inf < l1 < inf:
+            i, j = b_up[k], b_up[k + 1]
+            if i < j:
+                hi_k = min(hi_k, min([(g - l1) / c for g, c in zip(g_up[i:j], c_up[i:j])]))
+            i, j = b_dn[k], b_dn[k + 1]
+            if i < j:
+                lo_k = max(lo_k, max([(g - l1) / c for g, c in zip(g_dn[i:j], c_dn[i:j])]))
+        l2 = hi[k + 1] * inv[k]
+        if -inf < l2 < inf:
+            i, j = d_up[k], d_up[k + 1]
+            if i < j:
+                hi_k = min(hi_k, min([(l2 - a) / c for a, c in zip(a_up[i:j], e_up[i:j])]))
+            i, j = d_dn[k], d_dn[k + 1]
+            if i < j:
+                lo_k = max(lo_k, max([(l2 - a) / c for a, c in zip(a_dn[i:j], e_dn[i:j])]))
+        if lo_k > hi_k * (1.0 + 1e-9) + 1e-15:
+            raise UnreachableError(
+                f'no admissible speed at path position {s_grid[k]:.4f} rad',
+                reason='not_controllable', details={'s': float(s_grid[k])})
+        lo[k], hi[k] = min(lo_k, hi_k), hi_k
+    return np.array(lo), np.array(hi)
+
+
+def _forward_pass(gamma, dlt, delta, lo, hi, x0):
+    """
+    Return the greedy timing: ``x`` (N + 1,) and ``u`` (N,), the largest admissible ``u``.
+
+    Each step takes the largest ``u`` the joints' upper lines allow that still lands in the
+    next controllable set (``lo``, ``hi``); like the backward pass, on Python floats.
+    """
+    gamma, dlt = gamma.tolist(), dlt.tolist()
+    two_d = (2.0 * delta).tolist()
+    lo, hi = lo.tolist(), hi.tolist()
+    x = [x0] + [0.0] * delta.size
+    u = [0.0] * delta.size
+    for k in range(delta.size):
+        xk = x[k]
+        u_hi = min(min([g + d * xk for g, d in zip(gamma[k], dlt[k])]),
+                   (hi[k + 1] - xk) / two_d[k])
+        x[k + 1] = x1 = min(max(xk + two_d[k] * u_hi, lo[k + 1], 0.0), hi[k + 1])
+        u[k] = (x1 - xk) / two_d[k]
+    return np.array(x), np.array(u)
+
+
 def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=1e-2,
                       n_grid=None):
     """
@@ -513,44 +626,8 @@ def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=
     alpha, beta, gamma, dlt, cap = _stage_lines(d0[1], d0[2], d1[1], d1[2], delta, a)
     s_lo, s_hi = _static_range(alpha, beta, gamma, dlt)
     s_hi = np.minimum(np.minimum(s_hi, cap), x_cap[:-1])
-    # Backward pass: controllable sets K_k = [lo[k], hi[k]]. Besides the static range, x_k
-    # must let x_k + 2 delta u land in K_{k+1} with an admissible u.
-    lo = np.zeros(N + 1)
-    hi = np.zeros(N + 1)
-    for k in range(N - 1, -1, -1):
-        two_d = 2.0 * delta[k]
-        inv = 1.0 / two_d
-        # Next-set lower line against the joint upper lines, joint lower lines against the
-        # next-set upper line.
-        c1 = -inv - dlt[k]
-        r1 = gamma[k] - lo[k + 1] * inv
-        c2 = beta[k] + inv
-        r2 = hi[k + 1] * inv - alpha[k]
-        cands_hi = [s_hi[k]]
-        cands_lo = [s_lo[k]]
-        for c, r in ((c1, r1), (c2, r2)):
-            ok = np.isfinite(r)
-            up = ok & (c > 1e-15)
-            down = ok & (c < -1e-15)
-            if np.any(up):
-                cands_hi.append(float(np.min(r[up] / c[up])))
-            if np.any(down):
-                cands_lo.append(float(np.max(r[down] / c[down])))
-        lo[k], hi[k] = max(cands_lo), min(cands_hi)
-        if lo[k] > hi[k] * (1.0 + 1e-9) + 1e-15:
-            raise UnreachableError(
-                f'no admissible speed at path position {s_grid[k]:.4f} rad',
-                reason='not_controllable', details={'s': float(s_grid[k])})
-        lo[k] = min(lo[k], hi[k])
-    # Forward pass: greedy, largest admissible path acceleration.
-    x = np.zeros(N + 1)
-    x[0] = _start_x(path, qd_start, lo[0], hi[0])
-    u = np.zeros(N)
-    for k in range(N):
-        two_d = 2.0 * delta[k]
-        u_hi = min(float(np.min(gamma[k] + dlt[k] * x[k])), (hi[k + 1] - x[k]) / two_d)
-        x[k + 1] = min(max(x[k] + two_d * u_hi, lo[k + 1], 0.0), hi[k + 1])
-        u[k] = (x[k + 1] - x[k]) / two_d
+    lo, hi = _backward_pass(alpha, beta, gamma, dlt, delta, s_lo, s_hi, s_grid)
+    x, u = _forward_pass(gamma, dlt, delta, lo, hi, _start_x(path, qd_start, lo[0], hi[0]))
     sd = np.sqrt(x)
     dt = 2.0 * delta / np.maximum(sd[:-1] + sd[1:], 1e-300)
     if not np.all(np.isfinite(dt)):
