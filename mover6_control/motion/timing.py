@@ -448,12 +448,13 @@ def _grid(path, n_grid):
 
 def _stage_lines(dq0, ddq0, dq1, ddq1, delta, a_max):
     """
-    Return the acceleration constraints of all intervals as lines in x, (N, 2n) each.
+    Return the acceleration constraints of all intervals as ``|u - slope x| <= gamma``.
 
-    Constraint j of interval k is ``u >= alpha + beta x`` and ``u <= gamma + dlt x``; a row
-    whose ``u`` coefficient vanishes bounds ``x`` alone and is returned in ``x_cap`` (N,).
-    Rows: the acceleration at the start of the interval (``x_k``) and at its end
-    (``x_k + 2 delta u``), with the path derivatives of the interval's own segment.
+    ``gamma`` and ``slope`` are (N, 2n): constraint j of interval k is ``u >= -gamma + slope x``
+    and ``u <= gamma + slope x`` (``gamma`` > 0; ``inf`` and slope 0 where it does not involve
+    ``u``); a row whose ``u`` coefficient vanishes bounds ``x`` alone and is returned in
+    ``x_cap`` (N,). Rows: the acceleration at the start of the interval (``x_k``) and at its
+    end (``x_k + 2 delta u``), with the path derivatives of the interval's own segment.
     """
     P = np.hstack([dq0, dq1 + 2.0 * delta[:, None] * ddq1])
     C = np.hstack([ddq0, ddq1])
@@ -461,30 +462,33 @@ def _stage_lines(dq0, ddq0, dq1, ddq1, delta, a_max):
     big = np.abs(P) > 1e-12
     Ps = np.where(big, P, 1.0)
     pos = P > 0.0
-    alpha = np.where(big, np.where(pos, -A, A) / Ps, -np.inf)
     gamma = np.where(big, np.where(pos, A, -A) / Ps, np.inf)
     slope = np.where(big, -C / Ps, 0.0)
     flat = ~big & (np.abs(C) > 1e-12)
     with np.errstate(divide='ignore'):
         x_cap = np.min(np.where(flat, A / np.abs(C), np.inf), axis=1)
-    return alpha, slope, gamma, slope, x_cap
+    return gamma, slope, x_cap
 
 
-def _static_range(alpha, beta, gamma, dlt):
-    """Return, per interval, the x range where the acceleration lines admit some u."""
-    coef = beta[:, :, None] - dlt[:, None, :]
-    with np.errstate(invalid='ignore'):
-        rhs = gamma[:, None, :] - alpha[:, :, None]
-    rhs = np.nan_to_num(rhs, nan=np.inf, posinf=np.inf, neginf=-np.inf)
-    up = coef > 1e-15
-    down = coef < -1e-15
-    with np.errstate(divide='ignore', invalid='ignore'):
-        ratio = rhs / np.where(up | down, coef, 1.0)
-    hi = np.min(np.where(up, ratio, np.inf), axis=(1, 2))
-    lo = np.max(np.where(down, ratio, -np.inf), axis=(1, 2))
-    bad = np.any(~(up | down) & (rhs < -1e-12), axis=(1, 2))
-    lo = np.where(bad, np.inf, np.maximum(lo, 0.0))
-    return lo, hi
+def _static_range(gamma, slope):
+    """
+    Return, per interval, the x range ``[lo, hi]`` where the acceleration lines admit some u.
+
+    Some u meets ``|u - slope_j x| <= gamma_j`` for all j if and only if every pair i, j has
+    ``|slope_i - slope_j| x <= gamma_i + gamma_j``; ``lo`` is 0 (``gamma`` > 0: x = 0 always
+    admits u = 0). Rows whose slopes are all equal (lines) have no upper bound.
+    """
+    N, m = gamma.shape
+    hi = np.full(N, np.inf)
+    rows = np.flatnonzero(np.max(slope, axis=1) - np.min(slope, axis=1) > 1e-15)
+    if rows.size:
+        i, j = np.triu_indices(m, 1)
+        g, s = gamma[rows], slope[rows]
+        diff = np.abs(s[:, i] - s[:, j])
+        steep = diff > 1e-15
+        ratio = (g[:, i] + g[:, j]) / np.where(steep, diff, 1.0)
+        hi[rows] = np.min(np.where(steep, ratio, np.inf), axis=1)
+    return np.zeros(N), hi
 
 
 def _members(num, den, member):
@@ -497,51 +501,58 @@ def _members(num, den, member):
     return num[member].tolist(), den[member].tolist(), bounds
 
 
-def _backward_pass(alpha, beta, gamma, dlt, delta, s_lo, s_hi, s_grid):
+def _distinct_lines(gamma, slope):
+    """
+    Return which constraints (N, 2n) are finite and not a repeat of another in their row.
+
+    On a line the constraint at the end of an interval repeats the one at its start (the
+    path's derivatives are constant): it gives the very same bounds, so it is dropped.
+    """
+    n = gamma.shape[1] // 2
+    keep = np.isfinite(gamma)
+    keep[:, n:] &= ~((gamma[:, n:] == gamma[:, :n]) & (slope[:, n:] == slope[:, :n]))
+    return keep
+
+
+def _backward_pass(gamma, slope, delta, s_lo, s_hi, s_grid):
     """
     Return TOPP-RA's controllable sets ``K_k = [lo[k], hi[k]]`` (N + 1,) each; ``K_N = {0}``.
 
     Besides the static range ``[s_lo[k], s_hi[k]]``, ``x_k`` must let ``x_k + 2 delta u`` land
-    in ``K_{k+1}`` with an admissible ``u``: the next set's lower line against the joints'
-    upper lines (``gamma + dlt x``), the joints' lower lines (``alpha + beta x``) against its
-    upper line. The recurrence is sequential; everything that does not depend on the next set
-    (the line coefficients, which lines bound from above or below) is computed for all
-    intervals at once beforehand, so each step is a few float operations per joint.
+    in ``K_{k+1}`` with some u in ``|u - slope_j x_k| <= gamma_j``: with ``c_j = slope_j +
+    1 / (2 delta)``, ``c_j x_k <= hi[k + 1] / (2 delta) + gamma_j`` and ``c_j x_k >= lo[k + 1]
+    / (2 delta) - gamma_j``. The recurrence is sequential; all that does not depend on the next
+    set (the coefficients, which ones bound from above or below) is computed for all intervals
+    at once beforehand, and the steps run on Python floats.
     """
     N = delta.size
     inv = 1.0 / (2.0 * delta)
-    c1 = -inv[:, None] - dlt
-    c2 = beta + inv[:, None]
-    # A line with an infinite offset (no constraint) never bounds x; nor does a line whose
-    # coefficient of x vanishes.
-    ok1, ok2 = np.isfinite(gamma), np.isfinite(alpha)
-    g_up, c_up, b_up = _members(gamma, c1, ok1 & (c1 > 1e-15))
-    g_dn, c_dn, b_dn = _members(gamma, c1, ok1 & (c1 < -1e-15))
-    a_up, e_up, d_up = _members(alpha, c2, ok2 & (c2 > 1e-15))
-    a_dn, e_dn, d_dn = _members(alpha, c2, ok2 & (c2 < -1e-15))
+    c = slope + inv[:, None]
+    keep = _distinct_lines(gamma, slope)
+    g_p, c_p, b_p = _members(gamma, c, keep & (c > 1e-15))
+    g_m, c_m, b_m = _members(gamma, c, keep & (c < -1e-15))
     inv, s_lo, s_hi = inv.tolist(), s_lo.tolist(), s_hi.tolist()
     lo = [0.0] * (N + 1)
     hi = [0.0] * (N + 1)
     inf = float('inf')
     for k in range(N - 1, -1, -1):
         lo_k, hi_k = s_lo[k], s_hi[k]
+        i, j = b_p[k], b_p[k + 1]
+        m_i, m_j = b_m[k], b_m[k + 1]
         # Offsets of the next set's lines; an infinite one (never, in practice) bounds nothing.
         l1 = lo[k + 1] * inv[k]
         if -inf < l1 < inf:
-            i, j = b_up[k], b_up[k + 1]
-            if i < j:
-                hi_k = min(hi_k, min([(g - l1) / c for g, c in zip(g_up[i:j], c_up[i:j])]))
-            i, j = b_dn[k], b_dn[k + 1]
-            if i < j:
-                lo_k = max(lo_k, max([(g - l1) / c for g, c in zip(g_dn[i:j], c_dn[i:j])]))
+            # With l1 <= 0 these are all <= 0 (gamma > 0): below s_lo >= 0, they cannot bind.
+            if l1 > 0.0 and i < j:
+                lo_k = max(lo_k, max([(l1 - g) / cj for g, cj in zip(g_p[i:j], c_p[i:j])]))
+            if m_i < m_j:
+                hi_k = min(hi_k, min([(l1 - g) / cj for g, cj in zip(g_m[m_i:m_j], c_m[m_i:m_j])]))
         l2 = hi[k + 1] * inv[k]
         if -inf < l2 < inf:
-            i, j = d_up[k], d_up[k + 1]
             if i < j:
-                hi_k = min(hi_k, min([(l2 - a) / c for a, c in zip(a_up[i:j], e_up[i:j])]))
-            i, j = d_dn[k], d_dn[k + 1]
-            if i < j:
-                lo_k = max(lo_k, max([(l2 - a) / c for a, c in zip(a_dn[i:j], e_dn[i:j])]))
+                hi_k = min(hi_k, min([(l2 + g) / cj for g, cj in zip(g_p[i:j], c_p[i:j])]))
+            if m_i < m_j:
+                lo_k = max(lo_k, max([(l2 + g) / cj for g, cj in zip(g_m[m_i:m_j], c_m[m_i:m_j])]))
         if lo_k > hi_k * (1.0 + 1e-9) + 1e-15:
             raise UnreachableError(
                 f'no admissible speed at path position {s_grid[k]:.4f} rad',
@@ -550,22 +561,25 @@ def _backward_pass(alpha, beta, gamma, dlt, delta, s_lo, s_hi, s_grid):
     return np.array(lo), np.array(hi)
 
 
-def _forward_pass(gamma, dlt, delta, lo, hi, x0):
+def _forward_pass(gamma, slope, delta, lo, hi, x0):
     """
     Return the greedy timing: ``x`` (N + 1,) and ``u`` (N,), the largest admissible ``u``.
 
-    Each step takes the largest ``u`` the joints' upper lines allow that still lands in the
-    next controllable set (``lo``, ``hi``); like the backward pass, on Python floats.
+    Each step takes the largest ``u`` the upper lines ``gamma + slope x`` allow that still
+    lands in the next controllable set (``lo``, ``hi``); the steps run on Python floats.
     """
-    gamma, dlt = gamma.tolist(), dlt.tolist()
+    N = delta.size
+    g, s, b = _members(gamma, slope, _distinct_lines(gamma, slope))
     two_d = (2.0 * delta).tolist()
     lo, hi = lo.tolist(), hi.tolist()
-    x = [x0] + [0.0] * delta.size
-    u = [0.0] * delta.size
-    for k in range(delta.size):
+    x = [x0] + [0.0] * N
+    u = [0.0] * N
+    inf = float('inf')
+    for k in range(N):
         xk = x[k]
-        u_hi = min(min([g + d * xk for g, d in zip(gamma[k], dlt[k])]),
-                   (hi[k + 1] - xk) / two_d[k])
+        i, j = b[k], b[k + 1]
+        u_hi = min([gi + si * xk for gi, si in zip(g[i:j], s[i:j])]) if i < j else inf
+        u_hi = min(u_hi, (hi[k + 1] - xk) / two_d[k])
         x[k + 1] = x1 = min(max(xk + two_d[k] * u_hi, lo[k + 1], 0.0), hi[k + 1])
         u[k] = (x1 - xk) / two_d[k]
     return np.array(x), np.array(u)
@@ -623,11 +637,11 @@ def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=
     for s_stop in path.stops:
         x_cap[np.argmin(np.abs(s_grid - s_stop))] = 0.0
     x_cap[-1] = 0.0
-    alpha, beta, gamma, dlt, cap = _stage_lines(d0[1], d0[2], d1[1], d1[2], delta, a)
-    s_lo, s_hi = _static_range(alpha, beta, gamma, dlt)
+    gamma, slope, cap = _stage_lines(d0[1], d0[2], d1[1], d1[2], delta, a)
+    s_lo, s_hi = _static_range(gamma, slope)
     s_hi = np.minimum(np.minimum(s_hi, cap), x_cap[:-1])
-    lo, hi = _backward_pass(alpha, beta, gamma, dlt, delta, s_lo, s_hi, s_grid)
-    x, u = _forward_pass(gamma, dlt, delta, lo, hi, _start_x(path, qd_start, lo[0], hi[0]))
+    lo, hi = _backward_pass(gamma, slope, delta, s_lo, s_hi, s_grid)
+    x, u = _forward_pass(gamma, slope, delta, lo, hi, _start_x(path, qd_start, lo[0], hi[0]))
     sd = np.sqrt(x)
     dt = 2.0 * delta / np.maximum(sd[:-1] + sd[1:], 1e-300)
     if not np.all(np.isfinite(dt)):
@@ -657,7 +671,7 @@ def _within_limits(path, timing, traj, v, a, samples=6):
     t_grid = timing.t_grid
     frac = np.arange(1, samples + 1) / (samples + 1.0)
     t = np.concatenate([t_grid, (t_grid[:-1, None] + np.diff(t_grid)[:, None] * frac).ravel()])
-    _, qd, qdd, _ = traj._evaluate(np.sort(t))
+    _, qd, qdd, _ = traj._evaluate(t)
     factor = max(1.0, float(np.max(np.abs(qd) / v)), float(np.sqrt(np.max(np.abs(qdd) / a))))
     if factor <= 1.0:
         return traj
