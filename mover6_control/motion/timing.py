@@ -106,39 +106,48 @@ class BlendedPath:
         """Return the number of joints."""
         return self.waypoints.shape[1]
 
-    def evaluate(self, s, segment):
+    def evaluate(self, s, segment, orders=(0, 1, 2, 3)):
         """
-        Return ``q, q', q'', q'''`` (each (m, n)) at arc lengths ``s`` (m,) on ``segment`` (m,).
+        Return ``q, q', q'', q\'\'\'`` (each (m, n)) at arc lengths ``s`` (m,) on ``segment`` (m,).
 
         Derivatives are with respect to ``s``; each point is evaluated on the given segment,
-        so a point on a boundary gets that segment's one-sided derivatives. All lines are
-        evaluated in one batch, all arcs in another (parameters gathered by segment).
+        so a point on a boundary gets that segment's one-sided derivatives. ``orders`` picks
+        which derivatives are computed and returned, in that order. All lines are evaluated in
+        one batch, all arcs in another (parameters gathered by segment).
         """
         s = np.asarray(s, dtype=float).reshape(-1)
         segment = np.asarray(segment, dtype=int).reshape(-1)
         n = self.n_joints
-        out = [np.zeros((s.size, n)) for _ in range(4)]
+        out = {k: np.zeros((s.size, n)) for k in orders}
         code = self._code[segment]
         stacks = self._stacks
         idx = np.flatnonzero(code == 0)
         if idx.size:
             seg = segment[idx]
-            local = (s[idx] - self.starts[seg])[:, None]
             u = stacks['u'][seg]
-            out[0][idx] = stacks['p'][seg] + local * u
-            out[1][idx] = u
+            if 0 in out:
+                local = (s[idx] - self.starts[seg])[:, None]
+                out[0][idx] = stacks['p'][seg] + local * u
+            if 1 in out:
+                out[1][idx] = u
         idx = np.flatnonzero(code == 1)
         if idx.size:
             seg = segment[idx]
             local = (s[idx] - self.starts[seg])[:, None]
-            c, x, y = stacks['c'][seg], stacks['x'][seg], stacks['y'][seg]
+            x, y = stacks['x'][seg], stacks['y'][seg]
             r = self._radius[seg][:, None]
             phi = local / r
             cos, sin = np.cos(phi), np.sin(phi)
-            out[0][idx] = c + r * (x * cos + y * sin)
-            out[1][idx] = -x * sin + y * cos
-            out[2][idx] = -(x * cos + y * sin) / r
-            out[3][idx] = (x * sin - y * cos) / r ** 2
+            if 0 in out or 2 in out:
+                radial = x * cos + y * sin
+                if 0 in out:
+                    out[0][idx] = stacks['c'][seg] + r * radial
+                if 2 in out:
+                    out[2][idx] = -radial / r
+            if 1 in out:
+                out[1][idx] = -x * sin + y * cos
+            if 3 in out:
+                out[3][idx] = (x * sin - y * cos) / r ** 2
         idx = np.flatnonzero(code == 2)
         if idx.size:
             # Quintic blends (jerk limits only): one batch per segment, points grouped by sort.
@@ -147,11 +156,11 @@ class BlendedPath:
                 i = segment[part[0]]
                 coeffs, scale, _ = self.params[i]
                 sigma = (s[part] - self.starts[i])[:, None] / scale
-                for k in range(4):
+                for k in orders:
                     poly = coeffs[k:] * _FALLING[k][k:, None]
                     powers = sigma ** np.arange(poly.shape[0])
                     out[k][part] = powers @ poly / scale ** k
-        return tuple(out)
+        return tuple(out[k] for k in orders)
 
     def turn(self, i):
         """Return how far the tangent turns along segment ``i`` [rad] (0 on a line)."""
@@ -615,9 +624,11 @@ def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=
     s_grid, seg = _grid(path, n_grid)
     N = seg.size
     delta = np.diff(s_grid)
-    # One-sided path derivatives at both ends of each interval, within its own segment.
-    d0 = path.evaluate(s_grid[:-1], seg)
-    d1 = path.evaluate(s_grid[1:], seg)
+    # One-sided path derivatives at both ends of each interval, within its own segment (the
+    # third only for the jerk limits).
+    orders = (1, 2) if j_max is None else (1, 2, 3)
+    d0 = dict(zip(orders, path.evaluate(s_grid[:-1], seg, orders)))
+    d1 = dict(zip(orders, path.evaluate(s_grid[1:], seg, orders)))
     # Velocity caps at grid points: x <= (v_i / |q'_i|)^2, smallest of both sides.
     with np.errstate(divide='ignore', over='ignore'):
         cap0 = np.min((v / np.abs(d0[1])) ** 2, axis=1)
@@ -671,7 +682,11 @@ def _within_limits(path, timing, traj, v, a, samples=6):
     t_grid = timing.t_grid
     frac = np.arange(1, samples + 1) / (samples + 1.0)
     t = np.concatenate([t_grid, (t_grid[:-1, None] + np.diff(t_grid)[:, None] * frac).ravel()])
-    _, qd, qdd, _ = traj._evaluate(t)
+    s, sd, sdd, _ = timing.profile(t)
+    dq, ddq = path.evaluate(s, path.segment_of(s), (1, 2))
+    sd = sd[:, None]
+    qd = dq * sd
+    qdd = dq * sdd[:, None] + ddq * sd ** 2
     factor = max(1.0, float(np.max(np.abs(qd) / v)), float(np.sqrt(np.max(np.abs(qdd) / a))))
     if factor <= 1.0:
         return traj
