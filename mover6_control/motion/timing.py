@@ -108,7 +108,7 @@ class BlendedPath:
 
     def evaluate(self, s, segment, orders=(0, 1, 2, 3)):
         """
-        Return ``q, q', q'', q\'\'\'`` (each (m, n)) at arc lengths ``s`` (m,) on ``segment`` (m,).
+        Return ``q, q', q'', q'''`` (each (m, n)) at arc lengths ``s`` (m,) on ``segment`` (m,).
 
         Derivatives are with respect to ``s``; each point is evaluated on the given segment,
         so a point on a boundary gets that segment's one-sided derivatives. ``orders`` picks
@@ -538,13 +538,29 @@ def _backward_pass(gamma, slope, delta, s_lo, s_hi, s_grid):
     inv = 1.0 / (2.0 * delta)
     c = slope + inv[:, None]
     keep = _distinct_lines(gamma, slope)
-    g_p, c_p, b_p = _members(gamma, c, keep & (c > 1e-15))
-    g_m, c_m, b_m = _members(gamma, c, keep & (c < -1e-15))
+    plus, minus = keep & (c > 1e-15), keep & (c < -1e-15)
+    # The most common step: K_{k+1} = [0, s_hi[k + 1]] (only the speed caps bind there). Its
+    # result, by the same operations as the loop's for all intervals at once, is taken where
+    # that is the state.
+    top = np.append(s_hi[1:], 0.0)
+    l2 = (top * inv)[:, None]
+    with np.errstate(invalid='ignore', over='ignore'):
+        hi_f = np.minimum(s_hi, np.min(np.where(plus, (l2 + gamma) / c, np.inf), axis=1))
+        hi_f = np.minimum(hi_f, np.min(np.where(minus, (0.0 - gamma) / c, np.inf), axis=1))
+        lo_f = np.maximum(s_lo, np.max(np.where(minus, (l2 + gamma) / c, -np.inf), axis=1))
+        fast = np.isfinite(l2[:, 0]) & ~(lo_f > hi_f * (1.0 + 1e-9) + 1e-15)
+    lo_f = np.minimum(lo_f, hi_f)
+    g_p, c_p, b_p = _members(gamma, c, plus)
+    g_m, c_m, b_m = _members(gamma, c, minus)
     inv, s_lo, s_hi = inv.tolist(), s_lo.tolist(), s_hi.tolist()
+    top, fast, lo_f, hi_f = top.tolist(), fast.tolist(), lo_f.tolist(), hi_f.tolist()
     lo = [0.0] * (N + 1)
     hi = [0.0] * (N + 1)
     inf = float('inf')
     for k in range(N - 1, -1, -1):
+        if hi[k + 1] == top[k] and lo[k + 1] == 0.0 and fast[k]:
+            lo[k], hi[k] = lo_f[k], hi_f[k]
+            continue
         lo_k, hi_k = s_lo[k], s_hi[k]
         i, j = b_p[k], b_p[k + 1]
         m_i, m_j = b_m[k], b_m[k + 1]
@@ -578,14 +594,27 @@ def _forward_pass(gamma, slope, delta, lo, hi, x0):
     lands in the next controllable set (``lo``, ``hi``); the steps run on Python floats.
     """
     N = delta.size
-    g, s, b = _members(gamma, slope, _distinct_lines(gamma, slope))
-    two_d = (2.0 * delta).tolist()
+    keep = _distinct_lines(gamma, slope)
+    two_d = 2.0 * delta
+    # The most common step starts on the upper bound, x_k = hi[k]: its result, by the same
+    # operations as the loop's for all intervals at once, is taken where that is the state.
+    at = hi[:-1]
+    u_f = np.minimum(np.min(np.where(keep, gamma + slope * at[:, None], np.inf), axis=1),
+                     (hi[1:] - at) / two_d)
+    x_f = np.minimum(np.maximum(np.maximum(at + two_d * u_f, lo[1:]), 0.0), hi[1:])
+    u_f = ((x_f - at) / two_d).tolist()
+    x_f = x_f.tolist()
+    g, s, b = _members(gamma, slope, keep)
+    two_d = two_d.tolist()
     lo, hi = lo.tolist(), hi.tolist()
     x = [x0] + [0.0] * N
     u = [0.0] * N
     inf = float('inf')
     for k in range(N):
         xk = x[k]
+        if xk == hi[k]:
+            x[k + 1], u[k] = x_f[k], u_f[k]
+            continue
         i, j = b[k], b[k + 1]
         u_hi = min([gi + si * xk for gi, si in zip(g[i:j], s[i:j])]) if i < j else inf
         u_hi = min(u_hi, (hi[k + 1] - xk) / two_d[k])
