@@ -694,23 +694,29 @@ def time_parameterize(Q, v_max, a_max, j_max=None, qd_start=None, max_deviation=
         if qd_start is not None and np.any(np.asarray(qd_start) != 0.0):
             return traj      # scaling time would change the start velocity it must match
         return _within_limits(path, timing, traj, v / (1.0 - _LIMIT_MARGIN),
-                              a / (1.0 - _LIMIT_MARGIN))
+                              a / (1.0 - _LIMIT_MARGIN), seg)
     return _jerk_limited(path, timing, v, a, _positive(j_max, n, 'j_max') * (1.0 - _LIMIT_MARGIN))
 
 
-def _within_limits(path, timing, traj, v, a, samples=6):
+def _within_limits(path, timing, traj, v, a, seg, samples=6):
     """
     Return ``traj``, slowed down uniformly if it exceeds ``v`` or ``a`` (n,) between grid points.
 
     The speed caps hold at the grid points; on a corner arc the tangent turns inside an
     interval and a joint's rate can pass its cap there by a fraction of the 0.1 % margin, or
-    (rarely, on a reversal) by more. Each interval is sampled at ``samples`` interior points;
-    a violation of the true limits scales the whole timing (rates by 1 / factor, accelerations
-    by 1 / factor^2), which keeps the path and the rest-to-rest ends.
+    (rarely, on a reversal) by more. Each interval on an arc (``seg``: the segment of each
+    interval) is sampled at ``samples`` interior points; a violation of the true limits scales
+    the whole timing (rates by 1 / factor, accelerations by 1 / factor^2), which keeps the path
+    and the rest-to-rest ends. On a line the path's derivative is constant and its curvature
+    zero: the joint rates move monotonically between their values at the grid points and the
+    accelerations are those at the interval's start, so the limits hold in between with the
+    margin they have at the grid points, and lines need no interior samples.
     """
     t_grid = timing.t_grid
     frac = np.arange(1, samples + 1) / (samples + 1.0)
-    t = np.concatenate([t_grid, (t_grid[:-1, None] + np.diff(t_grid)[:, None] * frac).ravel()])
+    arcs = np.flatnonzero(path._code[seg] != 0)
+    t = np.concatenate([t_grid, (t_grid[arcs, None] + (t_grid[arcs + 1] - t_grid[arcs])[:, None]
+                                 * frac).ravel()])
     s, sd, sdd, _ = timing.profile(t)
     dq, ddq = path.evaluate(s, path.segment_of(s), (1, 2))
     sd = sd[:, None]
