@@ -491,12 +491,14 @@ def _static_range(gamma, slope):
     hi = np.full(N, np.inf)
     rows = np.flatnonzero(np.max(slope, axis=1) - np.min(slope, axis=1) > 1e-15)
     if rows.size:
-        i, j = np.triu_indices(m, 1)
         g, s = gamma[rows], slope[rows]
-        diff = np.abs(s[:, i] - s[:, j])
-        steep = diff > 1e-15
-        ratio = (g[:, i] + g[:, j]) / np.where(steep, diff, 1.0)
-        hi[rows] = np.min(np.where(steep, ratio, np.inf), axis=1)
+        bound = np.full(rows.size, np.inf)
+        for d in range(1, m):           # the pairs (i, i + d)
+            diff = np.abs(s[:, :-d] - s[:, d:])
+            steep = diff > 1e-15
+            ratio = (g[:, :-d] + g[:, d:]) / np.where(steep, diff, 1.0)
+            bound = np.minimum(bound, np.min(np.where(steep, ratio, np.inf), axis=1))
+        hi[rows] = bound
     return np.zeros(N), hi
 
 
