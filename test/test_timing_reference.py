@@ -66,3 +66,12 @@ def test_durations_match_the_implementation_before_the_speed_up(seed, duration, 
     times = np.asarray(traj.waypoint_times)
     assert traj.duration == pytest.approx(duration, rel=1e-9, abs=0.0)
     assert times[times.size // 2] == pytest.approx(middle, rel=1e-9, abs=0.0)
+
+
+@pytest.mark.parametrize('seed', [5, 6, 7, 16])
+def test_long_paths_keep_the_limits_between_grid_points(seed):
+    Q, v, a, kwargs = case(seed)
+    traj = timing.time_parameterize(Q, v, a, **kwargs)
+    t = np.linspace(0.0, traj.duration, 200001)
+    _, qd, qdd = traj.sample(t)
+    assert np.all(np.abs(qd) <= v) and np.all(np.abs(qdd) <= a)
