@@ -121,7 +121,12 @@ class BlendedPath:
         out = {k: np.zeros((s.size, n)) for k in orders}
         code = self._code[segment]
         stacks = self._stacks
-        idx = np.flatnonzero(code == 0)
+        if s.size == 1:         # one point (a control tick): no search by kind
+            points = {int(code[0]): np.zeros(1, dtype=int)}
+        else:
+            points = {kind: np.flatnonzero(code == kind) for kind in range(3)}
+        empty = np.zeros(0, dtype=int)
+        idx = points.get(0, empty)
         if idx.size:
             seg = segment[idx]
             u = stacks['u'][seg]
@@ -130,7 +135,7 @@ class BlendedPath:
                 out[0][idx] = stacks['p'][seg] + local * u
             if 1 in out:
                 out[1][idx] = u
-        idx = np.flatnonzero(code == 1)
+        idx = points.get(1, empty)
         if idx.size:
             seg = segment[idx]
             local = (s[idx] - self.starts[seg])[:, None]
@@ -148,7 +153,7 @@ class BlendedPath:
                 out[1][idx] = -x * sin + y * cos
             if 3 in out:
                 out[3][idx] = (x * sin - y * cos) / r ** 2
-        idx = np.flatnonzero(code == 2)
+        idx = points.get(2, empty)
         if idx.size:
             # Quintic blends (jerk limits only): one batch per segment, points grouped by sort.
             idx = idx[np.argsort(segment[idx], kind='stable')]
