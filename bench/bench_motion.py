@@ -17,6 +17,9 @@ Run: ``python -m bench.bench_motion [--quick]``. Prints tables and writes
    continuous duration against a lower bound on any trajectory. Plots (PNG, next to the JSON): the
    time laws, the continuous joint trajectories against the joint limits, the desired against the
    realised tool path.
+3. Plan time: the continuous timing (``timing.time_parameterize``, as the controller's
+   ``continuous`` profile calls it) through 20, 100 and 1000 random in-limit waypoints, the median
+   of several runs, with the durations (a faster timing must not change them).
 """
 
 import argparse
@@ -64,6 +67,17 @@ def _timed(fn, repeats):
     return out, best
 
 
+def _plan_times(fn, repeats):
+    """Return the result of ``fn`` and the median and shortest of its run times [s]."""
+    times = []
+    out = None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return out, float(np.median(times)), min(times)
+
+
 def _waypoints(arm, m, seed=0):
     """Return a smooth random joint path (m, 6) well inside the hardware limits."""
     rng = np.random.default_rng(seed)
@@ -108,6 +122,19 @@ def bench_speed(arm, quick):
                      'samples': int(t.size)})
     bound = timing.time_optimal_bound(Q, v, A_MAX)
     return rows, bound
+
+
+def bench_plan_time(arm, quick):
+    """Median plan time of the continuous timing at 20, 100 and 1000 waypoints."""
+    v = arm.velocity_limits
+    rows = []
+    for m, repeats in ((20, 15), (100, 15), (1000, 3)):
+        Q = _waypoints(arm, m, seed=m)
+        traj, t_plan, t_min = _plan_times(lambda: timing.time_parameterize(Q, v, A_MAX),
+                                          1 if quick else repeats)
+        rows.append({'waypoints': m, 'plan_ms': 1e3 * t_plan, 'plan_ms_min': 1e3 * t_min,
+                     'duration_s': traj.duration, 'repeats': 1 if quick else repeats})
+    return rows
 
 
 def bench_seed_linear(arm):
@@ -192,6 +219,14 @@ def main(argv=None):
         print(f'{r["kind"]:26s} {r["duration_s"]:10.2f} {r["build_ms"]:9.2f}'
               f' {r["sample_batch_us"]:16.3f} {r["sample_tick_us"]:8.1f}')
     print(f'lower bound on any trajectory through these waypoints: {bound100:.2f} s')
+    plan = bench_plan_time(arm, args.quick)
+    print('\nPlan time of the continuous timing (random waypoints, hardware speed limits,'
+          ' a_max = 1 rad/s^2)')
+    print(f'{"waypoints":>9s} {"plan ms (median)":>16s} {"(shortest)":>10s} {"runs":>4s}'
+          f' {"duration s":>17s}')
+    for r in plan:
+        print(f'{r["waypoints"]:9d} {r["plan_ms"]:16.1f} {r["plan_ms_min"]:10.1f}'
+              f' {r["repeats"]:4d} {r["duration_s"]:17.12f}')
     seed = bench_seed_linear(arm)
     print('\nThe Mover6 report linear example (0.1 m along +x, home orientation kept),'
           f' IK: {seed["ik"]}')
@@ -211,7 +246,7 @@ def main(argv=None):
           f' {seed["continuous_over_bound"]:.3f}; TOPP on a 20000-point grid'
           f' {seed["topp_fine_grid_s"]:.3f} s')
     os.makedirs(RESULTS, exist_ok=True)
-    out = {'quick': args.quick, 'speed_100_waypoints': speed,
+    out = {'quick': args.quick, 'speed_100_waypoints': speed, 'plan_time': plan,
            'lower_bound_100_waypoints_s': bound100, 'seed_linear': seed}
     with open(os.path.join(RESULTS, 'motion.json'), 'w') as f:
         json.dump(out, f, indent=2)

@@ -63,6 +63,8 @@ _MAX_TURN = 0.05
 _LIMIT_MARGIN = 1e-3
 # The jerk-limited timing is checked on samples: slow it 1 % more than they ask for.
 _JERK_MARGIN = 1e-2
+# BlendedPath segment kinds, as codes for batch evaluation.
+_KIND_CODE = {'line': 0, 'arc': 1, 'quintic': 2}
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,6 +84,21 @@ class BlendedPath:
     waypoints: np.ndarray   # (m, n) the waypoints actually used (repeats removed)
     waypoint_s: tuple       # arc length of the path point nearest each waypoint (m,)
 
+    def __post_init__(self):
+        """Stack the lines' and arcs' parameters by segment, for ``evaluate`` in one batch."""
+        k, n = len(self.kinds), self.waypoints.shape[1]
+        code = np.array([_KIND_CODE[kind] for kind in self.kinds], dtype=int)
+        stacks = {name: np.zeros((k, n)) for name in ('p', 'u', 'c', 'x', 'y')}
+        radius = np.ones(k)
+        for i, kind in enumerate(self.kinds):
+            if kind == 'line':
+                stacks['p'][i], stacks['u'][i] = self.params[i]
+            elif kind == 'arc':
+                stacks['c'][i], radius[i], stacks['x'][i], stacks['y'][i] = self.params[i]
+        object.__setattr__(self, '_code', code)
+        object.__setattr__(self, '_stacks', stacks)
+        object.__setattr__(self, '_radius', radius)
+
     @property
     def length(self) -> float:
         """Return the total arc length [rad]."""
@@ -92,40 +109,67 @@ class BlendedPath:
         """Return the number of joints."""
         return self.waypoints.shape[1]
 
-    def evaluate(self, s: np.ndarray, segment: np.ndarray) -> tuple[np.ndarray, ...]:
+    def evaluate(self, s: np.ndarray, segment: np.ndarray,
+                 orders: tuple[int, ...] = (0, 1, 2, 3)) -> tuple[np.ndarray, ...]:
         """
         Return ``q, q', q'', q'''`` (each (m, n)) at arc lengths ``s`` (m,) on ``segment`` (m,).
 
         Derivatives are with respect to ``s``; each point is evaluated on the given segment,
-        so a point on a boundary gets that segment's one-sided derivatives.
+        so a point on a boundary gets that segment's one-sided derivatives. ``orders`` picks
+        which derivatives are computed and returned, in that order. All lines are evaluated in
+        one batch, all arcs in another (parameters gathered by segment).
         """
-        s = np.asarray(s, dtype=float)
-        segment = np.asarray(segment, dtype=int)
+        s = np.asarray(s, dtype=float).reshape(-1)
+        segment = np.asarray(segment, dtype=int).reshape(-1)
         n = self.n_joints
-        out = [np.zeros((s.size, n)) for _ in range(4)]
-        for i in (segment[:1] if segment.size == 1 else np.unique(segment)):
-            mask = segment == i
-            local = (s[mask] - self.starts[i])[:, None]
-            if self.kinds[i] == 'line':
-                p, u = self.params[i]
-                out[0][mask] = p + local * u
-                out[1][mask] = u
-            elif self.kinds[i] == 'quintic':
+        out = {k: np.zeros((s.size, n)) for k in orders}
+        code = self._code[segment]
+        stacks = self._stacks
+        if s.size == 1:         # one point (a control tick): no search by kind
+            points = {int(code[0]): np.zeros(1, dtype=int)}
+        else:
+            points = {kind: np.flatnonzero(code == kind) for kind in range(3)}
+        empty = np.zeros(0, dtype=int)
+        idx = points.get(0, empty)
+        if idx.size:
+            seg = segment[idx]
+            u = stacks['u'][seg]
+            if 0 in out:
+                local = (s[idx] - self.starts[seg])[:, None]
+                out[0][idx] = stacks['p'][seg] + local * u
+            if 1 in out:
+                out[1][idx] = u
+        idx = points.get(1, empty)
+        if idx.size:
+            seg = segment[idx]
+            local = (s[idx] - self.starts[seg])[:, None]
+            x, y = stacks['x'][seg], stacks['y'][seg]
+            r = self._radius[seg][:, None]
+            phi = local / r
+            cos, sin = np.cos(phi), np.sin(phi)
+            if 0 in out or 2 in out:
+                radial = x * cos + y * sin
+                if 0 in out:
+                    out[0][idx] = stacks['c'][seg] + r * radial
+                if 2 in out:
+                    out[2][idx] = -radial / r
+            if 1 in out:
+                out[1][idx] = -x * sin + y * cos
+            if 3 in out:
+                out[3][idx] = (x * sin - y * cos) / r ** 2
+        idx = points.get(2, empty)
+        if idx.size:
+            # Quintic blends (jerk limits only): one batch per segment, points grouped by sort.
+            idx = idx[np.argsort(segment[idx], kind='stable')]
+            for part in np.split(idx, np.flatnonzero(np.diff(segment[idx])) + 1):
+                i = segment[part[0]]
                 coeffs, scale, _ = self.params[i]
-                sigma = local / scale
-                for k in range(4):
+                sigma = (s[part] - self.starts[i])[:, None] / scale
+                for k in orders:
                     poly = coeffs[k:] * _FALLING[k][k:, None]
                     powers = sigma ** np.arange(poly.shape[0])
-                    out[k][mask] = powers @ poly / scale ** k
-            else:
-                c, r, x, y = self.params[i]
-                phi = local / r
-                cos, sin = np.cos(phi), np.sin(phi)
-                out[0][mask] = c + r * (x * cos + y * sin)
-                out[1][mask] = -x * sin + y * cos
-                out[2][mask] = -(x * cos + y * sin) / r
-                out[3][mask] = (x * sin - y * cos) / r ** 2
-        return tuple(out)
+                    out[k][part] = powers @ poly / scale ** k
+        return tuple(out[k] for k in orders)
 
     def turn(self, i: int) -> float:
         """Return how far the tangent turns along segment ``i`` [rad] (0 on a line)."""
@@ -420,12 +464,13 @@ def _grid(path, n_grid):
 
 def _stage_lines(dq0, ddq0, dq1, ddq1, delta, a_max):
     """
-    Return the acceleration constraints of all intervals as lines in x, (N, 2n) each.
+    Return the acceleration constraints of all intervals as ``|u - slope x| <= gamma``.
 
-    Constraint j of interval k is ``u >= alpha + beta x`` and ``u <= gamma + dlt x``; a row
-    whose ``u`` coefficient vanishes bounds ``x`` alone and is returned in ``x_cap`` (N,).
-    Rows: the acceleration at the start of the interval (``x_k``) and at its end
-    (``x_k + 2 delta u``), with the path derivatives of the interval's own segment.
+    ``gamma`` and ``slope`` are (N, 2n): constraint j of interval k is ``u >= -gamma + slope x``
+    and ``u <= gamma + slope x`` (``gamma`` > 0; ``inf`` and slope 0 where it does not involve
+    ``u``); a row whose ``u`` coefficient vanishes bounds ``x`` alone and is returned in
+    ``x_cap`` (N,). Rows: the acceleration at the start of the interval (``x_k``) and at its
+    end (``x_k + 2 delta u``), with the path derivatives of the interval's own segment.
     """
     P = np.hstack([dq0, dq1 + 2.0 * delta[:, None] * ddq1])
     C = np.hstack([ddq0, ddq1])
@@ -433,30 +478,158 @@ def _stage_lines(dq0, ddq0, dq1, ddq1, delta, a_max):
     big = np.abs(P) > 1e-12
     Ps = np.where(big, P, 1.0)
     pos = P > 0.0
-    alpha = np.where(big, np.where(pos, -A, A) / Ps, -np.inf)
     gamma = np.where(big, np.where(pos, A, -A) / Ps, np.inf)
     slope = np.where(big, -C / Ps, 0.0)
     flat = ~big & (np.abs(C) > 1e-12)
     with np.errstate(divide='ignore'):
         x_cap = np.min(np.where(flat, A / np.abs(C), np.inf), axis=1)
-    return alpha, slope, gamma, slope, x_cap
+    return gamma, slope, x_cap
 
 
-def _static_range(alpha, beta, gamma, dlt):
-    """Return, per interval, the x range where the acceleration lines admit some u."""
-    coef = beta[:, :, None] - dlt[:, None, :]
-    with np.errstate(invalid='ignore'):
-        rhs = gamma[:, None, :] - alpha[:, :, None]
-    rhs = np.nan_to_num(rhs, nan=np.inf, posinf=np.inf, neginf=-np.inf)
-    up = coef > 1e-15
-    down = coef < -1e-15
-    with np.errstate(divide='ignore', invalid='ignore'):
-        ratio = rhs / np.where(up | down, coef, 1.0)
-    hi = np.min(np.where(up, ratio, np.inf), axis=(1, 2))
-    lo = np.max(np.where(down, ratio, -np.inf), axis=(1, 2))
-    bad = np.any(~(up | down) & (rhs < -1e-12), axis=(1, 2))
-    lo = np.where(bad, np.inf, np.maximum(lo, 0.0))
-    return lo, hi
+def _static_range(gamma, slope):
+    """
+    Return, per interval, the x range ``[lo, hi]`` where the acceleration lines admit some u.
+
+    Some u meets ``|u - slope_j x| <= gamma_j`` for all j if and only if every pair i, j has
+    ``|slope_i - slope_j| x <= gamma_i + gamma_j``; ``lo`` is 0 (``gamma`` > 0: x = 0 always
+    admits u = 0). Rows whose slopes are all equal (lines) have no upper bound.
+    """
+    N, m = gamma.shape
+    hi = np.full(N, np.inf)
+    rows = np.flatnonzero(np.max(slope, axis=1) - np.min(slope, axis=1) > 1e-15)
+    if rows.size:
+        g, s = gamma[rows], slope[rows]
+        bound = np.full(rows.size, np.inf)
+        for d in range(1, m):           # the pairs (i, i + d)
+            diff = np.abs(s[:, :-d] - s[:, d:])
+            steep = diff > 1e-15
+            ratio = (g[:, :-d] + g[:, d:]) / np.where(steep, diff, 1.0)
+            bound = np.minimum(bound, np.min(np.where(steep, ratio, np.inf), axis=1))
+        hi[rows] = bound
+    return np.zeros(N), hi
+
+
+def _members(num, den, member):
+    """
+    Return the entries of ``num`` and ``den`` (N, m) where ``member`` holds, as flat lists.
+
+    Row k's entries are ``[bounds[k]:bounds[k + 1]]`` of each list.
+    """
+    bounds = np.concatenate([[0], np.cumsum(member.sum(axis=1))]).tolist()
+    return num[member].tolist(), den[member].tolist(), bounds
+
+
+def _distinct_lines(gamma, slope):
+    """
+    Return which constraints (N, 2n) are finite and not a repeat of another in their row.
+
+    On a line the constraint at the end of an interval repeats the one at its start (the
+    path's derivatives are constant): it gives the very same bounds, so it is dropped.
+    """
+    n = gamma.shape[1] // 2
+    keep = np.isfinite(gamma)
+    keep[:, n:] &= ~((gamma[:, n:] == gamma[:, :n]) & (slope[:, n:] == slope[:, :n]))
+    return keep
+
+
+def _backward_pass(gamma, slope, delta, s_lo, s_hi, s_grid):
+    """
+    Return TOPP-RA's controllable sets ``K_k = [lo[k], hi[k]]`` (N + 1,) each; ``K_N = {0}``.
+
+    Besides the static range ``[s_lo[k], s_hi[k]]``, ``x_k`` must let ``x_k + 2 delta u`` land
+    in ``K_{k+1}`` with some u in ``|u - slope_j x_k| <= gamma_j``: with ``c_j = slope_j +
+    1 / (2 delta)``, ``c_j x_k <= hi[k + 1] / (2 delta) + gamma_j`` and ``c_j x_k >= lo[k + 1]
+    / (2 delta) - gamma_j``. The recurrence is sequential; all that does not depend on the next
+    set (the coefficients, which ones bound from above or below) is computed for all intervals
+    at once beforehand, and the steps run on Python floats.
+    """
+    N = delta.size
+    inv = 1.0 / (2.0 * delta)
+    c = slope + inv[:, None]
+    keep = _distinct_lines(gamma, slope)
+    plus, minus = keep & (c > 1e-15), keep & (c < -1e-15)
+    # The most common step: K_{k+1} = [0, s_hi[k + 1]] (only the speed caps bind there). Its
+    # result, by the same operations as the loop's for all intervals at once, is taken where
+    # that is the state.
+    top = np.append(s_hi[1:], 0.0)
+    l2 = (top * inv)[:, None]
+    with np.errstate(invalid='ignore', over='ignore'):
+        hi_f = np.minimum(s_hi, np.min(np.where(plus, (l2 + gamma) / c, np.inf), axis=1))
+        hi_f = np.minimum(hi_f, np.min(np.where(minus, (0.0 - gamma) / c, np.inf), axis=1))
+        lo_f = np.maximum(s_lo, np.max(np.where(minus, (l2 + gamma) / c, -np.inf), axis=1))
+        fast = np.isfinite(l2[:, 0]) & ~(lo_f > hi_f * (1.0 + 1e-9) + 1e-15)
+    lo_f = np.minimum(lo_f, hi_f)
+    g_p, c_p, b_p = _members(gamma, c, plus)
+    g_m, c_m, b_m = _members(gamma, c, minus)
+    inv, s_lo, s_hi = inv.tolist(), s_lo.tolist(), s_hi.tolist()
+    top, fast, lo_f, hi_f = top.tolist(), fast.tolist(), lo_f.tolist(), hi_f.tolist()
+    lo = [0.0] * (N + 1)
+    hi = [0.0] * (N + 1)
+    inf = float('inf')
+    for k in range(N - 1, -1, -1):
+        if hi[k + 1] == top[k] and lo[k + 1] == 0.0 and fast[k]:
+            lo[k], hi[k] = lo_f[k], hi_f[k]
+            continue
+        lo_k, hi_k = s_lo[k], s_hi[k]
+        i, j = b_p[k], b_p[k + 1]
+        m_i, m_j = b_m[k], b_m[k + 1]
+        # Offsets of the next set's lines; an infinite one (never, in practice) bounds nothing.
+        l1 = lo[k + 1] * inv[k]
+        if -inf < l1 < inf:
+            # With l1 <= 0 these are all <= 0 (gamma > 0): below s_lo >= 0, they cannot bind.
+            if l1 > 0.0 and i < j:
+                lo_k = max(lo_k, max([(l1 - g) / cj for g, cj in zip(g_p[i:j], c_p[i:j])]))
+            if m_i < m_j:
+                hi_k = min(hi_k, min([(l1 - g) / cj for g, cj in zip(g_m[m_i:m_j], c_m[m_i:m_j])]))
+        l2 = hi[k + 1] * inv[k]
+        if -inf < l2 < inf:
+            if i < j:
+                hi_k = min(hi_k, min([(l2 + g) / cj for g, cj in zip(g_p[i:j], c_p[i:j])]))
+            if m_i < m_j:
+                lo_k = max(lo_k, max([(l2 + g) / cj for g, cj in zip(g_m[m_i:m_j], c_m[m_i:m_j])]))
+        if lo_k > hi_k * (1.0 + 1e-9) + 1e-15:
+            raise UnreachableError(
+                f'no admissible speed at path position {s_grid[k]:.4f} rad',
+                reason='not_controllable', details={'s': float(s_grid[k])})
+        lo[k], hi[k] = min(lo_k, hi_k), hi_k
+    return np.array(lo), np.array(hi)
+
+
+def _forward_pass(gamma, slope, delta, lo, hi, x0):
+    """
+    Return the greedy timing: ``x`` (N + 1,) and ``u`` (N,), the largest admissible ``u``.
+
+    Each step takes the largest ``u`` the upper lines ``gamma + slope x`` allow that still
+    lands in the next controllable set (``lo``, ``hi``); the steps run on Python floats.
+    """
+    N = delta.size
+    keep = _distinct_lines(gamma, slope)
+    two_d = 2.0 * delta
+    # The most common step starts on the upper bound, x_k = hi[k]: its result, by the same
+    # operations as the loop's for all intervals at once, is taken where that is the state.
+    at = hi[:-1]
+    u_f = np.minimum(np.min(np.where(keep, gamma + slope * at[:, None], np.inf), axis=1),
+                     (hi[1:] - at) / two_d)
+    x_f = np.minimum(np.maximum(np.maximum(at + two_d * u_f, lo[1:]), 0.0), hi[1:])
+    u_f = ((x_f - at) / two_d).tolist()
+    x_f = x_f.tolist()
+    g, s, b = _members(gamma, slope, keep)
+    two_d = two_d.tolist()
+    lo, hi = lo.tolist(), hi.tolist()
+    x = [x0] + [0.0] * N
+    u = [0.0] * N
+    inf = float('inf')
+    for k in range(N):
+        xk = x[k]
+        if xk == hi[k]:
+            x[k + 1], u[k] = x_f[k], u_f[k]
+            continue
+        i, j = b[k], b[k + 1]
+        u_hi = min([gi + si * xk for gi, si in zip(g[i:j], s[i:j])]) if i < j else inf
+        u_hi = min(u_hi, (hi[k + 1] - xk) / two_d[k])
+        x[k + 1] = x1 = min(max(xk + two_d[k] * u_hi, lo[k + 1], 0.0), hi[k + 1])
+        u[k] = (x1 - xk) / two_d[k]
+    return np.array(x), np.array(u)
 
 
 def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional[Limit] = None,
@@ -490,9 +663,11 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
     s_grid, seg = _grid(path, n_grid)
     N = seg.size
     delta = np.diff(s_grid)
-    # One-sided path derivatives at both ends of each interval, within its own segment.
-    d0 = path.evaluate(s_grid[:-1], seg)
-    d1 = path.evaluate(s_grid[1:], seg)
+    # One-sided path derivatives at both ends of each interval, within its own segment (the
+    # third only for the jerk limits).
+    orders = (1, 2) if j_max is None else (1, 2, 3)
+    d0 = dict(zip(orders, path.evaluate(s_grid[:-1], seg, orders)))
+    d1 = dict(zip(orders, path.evaluate(s_grid[1:], seg, orders)))
     # Velocity caps at grid points: x <= (v_i / |q'_i|)^2, smallest of both sides.
     with np.errstate(divide='ignore', over='ignore'):
         cap0 = np.min((v / np.abs(d0[1])) ** 2, axis=1)
@@ -512,47 +687,11 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
     for s_stop in path.stops:
         x_cap[np.argmin(np.abs(s_grid - s_stop))] = 0.0
     x_cap[-1] = 0.0
-    alpha, beta, gamma, dlt, cap = _stage_lines(d0[1], d0[2], d1[1], d1[2], delta, a)
-    s_lo, s_hi = _static_range(alpha, beta, gamma, dlt)
+    gamma, slope, cap = _stage_lines(d0[1], d0[2], d1[1], d1[2], delta, a)
+    s_lo, s_hi = _static_range(gamma, slope)
     s_hi = np.minimum(np.minimum(s_hi, cap), x_cap[:-1])
-    # Backward pass: controllable sets K_k = [lo[k], hi[k]]. Besides the static range, x_k
-    # must let x_k + 2 delta u land in K_{k+1} with an admissible u.
-    lo = np.zeros(N + 1)
-    hi = np.zeros(N + 1)
-    for k in range(N - 1, -1, -1):
-        two_d = 2.0 * delta[k]
-        inv = 1.0 / two_d
-        # Next-set lower line against the joint upper lines, joint lower lines against the
-        # next-set upper line.
-        c1 = -inv - dlt[k]
-        r1 = gamma[k] - lo[k + 1] * inv
-        c2 = beta[k] + inv
-        r2 = hi[k + 1] * inv - alpha[k]
-        cands_hi = [s_hi[k]]
-        cands_lo = [s_lo[k]]
-        for c, r in ((c1, r1), (c2, r2)):
-            ok = np.isfinite(r)
-            up = ok & (c > 1e-15)
-            down = ok & (c < -1e-15)
-            if np.any(up):
-                cands_hi.append(float(np.min(r[up] / c[up])))
-            if np.any(down):
-                cands_lo.append(float(np.max(r[down] / c[down])))
-        lo[k], hi[k] = max(cands_lo), min(cands_hi)
-        if lo[k] > hi[k] * (1.0 + 1e-9) + 1e-15:
-            raise UnreachableError(
-                f'no admissible speed at path position {s_grid[k]:.4f} rad',
-                reason='not_controllable', details={'s': float(s_grid[k])})
-        lo[k] = min(lo[k], hi[k])
-    # Forward pass: greedy, largest admissible path acceleration.
-    x = np.zeros(N + 1)
-    x[0] = _start_x(path, qd_start, lo[0], hi[0])
-    u = np.zeros(N)
-    for k in range(N):
-        two_d = 2.0 * delta[k]
-        u_hi = min(float(np.min(gamma[k] + dlt[k] * x[k])), (hi[k + 1] - x[k]) / two_d)
-        x[k + 1] = min(max(x[k] + two_d * u_hi, lo[k + 1], 0.0), hi[k + 1])
-        u[k] = (x[k + 1] - x[k]) / two_d
+    lo, hi = _backward_pass(gamma, slope, delta, s_lo, s_hi, s_grid)
+    x, u = _forward_pass(gamma, slope, delta, lo, hi, _start_x(path, qd_start, lo[0], hi[0]))
     sd = np.sqrt(x)
     dt = 2.0 * delta / np.maximum(sd[:-1] + sd[1:], 1e-300)
     if not np.all(np.isfinite(dt)):
@@ -565,24 +704,34 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
         if qd_start is not None and np.any(np.asarray(qd_start) != 0.0):
             return traj      # scaling time would change the start velocity it must match
         return _within_limits(path, timing, traj, v / (1.0 - _LIMIT_MARGIN),
-                              a / (1.0 - _LIMIT_MARGIN))
+                              a / (1.0 - _LIMIT_MARGIN), seg)
     return _jerk_limited(path, timing, v, a, j)
 
 
-def _within_limits(path, timing, traj, v, a, samples=6):
+def _within_limits(path, timing, traj, v, a, seg, samples=6):
     """
     Return ``traj``, slowed down uniformly if it exceeds ``v`` or ``a`` (n,) between grid points.
 
     The speed caps hold at the grid points; on a corner arc the tangent turns inside an
     interval and a joint's rate can pass its cap there by a fraction of the 0.1 % margin, or
-    (rarely, on a reversal) by more. Each interval is sampled at ``samples`` interior points;
-    a violation of the true limits scales the whole timing (rates by 1 / factor, accelerations
-    by 1 / factor^2), which keeps the path and the rest-to-rest ends.
+    (rarely, on a reversal) by more. Each interval on an arc (``seg``: the segment of each
+    interval) is sampled at ``samples`` interior points; a violation of the true limits scales
+    the whole timing (rates by 1 / factor, accelerations by 1 / factor^2), which keeps the path
+    and the rest-to-rest ends. On a line the path's derivative is constant and its curvature
+    zero: the joint rates move monotonically between their values at the grid points and the
+    accelerations are those at the interval's start, so the limits hold in between with the
+    margin they have at the grid points, and lines need no interior samples.
     """
     t_grid = timing.t_grid
     frac = np.arange(1, samples + 1) / (samples + 1.0)
-    t = np.concatenate([t_grid, (t_grid[:-1, None] + np.diff(t_grid)[:, None] * frac).ravel()])
-    _, qd, qdd, _ = traj._evaluate(np.sort(t))
+    arcs = np.flatnonzero(path._code[seg] != 0)
+    t = np.concatenate([t_grid, (t_grid[arcs, None] + (t_grid[arcs + 1] - t_grid[arcs])[:, None]
+                                 * frac).ravel()])
+    s, sd, sdd, _ = timing.profile(t)
+    dq, ddq = path.evaluate(s, path.segment_of(s), (1, 2))
+    sd = sd[:, None]
+    qd = dq * sd
+    qdd = dq * sdd[:, None] + ddq * sd ** 2
     factor = max(1.0, float(np.max(np.abs(qd) / v)), float(np.sqrt(np.max(np.abs(qdd) / a))))
     if factor <= 1.0:
         return traj
