@@ -2,7 +2,7 @@
 
 import importlib.util
 
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 import hypothesis.strategies as st
 from mover6_control.control.robot import Robot
 from mover6_control.control.velocity_laws import (closed_loop_command, guard_position_limits,
@@ -115,8 +115,11 @@ def test_starting_while_moving_does_not_jump(profile):
     assert step <= law.a_max * DT * 1.01
 
 
+# Subnormal speeds (below 2.2e-308) carry too few significant bits for a ratio to be exact
+# (hypothesis found 5e-324 scaled to 1e-323): no drive resolves them, so they are not drawn.
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.floats(-5, 5), min_size=6, max_size=6).map(np.array))
+@example(np.array([0.0, 0.0, 0.0, 1.0, 1e-300, 0.0]))
+@given(st.lists(st.floats(-5, 5, allow_subnormal=False), min_size=6, max_size=6).map(np.array))
 def test_common_factor_keeps_direction(qd):
     out = scale_to_limits(qd, VLIM)
     assert np.all(np.abs(out) <= VLIM * (1 + 1e-12))
