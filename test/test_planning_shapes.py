@@ -101,13 +101,27 @@ def shape_path(shape, T_start, T_goal, via, **sampling):
     return paths.linear_path(T_start, T_goal, **sampling)
 
 
+def regular_pose(arm, T, settings):
+    """
+    Return True when a solution of ``T`` inside the limits is away from singularities.
+
+    The planner refuses goal and via poses reachable only with a Jacobian condition number
+    above ``max_condition``; such pairs are not feasible.
+    """
+    Q, ok = ik_closed_form_batch(arm, T[None], within_limits=True)
+    return any(condition_number(arm, q) <= settings.max_condition for q in Q[0][ok[0]])
+
+
 def refusals(arm, q_start, T_goal, via, settings=SETTINGS):
     """
     Return ({shape: refusal} for the feasible shapes, the feasible shapes) of one pair.
 
-    A pair whose straight line is not feasible has no feasible shape.
+    A pair whose straight line is not feasible, or whose goal or via pose is near a singularity,
+    has no feasible shape.
     """
     T_start = fk(arm, q_start)
+    if not (regular_pose(arm, T_goal, settings) and regular_pose(arm, via, settings)):
+        return {}, []
     feasible = []
     for shape in SHAPES:
         if shape == 'joint' or dense_continuous(
@@ -141,16 +155,18 @@ def random_pair(arm, start, move, turn, offset):
     Return (q_start, T_goal, via) from drawn numbers, or None for a start near a singularity.
 
     ``start`` is home (all zeros) or joint values; ``move``, ``turn`` and ``offset`` are vectors
-    in the unit cube: the goal is within 12 cm and 0.5 rad of the start pose, the via pose up to
-    1 cm off the middle of the straight line.
+    in the unit cube: the goal is 1.2 to 12 cm and up to 0.5 rad from the start pose, the via
+    pose 2 mm to 1 cm off the middle of the straight line, across it.
     """
     q_start = HOME if not np.any(start) else regular_start(arm, start)
-    if q_start is None:
-        return None
+    # The via pose's offset across the line (an arc needs three points not on one line).
+    across = offset - (offset @ move) / max(move @ move, 1e-12) * move
+    if (q_start is None or np.linalg.norm(move) < 0.1 or np.linalg.norm(across) < 0.2):
+        return None       # near a singularity, or too short a move or offset
     T_start = fk(arm, q_start)
     T_goal = goal_near(T_start, 0.12 * move / max(1.0, np.linalg.norm(move)),
                        0.5 * turn / max(1.0, np.linalg.norm(turn)))
-    via = via_near_line(T_start, T_goal, 0.01 * offset / max(1.0, np.linalg.norm(offset)))
+    via = via_near_line(T_start, T_goal, 0.01 * across / max(1.0, np.linalg.norm(across)))
     return q_start, T_goal, via
 
 
@@ -196,8 +212,10 @@ def test_readme_parabolic_from_home_within_90_deg():
 
 def test_readme_parabolic_from_home_hardware_limits():
     """
-    With the hardware limits the README's parabola is feasible from home, on the wrist branch
-    q4 < 0: the turn out of the singular home must pick that branch, not the one nearest home.
+    With the hardware limits the README's parabola is feasible from home.
+
+    It is so on the wrist branch q4 < 0: the turn out of the singular home must pick that
+    branch, not the one nearest home (q4 > 0, which leaves the limits of q6 on the way).
     """
     arm = mover6('hardware')
     goal = pose_from_xyzabc(0.30, -0.08, 0.32, 0.0, np.pi / 2, 0.0)
