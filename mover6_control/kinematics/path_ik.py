@@ -5,7 +5,8 @@ For each waypoint the solution closest to the previous one (the first: to ``q_st
 taken, in the max-norm of the joint step. Closed form first (every branch, so the continuous one
 is always among them); numeric IK seeded with the previous solution for arms without a
 spherical wrist, and as a fallback when the closed form finds nothing. A path never switches
-branch: a step larger than ``max_joint_step`` is a discontinuity and fails the path. Near a
+branch: a step larger than ``max_joint_step`` is a discontinuity and fails the path (reason
+'joint_limits' instead when the branch itself goes on, but outside the joint limits). Near a
 singularity (Jacobian condition number above ``max_condition`` and rising, i.e. moving towards
 it) the path fails too: leaving a singular pose, such as the Mover6's home (q5 = 0, axes 4 and
 6 aligned), is allowed. Leaving it may need q4 and q6 turned against each other first; when a
@@ -317,6 +318,20 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
     if stop is not None:
         _, k, q, q_prev, step = stop
         joint = int(np.argmax(np.abs(q - q_prev)))
+        if geometry is not None:
+            # The branch continues, but past a joint limit: that, not a branch switch, is why.
+            cand, ok = solve_candidates(arm, geometry, P[k][None], q_prev[None], False,
+                                        VERIFY_TOL)
+            near = cand[0][ok[0]]
+            near = near[np.abs(near - q_prev).max(axis=1) <= max_joint_step]
+            over = arm.limit_violations(near[0]) if len(near) else []
+            if over:
+                _fail(arm, P[k], q_prev, k, 'joint_limits',
+                      f'waypoint {k} continues the path only outside the joint limits ('
+                      + '; '.join(over) + f'); inside them it needs a jump of {step:.3f} rad '
+                      f'in {arm.joint_names[joint]}',
+                      {'joint_step': float(step), 'joint': arm.joint_names[joint],
+                       'jump_q': q, 'q_outside_limits': near[0]})
         _fail(arm, P[k], q_prev, k, 'discontinuity',
               f'waypoint {k} needs a jump of {step:.3f} rad in {arm.joint_names[joint]} '
               f'(limit {max_joint_step:.3f} rad): the continuous branch does not reach it',

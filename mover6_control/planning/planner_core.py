@@ -122,37 +122,47 @@ def _solve_path(arm, poses, q_start, settings):
                       orientation_tol=settings.orientation_tolerance).q
 
 
-def _wrist_turn(arm, q_current, T_next, settings):
+def _wrist_turns(arm, q_current, T_next, settings):
     """
-    Return joint waypoints (k, n) that turn a singular start in place, or None if not needed.
+    Return the possible starts (k, n) of a path from ``q_current``: itself, or wrist turns.
 
     At a singular start, such as the Mover6's home (q5 = 0: axes 4 and 6 aligned), the pose
     does not fix q4 and q6 apart, and the path's next pose can need a large wrist turn. That
     turn is made first, along the Jacobian's null space (at home: q4 and q6 in opposite senses
     about their aligned axes), which leaves the tool pose unchanged, as far as it brings the
-    configuration towards the next pose's nearest solution; in steps within ``max_joint_step``,
-    accepted only when FK along it stays within the tolerances of the start pose.
+    configuration towards one of the next pose's solutions; in steps within ``max_joint_step``,
+    accepted only when FK along it stays within the tolerances of the start pose. The next
+    pose's wrist branches give one turn each (smallest first): which one the path can continue
+    on, and at what cost, only the whole path tells (``_solve``).
     """
+    no_turn = [q_current[None]]
     if condition_number(arm, q_current) <= settings.max_condition:
-        return None
+        return no_turn
     try:
         solutions = ik_closed_form(arm, T_next, within_limits=True, q_ref=q_current)
     except InvalidInputError:
-        return None      # no closed form for this arm: the path solver deals with it
-    if len(solutions) == 0:
-        return None
-    q1 = solutions[np.argmin(np.abs(solutions - q_current).max(axis=1))]
-    if np.abs(q1 - q_current).max() <= settings.max_joint_step:
-        return None
+        return no_turn   # no closed form for this arm: the path solver deals with it
     v = np.linalg.svd(jacobian(arm, q_current))[2][-1]
-    q_turned = q_current + float(v @ (q1 - q_current)) * v
-    n_bridge = int(np.ceil(np.abs(q_turned - q_current).max() / settings.max_joint_step)) + 1
-    fine = q_current + np.linspace(0.0, 1.0, 20 * n_bridge)[:, None] * (q_turned - q_current)
-    pos, rot = pose_errors_batch(fk(arm, q_current), fk_batch(arm, fine))
-    if (pos.max() > settings.position_tolerance or rot.max() > settings.orientation_tolerance
-            or not arm.within_limits(q_turned)):
-        return None      # cannot be made in place: the path solver reports the jump
-    return q_current + np.linspace(0.0, 1.0, n_bridge)[:, None] * (q_turned - q_current)
+    starts = []
+    for q1 in solutions[np.argsort(np.abs(solutions - q_current).max(axis=1))]:
+        if np.abs(q1 - q_current).max() <= settings.max_joint_step:
+            starts.append(q_current[None])
+            continue
+        q_turned = q_current + float(v @ (q1 - q_current)) * v
+        n_bridge = int(np.ceil(np.abs(q_turned - q_current).max() / settings.max_joint_step)) + 1
+        fine = q_current + np.linspace(0.0, 1.0, 20 * n_bridge)[:, None] * (q_turned - q_current)
+        pos, rot = pose_errors_batch(fk(arm, q_current), fk_batch(arm, fine))
+        if (pos.max() <= settings.position_tolerance
+                and rot.max() <= settings.orientation_tolerance
+                and arm.within_limits(q_turned)):
+            starts.append(q_current + np.linspace(0.0, 1.0, n_bridge)[:, None]
+                          * (q_turned - q_current))
+    # Without a turn that can be made in place, the path solver reports the jump.
+    unique = []
+    for start in starts or no_turn:
+        if not any(len(u) == len(start) and np.allclose(u, start) for u in unique):
+            unique.append(start)
+    return unique
 
 
 def _solve(arm, poses, q_current, settings):
@@ -161,15 +171,24 @@ def _solve(arm, poses, q_current, settings):
 
     poses[0] is the current pose and ``q_current`` its solution: the path starts there exactly
     (solving it again could pick the other wrist branch, or trip over sensor noise). A wrist
-    turn out of a singular start (``_wrist_turn``) comes first when the next pose needs one.
+    turn out of a singular start (``_wrist_turns``) comes first when the next pose needs one;
+    of the turns whose path can be followed, the one with the shortest motion (turn and path,
+    ``predicted_duration``) is taken. A refusal is the one of the smallest turn.
     """
-    turn = _wrist_turn(arm, q_current, poses[1], settings)
-    start = q_current[None] if turn is None else turn
-    try:
-        return np.vstack([start, _solve_path(arm, poses[1:], start[-1], settings)])
-    except UnreachableError as err:
-        details = dict(err.details, waypoint=err.details.get('waypoint', -1) + 1)
-        raise UnreachableError(str(err), reason=err.reason, details=details) from None
+    best, best_time, refusal = None, np.inf, None
+    for start in _wrist_turns(arm, q_current, poses[1], settings):
+        try:
+            q = np.vstack([start, _solve_path(arm, poses[1:], start[-1], settings)])
+        except UnreachableError as err:
+            refusal = refusal or err
+            continue
+        duration = predicted_duration(arm, q, settings.velocity_scale)
+        if duration < best_time:
+            best, best_time = q, duration
+    if best is not None:
+        return best
+    details = dict(refusal.details, waypoint=refusal.details.get('waypoint', -1) + 1)
+    raise UnreachableError(str(refusal), reason=refusal.reason, details=details) from None
 
 
 def _poses_for(arm, q, poses):
