@@ -53,10 +53,10 @@ def settled_errors(profile, jog_units, goals=GOALS):
         at_arrival = np.abs(sim.q - goal)
         t_arrived = sim.time
         while sim.time < t_arrived + 1.0:
-            out = step()
+            step()
         after = np.abs(sim.q - goal)
         while core.state != 'idle':
-            out = step()
+            step()
         assert core.motion_id == motion
         assert core.status().values['result'] == 'arrived'
         out_rows.append((at_arrival, after, step().jog))

@@ -76,7 +76,8 @@ class ControllerConfig:
     Mover6's), for the dead-zone compensation and the goal tolerance of at least one tick.
     ``settle_tolerance`` [rad]: after arriving (inside ``goal_tolerance``, result 'arrived')
     the controller keeps converging until every joint is this close (in 'fraction_of_max':
-    one tick per joint, what the driver resolves) or ``settle_time`` [s] has passed, then holds with a zero command.
+    one tick per joint, what the driver resolves) or ``settle_time`` [s] has passed, then
+    holds with a zero command.
     """
 
     law: LawConfig = field(default_factory=LawConfig)
@@ -378,11 +379,9 @@ class ControllerCore:
                 and self._state in sm.ACCEPTS_DEMANDS)
 
     def reject(self, now: float, reason: str, demand_id: str = '') -> None:
-        """
-        Note a refused demand: its reason, time [s] and id stay in the status until one is taken.
-        """
+        """Note a refused demand: reason, time [s] and id stay in the status until one is taken."""
         self._rejection = {'rejected': str(reason), 'rejected_time': f'{now:.3f}',
-                           'rejected_demand_id': str(demand_id)}
+                           'rejected_goal_id': str(demand_id)}
         self._changed = True
 
     def _check_accepts(self, state):
