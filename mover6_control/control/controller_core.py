@@ -551,6 +551,10 @@ class ControllerCore:
         if self._arrived_at is not None:
             fine = np.all(self._within(self._settle_tol))
             if fine or now - self._arrived_at >= self.config.settle_time:
+                if self._ticks is not None and np.any(self._in_flight() != 0.0):
+                    # Settle time over: command zero until what is in flight has landed, so
+                    # the arm is still once idle (the driver lags up to two cycles).
+                    return np.zeros_like(goal)
                 self._result = dict(self._result, settled_joint_error=f'{worst:.6f}')
                 how = 'settled' if fine else f'settle time {self.config.settle_time} s over'
                 self._set(sm.SETTLED, 'OK', f'motion {self._motion_id} arrived; {how} '
