@@ -183,6 +183,12 @@ CONTROLLER = _table(
       0.0, 100.0),
     P('settle_timeout', 'float', 3.0, 's', 'give up settling into the goal tolerance after',
       0.01, 600.0),
+    P('settle_tolerance', 'float', 0.0001, 'rad',
+      'after arriving, keep converging until every joint is this close (fraction_of_max: one '
+      'tick), then hold with a zero command', 1e-7, 0.5),
+    P('settle_time', 'float', 1.0, 's',
+      'after arriving, converge for at most this long, then hold with a zero command',
+      0.0, 60.0),
     P('path_tolerance', 'float', 0.3, 'rad',
       'tracking error that aborts a motion with a controlled stop', 0.001, 2.0 * PI),
     P('jog_units', 'str', 'rad_per_s', '',

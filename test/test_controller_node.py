@@ -95,8 +95,11 @@ def test_arrives_and_reports(ros):
     controller, arm, spin_until = ros
     spin_until(lambda: arm.status().get('state') == 'idle')
     arm.demand_pub.publish(conversions.make_demands(np.array([GOAL / 2, GOAL])))
+    # 'arrived' comes inside goal_tolerance; the controller then settles (settle_tolerance,
+    # at most settle_time) and goes idle holding a zero command.
     spin_until(lambda: arm.status().get('motion_id') == '1'
-               and arm.status().get('result') == 'arrived')
+               and arm.status().get('result') == 'arrived'
+               and arm.status().get('state') == 'idle')
     status = arm.statuses[-1]
     assert conversions.status_level_name(status) == 'OK'
     values = conversions.status_values(status)

@@ -164,4 +164,13 @@ def test_bridge_dies_mid_motion_fault_zero_then_recovery(stack, client):
         lambda: client.values(client.controller_status).get('state') == 'idle', 30.0), \
         f'{status_values(client.controller_status)}\n{stack.report()}'
     assert client.wait_ready(timeout=30.0) is None
+    # The goal must not go out before the restarted bridge's states reach the planner (once in
+    # 479 runs it did): wait until the graph shows the new bridge matched to the planner on
+    # /joint_states and this client has seen a /joint_states message stamped after that.
+    assert client.spin_until(lambda: client.on_topic('joint_states', 'sim_bridge', 'planner'),
+                             30.0), stack.report()
+    matched = client.get_clock().now().nanoseconds
+    client.q = None
+    assert client.spin_until(lambda: client.q is not None, 10.0), stack.report()
+    assert client.get_clock().now().nanoseconds > matched
     arrived(client, stack, client.send_pose(goal, timeout=60.0), goal)

@@ -63,6 +63,10 @@ def client(stack):
 
 def assert_at_rest(client, stack, q_goal):
     """Assert the arm reports whole ticks within a tick of ``q_goal``, commanded zero, still."""
+    # After 'arrived' the controller settles (at most settle_time), then idles on a zero command.
+    assert client.spin_until(
+        lambda: status_values(client.controller_status).get('state') == 'idle', 10.0), \
+        stack.report()
     q = client.q.copy()
     np.testing.assert_allclose(q / TICK, np.round(q / TICK), atol=1e-6)   # encoder readings
     assert np.all(np.abs(q - q_goal) <= TOL + FLOAT32), f'{(q - q_goal) / TICK}\n{stack.report()}'

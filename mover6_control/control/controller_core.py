@@ -54,6 +54,11 @@ from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_
 from mover6_control.validation import as_positive
 import numpy as np
 
+# After arrival the gain is at least this fraction of the error per control period
+# (rad_per_s) or per driver cycle (fraction_of_max, on the error minus what is in flight).
+FINE_GAIN_PER_TICK = 0.25
+FINE_GAIN_PER_CYCLE = 0.25
+
 
 @dataclass(frozen=True)
 class ControllerConfig:
@@ -69,6 +74,10 @@ class ControllerConfig:
     ``value * max speed * speed_override``). 'fraction_of_max' only: ``driver_tick_size`` (n,)
     [rad] one encoder tick per joint and ``driver_cycle`` [s] the driver's cycle (defaults: the
     Mover6's), for the dead-zone compensation and the goal tolerance of at least one tick.
+    ``settle_tolerance`` [rad]: after arriving (inside ``goal_tolerance``, result 'arrived')
+    the controller keeps converging until every joint is this close (in 'fraction_of_max':
+    one tick per joint, what the driver resolves) or ``settle_time`` [s] has passed, then
+    holds with a zero command.
     """
 
     law: LawConfig = field(default_factory=LawConfig)
@@ -82,11 +91,16 @@ class ControllerConfig:
     speed_override: float = 0.25
     driver_tick_size: tuple = MOVER6_TICK_SIZE
     driver_cycle: float = MOVER6_DRIVER_CYCLE
+    settle_tolerance: float = 0.0001
+    settle_time: float = 1.0
 
     def __post_init__(self):
         """Check every setting."""
-        for name in ('state_timeout', 'settle_timeout', 'path_tolerance', 'rate'):
+        for name in ('state_timeout', 'settle_timeout', 'path_tolerance', 'rate',
+                     'settle_tolerance'):
             as_positive(getattr(self, name), name)
+        if not (np.isfinite(self.settle_time) and self.settle_time >= 0.0):
+            raise InvalidInputError(f'settle_time must be >= 0, got {self.settle_time}')
         if not (np.isfinite(self.position_gain) and self.position_gain >= 0.0):
             raise InvalidInputError(f'position_gain must be >= 0, got {self.position_gain}')
         tol = np.asarray(self.goal_tolerance, dtype=float)
@@ -132,6 +146,23 @@ class TickOutput:
 
 
 @dataclass(frozen=True, eq=False)
+class Snapshot:
+    """
+    What a demand is planned from, read once under the node's lock (``ControllerCore.snapshot``).
+
+    ``state``; ``start`` = ``(q, qd)`` the plan starts from: the reference of the last tick and
+    its velocity while moving, the measured position and None (rest) otherwise; ``moving``;
+    ``motion_id`` of the latest accepted demand. Immutable, so planning from it outside the lock
+    cannot see a tick change it halfway.
+    """
+
+    state: str
+    start: tuple
+    moving: bool
+    motion_id: int
+
+
+@dataclass(frozen=True, eq=False)
 class PendingDemand:
     """A checked and planned demand not yet started (``ControllerCore.prepare_demand``)."""
 
@@ -140,6 +171,7 @@ class PendingDemand:
     plan: MotionPlan
     moving: bool
     motion_id: int
+    demand_id: str = ''
 
 
 class ControllerCore:
@@ -151,6 +183,7 @@ class ControllerCore:
         self.config = ControllerConfig() if config is None else config
         n = arm.n_joints
         self._tol = np.broadcast_to(np.asarray(self.config.goal_tolerance, float), (n,)).copy()
+        self._settle_tol = np.minimum(np.full(n, self.config.settle_tolerance), self._tol)
         self._vlim = driver_velocity_limits(arm.velocity_limits, self.config.jog_units,
                                             self.config.speed_override)
         self._dt = 1.0 / self.config.rate
@@ -182,6 +215,8 @@ class ControllerCore:
         self._message = 'waiting for /joint_states'
         self._level = 'WARN'
         self._result = {}
+        self._rejection = {}             # the last refused demand, until one is accepted
+        self._arrived_at = None          # [s] when the running motion arrived (None: not yet)
         self._changed = True
 
     def _setup_ticks(self, arm):
@@ -201,6 +236,7 @@ class ControllerCore:
                 f'tick per cycle of {self.config.driver_cycle} s: {names}; raise '
                 f'speed_override')
         self._tol = np.maximum(self._tol, ticks)
+        self._settle_tol = ticks.copy()    # what the driver resolves: one tick per joint
 
     @property
     def goal_tolerance(self) -> np.ndarray:
@@ -240,25 +276,53 @@ class ControllerCore:
         """Note joint states rejected at ``now`` [s] (missing joints, non-finite): fault."""
         self._bad_states = str(reason)
 
-    def on_demands(self, now: float, waypoints: np.ndarray) -> int:
+    def on_demands(self, now: float, waypoints: np.ndarray, demand_id: str = '') -> int:
         """
         Accept waypoints (N, n) [rad] at ``now`` [s] and return the new motion id.
 
-        Raises ``InvalidInputError`` (the running motion untouched) when the demand is empty,
-        has the wrong shape, non-finite values or values outside the joint limits, or when the
-        controller cannot take a demand now (no joint states, fault, stopping). The same as
-        ``commit_demand(prepare_demand(now, waypoints))``.
+        Raises ``InvalidInputError`` (the running motion untouched, the refusal kept in the
+        status until the next accepted demand) when the demand is empty, has the wrong shape,
+        non-finite values or values outside the joint limits, or when the controller cannot
+        take a demand now (no joint states, fault, stopping). The same as
+        ``commit_demand(prepare_demand(now, waypoints, snapshot()))``, in one thread.
         """
-        return self.commit_demand(self.prepare_demand(now, waypoints))
+        try:
+            return self.commit_demand(self.prepare_demand(now, waypoints, self.snapshot(),
+                                                          demand_id))
+        except InvalidInputError as err:
+            self.reject(now, str(err), demand_id)
+            raise
 
-    def prepare_demand(self, now: float, waypoints: np.ndarray) -> PendingDemand:
-        """
-        Check a demand and plan it from the present reference; return a ``PendingDemand``.
+    def snapshot(self) -> Snapshot:
+        """Return the ``Snapshot`` a demand is planned from (call it under the node's lock)."""
+        state, ref = self._state, self._ref          # each read once
+        moving = state != sm.IDLE and ref is not None
+        return Snapshot(state, ref if moving else (self._q, None), moving, self._motion_id)
 
-        Does not change the controller, so a node may call it without holding its lock while
-        the ticks go on (planning the continuous law takes tens of milliseconds), then
-        ``commit_demand`` under the lock. Raises as ``on_demands``.
+    def prepare_demand(self, now: float, waypoints: np.ndarray,
+                       snapshot: Optional[Snapshot] = None,
+                       demand_id: str = '') -> PendingDemand:
         """
+        Check a demand and plan it from ``snapshot``; return a ``PendingDemand``.
+
+        Reads nothing of the controller but ``snapshot`` (and the constant arm and config), so
+        a node calls it without holding its lock while the ticks go on (planning the continuous
+        law takes tens of milliseconds), with a snapshot taken under the lock, then
+        ``commit_demand`` under the lock. Without ``snapshot`` it takes one itself (the caller
+        then holds the lock). Raises as ``on_demands``.
+        """
+        snapshot = self.snapshot() if snapshot is None else snapshot
+        Q = self.check_demand(waypoints)
+        self._check_accepts(snapshot.state)
+        q_start, qd_start = snapshot.start
+        if q_start is None:
+            raise InvalidInputError(f'cannot take a demand while {snapshot.state}: no joint '
+                                    f'states yet')
+        plan = plan_motion(self.config.law, q_start, Q, self._vlim, qd_start)
+        return PendingDemand(now, Q, plan, snapshot.moving, snapshot.motion_id, demand_id)
+
+    def check_demand(self, waypoints: np.ndarray) -> np.ndarray:
+        """Return the demand as (N, n) [rad] inside the limits, or raise ``InvalidInputError``."""
         n = self.arm.n_joints
         Q = np.asarray(waypoints, dtype=float)
         if Q.size == 0:
@@ -275,30 +339,28 @@ class ControllerCore:
                for k, row in enumerate(Q) if not self.arm.within_limits(row, tol=1e-6)]
         if bad:
             raise InvalidInputError('demand outside joint limits: ' + '; '.join(bad))
-        self._check_accepts()
-        Q = np.clip(Q, self.arm.lower, self.arm.upper)   # float32 rounding at a limit
-        moving = self._state != sm.IDLE and self._ref is not None
-        q_start, qd_start = self._ref if moving else (self._q, None)
-        plan = plan_motion(self.config.law, q_start, Q, self._vlim, qd_start)
-        return PendingDemand(now, Q, plan, moving, self._motion_id)
+        return np.clip(Q, self.arm.lower, self.arm.upper)   # float32 rounding at a limit
 
     def commit_demand(self, pending: PendingDemand) -> int:
         """
         Start a prepared demand (time counts from when it was prepared); return the motion id.
 
-        When the controller moved on meanwhile (the motion ended, another started) the demand is
-        planned again from the present state; raises when it cannot take a demand any more.
+        Call it under the node's lock. When the controller moved on since the snapshot (the
+        motion ended, another started: ``is_current`` is False) the demand is planned again
+        from a new snapshot; raises when it cannot take a demand any more.
         """
-        self._check_accepts()
+        self._check_accepts(self._state)
         plan = pending.plan
         if not self.is_current(pending):
-            moving = self._state != sm.IDLE and self._ref is not None
-            q_start, qd_start = self._ref if moving else (self._q, None)
-            plan = plan_motion(self.config.law, q_start, pending.waypoints, self._vlim, qd_start)
+            snapshot = self.snapshot()
+            plan = plan_motion(self.config.law, snapshot.start[0], pending.waypoints,
+                               self._vlim, snapshot.start[1])
         self._plan, self._t_plan = plan, pending.now
         self._motion_id += 1
         self._waypoints_total, self._waypoint = len(pending.waypoints), 0
         self._result = {}
+        self._rejection = {}
+        self._arrived_at = None
         self._set(sm.DEMAND, 'OK', f'motion {self._motion_id}: {len(pending.waypoints)} '
                                    f'waypoint(s), {self.config.law.profile}, '
                                    f'{plan.duration:.2f} s')
@@ -312,13 +374,19 @@ class ControllerCore:
         then prepares the demand again without its lock rather than let the commit plan under
         it (the ticks would wait for the planning).
         """
-        moving = self._state != sm.IDLE and self._ref is not None
-        return moving == pending.moving and self._motion_id == pending.motion_id
+        snapshot = self.snapshot()
+        return (snapshot.moving == pending.moving and snapshot.motion_id == pending.motion_id
+                and self._state in sm.ACCEPTS_DEMANDS)
 
-    def _check_accepts(self):
-        if self._state not in sm.ACCEPTS_DEMANDS:
-            raise InvalidInputError(f'cannot take a demand while {self._state}: '
-                                    f'{self._message}')
+    def reject(self, now: float, reason: str, demand_id: str = '') -> None:
+        """Note a refused demand: reason, time [s] and id stay in the status until one is taken."""
+        self._rejection = {'rejected': str(reason), 'rejected_time': f'{now:.3f}',
+                           'rejected_goal_id': str(demand_id)}
+        self._changed = True
+
+    def _check_accepts(self, state):
+        if state not in sm.ACCEPTS_DEMANDS:
+            raise InvalidInputError(f'cannot take a demand while {state}: {self._message}')
 
     def request_stop(self, now: float) -> tuple[bool, str]:
         """Decelerate to rest and hold; return ``(True, message)`` or why nothing moved."""
@@ -453,33 +521,78 @@ class ControllerCore:
                                    self._vlim)
 
     def _tick_settling(self, now):
+        """
+        Converge on the goal: 'arrived' inside the goal tolerance, then on to the fine one.
+
+        The result 'arrived' is reported when every joint is inside ``goal_tolerance`` (as it
+        always was); the state stays settling, with a zero reference velocity, until every
+        joint is inside the settle tolerance or ``settle_time`` has passed since the arrival,
+        then the controller goes idle and holds with a zero command.
+        """
         goal = self._plan.q_goal
         self._ref = (goal, np.zeros_like(goal))
         self._waypoint = self._waypoints_total
         self._error = goal - self._q
         worst = float(np.max(np.abs(self._error)))
-        within = np.abs(self._error) <= self._tol
+        if self._arrived_at is None:
+            if np.all(self._within(self._tol)):
+                self._arrived_at = now
+                self._result = {'result': 'arrived', 'final_joint_error': f'{worst:.6f}'}
+                self._message = (f'motion {self._motion_id} arrived (max joint error '
+                                 f'{worst:.4f} rad); settling')
+                self._changed = True
+            elif now - self._t_settle > self.config.settle_timeout:
+                reason = (f'not within goal tolerance after {self.config.settle_timeout} s '
+                          f'(max joint error {worst:.4f} rad)')
+                self._result = {'result': 'aborted', 'reason': reason,
+                                'final_joint_error': f'{worst:.6f}'}
+                self._set(sm.SETTLE_TIMEOUT, 'WARN', f'motion {self._motion_id}: {reason}')
+                return None
+        if self._arrived_at is not None:
+            fine = np.all(self._within(self._settle_tol))
+            if fine or now - self._arrived_at >= self.config.settle_time:
+                if self._ticks is not None and np.any(self._in_flight() != 0.0):
+                    # Settle time over: command zero until what is in flight has landed, so
+                    # the arm is still once idle (the driver lags up to two cycles).
+                    return np.zeros_like(goal)
+                self._result = dict(self._result, settled_joint_error=f'{worst:.6f}')
+                how = 'settled' if fine else f'settle time {self.config.settle_time} s over'
+                self._set(sm.SETTLED, 'OK', f'motion {self._motion_id} arrived; {how} '
+                                            f'(max joint error {worst:.6f} rad); holding')
+                return None
+            return self._fine_command(goal)
+        return closed_loop_command(goal, np.zeros_like(goal), self._q,
+                                   self.config.position_gain, self._vlim)
+
+    def _within(self, tol):
+        """Return which joints are within ``tol`` (n,) of the goal, counting what still moves."""
+        within = np.abs(self._error) <= tol
         if self._ticks is not None:
-            within &= np.abs(self._error - self._in_flight()) <= self._tol
+            within &= np.abs(self._error - self._in_flight()) <= tol
         else:
             # Not arrived while still moving: where the arm will be two ticks from now must be
             # within tolerance too (a law that ends at full speed, such as the synchronised one,
             # would otherwise declare arrival and coast one tick past the goal).
-            within &= np.abs(self._error - 2.0 * self._dt * self._qd_measured) <= self._tol
-        if np.all(within):
-            self._result = {'result': 'arrived', 'final_joint_error': f'{worst:.6f}'}
-            self._set(sm.SETTLED, 'OK', f'motion {self._motion_id} arrived '
-                                        f'(max joint error {worst:.4f} rad)')
-            return None
-        if now - self._t_settle > self.config.settle_timeout:
-            reason = (f'not within goal tolerance after {self.config.settle_timeout} s '
-                      f'(max joint error {worst:.4f} rad)')
-            self._result = {'result': 'aborted', 'reason': reason,
-                            'final_joint_error': f'{worst:.6f}'}
-            self._set(sm.SETTLE_TIMEOUT, 'WARN', f'motion {self._motion_id}: {reason}')
-            return None
-        return closed_loop_command(goal, np.zeros_like(goal), self._q,
-                                   self.config.position_gain, self._vlim)
+            within &= np.abs(self._error - 2.0 * self._dt * self._qd_measured) <= tol
+        return within
+
+    def _fine_command(self, goal):
+        """
+        Return the command that closes the last of the error after arrival (n,) [rad/s].
+
+        The gain is at least ``FINE_GAIN_PER_TICK`` per control period (rad_per_s; the
+        readings are fresh) or per driver cycle on the error minus what is still in flight
+        (fraction_of_max: the readings lag up to two cycles), so the error falls from the goal
+        tolerance to the settle tolerance in a fraction of a second without overshoot.
+        """
+        if self._ticks is None:
+            gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / self._dt)
+            q = self._q
+        else:
+            gain = max(self.config.position_gain,
+                       FINE_GAIN_PER_CYCLE / self.config.driver_cycle)
+            q = self._q + self._in_flight()
+        return closed_loop_command(goal, np.zeros_like(goal), q, gain, self._vlim)
 
     def _tick_stopping(self, now):
         t = now - self._t_plan
@@ -518,4 +631,5 @@ class ControllerCore:
         if self._ticks is not None:
             values['goal_tolerance'] = ' '.join(f'{t:.6f}' for t in self._tol)
         values.update(self._result)
+        values.update(self._rejection)
         return Status(self._state, self._level, self._message, values)

@@ -42,6 +42,7 @@ import threading
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.state_machine import FAULT
 from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.kinematics.arm import LIMIT_SETS, mover6
@@ -75,7 +76,8 @@ def config_from_parameters(get):
         position_gain=get('position_gain'), settle_timeout=get('settle_timeout'),
         path_tolerance=get('path_tolerance'), rate=get('rate'), jog_units=get('jog_units'),
         speed_override=get('speed_override'), driver_tick_size=tuple(get('driver_tick_size')),
-        driver_cycle=get('driver_cycle'))
+        driver_cycle=get('driver_cycle'), settle_tolerance=get('settle_tolerance'),
+        settle_time=get('settle_time'))
     limit_set = get('limit_set')
     if limit_set not in LIMIT_SETS:
         raise InvalidInputError(f'limit_set must be one of {LIMIT_SETS}, got {limit_set!r}')
@@ -103,6 +105,7 @@ class ControllerNode(Node):
         self.create_service(Trigger, '~/reset', self.on_reset)
         self.lock = threading.RLock()        # the core's state
         self.status_lock = threading.Lock()  # one status publication at a time (before lock)
+        self.last_state = None           # the core's state after the latest tick
         self.last_tick = None            # node clock [ns] of the latest tick
         self.max_tick_gap = 0.0          # [s] longest time between two ticks so far
         self.running = True
@@ -156,22 +159,25 @@ class ControllerNode(Node):
             msg = self.demands.get()
             if msg is None or not self.running:
                 return
-            try:
-                self.take_demand(msg)
-            except Exception as err:  # noqa: B902 - keep taking demands; say why this one failed
-                self.get_logger().error(f'/joint_demands failed: {type(err).__name__}: {err}')
+            self.take_demand(msg)       # never raises: refuses with a reason instead
 
     def take_demand(self, msg):
-        """Accept waypoints or log why they were rejected (the running motion is untouched)."""
+        """
+        Accept waypoints or say why not: every demand ends accepted or refused with a reason.
+
+        The one concurrency rule (docs/architecture.md, "Threads"): a snapshot of the core is
+        taken under the lock, the plan is made from it without the lock (the ticks go on), and
+        it is committed under the lock only if the snapshot is still current; otherwise it is
+        planned again from a new snapshot (the last attempt re-plans under the lock).
+        """
         now = self.now()
         goal_id = conversions.demand_id_from_msg(msg)
         try:
             Q = conversions.demands_from_msg(msg, len(self.joint_names))
-            # Plan without the lock so the ticks go on (the continuous law plans for tens of
-            # milliseconds); when the controller moved on meanwhile (the motion ended), plan
-            # again, also without the lock, rather than let the commit re-plan under it.
             for attempt in range(DEMAND_ATTEMPTS):
-                pending = self.core.prepare_demand(now, Q)
+                with self.lock:
+                    snapshot = self.core.snapshot()
+                pending = self.core.prepare_demand(now, Q, snapshot, goal_id)
                 with self.lock:
                     if attempt + 1 == DEMAND_ATTEMPTS or self.core.is_current(pending):
                         motion_id = self.core.commit_demand(pending)
@@ -181,13 +187,14 @@ class ControllerNode(Node):
                             self.goal_motions[goal_id] = motion_id
                         break
                 now = self.now()
-        except Mover6Error as err:
-            self.get_logger().warning(f'rejected /joint_demands: {err}')
+        except Exception as err:  # noqa: B902 - no demand is dropped without a status
+            reason = str(err) if isinstance(err, Mover6Error) else f'{type(err).__name__}: {err}'
+            self.get_logger().warning(f'rejected /joint_demands: {reason}')
             if goal_id:
-                self.goal_rejections[goal_id] = str(err)
-            self.publish_status(now, {'rejected': str(err), 'rejected_goal_id': goal_id},
-                                level='WARN',
-                                message=f'rejected demand: {err}')
+                self.goal_rejections[goal_id] = reason
+            with self.lock:
+                self.core.reject(now, reason, goal_id)
+            self.publish_status(now, level='WARN', message=f'rejected demand: {reason}')
             return
         self.get_logger().info(f'motion {motion_id}: {len(Q)} waypoint(s) accepted'
                                + (f' (goal {goal_id})' if goal_id else ''))
@@ -280,9 +287,18 @@ class ControllerNode(Node):
                 throttle_duration_sec=1.0)
         with self.lock:
             out = self.core.tick(now)
+            fault_change = None
+            if (out.state == FAULT) != (self.last_state == FAULT):
+                fault_change = self.core.status().message
+            self.last_state = out.state
             status_due = (out.status_changed or self.last_status is None
                           or now - self.last_status >= self.status_period
                           or now < self.last_status)
+        if fault_change is not None:        # entering fault and leaving it: logged once each
+            if out.state == FAULT:
+                self.get_logger().error(f'fault: {fault_change}')
+            else:
+                self.get_logger().info(f'fault cleared ({out.state}): {fault_change}')
         # Published without the lock: a DDS write can block (seen for 0.33 s right after start-up
         # while the sim bridge was being matched), and the callbacks must not wait for it.
         self.jog_pub.publish(

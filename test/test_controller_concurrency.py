@@ -1,0 +1,225 @@
+"""
+The controller core under the node's concurrency model: one lock, snapshot, plan outside, commit.
+
+``ControllerNode`` touches the core from three threads (docs/architecture.md, "Threads"): the
+tick thread (``tick``), the executor (``on_joint_states``, ``request_stop``, ``reset``) and the
+demand thread, which takes a ``snapshot`` under the lock, plans from it without the lock
+(``prepare_demand``) and commits under the lock (``commit_demand``) only if ``is_current``.
+
+- a regression test for the race of the old ``prepare_demand``, which read ``_ref`` twice
+  outside the lock: a tick clearing it in between raised inside the demand thread;
+- a seeded random schedule of those steps (thousands of interleavings, deterministic), and the
+  same steps from real threads, checking the invariants: no exception, every demand accepted
+  or refused with a reason (kept in the status), every command finite and inside the limits, a
+  zero command in fault.
+"""
+
+import random
+import threading
+
+from mover6_control.control import state_machine as sm
+from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.velocity_laws import LawConfig
+from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.arm import mover6
+import numpy as np
+import pytest
+
+ARM = mover6()
+DT = 0.01
+
+
+class RacingCore(ControllerCore):
+    """A core whose ``_ref`` is cleared (as a tick ending the motion does) right after a read."""
+
+    clear_after_next_read = False
+
+    @property
+    def _ref(self):
+        value = self.__dict__.get('_ref_value')
+        if self.clear_after_next_read:
+            self.clear_after_next_read = False
+            self.__dict__['_ref_value'] = None       # the tick thread ran just now
+        return value
+
+    @_ref.setter
+    def _ref(self, value):
+        self.__dict__['_ref_value'] = value
+
+
+def test_a_tick_clearing_the_reference_during_prepare_demand_changes_nothing():
+    # The old prepare_demand read `_ref` for `moving`, then again for the start: a tick between
+    # the two reads (the motion ended) made the second None: TypeError in the demand thread,
+    # the demand dropped with no status.
+    core = RacingCore(ARM, ControllerConfig(law=LawConfig(profile='synchronised')))
+    q = np.zeros(6)
+    core.on_joint_states(0.0, q)
+    core.tick(0.0)
+    core.on_demands(0.0, [[0.2, 0.1, 0.0, 0.0, 0.0, 0.0]])
+    core.tick(DT)
+    assert core.state == sm.EXECUTING and core._ref is not None
+    core.clear_after_next_read = True
+    pending = core.prepare_demand(DT, [[0.3, 0.0, 0.0, 0.0, 0.0, 0.0]])
+    assert core._ref is None                          # the race happened
+    motion = core.commit_demand(pending)
+    assert motion == 2 and core.state == sm.EXECUTING
+    out = core.tick(2 * DT)
+    assert np.all(np.isfinite(out.qd))
+
+
+class Harness:
+    """The core, a lock, a simple arm that follows the command, and the invariants."""
+
+    def __init__(self, seed, profile):
+        self.rng = random.Random(seed)
+        self.core = ControllerCore(ARM, ControllerConfig(law=LawConfig(profile=profile)))
+        self.lock = threading.Lock()
+        self.q = np.zeros(6)
+        self.now = 0.0
+        self.vlim = np.asarray(ARM.velocity_limits)
+        self.accepted = self.refused = 0
+        self.states_seen = set()
+
+    def random_demand(self):
+        """Mostly valid waypoints; sometimes outside the limits, non-finite or empty."""
+        kind = self.rng.random()
+        n = self.rng.randint(1, 3)
+        Q = np.array([[self.rng.uniform(lo * 0.9, hi * 0.9) for lo, hi in
+                       zip(ARM.lower, ARM.upper)] for _ in range(n)])
+        if kind < 0.1:
+            Q[0, self.rng.randrange(6)] = 5.0
+        elif kind < 0.15:
+            Q[0, 0] = np.nan
+        elif kind < 0.18:
+            Q = np.zeros((0, 6))
+        return Q
+
+    def demand_steps(self):
+        """Yield between the node's steps of one demand: snapshot, plan, commit."""
+        Q = self.random_demand()
+        for attempt in range(3):
+            with self.lock:
+                snapshot = self.core.snapshot()
+                now = self.now
+            yield
+            try:
+                pending = self.core.prepare_demand(now, Q, snapshot, f'd{id(Q)}')
+            except InvalidInputError as err:
+                self.refuse(now, err)
+                return
+            yield
+            with self.lock:
+                if attempt == 2 or self.core.is_current(pending):
+                    try:
+                        self.core.commit_demand(pending)
+                    except InvalidInputError as err:
+                        self.refuse(now, err, locked=True)
+                        return
+                    self.accepted += 1
+                    assert 'rejected' not in self.core.status().values
+                    return
+            yield
+
+    def refuse(self, now, err, locked=False):
+        assert str(err)
+        if locked:
+            self.core.reject(now, str(err))
+        else:
+            with self.lock:
+                self.core.reject(now, str(err))
+        with (self.lock if not locked else _Null()):
+            assert self.core.status().values['rejected'] == str(err)
+        self.refused += 1
+
+    def tick(self):
+        with self.lock:
+            self.now += DT
+            out = self.core.tick(self.now)
+        assert np.all(np.isfinite(out.qd)) and np.all(np.isfinite(out.jog))
+        assert np.all(np.abs(out.qd) <= self.vlim + 1e-9)
+        assert np.all(self.q + out.qd * DT <= ARM.upper + 1e-9)
+        assert np.all(self.q + out.qd * DT >= ARM.lower - 1e-9)
+        if out.state == sm.FAULT or out.state not in sm.MOVING_STATES:
+            assert not np.any(out.qd)
+        self.states_seen.add(out.state)
+        self.q = self.q + out.qd * DT
+
+    def event(self):
+        """One executor callback: states (fresh, missing, invalid), stop or reset."""
+        r = self.rng.random()
+        with self.lock:
+            if r < 0.75:
+                self.core.on_joint_states(self.now, self.q + self.rng.gauss(0, 1e-4))
+            elif r < 0.8:
+                self.core.on_invalid_states(self.now, 'joint5 missing')
+            elif r < 0.85:
+                self.now += 0.3                      # states go stale
+            elif r < 0.93:
+                ok, message = self.core.request_stop(self.now)
+                assert ok and message
+            else:
+                self.core.reset(self.now)
+
+
+class _Null:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *args):
+        return False
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_random_interleavings_keep_the_invariants(seed):
+    h = Harness(seed, ('synchronised', 'trapezoidal', 'continuous')[seed % 3])
+    demands = []
+    steps = 0
+    for _ in range(3000):                 # scheduling decisions per seed
+        r = h.rng.random()
+        if r < 0.4:
+            h.tick()
+        elif r < 0.65:
+            h.event()
+        else:
+            if not demands or h.rng.random() < 0.1:
+                demands.append(h.demand_steps())
+            gen = h.rng.choice(demands)
+            try:
+                next(gen)
+            except StopIteration:
+                demands.remove(gen)
+        steps += 1
+    for gen in demands:                   # every demand ends accepted or refused
+        for _ in gen:
+            h.tick()
+    assert steps == 3000
+    assert h.accepted > 10 and h.refused > 10
+    assert {sm.EXECUTING, sm.FAULT, sm.IDLE} <= h.states_seen
+
+
+def test_real_threads_keep_the_invariants():
+    h = Harness(99, 'synchronised')
+    errors = []
+    stop = threading.Event()
+
+    def run(body):
+        try:
+            while not stop.is_set():
+                body()
+        except Exception as err:  # noqa: B902 - report any failure of any thread
+            errors.append(err)
+            stop.set()
+
+    def demands():
+        for _ in h.demand_steps():
+            pass
+
+    threads = [threading.Thread(target=run, args=(f,)) for f in (h.tick, h.event, demands)]
+    for t in threads:
+        t.start()
+    stop.wait(2.0)
+    stop.set()
+    for t in threads:
+        t.join()
+    assert not errors, errors
+    assert h.accepted + h.refused > 20
