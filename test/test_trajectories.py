@@ -222,3 +222,21 @@ def test_long_spline_paths_keep_the_limits_at_every_knot(build):
                                   0.5 * (b[1:] + b[:-1])]))
     _, qd, qdd = traj.sample(t)
     assert np.all(np.abs(qd) <= V) and np.all(np.abs(qdd) <= A)
+
+
+@pytest.mark.parametrize('build', [
+    lambda: tj.TimeLawTrajectory(Q[0], Q[1], 2.0, tl.trapezoidal(2.0)),
+    lambda: tj.TimeLawTrajectory(Q[0], Q[1], 2.0, tl.quintic()),
+    lambda: tj.ruckig_trajectory(Q[0], Q[1], V, A, 5.0, qd0=np.full(6, 0.1)),
+    lambda: tj.cubic_trajectory(Q, v_max=V, a_max=A),
+])
+def test_state_of_one_tick_is_the_sample(build):
+    """``state(t)``, the controller's per-tick path, gives exactly ``sample(t)[:2]``."""
+    traj = build()
+    for t in np.concatenate([[-1.0], np.linspace(0.0, traj.duration, 37), [traj.duration + 1]]):
+        q, qd = traj.state(t)
+        q_s, qd_s, _ = traj.sample(t)
+        np.testing.assert_array_equal(q, q_s)
+        np.testing.assert_array_equal(qd, qd_s)
+    with pytest.raises(InvalidInputError):
+        traj.state(float('nan'))

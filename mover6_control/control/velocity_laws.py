@@ -132,8 +132,7 @@ class TrajectorySegment:
         """Return ``(q, qd)`` at ``tau`` [s]."""
         if tau >= self.duration:
             return self.q1, np.zeros_like(self.q1)
-        q, qd = self.trajectory.sample(tau)[:2]
-        return np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
+        return self.trajectory.state(tau)
 
 
 # --- the plan: segments in a row ------------------------------------------------------------

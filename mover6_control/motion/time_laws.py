@@ -23,6 +23,7 @@ The controller's trapezoidal law (``control.velocity_laws.trapezoid_segment``), 
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError
@@ -31,6 +32,10 @@ import numpy as np
 
 
 def _as_tau(tau):
+    if isinstance(tau, float):          # one time of a control tick: no array machinery
+        if not math.isfinite(tau):
+            raise InvalidInputError(f'tau is not finite: {tau}')
+        return min(max(tau, 0.0), 1.0)
     tau = np.asarray(tau, dtype=float)
     if not np.isfinite(tau).all():
         raise InvalidInputError(f'tau has non-finite values: {tau.tolist()}')
@@ -68,6 +73,13 @@ class PolynomialTimeLaw:
         return self.evaluate(tau)
 
 
+def _piece(up, down, ramp_up, cruise, ramp_down):
+    """Return the trapezoid's piece at each tau: ramp up, cruise or ramp down."""
+    if isinstance(up, bool):            # one tau (a control tick): no arrays
+        return ramp_up if up else ramp_down if down else cruise
+    return np.where(up, ramp_up, np.where(down, ramp_down, cruise))
+
+
 @dataclass(frozen=True)
 class TrapezoidalTimeLaw:
     """
@@ -102,12 +114,12 @@ class TrapezoidalTimeLaw:
         down = tau > 1.0 - b
         td = 1.0 - tau
         if derivative == 0:
-            mid = v * (tau - 0.5 * b)
-            return np.where(up, 0.5 * a * tau ** 2, np.where(down, 1.0 - 0.5 * a * td ** 2, mid))
+            return _piece(up, down, 0.5 * a * tau ** 2, v * (tau - 0.5 * b),
+                          1.0 - 0.5 * a * td ** 2)
         if derivative == 1:
-            return np.where(up, a * tau, np.where(down, a * td, v))
+            return _piece(up, down, a * tau, v, a * td)
         if derivative == 2:
-            return np.where(up, a, np.where(down, -a, 0.0)) * (tau < 1.0)
+            return _piece(up, down, a, 0.0, -a) * (tau < 1.0)
         if derivative == 3:
             return np.zeros_like(tau)
         raise InvalidInputError(f'derivative must be 0..3, got {derivative}')

@@ -22,6 +22,7 @@ Builders:
 
 from __future__ import annotations
 
+import math
 from typing import Callable, Optional, Sequence
 
 from mover6_control.errors import InvalidInputError
@@ -73,6 +74,13 @@ class JointTrajectory:
             raise InvalidInputError('t has non-finite values')
         return np.minimum(np.maximum(np.atleast_1d(t_arr), 0.0), self._duration), t_arr.ndim == 0
 
+    def _time(self, t):
+        """Return one time ``t`` [s] as a float clamped to [0, duration] (no arrays)."""
+        t = float(t)
+        if not math.isfinite(t):
+            raise InvalidInputError('t has non-finite values')
+        return min(max(t, 0.0), self._duration)
+
     def _evaluate(self, t):
         raise NotImplementedError
 
@@ -89,6 +97,16 @@ class JointTrajectory:
         times, scalar = self._times(t)
         jerk = self._evaluate(times)[3]
         return jerk[0] if scalar else jerk
+
+    def state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return ``(q, qd)`` (n,) each at one time ``t`` [s]: what a control tick needs.
+
+        The same values as ``sample(t)[:2]``; subclasses answer without the array machinery of
+        ``sample`` where they can (the controller asks every tick).
+        """
+        q, qd, _ = self.sample(float(t))
+        return q, qd
 
 
 class TimeLawTrajectory(JointTrajectory):
@@ -108,6 +126,14 @@ class TimeLawTrajectory(JointTrajectory):
         for k in (1, 2, 3):
             out.append(np.outer(self.law.evaluate(tau, k), dq) / T ** k)
         return tuple(out)
+
+    def state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Return ``(q, qd)`` (n,) each at one time ``t`` [s] (eq. 29-30)."""
+        T = self._duration
+        tau = self._time(t) / T
+        dq = self.q1 - self.q0
+        return (self.q0 + dq * float(self.law.evaluate(tau)),
+                dq * float(self.law.evaluate(tau, 1)) / T)
 
 
 class SplineTrajectory(JointTrajectory):
@@ -171,6 +197,11 @@ class RuckigTrajectory(JointTrajectory):
     def __init__(self, trajectory: object, n_joints: int):
         super().__init__(trajectory.duration, n_joints)
         self._trajectory = trajectory
+
+    def state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Return ``(q, qd)`` (n,) each at one time ``t`` [s], straight from ruckig."""
+        q, qd, _ = self._trajectory.at_time(self._time(t))
+        return np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
 
     def _evaluate(self, t):
         q = np.empty((t.size, self._n_joints))
