@@ -480,8 +480,8 @@ def _bridge(arm, geometry, pose_between, k, q_prev, sols, max_joint_step, tolera
                 stride *= 2.0
                 continue
         pos, rot = pose_error(T_here, T_next)
-        if pos < BRIDGE_RESOLUTION and rot < BRIDGE_ANGLE:
-            return None
+        if (pos < BRIDGE_RESOLUTION and rot < BRIDGE_ANGLE) or s_next - s < 1e-9:
+            return None    # (the second: the path itself jumps there)
         stride = 0.5 * (s_next - s)
 
 
