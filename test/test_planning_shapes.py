@@ -14,6 +14,7 @@ from mover6_control.errors import UnreachableError
 from mover6_control.kinematics.arm import LIMIT_SETS, mover6
 from mover6_control.kinematics.forward import condition_number, fk, jacobian, jacobian_batch
 from mover6_control.kinematics.ik_closed_form import ik_closed_form_batch
+from mover6_control.kinematics.path_ik import solve_path
 from mover6_control.kinematics.rotations import pose_from_xyzabc
 from mover6_control.motion import paths
 from mover6_control.planning.planner_core import plan_path_goal, plan_pose_goal, PlannerSettings
@@ -188,9 +189,56 @@ def test_no_shape_refuses_a_feasible_pair(limit_set, start, move, turn, offset):
     assert not found, f'refused feasible shapes from {pair[0]}: {found}'
 
 
+def test_a_large_step_on_a_continuous_path_is_followed_not_refused():
+    """
+    A continuous path whose wrist turns fast between two waypoints plans, finer there.
+
+    Next to the wrist singularity a continuous path can turn the wrist by more than
+    max_joint_step between two of its 20 waypoints (hypothesis found these from q5 = 0.5:
+    'waypoint 13 needs a jump of 0.374 rad in joint4'). The planner follows the path's own
+    curve there and inserts the waypoints it finds: every step within the limit, every row on
+    the path.
+    """
+    arm = ARMS['hardware']
+    pair = random_pair(arm, (0.0, 0.0, 0.0, 0.0, 0.5, 0.0), np.array([0.0, 0.0, -0.5]),
+                       np.array([1.0, -1.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    found, feasible = refusals(arm, *pair)
+    assert feasible == list(SHAPES) and not found, found
+    plan = plan_path_goal(arm, pair[0], pair[2][None], pair[1], 'arc', SETTINGS)
+    assert plan.n_waypoints > SETTINGS.n_waypoints        # waypoints were inserted
+    assert np.abs(np.diff(plan.q, axis=0)).max() <= SETTINGS.max_joint_step
+    positions = paths.arc_path(fk(arm, pair[0]), pair[2], pair[1], **DENSE)[:, :3, 3]
+    for T in plan.poses:
+        assert np.linalg.norm(positions - T[:3, 3], axis=1).min() < 1e-3
+    for q, T in zip(plan.q, plan.poses):
+        assert np.abs(fk(arm, q) - T).max() < 1e-6
+
+
+@pytest.mark.parametrize('d4', (0.3, 0.6, 1.0))
+def test_a_wrist_flip_is_still_refused_when_followed_finely(d4):
+    """
+    A real branch flip is refused even when the path is followed finely.
+
+    A straight line that passes beside the wrist singularity flips q4 and q6 by nearly pi
+    within a millimetre: followed finely, the jump stays, and it is refused.
+    """
+    arm = ARMS['hardware']
+    q_a = np.array([0.0, 0.3, 0.0, 0.2, 0.3, 0.1])
+    q_b = np.array([0.0, 0.3, 0.0, 0.2 + d4, -0.3, 0.1])
+    curve = paths.linear_curve(fk(arm, q_a), fk(arm, q_b), n=20)
+    assert not dense_continuous(arm, paths.linear_path(curve.poses[0], curve.poses[-1], **DENSE),
+                                q_a)
+    with pytest.raises(UnreachableError) as err:
+        solve_path(arm, curve.poses[1:], q_a, pose_between=lambda k, s: curve.between(k + 1, s))
+    assert err.value.reason == 'discontinuity'
+    assert err.value.details['joint_step'] > 1.0
+
+
 def test_readme_parabolic_from_home_within_90_deg():
     """
-    The README's parabolic goal from home: joint 4 would have to pass +90 degrees on the way.
+    The README's former parabolic goal (peak 0.04 m) from home: joint 4 would pass +90 deg.
+
+    (The README now shows it with a 0.02 m peak.)
 
     The parabola rises before it falls; with the goal's orientation the wrist's q4 goes
     1.22 -> 1.51 rad on the first fifth and continues past pi / 2 (the other wrist branch,

@@ -14,6 +14,15 @@ step is too large and the previous waypoint can be re-chosen on its own pose by 
 self-motion (the tool stays still, checked by FK along the joint segment), it is, and
 ``PathSolution.self_motion`` marks that step.
 
+A step larger than ``max_joint_step`` between two waypoints is not yet a discontinuity when the
+caller can give the poses between them (``pose_between``: the path's own curve): the stretch is
+then followed more finely, the nearest branch at each intermediate pose, halving the stride
+where a step is still too large, down to ``BRIDGE_RESOLUTION`` [m] and ``BRIDGE_ANGLE`` [rad]
+between poses. When it gets through, the intermediate waypoints are inserted (the controller
+interpolates in joint space between waypoints, so a large joint step would leave the Cartesian
+path in between) and ``PathSolution.inserted`` marks them; a step still too large at that
+resolution is a real discontinuity (a branch flip) and is refused.
+
 Speed: every waypoint's closed-form branches are found in one batch. For arms whose joints all
 turn less than a full turn (``single_turn``) a branch's joint values do not depend on the
 waypoint it is compared with, so every step between the branches of neighbouring waypoints is
@@ -43,8 +52,15 @@ from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from mover6_control.kinematics.arm import ArmModel
     from mover6_control.kinematics.ik_closed_form import WristGeometry
+
+# Finest pose spacing [m], [rad] at which a too-large joint step is still looked into: a
+# continuous branch changes by far less than max_joint_step over it.
+BRIDGE_RESOLUTION = 1e-3
+BRIDGE_ANGLE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -60,6 +76,10 @@ class PathSolution:
     # (m,) True where the step into a waypoint keeps the tool still (joints re-arranged at a
     # singular pose: q4 against q6 at a wrist singularity).
     self_motion: np.ndarray = None
+    # (m, 4, 4) the pose of each row (the given poses, plus any inserted between them) and
+    # (m,) True for the inserted rows.
+    poses: np.ndarray = None
+    inserted: np.ndarray = None
 
     @property
     def max_joint_step(self) -> float:
@@ -197,9 +217,16 @@ def unreachable_error(arm: ArmModel, T: np.ndarray, q_seed: np.ndarray, waypoint
 def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
                max_joint_step: float = 0.35, max_condition: float | None = None,
                position_tol: float = 1e-3, orientation_tol: float = 0.01,
-               weights: Sequence[float] = DEFAULT_WEIGHTS) -> PathSolution:
+               weights: Sequence[float] = DEFAULT_WEIGHTS,
+               pose_between: Callable[[int, np.ndarray], np.ndarray] | None = None
+               ) -> PathSolution:
     """
     Return a ``PathSolution`` for ``poses`` (m, 4, 4) starting from ``q_start`` (n,) [rad].
+
+    ``pose_between(k, s)``, when given, returns the path's poses (len(s), 4, 4) at fractions
+    ``s`` in [0, 1] of the way from the previous pose (for k = 0 the pose of ``q_start``) to
+    ``poses[k]``; a too-large step is then followed more finely before it is refused (see the
+    module docstring), and the returned solution may have more rows than ``poses``.
 
     ``max_joint_step`` [rad] is the largest joint change allowed between neighbours;
     ``max_condition`` (None: no check) the largest Jacobian condition number allowed when moving
@@ -218,9 +245,9 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
     except InvalidInputError:
         geometry = None
     m, n = len(P), arm.n_joints
-    out = {key: np.empty(m) for key in ('pos', 'rot', 'cond', 'step')}
     Q = np.empty((m, n))
     self_motion = np.zeros(m, dtype=bool)
+    bridges = {}     # waypoint k -> (rows (r, n), poses (r, 4, 4)) inserted before it
     q_start_arr = q_prev
     stop = None      # the first failing waypoint: (reason, index, q, q_prev, step)
     state = None     # the branch of the previous waypoint when q_prev is its batch candidate
@@ -248,7 +275,6 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
         if state is not None and walk_to[(k - 1) * b + state] >= 0:
             j = walk_to[(k - 1) * b + state]
             Q[k] = all_cand[k, j]
-            out['step'][k] = nearest_step[k - 1, state]
             state = j
             continue
         q_prev = q_start_arr if k == 0 else Q[k - 1]
@@ -267,11 +293,7 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
             inside = np.all((sols >= arm.lower - 1e-9) & (sols <= arm.upper + 1e-9), axis=1)
             sols, branch = sols[inside], branch[inside]
         if len(sols) == 0:
-            # Numeric IK: the solver for arms without a closed form, and the fallback for poses
-            # the closed form misses by rounding (a fully stretched arm, say).
-            res = ik_numeric(arm, T, q_prev, position_tol=min(position_tol, 1e-6),
-                             orientation_tol=min(orientation_tol, 1e-6), weights=weights, rng=k)
-            sols = res.q[None] if res.success else sols
+            sols = _numeric(arm, T, q_prev, position_tol, orientation_tol, weights, k)
             branch = np.full(len(sols), -1)
         if len(sols) == 0:
             stop = ('unreachable', k, None, q_prev, None)
@@ -280,6 +302,8 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
         j = int(np.argmin(steps))
         if steps[j] > max_joint_step and k >= 1 and geometry is not None:
             before = q_start_arr if k == 1 else Q[k - 2]
+            if k - 1 in bridges:
+                before = bridges[k - 1][0][-1]   # (not on that pose: no re-choice there)
             redo = _self_motion_start(arm, geometry, P[k - 1], before, sols, steps,
                                       max_joint_step, position_tol, orientation_tol)
             if redo is not None:
@@ -287,31 +311,56 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
                 # the joints turn, e.g. q4 against q6 at a wrist singularity).
                 q_prev, j = redo
                 Q[k - 1] = q_prev
-                out['step'][k - 1] = np.abs(q_prev - before).max()
                 self_motion[k - 1] = True
                 steps = np.abs(sols - q_prev).max(axis=1)
+        if steps[j] > max_joint_step and pose_between is not None:
+            bridge = _bridge(arm, geometry, pose_between, k, q_prev, sols, max_joint_step,
+                             (position_tol, orientation_tol, weights))
+            if bridge is not None:
+                rows, row_poses, j = bridge
+                bridges[k] = (rows, row_poses)
+                steps = np.abs(sols - rows[-1]).max(axis=1)
         q = sols[j]
         if steps[j] > max_joint_step:
             stop = ('discontinuity', k, q, q_prev, steps[j])
             break
         Q[k] = q
-        out['step'][k] = steps[j]
         # The table walk may resume from a regular waypoint's batch branch.
         state = int(branch[j]) if walk and branch[j] >= 0 and not all_used[k] else None
     # Singularity check on the rows solved so far (all at once): fail where the condition
     # number is above max_condition and rising, unless an earlier waypoint failed.
     k_end = m if stop is None else stop[1]
-    cond = _condition_numbers(arm, Q[:k_end])
+    # Every row in order: the inserted ones before the waypoint they lead to.
+    rows_q, rows_p, rows_k, rows_new = [], [], [], []
+    for k in range(k_end):
+        if k in bridges:
+            rows_q.append(bridges[k][0])
+            rows_p.append(bridges[k][1])
+            rows_k.append(np.full(len(bridges[k][0]), k))
+            rows_new.append(np.ones(len(bridges[k][0]), dtype=bool))
+        rows_q.append(Q[k:k + 1])
+        rows_p.append(P[k:k + 1])
+        rows_k.append([k])
+        rows_new.append([False])
+    if k_end:
+        Q_all, P_all = np.concatenate(rows_q), np.concatenate(rows_p)
+        k_all, new_all = np.concatenate(rows_k).astype(int), np.concatenate(rows_new)
+    else:
+        Q_all, P_all = Q[:0], P[:0]
+        k_all, new_all = np.zeros(0, dtype=int), np.zeros(0, dtype=bool)
+    cond = _condition_numbers(arm, Q_all)
     if max_condition is not None and k_end:
         before = np.concatenate([[condition_number(arm, q_start_arr)], cond[:-1]])
         bad = np.flatnonzero((cond > max_condition) & (cond > before * (1 + 1e-6)))
         if len(bad):
-            k = int(bad[0])
-            q_before = q_start_arr if k == 0 else Q[k - 1]
-            _fail(arm, P[k], q_before, k, 'singularity',
-                  f'waypoint {k} is near a singularity (Jacobian condition number '
-                  f'{cond[k]:.3g} > {max_condition:.3g}, rising)',
-                  {'condition': float(cond[k]), 'solution_q': Q[k].copy()})
+            r = int(bad[0])
+            k = int(k_all[r])
+            q_before = q_start_arr if r == 0 else Q_all[r - 1]
+            where = f'the way to waypoint {k}' if new_all[r] else f'waypoint {k}'
+            _fail(arm, P_all[r], q_before, k, 'singularity',
+                  f'{where} is near a singularity (Jacobian condition number '
+                  f'{cond[r]:.3g} > {max_condition:.3g}, rising)',
+                  {'condition': float(cond[r]), 'solution_q': Q_all[r].copy()})
     if stop is not None and stop[0] == 'unreachable':
         k, q_prev = stop[1], stop[3]
         raise unreachable_error(arm, P[k], q_prev, k, weights, geometry, what='waypoint')
@@ -336,14 +385,15 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
               f'waypoint {k} needs a jump of {step:.3f} rad in {arm.joint_names[joint]} '
               f'(limit {max_joint_step:.3f} rad): the continuous branch does not reach it',
               {'joint_step': float(step), 'joint': arm.joint_names[joint], 'jump_q': q})
-    out['cond'] = cond
     # Every solution was verified when found (closed form to VERIFY_TOL, numeric to the
     # tolerances); the figures are measured again here on the final joint path.
-    out['pos'], out['rot'] = pose_errors_batch(P, fk_batch(arm, Q))
-    return PathSolution(q=Q, position_error=out['pos'], orientation_error=out['rot'],
-                        condition=out['cond'], joint_step=out['step'],
+    pos, rot = pose_errors_batch(P_all, fk_batch(arm, Q_all))
+    step = np.abs(np.diff(np.vstack([q_start_arr, Q_all]), axis=0)).max(axis=1)
+    return PathSolution(q=Q_all, position_error=pos, orientation_error=rot, condition=cond,
+                        joint_step=step,
                         method='closed_form' if geometry is not None else 'numeric',
-                        self_motion=self_motion)
+                        self_motion=self_motion[k_all] & ~new_all, poses=P_all,
+                        inserted=new_all)
 
 
 def holds_pose(arm: ArmModel, q_a: np.ndarray, q_b: np.ndarray, T: np.ndarray,
@@ -375,6 +425,64 @@ def _self_motion_start(arm, geometry, T_prev, before, sols, steps, max_joint_ste
                 and holds_pose(arm, before, alt, T_prev, position_tol, orientation_tol)):
             return alt, int(j)
     return None
+
+
+def _numeric(arm, T, q_prev, position_tol, orientation_tol, weights, k):
+    """
+    Return the numeric IK solution (1, n) of ``T`` seeded at ``q_prev``, or (0, n).
+
+    The solver for arms without a closed form, and the fallback for poses the closed form
+    misses by rounding (a fully stretched arm, say).
+    """
+    res = ik_numeric(arm, T, q_prev, position_tol=min(position_tol, 1e-6),
+                     orientation_tol=min(orientation_tol, 1e-6), weights=weights, rng=k)
+    return res.q[None] if res.success else np.zeros((0, arm.n_joints))
+
+
+def _branches(arm, geometry, T, q_ref, tolerances, k):
+    """Return the solutions (b, n) of ``T`` inside the limits, aliased nearest ``q_ref``."""
+    if geometry is not None:
+        cand, ok = solve_candidates(arm, geometry, T[None], q_ref[None], True, VERIFY_TOL)
+        sols = nearest_alias(arm, cand[0][ok[0]], q_ref)
+        sols = sols[np.all((sols >= arm.lower - 1e-9) & (sols <= arm.upper + 1e-9), axis=1)]
+        if len(sols):
+            return sols
+    return _numeric(arm, T, q_ref, *tolerances, k)
+
+
+def _bridge(arm, geometry, pose_between, k, q_prev, sols, max_joint_step, tolerances):
+    """
+    Follow the path from ``q_prev`` to waypoint ``k`` more finely; None when it jumps.
+
+    Walks the fraction s from 0 to 1 taking at each pose the branch nearest the last one; a
+    stride whose step exceeds ``max_joint_step`` is halved, one that passes is doubled next.
+    The stretch is discontinuous when a step is still too large between poses closer than
+    ``BRIDGE_RESOLUTION`` and ``BRIDGE_ANGLE``. Returns (rows (r, n), their poses (r, 4, 4),
+    the index in ``sols`` of the branch reached at waypoint k).
+    """
+    s, stride, q = 0.0, 0.5, q_prev
+    T_here = pose_between(k, np.zeros(1))[0]
+    rows, poses = [], []
+    while True:
+        s_next = min(1.0, s + stride)
+        T_next = pose_between(k, np.array([s_next]))[0]
+        cand = nearest_alias(arm, sols, q) if s_next >= 1.0 else _branches(
+            arm, geometry, T_next, q, tolerances, k)
+        if len(cand):
+            steps = np.abs(cand - q).max(axis=1)
+            j = int(np.argmin(steps))
+            if steps[j] <= max_joint_step:
+                if s_next >= 1.0:
+                    return (np.array(rows), np.array(poses), j) if rows else None
+                q, s, T_here = cand[j], s_next, T_next
+                rows.append(q)
+                poses.append(T_next)
+                stride *= 2.0
+                continue
+        pos, rot = pose_error(T_here, T_next)
+        if (pos < BRIDGE_RESOLUTION and rot < BRIDGE_ANGLE) or s_next - s < 1e-9:
+            return None    # (the second: the path itself jumps there)
+        stride = 0.5 * (s_next - s)
 
 
 def _condition_numbers(arm, Q):

@@ -9,11 +9,16 @@ forms). The first pose is the start and the last the goal, exactly.
 Shapes: linear (the Mover6 report eq. 3-10), parabolic through a lifted mid-point (the Mover6
 report eq. 11-15), cubic spline through any number of via poses (the Mover6 report section 2.3.2),
 circular arc through a via point.
+
+Each ``*_path`` builder has a ``*_curve`` twin returning a ``PosePath``: the same poses, their
+curve parameters, and the curve itself (``pose_at``), so a solver can look between two samples
+(``PosePath.between``) when a joint step there is too large.
 """
 
 from __future__ import annotations
 
-from typing import Optional, Sequence
+from dataclasses import dataclass
+from typing import Callable, Optional, Sequence
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import (euler_zyx_to_matrix, make_transform,
@@ -27,6 +32,28 @@ from scipy.spatial.transform import Rotation, Slerp
 COINCIDENT_TOL = 1e-9
 # Dense samples used to measure curve length and resample a curve by arc length.
 _DENSE = 4001
+
+
+@dataclass(frozen=True)
+class PosePath:
+    """
+    Poses sampled on a curve: ``poses`` (n, 4, 4) at parameters ``params`` (n,) of ``pose_at``.
+
+    ``pose_at(t)`` returns the poses (m, 4, 4) of the curve at parameters ``t`` (m,); the first
+    and last samples are the start and goal exactly.
+    """
+
+    poses: np.ndarray
+    params: np.ndarray
+    pose_at: Callable[[np.ndarray], np.ndarray]
+
+    def between(self, k: int, fractions: np.ndarray) -> np.ndarray:
+        """Return poses (m, 4, 4) between sample ``k - 1`` (fraction 0) and ``k`` (1)."""
+        if not 1 <= int(k) < len(self.params):
+            raise InvalidInputError(f'no samples {k - 1} and {k} in a path of {len(self.params)}')
+        s = np.asarray(fractions, dtype=float).reshape(-1)
+        t0, t1 = self.params[int(k) - 1], self.params[int(k)]
+        return self.pose_at(t0 + s * (t1 - t0))
 
 
 def _count(n, max_step, max_angle_step, length, angle, rate_scale=1.0):
@@ -76,6 +103,28 @@ def _check_distinct(T_a, T_b, what):
     return dp, da
 
 
+def _sampled(pose_at, params, T_start, T_goal):
+    params = np.asarray(params, dtype=float)
+    return PosePath(_pin_ends(pose_at(params), T_start, T_goal), params, pose_at)
+
+
+def linear_curve(T_start: np.ndarray, T_goal: np.ndarray, n: Optional[int] = None,
+                 max_step: Optional[float] = None,
+                 max_angle_step: Optional[float] = None) -> PosePath:
+    """Return the ``PosePath`` of ``linear_path`` (parameter ``t`` in [0, 1])."""
+    T_start = validate_transform(T_start, 'T_start')
+    T_goal = validate_transform(T_goal, 'T_goal')
+    length, angle = _check_distinct(T_start, T_goal, 'start and goal poses')
+    count = _count(n, max_step, max_angle_step, length, angle)
+
+    def pose_at(t):
+        t = np.asarray(t, dtype=float)
+        pos = (1.0 - t)[:, None] * T_start[:3, 3] + t[:, None] * T_goal[:3, 3]
+        return _poses(pos, _slerp([0.0, 1.0], [T_start[:3, :3], T_goal[:3, :3]], t))
+
+    return _sampled(pose_at, np.linspace(0.0, 1.0, count), T_start, T_goal)
+
+
 def linear_path(T_start: np.ndarray, T_goal: np.ndarray, n: Optional[int] = None,
                 max_step: Optional[float] = None,
                 max_angle_step: Optional[float] = None) -> np.ndarray:
@@ -85,14 +134,7 @@ def linear_path(T_start: np.ndarray, T_goal: np.ndarray, n: Optional[int] = None
     Position ``p(t) = (1 - t) p_start + t p_goal`` (the Mover6 report eq. 4) and SLERPed
     orientation, ``t`` evenly spaced in [0, 1].
     """
-    T_start = validate_transform(T_start, 'T_start')
-    T_goal = validate_transform(T_goal, 'T_goal')
-    length, angle = _check_distinct(T_start, T_goal, 'start and goal poses')
-    count = _count(n, max_step, max_angle_step, length, angle)
-    t = np.linspace(0.0, 1.0, count)
-    pos = (1.0 - t)[:, None] * T_start[:3, 3] + t[:, None] * T_goal[:3, 3]
-    rot = _slerp([0.0, 1.0], [T_start[:3, :3], T_goal[:3, :3]], t)
-    return _pin_ends(_poses(pos, rot), T_start, T_goal)
+    return linear_curve(T_start, T_goal, n, max_step, max_angle_step).poses
 
 
 def parabola_coefficients(p_start: Sequence[float], p_mid: Sequence[float],
@@ -110,6 +152,17 @@ def parabola_coefficients(p_start: Sequence[float], p_mid: Sequence[float],
     return coeff[0], coeff[1], coeff[2]
 
 
+def parabolic_curve(T_start: np.ndarray, T_goal: np.ndarray, peak_height: float,
+                    n: Optional[int] = None, max_step: Optional[float] = None,
+                    max_angle_step: Optional[float] = None) -> PosePath:
+    """Return the ``PosePath`` of ``parabolic_path`` (parameter ``t`` in [0, 1])."""
+    T_start = validate_transform(T_start, 'T_start')
+    T_goal = validate_transform(T_goal, 'T_goal')
+    peak = float(as_finite_array(peak_height, (), 'peak_height'))
+    mid = 0.5 * (T_start[:3, 3] + T_goal[:3, 3]) + np.array([0.0, 0.0, peak])
+    return parabolic_curve_through(T_start, mid, T_goal, n, max_step, max_angle_step)
+
+
 def parabolic_path(T_start: np.ndarray, T_goal: np.ndarray, peak_height: float,
                    n: Optional[int] = None, max_step: Optional[float] = None,
                    max_angle_step: Optional[float] = None) -> np.ndarray:
@@ -120,11 +173,7 @@ def parabolic_path(T_start: np.ndarray, T_goal: np.ndarray, peak_height: float,
     ``peak_height`` [m] along the base z axis (the Mover6 report eq. 11-15); ``t`` is evenly
     spaced.
     """
-    T_start = validate_transform(T_start, 'T_start')
-    T_goal = validate_transform(T_goal, 'T_goal')
-    peak = float(as_finite_array(peak_height, (), 'peak_height'))
-    mid = 0.5 * (T_start[:3, 3] + T_goal[:3, 3]) + np.array([0.0, 0.0, peak])
-    return parabolic_path_through(T_start, mid, T_goal, n, max_step, max_angle_step)
+    return parabolic_curve(T_start, T_goal, peak_height, n, max_step, max_angle_step).poses
 
 
 def parabolic_path_through(T_start, p_peak, T_goal, n=None, max_step=None,
@@ -135,6 +184,12 @@ def parabolic_path_through(T_start, p_peak, T_goal, n=None, max_step=None,
     The Mover6 report's eq. 12: ``r(0)`` the start, ``r(0.5)`` the peak, ``r(1)`` the goal;
     the orientation is SLERPed from start to goal and ``t`` is evenly spaced.
     """
+    return parabolic_curve_through(T_start, p_peak, T_goal, n, max_step, max_angle_step).poses
+
+
+def parabolic_curve_through(T_start, p_peak, T_goal, n=None, max_step=None,
+                            max_angle_step=None) -> PosePath:
+    """Return the ``PosePath`` of ``parabolic_path_through`` (parameter ``t`` in [0, 1])."""
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
     mid = as_finite_array(p_peak, (3,), 'p_peak')
@@ -145,10 +200,13 @@ def parabolic_path_through(T_start, p_peak, T_goal, n=None, max_step=None,
     top_rate = max(np.linalg.norm(b), np.linalg.norm(2.0 * a + b))
     angle = rotation_angle_between(T_start[:3, :3], T_goal[:3, :3])
     count = _count(n, max_step, max_angle_step, top_rate, angle)
-    t = np.linspace(0.0, 1.0, count)
-    pos = np.outer(t ** 2, a) + np.outer(t, b) + c
-    rot = _slerp([0.0, 1.0], [T_start[:3, :3], T_goal[:3, :3]], t)
-    return _pin_ends(_poses(pos, rot), T_start, T_goal)
+
+    def pose_at(t):
+        t = np.asarray(t, dtype=float)
+        pos = np.outer(t ** 2, a) + np.outer(t, b) + c
+        return _poses(pos, _slerp([0.0, 1.0], [T_start[:3, :3], T_goal[:3, :3]], t))
+
+    return _sampled(pose_at, np.linspace(0.0, 1.0, count), T_start, T_goal)
 
 
 def _resample_by_length(curve, count):
@@ -171,6 +229,13 @@ def spline_path(T_start: np.ndarray, T_vias: np.ndarray, T_goal: np.ndarray,
     parameter, sampled evenly in arc length; orientation is SLERPed between consecutive key
     poses, reaching each via orientation at its via point.
     """
+    return spline_curve(T_start, T_vias, T_goal, n, max_step, max_angle_step).poses
+
+
+def spline_curve(T_start: np.ndarray, T_vias: np.ndarray, T_goal: np.ndarray,
+                 n: Optional[int] = None, max_step: Optional[float] = None,
+                 max_angle_step: Optional[float] = None) -> PosePath:
+    """Return the ``PosePath`` of ``spline_path`` (parameter: the chord-length ``u``)."""
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
     vias = np.zeros((0, 4, 4)) if np.size(T_vias) == 0 else \
@@ -192,8 +257,12 @@ def spline_path(T_start: np.ndarray, T_vias: np.ndarray, T_goal: np.ndarray,
     u, _ = _resample_by_length(curve, count)
     if length < COINCIDENT_TOL:
         u = np.linspace(0.0, 1.0, count)
-    rot = _slerp(u_keys, R, u)
-    return _pin_ends(_poses(curve(u), rot), T_start, T_goal)
+
+    def pose_at(t):
+        t = np.asarray(t, dtype=float)
+        return _poses(curve(t), _slerp(u_keys, R, t))
+
+    return _sampled(pose_at, u, T_start, T_goal)
 
 
 def circle_through(p_a: Sequence[float], p_b: Sequence[float],
@@ -237,6 +306,13 @@ def arc_path(T_start: np.ndarray, T_via: np.ndarray, T_goal: np.ndarray,
     orientation is SLERPed from start to goal, through the via orientation at the via point
     when a via pose is given.
     """
+    return arc_curve(T_start, T_via, T_goal, n, max_step, max_angle_step).poses
+
+
+def arc_curve(T_start: np.ndarray, T_via: np.ndarray, T_goal: np.ndarray,
+              n: Optional[int] = None, max_step: Optional[float] = None,
+              max_angle_step: Optional[float] = None) -> PosePath:
+    """Return the ``PosePath`` of ``arc_path`` (parameter ``t`` in [0, 1], along the angle)."""
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
     via = np.asarray(T_via, dtype=float)
@@ -250,10 +326,13 @@ def arc_path(T_start: np.ndarray, T_via: np.ndarray, T_goal: np.ndarray,
         R = [T_start[:3, :3], T_via[:3, :3], T_goal[:3, :3]]
     turn = sum(rotation_angle_between(R[i], R[i + 1]) for i in range(len(R) - 1))
     count = _count(n, max_step, max_angle_step, radius * ang_c, turn)
-    t = np.linspace(0.0, 1.0, count)
-    phi = t * ang_c
-    pos = center + radius * (np.outer(np.cos(phi), e1) + np.outer(np.sin(phi), e2))
-    return _pin_ends(_poses(pos, _slerp(keys, R, t)), T_start, T_goal)
+
+    def pose_at(t):
+        phi = np.asarray(t, dtype=float) * ang_c
+        pos = center + radius * (np.outer(np.cos(phi), e1) + np.outer(np.sin(phi), e2))
+        return _poses(pos, _slerp(keys, R, t))
+
+    return _sampled(pose_at, np.linspace(0.0, 1.0, count), T_start, T_goal)
 
 
 def goal_relative_to_start(T_start: np.ndarray, x: float, y: float, z: float, a: float,

@@ -115,11 +115,19 @@ def _finish(arm, motion, q, poses, T_goal, settings):
                      final_position_error=pos_err, final_orientation_error=rot_err)
 
 
-def _solve_path(arm, poses, q_start, settings):
-    return solve_path(arm, poses, q_start, max_joint_step=settings.max_joint_step,
-                      max_condition=settings.max_condition,
-                      position_tol=settings.position_tolerance,
-                      orientation_tol=settings.orientation_tolerance).q
+def _solve_path(arm, path, q_start, settings):
+    """
+    Return (q, poses) of ``path`` (a ``paths.PosePath``) after its first pose from ``q_start``.
+
+    A joint step too large between two waypoints is followed along the path's own curve, and
+    the waypoints found on the way are inserted (``path_ik.solve_path``'s ``pose_between``).
+    """
+    sol = solve_path(arm, path.poses[1:], q_start, max_joint_step=settings.max_joint_step,
+                     max_condition=settings.max_condition,
+                     position_tol=settings.position_tolerance,
+                     orientation_tol=settings.orientation_tolerance,
+                     pose_between=lambda k, s: path.between(k + 1, s))
+    return sol.q, sol.poses
 
 
 def _wrist_turns(arm, q_current, T_next, settings):
@@ -165,38 +173,34 @@ def _wrist_turns(arm, q_current, T_next, settings):
     return unique
 
 
-def _solve(arm, poses, q_current, settings):
+def _solve(arm, path, q_current, settings):
     """
-    Return joint waypoints for ``poses`` from ``q_current``, leaving a singular start if needed.
+    Return (q, poses) for ``path`` from ``q_current``, leaving a singular start if needed.
 
-    poses[0] is the current pose and ``q_current`` its solution: the path starts there exactly
+    ``path`` is a ``paths.PosePath``; the rows of the result are its poses, the wrist turn's
+    (at the first pose) and any inserted on the way. path.poses[0] is the current pose and
+    ``q_current`` its solution: the path starts there exactly
     (solving it again could pick the other wrist branch, or trip over sensor noise). A wrist
     turn out of a singular start (``_wrist_turns``) comes first when the next pose needs one;
     of the turns whose path can be followed, the one with the shortest motion (turn and path,
     ``predicted_duration``) is taken. A refusal is the one of the smallest turn.
     """
     best, best_time, refusal = None, np.inf, None
-    for start in _wrist_turns(arm, q_current, poses[1], settings):
+    for start in _wrist_turns(arm, q_current, path.poses[1], settings):
         try:
-            q = np.vstack([start, _solve_path(arm, poses[1:], start[-1], settings)])
+            q, poses = _solve_path(arm, path, start[-1], settings)
         except UnreachableError as err:
             refusal = refusal or err
             continue
+        q = np.vstack([start, q])
         duration = predicted_duration(arm, q, settings.velocity_scale)
         if duration < best_time:
-            best, best_time = q, duration
+            best_time = duration
+            best = q, np.concatenate([np.repeat(path.poses[:1], len(start), axis=0), poses])
     if best is not None:
         return best
     details = dict(refusal.details, waypoint=refusal.details.get('waypoint', -1) + 1)
     raise UnreachableError(str(refusal), reason=refusal.reason, details=details) from None
-
-
-def _poses_for(arm, q, poses):
-    """Return the intended poses of waypoints ``q``: ``poses`` plus any inserted wrist turn."""
-    extra = len(q) - len(poses)
-    if extra <= 0:
-        return poses
-    return np.concatenate([np.repeat(poses[:1], extra, axis=0), poses])
 
 
 def plan_joint_move(arm: ArmModel, q_current: np.ndarray, T_goal: np.ndarray,
@@ -268,12 +272,12 @@ def plan_pose_goal(arm: ArmModel, q_current: np.ndarray, T_goal: np.ndarray,
     if motion == 'joint':
         return plan_joint_move(arm, q_current, T_goal, settings)
     if motion == 'linear':
-        poses = paths.linear_path(T_start, T_goal, **settings.sampling())
+        path = paths.linear_curve(T_start, T_goal, **settings.sampling())
     else:
-        poses = paths.parabolic_path(T_start, T_goal, settings.peak_height,
+        path = paths.parabolic_curve(T_start, T_goal, settings.peak_height,
                                      **settings.sampling())
-    q = _solve(arm, poses, q_current, settings)
-    return _finish(arm, motion, q, _poses_for(arm, q, poses), T_goal, settings)
+    q, poses = _solve(arm, path, q_current, settings)
+    return _finish(arm, motion, q, poses, T_goal, settings)
 
 
 def plan_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
@@ -302,14 +306,14 @@ def plan_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
         if len(T_vias) != 1:
             raise InvalidInputError(f'{motion} needs exactly one via pose, got {len(T_vias)}')
         if motion == 'arc':
-            poses = paths.arc_path(T_start, T_vias[0], T_goal, **settings.sampling())
+            path = paths.arc_curve(T_start, T_vias[0], T_goal, **settings.sampling())
         else:
-            poses = paths.parabolic_path_through(T_start, T_vias[0][:3, 3], T_goal,
+            path = paths.parabolic_curve_through(T_start, T_vias[0][:3, 3], T_goal,
                                                  **settings.sampling())
     else:
         if len(T_vias) == 0:
-            poses = paths.linear_path(T_start, T_goal, **settings.sampling())
+            path = paths.linear_curve(T_start, T_goal, **settings.sampling())
         else:
-            poses = paths.spline_path(T_start, T_vias, T_goal, **settings.sampling())
-    q = _solve(arm, poses, q_current, settings)
-    return _finish(arm, motion, q, _poses_for(arm, q, poses), T_goal, settings)
+            path = paths.spline_curve(T_start, T_vias, T_goal, **settings.sampling())
+    q, poses = _solve(arm, path, q_current, settings)
+    return _finish(arm, motion, q, poses, T_goal, settings)

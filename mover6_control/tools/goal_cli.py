@@ -10,7 +10,7 @@ the home orientation. With ``--absolute`` A B C are base-frame ZYX angles, R = R
     goal 0.445 0 0.4425 0 0 0                         # the Mover6 report's linear example
     goal 0.1 0.1 0.2 0 1.5708 0                       # the Mover6 report's IK example
     goal 0.445 0 0.4425 0 1.5708 0 --absolute         # base-frame angles: the home orientation
-    goal pose 0.30 -0.08 0.32 0 0 0 --motion parabolic --peak-height 0.04
+    goal pose 0.30 -0.08 0.32 0 0 0 --motion parabolic --peak-height 0.02
     goal pose --quat 0.30 0.05 0.36 0 0.7071068 0 0.7071068
     goal path --shape spline --via 0.32 -0.03 0.36 0 0 0 0.29 0.10 0.35 0 0 0
     goal joints 0.2 0.1 0.3 0 0.4 0                   # straight to /joint_demands

@@ -1,0 +1,61 @@
+"""
+End to end: the README's parabolic goal line, typed as written, from home through the three nodes.
+
+The README's "Sending goals" line with ``--motion parabolic`` is read from the README and run
+through the goal command as its own process, right after ``sim_bridge``'s ~/reset (home, where
+every start-up begins); it must exit 0.
+"""
+
+import os
+import shlex
+import subprocess
+import sys
+
+from mover6_control.resources import CONFIG_DIR
+from mover6_control.tools.goal_cli import GoalClient
+import numpy as np
+import pytest
+import rclpy
+from ros_testing import Stack
+from std_srvs.srv import Trigger
+from test_readme_goals import goal_argv, readme_goal_lines
+
+pytestmark = pytest.mark.e2e
+
+
+@pytest.fixture(scope='module')
+def stack(tmp_path_factory):
+    """Start sim_bridge, controller and planner as processes for this module's tests."""
+    with Stack(tmp_path_factory.mktemp('e2e_readme_logs')) as running:
+        yield running
+
+
+@pytest.fixture(scope='module')
+def client(stack):
+    """Return a goal client in this process once every node answers."""
+    rclpy.init()
+    node = GoalClient(name='e2e_readme_client')
+    problem = node.wait_ready(timeout=30.0)
+    assert problem is None, problem + '\n' + stack.report()
+    yield node
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def test_readme_parabolic_goal_arrives_from_home(stack, client):
+    """The README's parabolic line after a reset to home: exit 0 and RESULT arrived."""
+    lines = [line for line in readme_goal_lines() if '--motion parabolic' in line]
+    assert len(lines) == 1, lines
+    reset = client.create_client(Trigger, 'sim_bridge/reset')
+    assert reset.wait_for_service(timeout_sec=10.0), stack.report()
+    future = reset.call_async(Trigger.Request())
+    assert client.spin_until(future.done, 10.0) and future.result().success, stack.report()
+    assert client.spin_until(
+        lambda: client.q is not None and np.abs(client.q).max() < 1e-3, 10.0), client.q
+    proc = subprocess.run([sys.executable, '-m', 'mover6_control.tools.goal_cli',
+                           *goal_argv(lines[0]), '--timeout', '60'],
+                          capture_output=True, text=True, timeout=120,
+                          cwd=os.path.dirname(CONFIG_DIR))
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, f'{shlex.join(goal_argv(lines[0]))}\n{out}\n{stack.report()}'
+    assert 'RESULT arrived' in out, out
