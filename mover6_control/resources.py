@@ -22,8 +22,3 @@ def _find_config_dir():
 
 
 CONFIG_DIR = _find_config_dir()
-
-
-def config_path(name: str) -> str:
-    """Return the path of the data file ``name`` in the package's config folder."""
-    return os.path.join(CONFIG_DIR, name)

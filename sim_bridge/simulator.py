@@ -122,13 +122,6 @@ def steps_due(sim_elapsed: float, wall_elapsed: float, real_time_factor: float,
     return int(min(max(n, 0), max_steps))
 
 
-def wall_time_of(sim_elapsed: float, real_time_factor: float) -> float:
-    """Return the wall time [s] since the anchor at which sim time reaches ``sim_elapsed``."""
-    if not (math.isfinite(real_time_factor) and real_time_factor > 0.0):
-        raise InvalidInputError(f'real_time_factor must be > 0, got {real_time_factor}')
-    return sim_elapsed / real_time_factor
-
-
 def _as_slice(indices):
     """Return a slice for consecutive ``indices`` (cheap views), else the index array."""
     indices = np.asarray(indices)
@@ -207,13 +200,6 @@ class Simulator:
     def held_command(self) -> np.ndarray:
         """Return the held command (n,): [rad/s] or fractions, by mode."""
         return self._cmd.copy()
-
-    @property
-    def control_period(self) -> float:
-        """Return the drive's own cycle [s]: the vendor cycle, or one physics step."""
-        if self.config.mode == 'vendor_driver':
-            return self.config.vendor_cycle
-        return self.config.physics_dt
 
     def is_stale(self) -> bool:
         """Return True when no command is active ('rad_per_s': none yet or timed out)."""

@@ -11,7 +11,7 @@ import mujoco
 import numpy as np
 import pytest
 from sim_bridge.model import ModelOptions
-from sim_bridge.simulator import SimConfig, Simulator, steps_due, wall_time_of
+from sim_bridge.simulator import SimConfig, Simulator, steps_due
 
 ARM = mover6('hardware')
 NAMES = ARM.joint_names
@@ -356,12 +356,9 @@ def test_steps_due_edges():
     assert steps_due(0.0, 0.0, 0.0, 0.002, max_steps=50) == 50
     assert steps_due(0.0, 10.0, 1.0, 0.002, max_steps=50) == 50
     assert steps_due(0.0, 0.0101, 1.0, 0.002) == 5
-    assert wall_time_of(1.0, 2.0) == 0.5
     for bad in (-1.0, float('nan')):
         with pytest.raises(InvalidInputError):
             steps_due(0.0, 1.0, bad, 0.002)
-    with pytest.raises(InvalidInputError):
-        wall_time_of(1.0, 0.0)
 
 
 @pytest.mark.parametrize('bad', [{'mode': 'turbo'}, {'command_timeout': 0.0},

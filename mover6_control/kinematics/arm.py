@@ -16,7 +16,6 @@ import os
 from mover6_control.errors import InvalidInputError
 from mover6_control.resources import CONFIG_DIR
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,14 +133,6 @@ class ArmModel:
             if q[i] < self.lower[i] - tol or q[i] > self.upper[i] + tol:
                 out.append(f'{name}={q[i]:.4f} outside [{self.lower[i]:.4f}, {self.upper[i]:.4f}]')
         return out
-
-
-def transform_from_xyz_rpy(xyz: Sequence[float], rpy: Sequence[float]) -> np.ndarray:
-    """Return the 4x4 transform of a URDF origin: xyz [m], fixed-axis roll-pitch-yaw [rad]."""
-    T = np.eye(4)
-    T[:3, :3] = Rotation.from_euler('xyz', rpy).as_matrix()
-    T[:3, 3] = xyz
-    return T
 
 
 def load_urdf(path: str, base_link: str = 'base_link', tip_link: str | None = None,

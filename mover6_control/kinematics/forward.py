@@ -21,20 +21,6 @@ if TYPE_CHECKING:
     from mover6_control.kinematics.arm import ArmModel
 
 
-def axis_rotations(axes: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Return rotation matrices (..., n, 3, 3) about unit ``axes`` (n, 3) by ``q`` (..., n)."""
-    q = np.asarray(q, dtype=float)
-    c = np.cos(q)[..., None, None]
-    s = np.sin(q)[..., None, None]
-    k = axes
-    K = np.zeros(axes.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2] = -k[..., 2], k[..., 1]
-    K[..., 1, 0], K[..., 1, 2] = k[..., 2], -k[..., 0]
-    K[..., 2, 0], K[..., 2, 1] = -k[..., 1], k[..., 0]
-    # Rodrigues: R = I + sin K + (1 - cos) K^2
-    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
-
-
 def _skew4(axis):
     """Return 4x4 matrices ``K`` and ``K @ K`` of the cross-product matrix of ``axis`` (3,)."""
     K = np.zeros((4, 4))
