@@ -527,3 +527,14 @@ def plan_motion(config: LawConfig, q_start: Sequence[float], waypoints: np.ndarr
             a, b, config.lambda_max, velocity_limits), first)
     return _per_waypoint(q_start, waypoints, lambda a, b: trapezoid_segment(
         a, b, config.t_max, config.blend, velocity_limits), first)
+
+
+def predicted_duration(profile: str, q_start: Sequence[float], waypoints: np.ndarray,
+                       velocity_limits: Sequence[float]) -> float:
+    """
+    Return the duration [s] the controller plans for ``waypoints`` from rest at ``q_start``.
+
+    The one timing model: ``plan_motion`` with ``profile`` and the controller's default law
+    settings (``LawConfig``'s defaults are the controller node's), as the planner announces it.
+    """
+    return plan_motion(LawConfig(profile=profile), q_start, waypoints, velocity_limits).duration
