@@ -251,3 +251,15 @@ def test_new_laws_stay_put_for_a_repeated_goal(profile):
     plan = plan_motion(LawConfig(profile=profile), q, np.array([q, q]), VLIM)
     assert plan.duration == 0.0
     np.testing.assert_allclose(plan.sample(0.0)[0], q)
+
+
+@pytest.mark.parametrize('profile', ['cubic_spline', 'quintic_spline', 'bspline',
+                                     'multi_trapezoid'])
+def test_a_measured_start_next_to_the_first_waypoint_does_not_stretch_the_motion(profile):
+    """The e2e case: the arm stands 0.2 mrad off the planner's first waypoint."""
+    Q = np.linspace(np.zeros(6), [0.3, -0.2, 0.1, 0.4, -0.3, 0.5], 5)
+    exact = plan_motion(LawConfig(profile=profile), Q[0], Q, VLIM)
+    near = plan_motion(LawConfig(profile=profile), Q[0] + 2e-4, Q, VLIM)
+    assert near.duration <= 1.05 * exact.duration
+    check_limits(near, 1.0)
+    np.testing.assert_allclose(near.sample(near.duration)[0], Q[-1], atol=1e-12)

@@ -457,6 +457,28 @@ def _nearest_passes(trajectory, points, duration):
     return np.array(times)
 
 
+# [rad] Splines through points much closer than their neighbours swing far between them (and
+# the common time factor then stretches the whole motion): the measured start lies a fraction of
+# a milliradian from the planner's first waypoint. Rows closer than this to the last kept row
+# are passed with it (the goal always kept exactly, replacing a row too close before it).
+MERGE_STEP = 1e-3
+
+
+def _spaced_rows(path, step):
+    """Return which rows of ``path`` (k, n) to keep: the first, the last, none closer than step."""
+    keep = np.zeros(len(path), dtype=bool)
+    keep[0] = True
+    last = 0
+    for i in range(1, len(path)):
+        if np.max(np.abs(path[i] - path[last])) > step:
+            keep[i], last = True, i
+    if len(path) > 1 and not keep[-1]:
+        if last > 0 and np.max(np.abs(path[-1] - path[last])) <= step:
+            keep[last] = False
+        keep[-1] = np.max(np.abs(path[-1] - path[0])) > 1e-12
+    return keep
+
+
 def _through_all_plan(q_start, waypoints, velocity_limits, config, qd_start):
     """Plan a multi-point trajectory of the Jacobians and trajectories report (no stops)."""
     n = q_start.shape[0]
@@ -466,7 +488,7 @@ def _through_all_plan(q_start, waypoints, velocity_limits, config, qd_start):
         first = (stop_segment(q_start, qd_start, a_max),)
         q_start = first[0].q1
     path = np.vstack([q_start, waypoints])
-    keep = np.concatenate([[True], np.any(np.abs(np.diff(path, axis=0)) > 1e-12, axis=1)])
+    keep = _spaced_rows(path, MERGE_STEP)
     t0 = first[0].duration if first else 0.0
     if keep.sum() < 2:
         return MotionPlan(first, waypoints, np.full(len(waypoints), t0))
