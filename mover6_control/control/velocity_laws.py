@@ -431,7 +431,8 @@ def _continuous_plan(q_start, waypoints, velocity_limits, config, qd_start):
 
 
 def time_law_segment(q0: np.ndarray, q1: np.ndarray, law, velocity_limits: np.ndarray,
-                     a_max: float | Sequence[float]) -> ConstantVelocitySegment | TrajectorySegment:
+                     a_max: float | Sequence[float]
+                     ) -> ConstantVelocitySegment | TrajectorySegment:
     """
     Return a synchronised rest-to-rest move ``q0 -> q1`` under a time ``law``, within the limits.
 
@@ -518,7 +519,8 @@ def plan_motion(config: LawConfig, q_start: Sequence[float], waypoints: np.ndarr
 
     ``velocity_limits`` (n,) [rad/s]; ``qd_start`` (n,) [rad/s] is the velocity commanded now
     (None: at rest). ruckig and the continuous law start from it; every other law first
-    decelerates from it (common factor, ``a_max``), then starts. Waypoints are not checked against position limits here (the caller does).
+    decelerates from it (common factor, ``a_max``), then starts. Waypoints are not checked
+    against position limits here (the caller does).
     """
     q_start, waypoints, velocity_limits, qd_start = _check_inputs(
         q_start, waypoints, velocity_limits, qd_start)

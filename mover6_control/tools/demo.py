@@ -238,7 +238,8 @@ def write_profile_comparison(report_dir, arm):
     T_goal[:3, 3] = (0.445, 0.0, 0.4425)
     waypoints = plan_pose_goal(arm, q_home, T_goal, 'linear').q
     files, lines = [], [
-        '', "Every profile on the Mover6 report's linear example (offline plan, 1 ms samples):", '',
+        '', "Every profile on the Mover6 report's linear example (offline plan, 1 ms samples):",
+        '',
         '| family | profile | duration [s] | peak speed [rad/s] | peak acceleration [rad/s^2] | '
         'peak jerk [rad/s^3] | path deviation [mm] |', '|---|---|---|---|---|---|---|']
     for family, names in PROFILE_FAMILIES.items():

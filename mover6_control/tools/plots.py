@@ -153,7 +153,8 @@ def profile_metrics(arm, profile, q_start, waypoints, dt=1e-3):
     points = fk_batch(arm, q)[:, :3, 3]
     line = fk_batch(arm, np.stack([np.asarray(q_start, float), waypoints[-1]]))[:, :3, 3]
     return {'profile': profile, 'duration': float(plan.duration),
-            'peak_speed': float(np.max(np.abs(qd))), 'peak_acceleration': float(np.max(np.abs(qdd))),
+            'peak_speed': float(np.max(np.abs(qd))),
+            'peak_acceleration': float(np.max(np.abs(qdd))),
             'peak_jerk': float(np.max(np.abs(qddd))) if qddd.size else 0.0,
             'deviation': float(max_deviation_from_polyline(points, line)),
             't': t, 'qd': qd}
