@@ -161,7 +161,7 @@ def run_once(profile, T_goal, log_dir, timeout):
     from mover6_control.nodes import conversions
     from ros_testing import Stack
 
-    with Stack(log_dir, controller={'profile': profile}) as stack:
+    with Stack(log_dir, controller={'profile': profile}, planner={'profile': profile}) as stack:
         client = make_client()
         try:
             problem = client.wait_ready(timeout=60.0)
