@@ -12,7 +12,7 @@ waypoints (the planner's ``n_waypoints``). The goal is checked offline first
 straight line is shortened, then other directions from home are tried, and the output and JSON
 say which variant ran.
 
-Per profile (synchronised, trapezoidal, jerk_limited, continuous) the three nodes start as
+Per profile (every one of the controller's ``profile`` values) the three nodes start as
 processes (``testing.Stack``: sim_bridge in real time, controller with ``profile:=<p>``,
 planner), a ``GoalClient`` in this process publishes the goal and records /joint_states and
 /controller/status with their arrival times. Figures:
@@ -25,6 +25,9 @@ planner), a ``GoalClient`` in this process publishes the goal and records /joint
 - line deviation [mm]: ``metrics.max_deviation_from_polyline`` of FK(q(t)) for every recorded
   /joint_states between goal and arrival against the straight line from the start to the goal;
   orientation deviation [deg]: the largest angle away from the (constant) goal orientation.
+- predicted [s]: the planner's announced duration; ref [s] the duration of the controller's
+  reference (``plots.profile_metrics``: the same plan from the recorded start through the
+  demanded waypoints), with its peak jerk [rad/s^3] (differences of the velocity every 1 ms).
 
 A run that fails (nodes not ready, goal not arriving, or the controller not taking the
 planner's demand within ``DEMAND_WAIT``: seen now and then with the continuous profile, see
@@ -50,7 +53,11 @@ import numpy as np
 
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-PROFILES = ('synchronised', 'trapezoidal', 'jerk_limited', 'continuous')
+# Every controller profile (the parameter table's allowed values: only the base layer is imported
+# before the re-exec into the ROS environment).
+PROFILES = ('synchronised', 'trapezoidal', 'jerk_limited', 'continuous', 'cubic', 'quintic',
+            'septic', 'sharp_trapezoid', 'cubic_spline', 'quintic_spline', 'bspline',
+            'multi_trapezoid')
 # [m] the Mover6 report's example, A = B = C = 0 relative to home
 SEED_GOAL = (0.445, 0.0, 0.4425)
 N_WAYPOINTS = 20
@@ -154,7 +161,7 @@ def run_once(profile, T_goal, log_dir, timeout):
     from mover6_control.nodes import conversions
     from ros_testing import Stack
 
-    with Stack(log_dir, controller={'profile': profile}) as stack:
+    with Stack(log_dir, controller={'profile': profile}, planner={'profile': profile}) as stack:
         client = make_client()
         try:
             problem = client.wait_ready(timeout=60.0)
@@ -194,10 +201,12 @@ def run_once(profile, T_goal, log_dir, timeout):
                         f'{stack.report()}')
 
             outcome = client.run_goal(publish, T_goal=T_goal, timeout=timeout,
-                                      progress=watchdog)
+                                      progress=watchdog, stamp=msg.header.stamp)
             if not outcome.arrived:
                 raise RuntimeError(f'{profile}: {outcome}\n{stack.report()}')
-            return figures(client, outcome, T_goal, q_start, sent[0], motion0, seq0)
+            out = figures(client, outcome, T_goal, q_start, sent[0], motion0, seq0)
+            out.update(reference_figures(client, profile, q_start, seq0))
+            return out
         finally:
             client.destroy_node()
 
@@ -240,6 +249,16 @@ def figures(client, outcome, T_goal, q_start, t_sent, motion0, seq0):
     }
 
 
+def reference_figures(client, profile, q_start, seq0):
+    """Return the planner's prediction and the duration and peak jerk of the reference."""
+    from mover6_control.tools.plots import profile_metrics
+
+    answer = next(v for _, v in client.planner_events if int(v.get('goal_seq', 0)) > seq0)
+    ref = profile_metrics(client.arm, profile, q_start, np.asarray(client.last_demands))
+    return {'predicted_s': float(answer['predicted_duration']),
+            'reference_s': ref['duration'], 'reference_peak_jerk': ref['peak_jerk']}
+
+
 def summarise(runs):
     """Return the median of every figure over the runs of one profile (and their spread)."""
     keys = [k for k in runs[0] if all(isinstance(r.get(k), float) for r in runs)]
@@ -255,7 +274,8 @@ def print_table(goal_text, T_goal, summary):
     p = T_goal[:3, 3]
     print(f'goal: {goal_text}; ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m, home orientation kept, '
           f'{N_WAYPOINTS} waypoints, sim in real time')
-    head = (f'{"profile":<13} {"runs":>4} {"arrive [s]":>10} {"plan [s]":>8} {"ref end [s]":>11} '
+    head = (f'{"profile":<15} {"runs":>4} {"arrive [s]":>10} {"plan [s]":>8} {"ref end [s]":>11} '
+            f'{"predicted [s]":>13} {"ref [s]":>7} {"peak jerk":>10} '
             f'{"joint err [mrad]":>16} {"pos err [mm]":>12} {"line dev [mm]":>13} '
             f'{"orient dev [deg]":>16}')
     print(head)
@@ -263,7 +283,9 @@ def print_table(goal_text, T_goal, summary):
     for name, s in summary.items():
         ref = s.get('reference_done_s')
         ref = f'{ref:>11.2f}' if ref is not None else f'{"-":>11}'
-        print(f'{name:<13} {s["runs"]:>4} {s["arrive_s"]:>10.2f} {s["plan_s"]:>8.2f} {ref} '
+        print(f'{name:<15} {s["runs"]:>4} {s["arrive_s"]:>10.2f} {s["plan_s"]:>8.2f} {ref} '
+              f'{s["predicted_s"]:>13.2f} {s["reference_s"]:>7.2f} '
+              f'{s["reference_peak_jerk"]:>10.1f} '
               f'{s["final_joint_error_rad"] * 1e3:>16.2f} '
               f'{s["final_position_error_m"] * 1e3:>12.2f} '
               f'{s["max_line_deviation_m"] * 1e3:>13.2f} '

@@ -103,7 +103,8 @@ def generate_launch_description():
             ros_arguments=extra_ros_args('MOVER6_CONTROLLER_ARGS')),
         Node(
             package=PACKAGE, executable='planner', name='planner', output='screen',
-            parameters=[LaunchConfiguration('planner_params'), {'limit_set': limit_set}],
+            parameters=[LaunchConfiguration('planner_params'),
+                        {'profile': profile, 'limit_set': limit_set}],
             ros_arguments=extra_ros_args('MOVER6_PLANNER_ARGS')),
         OpaqueFunction(function=robot_state_publisher),
     ])

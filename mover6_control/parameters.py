@@ -124,6 +124,17 @@ LIMIT_SET_TEXT = ('joint limits: within_90_deg (every joint in [-pi/2, pi/2], th
 MOVER6_TICKS = (8.260740495997393e-06, 8.260740495997393e-06, 8.260740495997393e-06,
                 8.742382548559054e-06, 0.006135923151542565, 0.006135923151542565)
 
+# The controller's velocity laws (control.velocity_laws.PROFILES; a test checks they agree).
+PROFILES = ('synchronised', 'trapezoidal', 'jerk_limited', 'continuous',
+            'cubic', 'quintic', 'septic', 'sharp_trapezoid',
+            'cubic_spline', 'quintic_spline', 'bspline', 'multi_trapezoid')
+PROFILE_TEXT = (
+    'velocity law: continuous (through every waypoint, time-optimal), synchronised (all '
+    'joints arrive together), trapezoidal (stop at each waypoint, as the Mover6 report), '
+    'jerk_limited; stopping at each waypoint within the velocity limits and a_max: cubic, '
+    'quintic (3-4-5), septic (4-5-6-7), sharp_trapezoid; through all waypoints within them: '
+    'cubic_spline, quintic_spline, bspline, multi_trapezoid')
+
 PLANNER = _table(
     P('motion', 'str', 'linear', '', 'shape of /pose_goal moves',
       allowed=('linear', 'parabolic', 'joint')),
@@ -156,14 +167,15 @@ PLANNER = _table(
     P('match_timeout', 'float', 3.0, 's',
       'longest wait for /joint_demands readers to be matched before publishing a plan',
       0.0, 60.0),
+    P('profile', 'str', 'continuous', '',
+      "the controller's velocity law the predicted duration is timed with (set it as the "
+      "controller's profile; its other law parameters are the controller's defaults)",
+      allowed=PROFILES),
 )
 
 CONTROLLER = _table(
     P('rate', 'float', 100.0, 'Hz', 'control rate: one /JointJog per tick', 1.0, 1000.0),
-    P('profile', 'str', 'continuous', '',
-      'velocity law: continuous (through every waypoint, time-optimal), synchronised (all '
-      'joints arrive together), trapezoidal (stop at each waypoint, as the Mover6 report), '
-      'jerk_limited', allowed=('synchronised', 'trapezoidal', 'jerk_limited', 'continuous')),
+    P('profile', 'str', 'continuous', '', PROFILE_TEXT, allowed=PROFILES),
     P('lambda_max', 'float', 0.5, 'rad/s',
       'synchronised: speed of the joint with the furthest to go (the Mover6 report eq. 1)',
       0.001, 10.0),
@@ -173,7 +185,8 @@ CONTROLLER = _table(
       'trapezoidal: ramp time, at most t_max / 2; 0 = t_max / 4 (the Mover6 report)',
       0.0, 300.0),
     P('a_max', 'float', 1.0, 'rad/s^2',
-      'acceleration limit of jerk_limited, continuous and of every stop', 0.001, 100.0),
+      'acceleration limit of every law but synchronised and trapezoidal, and of every stop',
+      0.001, 100.0),
     P('j_max', 'float', 5.0, 'rad/s^3', 'jerk limit of jerk_limited', 0.001, 1000.0),
     P('goal_tolerance', 'float', 0.002, 'rad', 'arrived when every joint is this close',
       1e-6, 0.5),

@@ -5,8 +5,10 @@
 # Usage: scripts/launch.sh [--no-sim] [--profile P] [--jog-units U] [--limit-set L]
 #                          [--log-dir DIR]
 #   --no-sim         do not start the MuJoCo bridge (drive a real arm's driver instead)
-#   --profile P      controller profile: continuous (default) | synchronised | trapezoidal |
-#                    jerk_limited
+#   --profile P      controller profile (the planner times its prediction with it too):
+#                    continuous (default) | synchronised | trapezoidal | jerk_limited | cubic |
+#                    quintic | septic | sharp_trapezoid | cubic_spline | quintic_spline |
+#                    bspline | multi_trapezoid
 #   --jog-units U    rad_per_s (default) | fraction_of_max (vendor driver; the sim acts as it)
 #   --limit-set L    joint limits of every node: within_90_deg (default) | hardware
 #   --log-dir DIR    also write each node's output to DIR/<node>.log
@@ -21,7 +23,8 @@ set -uo pipefail
 export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
 
 # The choices, and the defaults (the shipped parameter files' values).
-PROFILES='continuous synchronised trapezoidal jerk_limited'
+PROFILES='continuous synchronised trapezoidal jerk_limited cubic quintic septic sharp_trapezoid
+cubic_spline quintic_spline bspline multi_trapezoid'
 JOG_UNITS='rad_per_s fraction_of_max'
 LIMIT_SETS='within_90_deg hardware'
 with_sim=1
@@ -114,7 +117,7 @@ start controller controller \
     -p "profile:=$profile" -p "jog_units:=$jog_units" -p "limit_set:=$limit_set" \
     ${MOVER6_CONTROLLER_ARGS:-}
 # shellcheck disable=SC2086
-start planner planner -p "limit_set:=$limit_set" ${MOVER6_PLANNER_ARGS:-}
+start planner planner -p "limit_set:=$limit_set" -p "profile:=$profile" ${MOVER6_PLANNER_ARGS:-}
 
 # Wait until any node exits; then stop the rest and report which one it was.
 wait -n "${pids[@]}"

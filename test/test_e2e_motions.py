@@ -10,6 +10,7 @@ Everything is judged from what really flowed over DDS: /joint_states from the Mu
 
 from control_msgs.msg import JointJog
 from geometry_msgs.msg import PoseStamped
+from mover6_control.control.velocity_laws import PROFILES
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.rotations import pose_from_xyzabc
@@ -117,15 +118,18 @@ def restart_controller(stack, client, params):
     assert problem is None, f'{problem}\n{stack.report()}'
 
 
-@pytest.mark.parametrize('profile', ['synchronised', 'trapezoidal', 'jerk_limited'])
+@pytest.mark.parametrize('profile', PROFILES)
 def test_every_profile_reaches_the_goal(stack, client, profile):
     """Each velocity law drives the simulated arm to the goal within tolerance."""
+    # One Stack for all: only the controller restarts with the profile (~2 s instead of ~5 s).
     restart_controller(stack, client, {'profile': profile})
     # A joint move of 5 waypoints keeps the stop-at-each-waypoint laws' run short.
-    assert client.set_planner_parameters({'motion': 'joint', 'n_waypoints': 5}) is None
+    # The planner announces its duration with the controller's law.
+    assert client.set_planner_parameters({'motion': 'joint', 'n_waypoints': 5,
+                                          'profile': profile}) is None
     goal = A if np.linalg.norm(fk(ARM, client.q)[:3, 3] - A[:3, 3]) > 0.01 else B
     arrived(client, stack, client.send_pose(goal, timeout=60.0), goal)
-    assert client.set_planner_parameters({'n_waypoints': 20}) is None
+    assert client.set_planner_parameters({'n_waypoints': 20, 'profile': 'continuous'}) is None
 
 
 def test_bridge_dies_mid_motion_fault_zero_then_recovery(stack, client):

@@ -1,4 +1,4 @@
-"""The four velocity laws, common-factor limiting, closed loop and the position-limit guard."""
+"""The velocity laws, common-factor limiting, closed loop and the position-limit guard."""
 
 import importlib.util
 
@@ -8,8 +8,10 @@ from mover6_control.control.robot import Robot
 from mover6_control.control.velocity_laws import (closed_loop_command, guard_position_limits,
                                                   LawConfig, plan_motion, plan_stop,
                                                   scale_to_limits, to_jog_units)
+from mover6_control.control.velocity_laws import PROFILES as ALL_PROFILES
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
+from mover6_control.parameters import CONTROLLER
 import numpy as np
 import pytest
 
@@ -169,3 +171,95 @@ def test_jog_units():
                                qd / (VLIM * 0.25))
     with pytest.raises(InvalidInputError, match='jog_units'):
         to_jog_units(qd, VLIM, 'deg_per_s')
+
+
+# --- the time laws and multi-point trajectories of the Jacobians and trajectories report -----
+
+NEW_PROFILES = ['cubic', 'quintic', 'septic', 'sharp_trapezoid',
+                'cubic_spline', 'quintic_spline', 'bspline', 'multi_trapezoid']
+STOPPING = ['cubic', 'quintic', 'septic', 'sharp_trapezoid']
+
+
+def test_every_profile_is_selectable():
+    assert set(PROFILES) | set(NEW_PROFILES) <= set(ALL_PROFILES)
+    assert set(ALL_PROFILES) == set(CONTROLLER['profile'].allowed)
+
+
+def check_limits(plan, a_max, qd_start=None, dt=1e-3):
+    """Sample the plan; every speed within VLIM, every mean acceleration over dt within a_max."""
+    ts = np.arange(0.0, plan.duration + 0.05, dt)
+    qd = np.array([plan.sample(t)[1] for t in ts])
+    assert np.all(np.abs(qd) <= VLIM * (1 + 1e-6)), np.max(np.abs(qd) / VLIM)
+    acc = np.abs(np.diff(qd, axis=0)) / dt
+    assert np.all(acc <= a_max * (1 + 1e-6)), np.max(acc)
+    start = np.zeros(6) if qd_start is None else qd_start
+    np.testing.assert_allclose(qd[0], start, atol=1e-9)
+    np.testing.assert_allclose(qd[-1], 0.0, atol=1e-12)
+
+
+@settings(max_examples=12, deadline=None)
+@given(q0=config6, Q=st.lists(config6, min_size=1, max_size=4).map(np.array),
+       moving=st.booleans(), a_max=st.floats(0.5, 3.0),
+       profile=st.sampled_from(NEW_PROFILES))
+def test_new_laws_respect_limits_reach_the_goal_and_start_from_the_velocity(
+        q0, Q, moving, a_max, profile):
+    qd0 = np.array([0.3, -0.2, 0.1, 0.0, 0.2, 0.4]) if moving else None
+    plan = plan_motion(LawConfig(profile=profile, a_max=a_max), q0, Q, VLIM, qd_start=qd0)
+    check_limits(plan, a_max, qd0)
+    np.testing.assert_allclose(plan.sample(plan.duration)[0], Q[-1], atol=1e-9)
+    assert np.all(np.diff(plan.waypoint_times) >= 0.0)
+    assert plan.waypoints_reached(plan.duration) == len(Q)
+
+
+@pytest.mark.parametrize('profile', NEW_PROFILES)
+def test_new_laws_pass_their_waypoints(profile):
+    """Stopping laws and interpolating splines pass every waypoint at its time, at rest or not."""
+    Q = np.array([[0.3, -0.2, 0.1, 0.5, -0.3, 0.8], [-0.2, 0.1, 0.4, 0.0, 0.2, -0.5],
+                  [0.0, 0.3, 0.2, 0.1, 0.0, 0.0]])
+    plan = plan_motion(LawConfig(profile=profile), np.zeros(6), Q, VLIM)
+    check_limits(plan, 1.0)
+    grid = np.array([plan.sample(t)[0] for t in np.linspace(0.0, plan.duration, 4001)])
+    for k, t_k in enumerate(plan.waypoint_times):
+        q_k, qd_k = plan.sample(t_k)
+        if profile in ('bspline', 'multi_trapezoid'):
+            # Approximating (corners cut): the time given is the nearest pass.
+            nearest = np.min(np.linalg.norm(grid - Q[k], axis=1))
+            assert np.linalg.norm(q_k - Q[k]) <= nearest + 0.01
+        else:
+            np.testing.assert_allclose(q_k, Q[k], atol=1e-6)
+        if profile in STOPPING:
+            np.testing.assert_allclose(qd_k, 0.0, atol=1e-9)
+    if profile in ('cubic_spline', 'quintic_spline'):
+        assert np.max(np.abs(plan.sample(plan.waypoint_times[0])[1])) > 0.05   # no stop
+
+
+@pytest.mark.parametrize('profile', STOPPING)
+def test_stopping_laws_take_the_shortest_time_within_the_limits(profile):
+    """One move: its duration is set by the law's peak s' or s'' meeting a limit exactly."""
+    q1 = np.array([0.6, -0.3, 0.2, 0.0, 0.1, 0.0])
+    plan = plan_motion(LawConfig(profile=profile, a_max=2.0), np.zeros(6), q1[None], VLIM)
+    ts = np.linspace(0.0, plan.duration, 20001)
+    qd = np.array([plan.sample(t)[1] for t in ts])
+    acc = np.abs(np.diff(qd, axis=0)) / (ts[1] - ts[0])
+    v_ratio, a_ratio = np.max(np.abs(qd) / VLIM), np.max(acc) / 2.0
+    assert max(v_ratio, a_ratio) == pytest.approx(1.0, rel=2e-3)
+
+
+@pytest.mark.parametrize('profile', NEW_PROFILES)
+def test_new_laws_stay_put_for_a_repeated_goal(profile):
+    q = np.array([0.1, 0.2, -0.1, 0.0, 0.3, 0.0])
+    plan = plan_motion(LawConfig(profile=profile), q, np.array([q, q]), VLIM)
+    assert plan.duration == 0.0
+    np.testing.assert_allclose(plan.sample(0.0)[0], q)
+
+
+@pytest.mark.parametrize('profile', ['cubic_spline', 'quintic_spline', 'bspline',
+                                     'multi_trapezoid'])
+def test_a_measured_start_next_to_the_first_waypoint_does_not_stretch_the_motion(profile):
+    """The e2e case: the arm stands 0.2 mrad off the planner's first waypoint."""
+    Q = np.linspace(np.zeros(6), [0.3, -0.2, 0.1, 0.4, -0.3, 0.5], 5)
+    exact = plan_motion(LawConfig(profile=profile), Q[0], Q, VLIM)
+    near = plan_motion(LawConfig(profile=profile), Q[0] + 2e-4, Q, VLIM)
+    assert near.duration <= 1.05 * exact.duration
+    check_limits(near, 1.0)
+    np.testing.assert_allclose(near.sample(near.duration)[0], Q[-1], atol=1e-12)

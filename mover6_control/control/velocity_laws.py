@@ -2,7 +2,7 @@
 The controller's velocity laws behind one small interface, plus closed loop and limits.
 
 A law turns the start state and the waypoints (N, n) [rad] into a ``MotionPlan``: a reference
-``sample(t) -> (q_ref, qd_ref)`` over ``[0, duration]`` [s]. The four laws:
+``sample(t) -> (q_ref, qd_ref)`` over ``[0, duration]`` [s]. The laws (``PROFILES``):
 
 - ``synchronised``: the Mover6 report eq. 1-2. Per waypoint, the joint with the furthest to go
   moves at ``lambda_max`` and sets ``t_max``; every joint moves at ``(q_k - q_{k-1}) / t_max`` so
@@ -14,11 +14,17 @@ A law turns the start state and the waypoints (N, n) [rad] into a ``MotionPlan``
   (``motion.trajectories.ruckig_trajectory``).
 - ``continuous``: the motion library's time-parameterised trajectory through all waypoints,
   without stopping at each (``motion.timing.time_parameterize``).
+- ``cubic``, ``quintic`` (3-4-5), ``septic`` (4-5-6-7), ``sharp_trapezoid``: the time laws of
+  the Jacobians and trajectories report, one synchronised move per waypoint, stopping at each,
+  each move the shortest within the velocity limits and ``a_max`` (``time_law_segment``).
+- ``cubic_spline``, ``quintic_spline``, ``bspline``, ``multi_trapezoid``: the multi-point
+  trajectories of the same report through (or, B-spline and blends, near) all waypoints without
+  stopping, fitted to the velocity limits and ``a_max`` by one common time factor.
 
 Every law respects the joints' velocity limits by one common factor that stretches time (so the
 direction of motion and the synchronised arrival are kept). A plan started while the arm moves
-begins from the present commanded velocity: the two laws of the Mover6 report first decelerate from
-it (common factor, ``a_max``), ruckig and the continuous law start from it directly. So replacing a
+begins from the present commanded velocity: ruckig and the continuous law start from it directly,
+every other law first decelerates from it (common factor, ``a_max``). So replacing a
 motion never makes the command jump.
 
 The command of every tick is ``closed_loop_command``: ``qd_ref + kp (q_ref - q)`` (the closed-loop
@@ -39,14 +45,37 @@ from typing import Optional, Sequence
 from mover6_control.errors import InvalidInputError
 # Imported with this module, not lazily in the first continuous demand's callback: that import
 # (scipy.interpolate; 0.1 s idle, far longer on a loaded machine) held up the controller.
-from mover6_control.motion import timing
+from mover6_control.motion import time_laws, timing
 from mover6_control.motion.time_laws import trapezoid_times, trapezoidal
-from mover6_control.motion.trajectories import (JointTrajectory, ruckig_trajectory,
-                                                TimeLawTrajectory)
+from mover6_control.motion.trajectories import (bspline_trajectory, cubic_trajectory,
+                                                JointTrajectory, multipoint_trapezoidal,
+                                                point_to_point, quintic_trajectory,
+                                                ruckig_trajectory, TimeLawTrajectory)
 from mover6_control.validation import as_positive
 import numpy as np
 
-PROFILES = ('synchronised', 'trapezoidal', 'jerk_limited', 'continuous')
+# Per waypoint, stopping at each: the time laws of the Jacobians and trajectories report, each
+# move as short as the velocity limits and a_max allow (``trajectories.point_to_point``).
+STOP_AT_EACH_LAWS = {'cubic': time_laws.cubic, 'quintic': time_laws.quintic,
+                     'septic': time_laws.septic, 'sharp_trapezoid': time_laws.sharp_trapezoid}
+# Through every waypoint without stopping: the multi-point trajectories of the same report,
+# fitted to the velocity limits and a_max by one common time factor.
+THROUGH_ALL_TRAJECTORIES = {
+    'cubic_spline': lambda Q, v, a: cubic_trajectory(Q, v_max=v, a_max=a),
+    'quintic_spline': lambda Q, v, a: quintic_trajectory(Q, v_max=v, a_max=a),
+    'bspline': lambda Q, v, a: bspline_trajectory(Q, v_max=v, a_max=a),
+    'multi_trapezoid': lambda Q, v, a: multipoint_trapezoidal(Q, v, a),
+}
+PROFILES = ('synchronised', 'trapezoidal', 'jerk_limited', 'continuous',
+            'cubic', 'quintic', 'septic', 'sharp_trapezoid',
+            'cubic_spline', 'quintic_spline', 'bspline', 'multi_trapezoid')
+# The families the report's figure compares (``tools.plots.profile_comparison``).
+PROFILE_FAMILIES = {
+    'stop at each waypoint': ('synchronised', 'trapezoidal', 'jerk_limited', 'cubic', 'quintic',
+                              'septic', 'sharp_trapezoid'),
+    'through all waypoints': ('continuous', 'cubic_spline', 'quintic_spline', 'bspline',
+                              'multi_trapezoid'),
+}
 JOG_UNITS = ('rad_per_s', 'fraction_of_max')
 
 
@@ -400,6 +429,87 @@ def _continuous_plan(q_start, waypoints, velocity_limits, config, qd_start):
     return MotionPlan(first + (segment,), waypoints, np.array(times))
 
 
+def time_law_segment(q0: np.ndarray, q1: np.ndarray, law, velocity_limits: np.ndarray,
+                     a_max: float | Sequence[float]
+                     ) -> ConstantVelocitySegment | TrajectorySegment:
+    """
+    Return a synchronised rest-to-rest move ``q0 -> q1`` under a time ``law``, within the limits.
+
+    The duration is the shortest for which no joint exceeds its velocity limit nor ``a_max``
+    (the law's peak ``s'`` and ``s''``, ``trajectories.point_to_point``). A move of zero length
+    takes no time.
+    """
+    if not np.any(np.abs(q1 - q0) > 1e-12):
+        return ConstantVelocitySegment(q0, q1, 0.0)
+    move = point_to_point(q0, q1, law, v_max=velocity_limits, a_max=a_max)
+    return TrajectorySegment(move, move.duration, q1.copy())
+
+
+def _nearest_passes(trajectory, points, duration):
+    """Return when ``trajectory`` passes nearest each of ``points`` (k, n), in order [s]."""
+    ts = np.linspace(0.0, duration, max(400, 40 * len(points)))
+    q = np.asarray(trajectory.sample(ts)[0])
+    times, start = [], 0
+    for point in points:
+        i = start + int(np.argmin(np.linalg.norm(q[start:] - point, axis=1)))
+        times.append(ts[i])
+        start = i
+    return np.array(times)
+
+
+# [rad] Splines through points much closer than their neighbours swing far between them (and
+# the common time factor then stretches the whole motion): the measured start lies a fraction of
+# a milliradian from the planner's first waypoint. Rows closer than this to the last kept row
+# are passed with it (the goal always kept exactly, replacing a row too close before it).
+MERGE_STEP = 1e-3
+
+
+def _spaced_rows(path, step):
+    """Return which rows of ``path`` (k, n) to keep: the first, the last, none closer than step."""
+    keep = np.zeros(len(path), dtype=bool)
+    keep[0] = True
+    last = 0
+    for i in range(1, len(path)):
+        if np.max(np.abs(path[i] - path[last])) > step:
+            keep[i], last = True, i
+    if len(path) > 1 and not keep[-1]:
+        if last > 0 and np.max(np.abs(path[-1] - path[last])) <= step:
+            keep[last] = False
+        keep[-1] = np.max(np.abs(path[-1] - path[0])) > 1e-12
+    return keep
+
+
+def _through_all_plan(q_start, waypoints, velocity_limits, config, qd_start):
+    """Plan a multi-point trajectory of the Jacobians and trajectories report (no stops)."""
+    n = q_start.shape[0]
+    a_max = as_positive(config.a_max, 'a_max', n)
+    first = ()
+    if np.any(qd_start):
+        first = (stop_segment(q_start, qd_start, a_max),)
+        q_start = first[0].q1
+    path = np.vstack([q_start, waypoints])
+    keep = _spaced_rows(path, MERGE_STEP)
+    t0 = first[0].duration if first else 0.0
+    if keep.sum() < 2:
+        return MotionPlan(first, waypoints, np.full(len(waypoints), t0))
+    trajectory = THROUGH_ALL_TRAJECTORIES[config.profile](path[keep], velocity_limits, a_max)
+    duration = float(trajectory.duration)
+    if config.profile in ('cubic_spline', 'quintic_spline'):
+        # Interpolating: the knots are the waypoints, spaced as the slowest joint at its limit,
+        # all scaled by one factor (``trajectories._fit_to_limits``).
+        steps = np.max(np.abs(np.diff(path[keep], axis=0)) / velocity_limits, axis=1)
+        passes = np.cumsum(steps) * duration / steps.sum()
+    else:
+        # Approximating (corners cut): when the reference passes nearest each waypoint.
+        passes = _nearest_passes(trajectory, path[keep][1:], duration)
+    kept_row = np.cumsum(keep) - 1
+    passes = np.concatenate([[0.0], passes])
+    times = t0 + passes[kept_row[1:]]
+    times[-1] = t0 + duration
+    segment = TrajectorySegment(trajectory, duration, waypoints[-1].copy())
+    return MotionPlan(first + (segment,), waypoints, np.array(times))
+
+
 def plan_motion(config: LawConfig, q_start: Sequence[float], waypoints: np.ndarray,
                 velocity_limits: Sequence[float],
                 qd_start: Optional[Sequence[float]] = None) -> MotionPlan:
@@ -407,8 +517,9 @@ def plan_motion(config: LawConfig, q_start: Sequence[float], waypoints: np.ndarr
     Return the ``MotionPlan`` of ``config.profile`` from ``q_start`` (n,) via ``waypoints`` (N, n).
 
     ``velocity_limits`` (n,) [rad/s]; ``qd_start`` (n,) [rad/s] is the velocity commanded now
-    (None: at rest). The Mover6 report's laws decelerate from it first; ruckig and the continuous
-    law start from it. Waypoints are not checked against position limits here (the caller does).
+    (None: at rest). ruckig and the continuous law start from it; every other law first
+    decelerates from it (common factor, ``a_max``), then starts. Waypoints are not checked
+    against position limits here (the caller does).
     """
     q_start, waypoints, velocity_limits, qd_start = _check_inputs(
         q_start, waypoints, velocity_limits, qd_start)
@@ -424,12 +535,29 @@ def plan_motion(config: LawConfig, q_start: Sequence[float], waypoints: np.ndarr
             times.append(t)
             q0, qd0 = q1, None
         return MotionPlan(tuple(segments), waypoints, np.array(times))
+    if config.profile in THROUGH_ALL_TRAJECTORIES:
+        return _through_all_plan(q_start, waypoints, velocity_limits, config, qd_start)
     first = ()
     if np.any(qd_start):
         first = (stop_segment(q_start, qd_start, config.a_max),)
         q_start = first[0].q1
+    if config.profile in STOP_AT_EACH_LAWS:
+        law = STOP_AT_EACH_LAWS[config.profile]()
+        return _per_waypoint(q_start, waypoints, lambda a, b: time_law_segment(
+            a, b, law, velocity_limits, config.a_max), first)
     if config.profile == 'synchronised':
         return _per_waypoint(q_start, waypoints, lambda a, b: synchronised_segment(
             a, b, config.lambda_max, velocity_limits), first)
     return _per_waypoint(q_start, waypoints, lambda a, b: trapezoid_segment(
         a, b, config.t_max, config.blend, velocity_limits), first)
+
+
+def predicted_duration(profile: str, q_start: Sequence[float], waypoints: np.ndarray,
+                       velocity_limits: Sequence[float]) -> float:
+    """
+    Return the duration [s] the controller plans for ``waypoints`` from rest at ``q_start``.
+
+    The one timing model: ``plan_motion`` with ``profile`` and the controller's default law
+    settings (``LawConfig``'s defaults are the controller node's), as the planner announces it.
+    """
+    return plan_motion(LawConfig(profile=profile), q_start, waypoints, velocity_limits).duration

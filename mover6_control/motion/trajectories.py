@@ -22,6 +22,7 @@ Builders:
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Callable, Optional, Sequence
 
@@ -246,9 +247,12 @@ def validate_waypoints(Q: np.ndarray, name: str = 'Q', allow_repeats: bool = Fal
     return Q
 
 
+@functools.lru_cache(maxsize=64)
 def law_peaks(law: TimeLaw) -> tuple[float, float]:
     """
     Return (max |s'|, max |s''|) of a time law over tau in [0, 1].
+
+    Remembered per law (laws are frozen), so timing many moves under one law searches once.
 
     The largest sample is refined by a bounded search between its neighbours, so a peak that
     falls between samples is not underestimated (a duration fitted to it would break a limit).

@@ -17,8 +17,11 @@ demands planned for it (``layout.dim[0].label`` = ``waypoints goal <goal_id>``),
 controller echoes in its status next to its ``motion_id``.
 """
 
+import dataclasses
+
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
+from mover6_control.control.velocity_laws import predicted_duration
 from mover6_control.errors import Mover6Error, UnreachableError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
@@ -128,7 +131,11 @@ class PlannerNode(Node):
         self.goal = {'goal_id': f'{stamp}-{self.goal_seq}', 'goal_stamp': stamp,
                      'goal_seq': self.goal_seq}
         try:
-            plan = plan_fn(self.current_q(), self.settings())
+            q_now = self.current_q()
+            plan = plan_fn(q_now, self.settings())
+            # One timing model: the controller's law times the waypoints from the same start.
+            plan = dataclasses.replace(plan, predicted_duration=predicted_duration(
+                self.get_parameter('profile').value, q_now, plan.q, self.arm.velocity_limits))
         except UnreachableError as err:
             self.refuse(motion, str(err), err.reason, err.details)
             return

@@ -75,7 +75,7 @@ class JointPlan:
     q: np.ndarray             # (n, 6) [rad]
     poses: np.ndarray         # (n, 4, 4) the intended tool poses (FK of q for joint moves)
     path_length: float        # [m] of the intended tool path
-    predicted_duration: float  # [s] at the arm's velocity limits, synchronised per segment
+    predicted_duration: float  # [s] rough estimate; the node announces the controller's timing
     final_position_error: float     # [m] FK of the last waypoint against the goal
     final_orientation_error: float  # [rad]
 

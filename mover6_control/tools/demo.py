@@ -222,6 +222,40 @@ def passed(rows, steps):
     return len(rows) == len(steps)
 
 
+def write_profile_comparison(report_dir, arm):
+    """
+    Write one plot per profile family and a table (appended to metrics.md); return the files.
+
+    Offline, on the Mover6 report's linear example: 20 waypoints from home to (0.445, 0, 0.4425)
+    with the home orientation, planned as the planner does, timed by every controller profile.
+    """
+    from mover6_control.control.velocity_laws import PROFILE_FAMILIES
+    from mover6_control.kinematics.forward import fk
+    from mover6_control.planning.planner_core import plan_pose_goal
+    from mover6_control.tools import plots
+    q_home = np.zeros(arm.n_joints)
+    T_goal = fk(arm, q_home).copy()
+    T_goal[:3, 3] = (0.445, 0.0, 0.4425)
+    waypoints = plan_pose_goal(arm, q_home, T_goal, 'linear').q
+    files, lines = [], [
+        '', "Every profile on the Mover6 report's linear example (offline plan, 1 ms samples):",
+        '',
+        '| family | profile | duration [s] | peak speed [rad/s] | peak acceleration [rad/s^2] | '
+        'peak jerk [rad/s^3] | path deviation [mm] |', '|---|---|---|---|---|---|---|']
+    for family, names in PROFILE_FAMILIES.items():
+        rows = [plots.profile_metrics(arm, name, q_home, waypoints) for name in names]
+        slug = family.replace(' ', '_')
+        files.append(plots.plot_profile_comparison(
+            rows, os.path.join(report_dir, f'profiles_{slug}.png'),
+            f"{family}: the Mover6 report's linear example"))
+        lines += [f'| {family} | {r["profile"]} | {r["duration"]:.2f} | {r["peak_speed"]:.3f} | '
+                  f'{r["peak_acceleration"]:.3f} | {r["peak_jerk"]:.1f} | '
+                  f'{r["deviation"] * 1e3:.2f} |' for r in rows]
+    with open(os.path.join(report_dir, 'metrics.md'), 'a') as f:
+        f.write('\n'.join(lines) + '\n')
+    return files
+
+
 def main(argv=None):
     """Run the showcase; exit 0 only when everything behaved."""
     parser = argparse.ArgumentParser(prog='demo', description=__doc__.split('\n\n')[0])
@@ -261,6 +295,7 @@ def main(argv=None):
         rclpy.try_shutdown()
         stop_stack(stack)
     files = write_report(report_dir, rows, arm)
+    files += write_profile_comparison(report_dir, arm)
     if not args.no_render:
         gif = render_animation(report_dir, rows, arm)
         if gif:

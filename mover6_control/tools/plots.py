@@ -9,7 +9,10 @@ import os
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from mover6_control.control.velocity_laws import LawConfig, plan_motion
 from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.forward import fk_batch
+from mover6_control.motion.metrics import max_deviation_from_polyline
 from mover6_control.validation import as_finite_array
 import numpy as np
 
@@ -128,4 +131,62 @@ def plot_joint_velocities(t, QD, velocity_limits, path, names=None):
     ax.legend(fontsize='small', ncol=min(n, 6))
     fig.suptitle('Joint velocities (dashed: velocity limits)')
     fig.tight_layout()
+    return _save(fig, path)
+
+
+def profile_metrics(arm, profile, q_start, waypoints, dt=1e-3):
+    """
+    Return the figures of ``profile``'s plan (offline, at rest at ``q_start``) on ``waypoints``.
+
+    ``duration`` [s]; the peaks over every joint of speed [rad/s], acceleration [rad/s^2] and jerk
+    [rad/s^3] by differences of the sampled velocity every ``dt`` [s] (an acceleration step, as
+    in the synchronised and trapezoidal laws, shows as step / ``dt``); ``deviation`` [m]: the
+    largest distance of the flange from the straight line between the first and last pose.
+    """
+    plan = plan_motion(LawConfig(profile=profile), q_start, waypoints, arm.velocity_limits)
+    t = np.arange(0.0, plan.duration + dt, dt)
+    samples = [plan.sample(ti) for ti in t]
+    q = np.array([s[0] for s in samples])
+    qd = np.array([s[1] for s in samples])
+    qdd = np.diff(qd, axis=0) / dt
+    qddd = np.diff(qdd, axis=0) / dt
+    points = fk_batch(arm, q)[:, :3, 3]
+    line = fk_batch(arm, np.stack([np.asarray(q_start, float), waypoints[-1]]))[:, :3, 3]
+    return {'profile': profile, 'duration': float(plan.duration),
+            'peak_speed': float(np.max(np.abs(qd))),
+            'peak_acceleration': float(np.max(np.abs(qdd))),
+            'peak_jerk': float(np.max(np.abs(qddd))) if qddd.size else 0.0,
+            'deviation': float(max_deviation_from_polyline(points, line)),
+            't': t, 'qd': qd}
+
+
+def plot_profile_comparison(rows, path, title=''):
+    """
+    Plot one profile family side by side: speed of the fastest joint over time, and bars.
+
+    ``rows`` are ``profile_metrics`` results. Top: max |qd| over the joints against time per
+    profile; below: duration, peak speed, peak acceleration, peak jerk and path deviation.
+    """
+    if not rows:
+        raise InvalidInputError('plot_profile_comparison needs at least one profile')
+    fig = Figure(figsize=(12, 7), layout='constrained')
+    grid = fig.add_gridspec(2, 5)
+    ax = fig.add_subplot(grid[0, :])
+    for row in rows:
+        ax.plot(row['t'], np.max(np.abs(row['qd']), axis=1), label=row['profile'])
+    ax.set_xlabel('t [s]')
+    ax.set_ylabel('fastest joint |qd| [rad/s]')
+    ax.set_title(title)
+    ax.legend(fontsize='small')
+    names = [row['profile'] for row in rows]
+    bars = (('duration', 'duration [s]', 1.0), ('peak_speed', 'peak speed [rad/s]', 1.0),
+            ('peak_acceleration', 'peak acc. [rad/s^2]', 1.0),
+            ('peak_jerk', 'peak jerk [rad/s^3]', 1.0), ('deviation', 'path dev. [mm]', 1e3))
+    for k, (key, label, scale) in enumerate(bars):
+        axk = fig.add_subplot(grid[1, k])
+        axk.bar(range(len(rows)), [row[key] * scale for row in rows])
+        axk.set_xticks(range(len(rows)), names, rotation=70, fontsize='small')
+        axk.set_title(label, fontsize='small')
+        if key == 'peak_jerk':
+            axk.set_yscale('log')
     return _save(fig, path)

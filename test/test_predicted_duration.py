@@ -1,0 +1,44 @@
+"""One timing model: the planner announces the duration the controller plans (issue 11, item 5)."""
+
+import re
+
+from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.velocity_laws import LawConfig, predicted_duration, PROFILES
+from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.forward import fk
+from mover6_control.parameters import CONTROLLER, PLANNER
+from mover6_control.planning.planner_core import plan_pose_goal
+import numpy as np
+import pytest
+
+ARM = mover6()
+
+
+def report_linear_example():
+    """Return the Mover6 report's linear example: home to (0.445, 0, 0.4425), orientation kept."""
+    T_goal = fk(ARM, np.zeros(6)).copy()
+    T_goal[:3, 3] = (0.445, 0.0, 0.4425)
+    return plan_pose_goal(ARM, np.zeros(6), T_goal, 'linear')
+
+
+def controller_plan_duration(profile, q_start, waypoints):
+    """Return the duration [s] the controller core announces when given ``waypoints``."""
+    core = ControllerCore(ARM, ControllerConfig(law=LawConfig(profile=profile)))
+    core.on_joint_states(0.0, q_start)
+    core.tick(0.0)
+    core.on_demands(0.0, waypoints)
+    return float(re.search(r'([0-9.]+) s$', core.status().message).group(1))
+
+
+def test_the_planner_times_with_the_controllers_default_profile():
+    assert PLANNER['profile'].default == CONTROLLER['profile'].default
+    assert PLANNER['profile'].allowed == CONTROLLER['profile'].allowed
+
+
+@pytest.mark.parametrize('profile', PROFILES)
+def test_predicted_duration_is_the_controllers_within_5_percent(profile):
+    plan = report_linear_example()
+    predicted = predicted_duration(profile, np.zeros(6), plan.q, ARM.velocity_limits)
+    planned = controller_plan_duration(profile, np.zeros(6), plan.q)
+    # The controller announces its duration to 10 ms.
+    assert abs(predicted - planned) <= max(0.05 * planned, 0.005 + 1e-9), (predicted, planned)
