@@ -69,7 +69,9 @@ def generate_launch_description():
             description='true: the MuJoCo bridge stands in for the arm; false: a real driver'),
         DeclareLaunchArgument(
             'profile', default_value='continuous',
-            choices=['continuous', 'synchronised', 'trapezoidal', 'jerk_limited'],
+            choices=['continuous', 'synchronised', 'trapezoidal', 'jerk_limited', 'cubic',
+                     'quintic', 'septic', 'sharp_trapezoid', 'cubic_spline', 'quintic_spline',
+                     'bspline', 'multi_trapezoid'],
             description='controller velocity profile'),
         DeclareLaunchArgument(
             'jog_units', default_value='rad_per_s', choices=['rad_per_s', 'fraction_of_max'],

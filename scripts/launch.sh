@@ -23,8 +23,7 @@ set -uo pipefail
 export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
 
 # The choices, and the defaults (the shipped parameter files' values).
-PROFILES='continuous synchronised trapezoidal jerk_limited cubic quintic septic sharp_trapezoid
-cubic_spline quintic_spline bspline multi_trapezoid'
+PROFILES='continuous synchronised trapezoidal jerk_limited cubic quintic septic sharp_trapezoid cubic_spline quintic_spline bspline multi_trapezoid'
 JOG_UNITS='rad_per_s fraction_of_max'
 LIMIT_SETS='within_90_deg hardware'
 with_sim=1

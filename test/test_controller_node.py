@@ -6,6 +6,7 @@ import time
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
+from mover6_control.control.velocity_laws import PROFILES
 from mover6_control.nodes import conversions
 from mover6_control.nodes.controller_node import ControllerNode
 import numpy as np
@@ -158,8 +159,7 @@ def test_parameter_service_refuses_bad_values_and_describes_ranges(ros):
     span = rate.floating_point_range[0]
     assert (span.from_value, span.to_value) == (1.0, 1000.0)
     assert rate.description.endswith('[Hz]')
-    assert profile.additional_constraints == (
-        'one of: synchronised, trapezoidal, jerk_limited, continuous')
+    assert profile.additional_constraints == 'one of: ' + ', '.join(PROFILES)
     assert jog_units.additional_constraints == 'one of: rad_per_s, fraction_of_max'
     assert not rate.read_only
 

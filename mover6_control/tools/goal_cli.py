@@ -57,6 +57,8 @@ from std_srvs.srv import Trigger
 STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 EXIT_ARRIVED, EXIT_FAILED, EXIT_REFUSED, EXIT_NO_NODES = 0, 1, 2, 3
 FINAL_RESULTS = ('arrived', 'fault', 'aborted', 'stopped')
+# [s] longest wait, after arrival, for the controller to finish settling (its settle_time is 1 s).
+SETTLE_WAIT = 5.0
 # Within this [rad] of gimbal lock (B = +-pi/2) a reached pose is printed with B = +-pi/2 and the
 # A/C split nearest the goal's angles: closer to lock the split follows the arm's tiny error.
 PRINT_LOCK_TOL = 1e-3
@@ -319,6 +321,10 @@ class GoalClient(Node):
             return Outcome(EXIT_FAILED, f'the motion did not finish within {timeout:.0f} s')
         if self.rejection is not None:
             return Outcome(EXIT_FAILED, f'the controller rejected the demand: {self.rejection}')
+        # 'arrived' comes once inside the goal tolerance; the controller then keeps settling
+        # into its fine tolerance before it holds: report the pose it holds.
+        self.spin_until(lambda: self.values(self.controller_status).get('state') != 'settling',
+                        SETTLE_WAIT)
         v = self.values(self.controller_status)
         # Let one fresh /joint_states arrive after the end so the figures are of the final pose.
         stamp = [self.q]
