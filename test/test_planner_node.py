@@ -11,7 +11,7 @@ from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_from_xyzabc
 from mover6_control.nodes import conversions
-from mover6_control.nodes.planner_node import PlannerNode
+from mover6_control.nodes.planner_node import PlannerNode, RESEND_AFTER, RESENDS
 import numpy as np
 import pytest
 import rclpy
@@ -280,3 +280,35 @@ def test_bad_start_parameters_stop_the_planner():
             PlannerNode(parameter_overrides=[Parameter('motion', value='banana')])
     finally:
         rclpy.try_shutdown()
+
+
+def test_unacknowledged_demand_is_sent_again_then_no_more(nodes):
+    """No controller names the goal in its status: the same demand goes out RESENDS more times."""
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    status = send_pose(executor, probe, GOAL)
+    goal_id = conversions.status_values(status)['goal_id']
+    assert spin_until(executor, lambda: len(probe.demands) == 1 + RESENDS, 10.0)
+    for msg in probe.demands:
+        assert conversions.demand_id_from_msg(msg) == goal_id
+        assert list(msg.data) == list(probe.demands[0].data)
+    # Then it gives up: nothing more within twice the resend period.
+    assert not spin_until(executor, lambda: len(probe.demands) > 1 + RESENDS,
+                          2.0 * RESEND_AFTER + 0.5)
+
+
+def test_acknowledged_demand_is_sent_once(nodes):
+    """The controller's status names the goal: the demand is not sent again."""
+    executor, planner, probe = nodes
+    qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    controller_status = probe.create_publisher(DiagnosticStatus, 'controller/status', qos)
+    connected(executor, probe)
+    assert spin_until(executor, lambda: controller_status.get_subscription_count() > 0)
+    give_state(executor, planner, probe, HOME)
+    status = send_pose(executor, probe, GOAL)
+    goal_id = conversions.status_values(status)['goal_id']
+    assert spin_until(executor, lambda: len(probe.demands) == 1)
+    controller_status.publish(conversions.make_status(
+        'controller', 'OK', 'motion 1 accepted', {'state': 'executing', 'goal_id': goal_id}))
+    assert not spin_until(executor, lambda: len(probe.demands) > 1, 2.0 * RESEND_AFTER + 0.5)

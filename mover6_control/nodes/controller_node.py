@@ -172,6 +172,11 @@ class ControllerNode(Node):
         """
         now = self.now()
         goal_id = conversions.demand_id_from_msg(msg)
+        if goal_id and (goal_id in self.goal_motions or goal_id in self.goal_rejections):
+            # The planner sends a demand again until this status names its goal: take it once.
+            self.get_logger().info(f'goal {goal_id}: demand received again; already taken')
+            self.publish_status(now)
+            return
         try:
             Q = conversions.demands_from_msg(msg, len(self.joint_names))
             for attempt in range(DEMAND_ATTEMPTS):

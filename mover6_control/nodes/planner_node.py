@@ -36,6 +36,10 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 
 STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# [s] a demand no controller acknowledged (by goal id in its status) is sent again after this,
+# at most RESENDS more times.
+RESEND_AFTER = 1.0
+RESENDS = 2
 
 
 class PlannerNode(Node):
@@ -52,10 +56,14 @@ class PlannerNode(Node):
         self.goal_seq = 0
         self.goal = {'goal_id': '', 'goal_stamp': '', 'goal_seq': 0}   # the latest goal
         self.pending = None      # a plan waiting for /joint_demands readers to be matched
+        self.unconfirmed = None  # (goal_id, message, last sent, times sent): not yet acknowledged
+        self.controller_values = {}
         self.create_timer(0.02, self.publish_pending)
         self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'planner/status', STATUS_QOS)
         self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
+        self.create_subscription(DiagnosticStatus, 'controller/status', self.on_controller_status,
+                                 STATUS_QOS)
         self.create_subscription(PoseStamped, 'pose_goal', self.on_pose_goal, 10)
         self.create_subscription(PoseArray, 'path_goal', self.on_path_goal, 10)
         for shape in POSE_MOTIONS:
@@ -155,8 +163,40 @@ class PlannerNode(Node):
         known = len(self.get_subscriptions_info_by_topic(self.demands_pub.topic_name))
         return self.demands_pub.get_subscription_count(), known
 
+    def on_controller_status(self, msg):
+        """Note the controller's status: it names the goal it took (or refused)."""
+        self.controller_values = conversions.status_values(msg)
+
+    def confirm_delivery(self):
+        """
+        Send a demand again while no controller has acknowledged its goal (up to RESENDS times).
+
+        The graph can show a freshly started controller's reader before the planner's writer
+        has matched it; a demand published then is lost (volatile durability). The controller
+        names in its status the goal it took or refused, and ignores a goal id it already had,
+        so sending again is safe.
+        """
+        if self.unconfirmed is None:
+            return
+        goal_id, msg, sent, count = self.unconfirmed
+        v = self.controller_values
+        if goal_id in (v.get('goal_id'), v.get('rejected_goal_id')):
+            self.unconfirmed = None
+            return
+        now = self.get_clock().now()
+        if (now - sent).nanoseconds * 1e-9 < RESEND_AFTER:
+            return
+        if count > RESENDS:
+            self.unconfirmed = None
+            self.get_logger().warning(f'goal {goal_id}: no controller acknowledged the demand')
+            return
+        self.get_logger().info(f'goal {goal_id}: not acknowledged yet, sending the demand again')
+        self.demands_pub.publish(msg)
+        self.unconfirmed = (goal_id, msg, now, count + 1)
+
     def publish_pending(self):
         """Publish the pending plan once every known reader of /joint_demands is matched."""
+        self.confirm_delivery()
         if self.pending is None:
             return
         goal, motion, plan, since = self.pending
@@ -169,7 +209,9 @@ class PlannerNode(Node):
             self.refuse(motion, 'nobody subscribes to /joint_demands: is the controller running?',
                         'no_controller', {}, goal)
             return
-        self.demands_pub.publish(conversions.make_demands(plan.q, goal['goal_id']))
+        msg = conversions.make_demands(plan.q, goal['goal_id'])
+        self.demands_pub.publish(msg)
+        self.unconfirmed = (goal['goal_id'], msg, self.get_clock().now(), 1)
         values = {'result': 'planned', 'motion': motion, 'waypoints': plan.n_waypoints,
                   'path_length': f'{plan.path_length:.6f}',
                   'predicted_duration': f'{plan.predicted_duration:.3f}',
