@@ -392,6 +392,12 @@ def trapezoid_segment(q0: np.ndarray, q1: np.ndarray, t_max: float, t_blend: flo
 def _per_waypoint(q_start, waypoints, make, first=()):
     segments, times, q0 = list(first), [], q_start
     t = sum(s.duration for s in segments)
+    if len(waypoints) > 1 and np.max(np.abs(waypoints[0] - q_start)) <= MERGE_STEP:
+        # The planner's first waypoint is where the arm was: the measured start lies a fraction
+        # of a milliradian from it. A stop-at-each law would spend a whole move (the report's
+        # trapezoid: t_max) on that; start from the waypoint instead (closed loop absorbs it).
+        times.append(t)
+        q0, waypoints = waypoints[0], waypoints[1:]
     for q1 in waypoints:
         seg = make(q0, q1)
         segments.append(seg)
