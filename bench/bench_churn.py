@@ -88,23 +88,6 @@ def echo_main(topic):
     return 0 if got else 1
 
 
-def probe_main(argv):
-    """Run the controller node, saving the monotonic time of every tick to ``argv[0]`` (.npy)."""
-    from mover6_control.nodes import controller_node
-    times = []
-    on_tick = controller_node.ControllerNode.on_tick
-
-    def timed_tick(node):
-        times.append(time.monotonic())
-        on_tick(node)
-
-    controller_node.ControllerNode.on_tick = timed_tick
-    try:
-        controller_node.main(argv[1:])
-    finally:
-        np.save(argv[0], np.array(times))
-
-
 class Churn:
     """Start ``total`` echo processes, ``AT_ONCE`` alive at a time; stop stragglers by pid."""
 
@@ -158,7 +141,7 @@ def run_variant(name, env_extra, params, total, log_dir):
     os.makedirs(variant_dir, exist_ok=True)
     probe_path = os.path.join(variant_dir, 'ticks.npy')
     bridge = NodeProcess('sim_bridge', variant_dir, ros_args=ns_args)
-    cmd = [sys.executable, '-m', 'bench.bench_churn', '--probe', probe_path, '--ros-args',
+    cmd = [sys.executable, '-m', 'bench.bench_controller', '--probe', probe_path, '--ros-args',
            '--params-file', os.path.join(ROOT, 'config', 'controller.yaml'),
            '-p', f'rate:={RATE}']
     for key, value in params.items():
@@ -313,7 +296,5 @@ def main(argv=None):
 if __name__ == '__main__':
     if sys.argv[1:2] == ['--echo']:
         sys.exit(echo_main(sys.argv[2]))
-    elif sys.argv[1:2] == ['--probe']:
-        probe_main(sys.argv[2:])
     else:
         main()
