@@ -257,8 +257,9 @@ class ControllerCore:
             tol = np.maximum(tol, ticks)
             settle_tol = ticks.copy()      # what the driver resolves: one tick per joint
         log_length = int(np.ceil(4.0 * config.driver_cycle * config.rate)) + 2
-        return dict(config=config, tol=tol, settle_tol=settle_tol, vlim=vlim, ticks=ticks,
-                    min_speed=min_speed, dt=1.0 / config.rate, log_length=log_length)
+        return {'config': config, 'tol': tol, 'settle_tol': settle_tol, 'vlim': vlim,
+                'ticks': ticks, 'min_speed': min_speed, 'dt': 1.0 / config.rate,
+                'log_length': log_length}
 
     def _apply(self, derived):
         """Install what ``_derive`` returned (the config last: ``prepare_demand`` reads it)."""
@@ -270,7 +271,7 @@ class ControllerCore:
         self.config = derived['config']
 
     def check_config(self, config: ControllerConfig) -> None:
-        """Raise ``InvalidInputError`` saying why ``config`` cannot drive this arm; else nothing."""
+        """Raise ``InvalidInputError`` saying why ``config`` cannot drive this arm."""
         self._derive(config)
 
     def reconfigure(self, config: ControllerConfig) -> bool:
