@@ -213,12 +213,10 @@ CONTROLLER = _table(
       'fraction_of_max: speed override of the vendor driver', 0.01, 1.0),
     P('driver_tick_size', 'float_list', MOVER6_TICKS, 'rad',
       "fraction_of_max: one encoder tick per joint (default the Mover6's): commands under one "
-      'tick per cycle are lifted to it near the goal; goal tolerance at least one tick; set '
-      "at start: the driver's encoders do not change while it runs", 1e-9, 1.0,
-      read_only=True),
+      'tick per cycle are lifted to it near the goal; goal tolerance at least one tick',
+      1e-9, 1.0),
     P('driver_cycle', 'float', 0.05, 's',
-      "fraction_of_max: cycle of the vendor driver (20 Hz); set at start: the driver's, fixed "
-      'while it runs', 0.001, 1.0, read_only=True),
+      'fraction_of_max: cycle of the vendor driver (20 Hz)', 0.001, 1.0),
     P('limit_set', 'str', 'within_90_deg', '', LIMIT_SET_TEXT, allowed=LIMIT_SETS,
       read_only=True),
     P('status_rate', 'float', 5.0, 'Hz', 'rate of /controller/status between state changes',
