@@ -206,7 +206,9 @@ CONTROLLER = _table(
       'tracking error that aborts a motion with a controlled stop', 0.001, 2.0 * PI),
     P('jog_units', 'str', 'rad_per_s', '',
       'JointJog velocities: rad_per_s (ROS standard) or fraction_of_max (the vendor driver: '
-      "fractions of each joint's maximum speed)", allowed=('rad_per_s', 'fraction_of_max')),
+      "fractions of each joint's maximum speed); set at start: it must match the driver's "
+      'units, fixed while the driver runs', allowed=('rad_per_s', 'fraction_of_max'),
+      read_only=True),
     P('speed_override', 'float', 0.25, '',
       'fraction_of_max: speed override of the vendor driver', 0.01, 1.0),
     P('driver_tick_size', 'float_list', MOVER6_TICKS, 'rad',
@@ -232,30 +234,38 @@ SIM_BRIDGE = _table(
     P('real_time_factor', 'float', 1.0, '',
       'sim time per wall time; 0 runs as fast as it can', 0.0, 100.0),
     P('publish_rate', 'float', 100.0, 'Hz',
-      '/joint_states rate of sim time (rad_per_s mode)', 0.1, 500.0),
+      '/joint_states rate of sim time (rad_per_s mode; vendor_driver: the driver cycle)',
+      0.1, 500.0),
     P('command_timeout', 'float', 0.2, 's',
-      'a /JointJog older than this (by receive time, sim clock) halts the joints', 0.001, 10.0),
+      'a /JointJog older than this (by receive time, sim clock) halts the joints; set at '
+      'start: the simulator is built with it', 0.001, 10.0, read_only=True),
     P('mode', 'str', 'rad_per_s', '',
       'JointJog units and driver behaviour: rad_per_s (ROS standard) or vendor_driver (behaves '
       'like the vendor driver: fractions, 20 Hz cycle, whole encoder ticks); set at start',
       allowed=('rad_per_s', 'vendor_driver'), read_only=True),
     P('speed_override', 'float', 0.25, '',
-      'vendor_driver: speed = fraction * max speed * speed_override', 0.01, 1.0),
+      'vendor_driver: speed = fraction * max speed * speed_override; set at start: the '
+      'simulator is built with it', 0.01, 1.0, read_only=True),
     P('limit_set', 'str', 'within_90_deg', '', LIMIT_SET_TEXT, allowed=LIMIT_SETS,
       read_only=True),
     P('urdf_path', 'str', '', '',
       'URDF of the arm; empty = the shipped Mover6 (config/mover6.urdf) with limit_set; '
       'set at start', read_only=True),
     P('initial_q', 'float_list', (0.0,) * 6, 'rad',
-      'start and home configuration, one value per joint', -PI, PI),
+      'start and home configuration, one value per joint; set at start', -PI, PI,
+      read_only=True),
     P('publish_clock', 'bool', False, '',
       'publish /clock after every physics step and stamp with sim time; set at start',
       read_only=True),
     P('viewer', 'bool', False, '',
       'open the MuJoCo viewer when a display exists (headless otherwise); set at start',
       read_only=True),
-    P('kv', 'float', 1000.0, 'N m s/rad', 'joint velocity servo gain', 0.001, 1e6),
-    P('damping', 'float', 0.5, 'N m s/rad', 'joint viscous damping', 0.0, 1e4),
+    P('kv', 'float', 1000.0, 'N m s/rad',
+      'joint velocity servo gain; set at start: the MuJoCo model is built with it',
+      0.001, 1e6, read_only=True),
+    P('damping', 'float', 0.5, 'N m s/rad',
+      'joint viscous damping; set at start: the MuJoCo model is built with it', 0.0, 1e4,
+      read_only=True),
 )
 
 NODES = {'planner': PLANNER, 'controller': CONTROLLER, 'sim_bridge': SIM_BRIDGE}

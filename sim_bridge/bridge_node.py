@@ -47,6 +47,8 @@ class SimBridgeNode(Node):
         """Declare the parameters, build the simulator, start the physics thread."""
         super().__init__('sim_bridge', **kwargs)
         params.declare(self, SIM_BRIDGE)  # refuses invalid values, at start and later
+        self.add_post_set_parameters_callback(self.on_parameters_set)
+        self._reanchor = False           # real_time_factor changed: pace from now on
         p = {name: self.get_parameter(name).value for name in SIM_BRIDGE}
         self.arm = self._make_arm(p['limit_set'], p['urdf_path'])
         self.rtf = float(p['real_time_factor'])
@@ -96,6 +98,27 @@ class SimBridgeNode(Node):
             f'{self.arm.name}: mode {config.mode}, physics_dt {self.dt} s, real-time factor '
             f'{self.rtf}, /joint_states every {self.publish_period:.4f} s, command timeout '
             f'{config.command_timeout} s' + (', publishing /clock' if self.publish_clock else ''))
+
+    def on_parameters_set(self, parameters):
+        """
+        Apply ``real_time_factor`` and ``publish_rate`` live (the others are read-only).
+
+        The pace re-anchors at the present time, so a new factor holds from now on; the next
+        /joint_states comes at most one new period of sim time after the change (vendor_driver
+        publishes at the driver's cycle, whatever ``publish_rate`` says).
+        """
+        for parameter in parameters:
+            if parameter.name == 'real_time_factor':
+                self.rtf = float(parameter.value)
+                self._reanchor = True
+            elif parameter.name == 'publish_rate' and not self.vendor:
+                with self.lock:
+                    self.publish_period = 1.0 / float(parameter.value)
+                    self._next_publish = min(self._next_publish,
+                                             self.sim.time + self.publish_period)
+            else:
+                continue
+            self.get_logger().info(f'{parameter.name} {parameter.value}: in force')
 
     # --- setup -------------------------------------------------------------------------------
 
@@ -220,20 +243,22 @@ class SimBridgeNode(Node):
                 self.stop_event.wait(0.005)
                 continue
             now = time.monotonic()
+            rtf = self.rtf               # read once per round: it may be set live
+            if self._reanchor:
+                self._reanchor, anchor = False, None
             if anchor is None:
                 anchor = (now, self.sim.time)
-            n = steps_due(self.sim.time - anchor[1], now - anchor[0], self.rtf, self.dt,
-                          MAX_BATCH)
+            n = steps_due(self.sim.time - anchor[1], now - anchor[0], rtf, self.dt, MAX_BATCH)
             for _ in range(n):
                 self._one_step()
-            if self.rtf > 0.0 and n == MAX_BATCH:
+            if rtf > 0.0 and n == MAX_BATCH:
                 self.overruns += 1
                 anchor = None
             if self.viewer is not None and now - last_view > VIEWER_PERIOD:
                 last_view = now
                 self._sync_viewer()
-            if self.rtf > 0.0 and anchor is not None:
-                due = anchor[0] + (self.sim.time + self.dt - anchor[1]) / self.rtf
+            if rtf > 0.0 and anchor is not None and not self._reanchor:
+                due = anchor[0] + (self.sim.time + self.dt - anchor[1]) / rtf
                 delay = due - time.monotonic()
                 if delay > 0.0:
                     self.stop_event.wait(delay)

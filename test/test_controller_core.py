@@ -387,3 +387,58 @@ def test_arrival_waits_for_a_lagging_arm_and_it_stays_within_tolerance(profile):
             if t - arrived_at > 0.5:
                 break
     assert arrived_at is not None, core.status().message
+
+
+def test_reconfigure_when_idle_applies_at_once():
+    core, sim = make('trapezoidal')
+    sim.run_until(lambda out: out.state == sm.IDLE)
+    new = ControllerConfig(law=LawConfig(profile='synchronised'), goal_tolerance=0.004,
+                           rate=50.0)
+    assert core.reconfigure(new) is True
+    values = core.status().values
+    assert values['profile'] == 'synchronised' and values['rate'] == '50'
+    assert values['goal_tolerance'].split() == ['0.004000'] * 6
+    assert 'pending_parameters' not in values
+    core.on_demands(sim.t, GOAL)
+    assert core.plan is not None and 'synchronised' in core.status().message
+
+
+def test_reconfigure_during_a_motion_applies_when_it_ends():
+    core, sim = make('trapezoidal')
+    sim.run_until(lambda out: out.state == sm.IDLE)
+    core.on_demands(sim.t, GOAL)
+    sim.tick()
+    new = ControllerConfig(law=LawConfig(profile='synchronised'))
+    assert core.reconfigure(new) is False
+    values = core.status().values
+    assert values['profile'] == 'trapezoidal'
+    assert values['pending_parameters'] == 'profile synchronised'
+    assert core.pending_config is new
+    plan = core.plan
+    sim.run_until(lambda out: out.state == sm.IDLE)
+    assert core.plan is plan or core.plan is None      # the running motion kept its plan
+    values = core.status().values
+    assert values['profile'] == 'synchronised' and 'pending_parameters' not in values
+    assert core.pending_config is None and core.config is new
+
+
+def test_reconfigure_that_does_not_fit_changes_nothing():
+    core, sim = make('trapezoidal')
+    sim.run_until(lambda out: out.state == sm.IDLE)
+    before = core.config
+    slow = ControllerConfig(jog_units='fraction_of_max', speed_override=0.01)
+    with pytest.raises(InvalidInputError, match='speed_override'):
+        core.check_config(slow)
+    with pytest.raises(InvalidInputError, match='speed_override'):
+        core.reconfigure(slow)
+    assert core.config is before and core.pending_config is None
+
+
+def test_prepared_demand_replans_when_the_config_changed_meanwhile():
+    core, sim = make('trapezoidal')
+    sim.run_until(lambda out: out.state == sm.IDLE)
+    pending = core.prepare_demand(sim.t, GOAL[None, :], core.snapshot())
+    core.reconfigure(ControllerConfig(law=LawConfig(profile='synchronised')))
+    assert not core.is_current(pending)
+    core.commit_demand(pending)
+    assert core.plan is not pending.plan and 'synchronised' in core.status().message

@@ -302,13 +302,66 @@ def test_a_blocked_publish_holds_up_neither_states_nor_status(ros):
     assert float(arm.status()['max_tick_gap']) >= 0.4
 
 
+def test_parameters_apply_live(ros):
+    """
+    A valid set applies at once when idle, after the running motion during one.
+
+    An invalid whole config is refused with its reason and changes nothing; a read-only
+    parameter is refused.
+    """
+    from rclpy.parameter_client import AsyncParameterClient
+    controller, arm, spin_until = ros
+    client = AsyncParameterClient(arm, 'controller')
+    spin_until(client.services_are_ready)
+
+    def set_remotely(**values):
+        future = client.set_parameters([Parameter(k, value=v) for k, v in values.items()])
+        spin_until(future.done)
+        return future.result().results[0]
+
+    spin_until(lambda: arm.status().get('state') == 'idle')
+    assert set_remotely(profile='synchronised').successful
+    spin_until(lambda: arm.status().get('profile') == 'synchronised')
+    assert 'pending_parameters' not in arm.status()
+    motion = int(arm.status()['motion_id']) + 1
+    arm.demand_pub.publish(conversions.make_demands(np.array([np.zeros(6), GOAL])))
+    spin_until(lambda: arm.status().get('motion_id') == str(motion)
+               and arm.status().get('state') == 'executing')
+    assert 'synchronised' in arm.statuses[-1].message
+
+    assert set_remotely(profile='trapezoidal', goal_tolerance=0.003).successful
+    spin_until(lambda: 'pending_parameters' in arm.status())
+    assert arm.status()['profile'] == 'synchronised'
+    assert 'profile trapezoidal' in arm.status()['pending_parameters']
+    spin_until(lambda: arm.status().get('state') == 'idle')
+    spin_until(lambda: arm.status().get('profile') == 'trapezoidal'
+               and 'pending_parameters' not in arm.status())
+    assert arm.status()['goal_tolerance'].split() == ['0.003000'] * 6
+
+    # Valid alone, not with the t_max in force: the ramps would be longer than the move.
+    result = set_remotely(t_blend=0.8)
+    assert not result.successful and 't_blend' in result.reason, result.reason
+    assert controller.get_parameter('t_blend').value == 0.0
+    assert controller.core.config.law.t_blend == 0.0
+    result = set_remotely(jog_units='fraction_of_max')
+    assert not result.successful and 'read-only' in result.reason, result.reason
+    assert controller.core.config.jog_units == 'rad_per_s'
+    assert set_remotely(rate=50.0, profile='trapezoidal', goal_tolerance=0.002).successful
+    spin_until(lambda: arm.status().get('rate') == '50')
+    start, t0 = len(arm.jogs), time.monotonic()
+    spin_until(lambda: time.monotonic() - t0 > 1.0)
+    assert 25 <= len(arm.jogs) - start <= 70, len(arm.jogs) - start
+    assert set_remotely(rate=100.0).successful
+
+
 def test_destroying_the_node_sends_a_zero_command(ros):
     """Last test of the module: the node goes away mid-motion and leaves a zero command."""
     controller, arm, spin_until = ros
     seen = len(arm.statuses)                   # fresh status: other tests may have paused us
     spin_until(lambda: len(arm.statuses) > seen + 1 and arm.status().get('state') == 'idle')
+    motion = str(int(arm.status()['motion_id']) + 1)
     arm.demand_pub.publish(conversions.make_demands((-GOAL)[None]))
-    spin_until(lambda: arm.status().get('motion_id') == '5'
+    spin_until(lambda: arm.status().get('motion_id') == motion
                and np.max(np.abs(arm.qd)) > 0.05)
     count = len(arm.jogs)
     controller.destroy_node()

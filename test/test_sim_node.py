@@ -266,8 +266,9 @@ def test_parameter_service_refuses_bad_values_and_describes_ranges(harness):
 
     for name, value, words in (('publish_rate', 1000.0, 'publish_rate'),
                                ('real_time_factor', -1.0, 'real_time_factor'),
-                               ('initial_q', [0.0, 4.0, 0.0, 0.0, 0.0, 0.0], 'each value'),
-                               ('kv', 'stiff', 'type'),
+                               # read-only since parameters apply live (set at start):
+                               ('initial_q', [0.0, 4.0, 0.0, 0.0, 0.0, 0.0], 'read-only'),
+                               ('kv', 'stiff', 'read-only'),
                                ('mode', 'vendor_driver', 'read-only')):
         result = set_remotely(name, value)
         assert not result.successful, (name, value)

@@ -120,6 +120,19 @@ class ControllerConfig:
         object.__setattr__(self, 'driver_tick_size', tuple(float(t) for t in ticks))
 
 
+def config_changes(old: ControllerConfig, new: ControllerConfig) -> list:
+    """Return ``[(name, new value)]`` of the settings (law settings included) that differ."""
+    changes = []
+    for name in ControllerConfig.__dataclass_fields__:
+        a, b = getattr(old, name), getattr(new, name)
+        if name == 'law':
+            changes += [(key, getattr(b, key)) for key in type(b).__dataclass_fields__
+                        if getattr(a, key) != getattr(b, key)]
+        elif not np.array_equal(np.asarray(a), np.asarray(b)):
+            changes.append((name, b))
+    return changes
+
+
 @dataclass(frozen=True)
 class Status:
     """What goes out on /controller/status: state, level, human message, named values."""
@@ -172,6 +185,7 @@ class PendingDemand:
     moving: bool
     motion_id: int
     demand_id: str = ''
+    config: Optional[ControllerConfig] = None   # the config it was planned with
 
 
 class ControllerCore:
@@ -180,23 +194,15 @@ class ControllerCore:
     def __init__(self, arm: ArmModel, config: Optional[ControllerConfig] = None):
         """Make a controller for ``arm`` (an ``ArmModel``) with ``config``."""
         self.arm = arm
-        self.config = ControllerConfig() if config is None else config
+        self.config = None
+        self._pending_config = None      # applies when the running motion ends
+        self._apply(self._derive(ControllerConfig() if config is None else config))
         n = arm.n_joints
-        self._tol = np.broadcast_to(np.asarray(self.config.goal_tolerance, float), (n,)).copy()
-        self._settle_tol = np.minimum(np.full(n, self.config.settle_tolerance), self._tol)
-        self._vlim = driver_velocity_limits(arm.velocity_limits, self.config.jog_units,
-                                            self.config.speed_override)
-        self._dt = 1.0 / self.config.rate
-        self._ticks = None               # fraction_of_max: tick sizes (n,) [rad]
-        if self.config.jog_units == 'fraction_of_max':
-            self._setup_ticks(arm)
         self._n_states = 0               # valid joint states received so far
         self._n_states_seen = 0          # ... as of the previous tick
         self._pulse_until = np.full(n, -np.inf)  # [s] end of each joint's one-tick pulse
         self._pulse_after = np.zeros(n, dtype=int)  # no new pulse before this many readings
         self._travel = np.zeros(n)       # [rad] integral of the commands sent
-        self._travel_log = deque(maxlen=int(np.ceil(4.0 * self.config.driver_cycle
-                                                    * self.config.rate)) + 2)
         self._state = sm.WAITING_FOR_STATES
         self._q = None
         self._qd_measured = None
@@ -219,24 +225,78 @@ class ControllerCore:
         self._arrived_at = None          # [s] when the running motion arrived (None: not yet)
         self._changed = True
 
-    def _setup_ticks(self, arm):
-        """Check the driver's tick sizes against ``arm``; widen the goal tolerance to a tick."""
-        ticks = np.asarray(self.config.driver_tick_size, dtype=float)
-        if ticks.shape != (arm.n_joints,):
-            raise InvalidInputError(f'driver_tick_size has {ticks.size} values for '
-                                    f'{arm.n_joints} joints: give one per joint')
-        self._ticks = ticks
-        self._min_speed = min_jog_speed(ticks, self.config.driver_cycle)
-        slow = np.flatnonzero(self._min_speed > self._vlim)
-        if slow.size:
-            names = ', '.join(f'{arm.joint_names[i]} (needs {self._min_speed[i]:.3f} rad/s, '
-                              f'can {self._vlim[i]:.3f})' for i in slow)
-            raise InvalidInputError(
-                f'at speed_override {self.config.speed_override} the driver cannot move one '
-                f'tick per cycle of {self.config.driver_cycle} s: {names}; raise '
-                f'speed_override')
-        self._tol = np.maximum(self._tol, ticks)
-        self._settle_tol = ticks.copy()    # what the driver resolves: one tick per joint
+    def _derive(self, config):
+        """
+        Return ``config`` and what follows from it, for ``arm``; raise when they do not fit.
+
+        Reads nothing of the controller's state, changes nothing: ``_apply`` installs it.
+        """
+        if not isinstance(config, ControllerConfig):
+            raise InvalidInputError(f'config must be a ControllerConfig, got {config!r}')
+        arm, n = self.arm, self.arm.n_joints
+        tol = np.broadcast_to(np.asarray(config.goal_tolerance, float), (n,)).copy()
+        settle_tol = np.minimum(np.full(n, config.settle_tolerance), tol)
+        vlim = driver_velocity_limits(arm.velocity_limits, config.jog_units,
+                                      config.speed_override)
+        ticks = min_speed = None
+        if config.jog_units == 'fraction_of_max':
+            # The driver's tick sizes: the goal tolerance is at least one tick.
+            ticks = np.asarray(config.driver_tick_size, dtype=float)
+            if ticks.shape != (n,):
+                raise InvalidInputError(f'driver_tick_size has {ticks.size} values for '
+                                        f'{n} joints: give one per joint')
+            min_speed = min_jog_speed(ticks, config.driver_cycle)
+            slow = np.flatnonzero(min_speed > vlim)
+            if slow.size:
+                names = ', '.join(f'{arm.joint_names[i]} (needs {min_speed[i]:.3f} rad/s, '
+                                  f'can {vlim[i]:.3f})' for i in slow)
+                raise InvalidInputError(
+                    f'at speed_override {config.speed_override} the driver cannot move one '
+                    f'tick per cycle of {config.driver_cycle} s: {names}; raise '
+                    f'speed_override')
+            tol = np.maximum(tol, ticks)
+            settle_tol = ticks.copy()      # what the driver resolves: one tick per joint
+        log_length = int(np.ceil(4.0 * config.driver_cycle * config.rate)) + 2
+        return {'config': config, 'tol': tol, 'settle_tol': settle_tol, 'vlim': vlim,
+                'ticks': ticks, 'min_speed': min_speed, 'dt': 1.0 / config.rate,
+                'log_length': log_length}
+
+    def _apply(self, derived):
+        """Install what ``_derive`` returned (the config last: ``prepare_demand`` reads it)."""
+        self._tol, self._settle_tol = derived['tol'], derived['settle_tol']
+        self._vlim, self._dt = derived['vlim'], derived['dt']
+        self._ticks, self._min_speed = derived['ticks'], derived['min_speed']
+        old = getattr(self, '_travel_log', ())
+        self._travel_log = deque(old, maxlen=derived['log_length'])
+        self.config = derived['config']
+
+    def check_config(self, config: ControllerConfig) -> None:
+        """Raise ``InvalidInputError`` saying why ``config`` cannot drive this arm."""
+        self._derive(config)
+
+    def reconfigure(self, config: ControllerConfig) -> bool:
+        """
+        Use ``config`` from now on, or from the end of the running motion; return True if now.
+
+        Idle (or waiting, or in fault) it applies at once: tolerances, velocity limits, the
+        control period, the driver's ticks. While executing, settling or stopping it is kept
+        pending (``pending_parameters`` in the status) and applied on the first tick after the
+        motion ends, so a motion runs with one config from start to end; a later call replaces
+        a pending config. Raises ``InvalidInputError`` (nothing changed) when it does not fit.
+        """
+        derived = self._derive(config)
+        self._changed = True
+        if self._state in sm.MOVING_STATES:
+            self._pending_config = derived
+            return False
+        self._pending_config = None
+        self._apply(derived)
+        return True
+
+    @property
+    def pending_config(self) -> Optional[ControllerConfig]:
+        """Return the config waiting for the running motion to end (None when none)."""
+        return None if self._pending_config is None else self._pending_config['config']
 
     @property
     def goal_tolerance(self) -> np.ndarray:
@@ -311,6 +371,8 @@ class ControllerCore:
         ``commit_demand`` under the lock. Without ``snapshot`` it takes one itself (the caller
         then holds the lock). Raises as ``on_demands``.
         """
+        config = self.config       # read once, before the limits it comes with (_apply)
+        vlim = self._vlim
         snapshot = self.snapshot() if snapshot is None else snapshot
         Q = self.check_demand(waypoints)
         self._check_accepts(snapshot.state)
@@ -318,8 +380,9 @@ class ControllerCore:
         if q_start is None:
             raise InvalidInputError(f'cannot take a demand while {snapshot.state}: no joint '
                                     f'states yet')
-        plan = plan_motion(self.config.law, q_start, Q, self._vlim, qd_start)
-        return PendingDemand(now, Q, plan, snapshot.moving, snapshot.motion_id, demand_id)
+        plan = plan_motion(config.law, q_start, Q, vlim, qd_start)
+        return PendingDemand(now, Q, plan, snapshot.moving, snapshot.motion_id, demand_id,
+                             config)
 
     def check_demand(self, waypoints: np.ndarray) -> np.ndarray:
         """Return the demand as (N, n) [rad] inside the limits, or raise ``InvalidInputError``."""
@@ -376,7 +439,7 @@ class ControllerCore:
         """
         snapshot = self.snapshot()
         return (snapshot.moving == pending.moving and snapshot.motion_id == pending.motion_id
-                and self._state in sm.ACCEPTS_DEMANDS)
+                and self._state in sm.ACCEPTS_DEMANDS and pending.config is self.config)
 
     def reject(self, now: float, reason: str, demand_id: str = '') -> None:
         """Note a refused demand: reason, time [s] and id stay in the status until one is taken."""
@@ -431,6 +494,10 @@ class ControllerCore:
         self._qd_cmd = qd
         jog = to_jog_units(qd, self.arm.velocity_limits, self.config.jog_units,
                            self.config.speed_override)
+        if self._pending_config is not None and self._state not in sm.MOVING_STATES:
+            self._apply(self._pending_config)      # the motion ended: the new config now
+            self._pending_config = None
+            self._changed = True
         changed, self._changed = self._changed, False
         return TickOutput(qd, jog, self._state, changed)
 
@@ -627,9 +694,13 @@ class ControllerCore:
             'max_joint_error': f'{float(np.max(np.abs(error))):.6f}',
             'profile': self.config.law.profile,
             'jog_units': self.config.jog_units,
+            'rate': f'{self.config.rate:g}',
+            'goal_tolerance': ' '.join(f'{t:.6f}' for t in self._tol),
         }
-        if self._ticks is not None:
-            values['goal_tolerance'] = ' '.join(f'{t:.6f}' for t in self._tol)
+        if self._pending_config is not None:
+            pending = self._pending_config['config']
+            values['pending_parameters'] = ', '.join(
+                f'{name} {value}' for name, value in config_changes(self.config, pending))
         values.update(self._result)
         values.update(self._rejection)
         return Status(self._state, self._level, self._message, values)

@@ -49,6 +49,7 @@ from mover6_control.kinematics.arm import LIMIT_SETS, mover6
 from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from mover6_control.parameters import CONTROLLER
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -90,8 +91,12 @@ class ControllerNode(Node):
     def __init__(self, **kwargs):
         """Declare the parameters, build the core, start the topics, services and tick thread."""
         super().__init__('controller', **kwargs)
-        params.declare(self, CONTROLLER)  # refuses invalid values, at start and later
+        self.check_values = params.declare(self, CONTROLLER)  # refuses invalid values
         limit_set, config = config_from_parameters(lambda n: self.get_parameter(n).value)
+        # From now on a set applies live: checked as a whole first (nothing changes when the
+        # config it makes is invalid), then handed to the core (at once, or after the motion).
+        self.add_on_set_parameters_callback(self.on_set_parameters)
+        self.add_post_set_parameters_callback(self.on_parameters_set)
         self.core = ControllerCore(mover6(limit_set), config)
         self.joint_names = list(self.core.arm.joint_names)
         self.status_period = 1.0 / max(self.get_parameter('status_rate').value, 1e-3)
@@ -110,8 +115,8 @@ class ControllerNode(Node):
         self.max_tick_gap = 0.0          # [s] longest time between two ticks so far
         self.running = True
         self.destroyed = False
-        self.tick_thread = threading.Thread(target=self.tick_loop, args=(1.0 / config.rate,),
-                                            daemon=True)
+        self.pending_logged = False      # 'applies to the next motion' said, not yet applied
+        self.tick_thread = threading.Thread(target=self.tick_loop, daemon=True)
         self.tick_thread.start()
         self.demands = queue.SimpleQueue()   # /joint_demands messages not yet taken; None: end
         self.demand_thread = threading.Thread(target=self.demand_loop, daemon=True)
@@ -135,6 +140,41 @@ class ControllerNode(Node):
     def now(self):
         """Return the node clock's time [s] (sim time when use_sim_time is set)."""
         return self.get_clock().now().nanoseconds * 1e-9
+
+    def on_set_parameters(self, parameters):
+        """
+        Refuse a set whose values, merged with the others in force, make no valid config.
+
+        The table's own check (type, range, allowed values) comes first; then the whole config
+        is built as at start-up and checked against the arm. Nothing changes when refused.
+        """
+        result = self.check_values(parameters)
+        if not result.successful:
+            return result
+        new = {p.name: p.value for p in parameters if p.name in CONTROLLER}
+        try:
+            _, config = config_from_parameters(
+                lambda n: new[n] if n in new else self.get_parameter(n).value)
+            self.core.check_config(config)
+        except (Mover6Error, ValueError, TypeError) as err:
+            return SetParametersResult(successful=False, reason=str(err))
+        return SetParametersResult(successful=True)
+
+    def on_parameters_set(self, parameters):
+        """Apply parameters just set: to the core now, or when the running motion ends."""
+        if not any(p.name in CONTROLLER for p in parameters):
+            return
+        names = ', '.join(f'{p.name} {p.value}' for p in parameters)
+        _, config = config_from_parameters(lambda n: self.get_parameter(n).value)
+        self.status_period = 1.0 / max(self.get_parameter('status_rate').value, 1e-3)
+        with self.lock:
+            now_applied = self.core.reconfigure(config)
+            self.pending_logged = not now_applied
+        if now_applied:
+            self.get_logger().info(f'parameters in force: {names}')
+        else:
+            self.get_logger().info(f'parameters set ({names}): applies to the next motion')
+        self.publish_status(self.now())
 
     def on_joint_states(self, msg):
         """Take a JointState by name; an incomplete or non-finite one faults the core."""
@@ -219,14 +259,15 @@ class ControllerNode(Node):
         response.success, response.message = True, f'state {self.core.state}'
         return response
 
-    def tick_loop(self, period):
-        """Call ``on_tick`` every ``period`` [s] of the node's clock until the node closes."""
+    def tick_loop(self):
+        """Call ``on_tick`` every ``1 / rate`` [s] of the node's clock until the node closes."""
         self.set_tick_priority(self.get_parameter('tick_priority').value)
         clock = self.get_clock()
-        step = Duration(seconds=period)
         deadline = clock.now()
         watchdog = float(os.environ.get(WATCHDOG_ENV) or 0.0)
         while self.running and self.context.ok():
+            period = 1.0 / self.core.config.rate      # the rate in force: set live
+            step = Duration(seconds=period)
             if watchdog > 0.0:
                 faulthandler.dump_traceback_later(watchdog + period)   # re-armed each tick
             deadline = deadline + step
@@ -296,9 +337,15 @@ class ControllerNode(Node):
             if (out.state == FAULT) != (self.last_state == FAULT):
                 fault_change = self.core.status().message
             self.last_state = out.state
+            applied = self.pending_logged and self.core.pending_config is None
+            if applied:
+                self.pending_logged = False
             status_due = (out.status_changed or self.last_status is None
                           or now - self.last_status >= self.status_period
                           or now < self.last_status)
+        if applied:
+            self.get_logger().info(f'parameters in force from now: {self.core.config.law.profile}'
+                                   f' at {self.core.config.rate:g} Hz')
         if fault_change is not None:        # entering fault and leaving it: logged once each
             if out.state == FAULT:
                 self.get_logger().error(f'fault: {fault_change}')
