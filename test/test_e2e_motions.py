@@ -184,7 +184,7 @@ def test_bridge_dies_mid_motion_fault_zero_then_recovery(stack, client):
     # Ask again until it plans (it refuses nothing else here), up to 30 s.
     deadline = time.monotonic() + 30.0
     outcome = client.send_pose(goal, timeout=60.0)
-    while (outcome.code == EXIT_REFUSED and 'old (limit' in outcome.message
+    while (outcome.code == EXIT_REFUSED and 'old (limit' in outcome.text
            and time.monotonic() < deadline):
         client.spin_until(lambda: False, 0.2)
         outcome = client.send_pose(goal, timeout=60.0)
