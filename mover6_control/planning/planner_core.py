@@ -91,8 +91,13 @@ def polyline_length(points: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
 
 
-def predicted_duration(arm: ArmModel, q: np.ndarray, velocity_scale: float = 1.0) -> float:
-    """Return the time [s] to visit waypoints (n, 6), each segment at the slowest joint's pace."""
+def travel_time(arm: ArmModel, q: np.ndarray, velocity_scale: float = 1.0) -> float:
+    """
+    Return the time [s] to visit waypoints (n, 6), each segment at the slowest joint's pace.
+
+    A speed-limit-only measure to compare candidate plans (the wrist turns out of a singular
+    start); the planner node announces the controller's own timing instead.
+    """
     steps = np.abs(np.diff(np.asarray(q, dtype=float), axis=0))
     return float((steps / (arm.velocity_limits * velocity_scale)).max(axis=1).sum())
 
@@ -111,7 +116,7 @@ def _finish(arm, motion, q, poses, T_goal, settings):
                      'orientation_error': rot_err, 'closest_q': q[-1], 'closest_pose': T_end})
     return JointPlan(motion=motion, q=q, poses=np.asarray(poses),
                      path_length=polyline_length(np.asarray(poses)[:, :3, 3]),
-                     predicted_duration=predicted_duration(arm, q, settings.velocity_scale),
+                     predicted_duration=travel_time(arm, q, settings.velocity_scale),
                      final_position_error=pos_err, final_orientation_error=rot_err)
 
 
@@ -183,7 +188,7 @@ def _solve(arm, path, q_current, settings):
     (solving it again could pick the other wrist branch, or trip over sensor noise). A wrist
     turn out of a singular start (``_wrist_turns``) comes first when the next pose needs one;
     of the turns whose path can be followed, the one with the shortest motion (turn and path,
-    ``predicted_duration``) is taken. A refusal is the one of the smallest turn.
+    ``travel_time``) is taken. A refusal is the one of the smallest turn.
     """
     best, best_time, refusal = None, np.inf, None
     for start in _wrist_turns(arm, q_current, path.poses[1], settings):
@@ -193,7 +198,7 @@ def _solve(arm, path, q_current, settings):
             refusal = refusal or err
             continue
         q = np.vstack([start, q])
-        duration = predicted_duration(arm, q, settings.velocity_scale)
+        duration = travel_time(arm, q, settings.velocity_scale)
         if duration < best_time:
             best_time = duration
             best = q, np.concatenate([np.repeat(path.poses[:1], len(start), axis=0), poses])
