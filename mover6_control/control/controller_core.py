@@ -45,10 +45,11 @@ from dataclasses import dataclass, field
 from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
+from mover6_control.control.timed_plan import plan_demand, Timing
 from mover6_control.control.velocity_laws import (closed_loop_command, dead_zone_command,
                                                   driver_velocity_limits, guard_position_limits,
                                                   JOG_UNITS, LawConfig, min_jog_speed, MotionPlan,
-                                                  plan_motion, plan_stop, to_jog_units)
+                                                  plan_stop, to_jog_units)
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 from mover6_control.validation import as_positive
@@ -186,6 +187,8 @@ class PendingDemand:
     motion_id: int
     demand_id: str = ''
     config: Optional[ControllerConfig] = None   # the config it was planned with
+    timing: Optional[Timing] = None     # the points' times (timed_plan); None: the law's
+    timing_note: str = ''               # plan_demand's note: '', 'as given', or why not
 
 
 class ControllerCore:
@@ -223,6 +226,7 @@ class ControllerCore:
         self._result = {}
         self._rejection = {}             # the last refused demand, until one is accepted
         self._arrived_at = None          # [s] when the running motion arrived (None: not yet)
+        self._timing = ''                # timed_plan.plan_demand's note on the latest motion
         self._changed = True
 
     def _derive(self, config):
@@ -361,7 +365,7 @@ class ControllerCore:
 
     def prepare_demand(self, now: float, waypoints: np.ndarray,
                        snapshot: Optional[Snapshot] = None,
-                       demand_id: str = '') -> PendingDemand:
+                       demand_id: str = '', timing: Optional[Timing] = None) -> PendingDemand:
         """
         Check a demand and plan it from ``snapshot``; return a ``PendingDemand``.
 
@@ -369,7 +373,9 @@ class ControllerCore:
         a node calls it without holding its lock while the ticks go on (planning the continuous
         law takes tens of milliseconds), with a snapshot taken under the lock, then
         ``commit_demand`` under the lock. Without ``snapshot`` it takes one itself (the caller
-        then holds the lock). Raises as ``on_demands``.
+        then holds the lock). Raises as ``on_demands``. With ``timing`` (a goal's
+        ``time_from_start`` and velocities) the plan follows it where it can
+        (``timed_plan.plan_demand``; its note goes to the status as ``timing``).
         """
         config = self.config       # read once, before the limits it comes with (_apply)
         vlim = self._vlim
@@ -380,9 +386,10 @@ class ControllerCore:
         if q_start is None:
             raise InvalidInputError(f'cannot take a demand while {snapshot.state}: no joint '
                                     f'states yet')
-        plan = plan_motion(config.law, q_start, Q, vlim, qd_start)
+        plan, note = plan_demand(config.law, q_start, Q, vlim, qd_start, timing,
+                                 self.arm.lower, self.arm.upper)
         return PendingDemand(now, Q, plan, snapshot.moving, snapshot.motion_id, demand_id,
-                             config)
+                             config, timing, note)
 
     def check_demand(self, waypoints: np.ndarray) -> np.ndarray:
         """Return the demand as (N, n) [rad] inside the limits, or raise ``InvalidInputError``."""
@@ -413,11 +420,13 @@ class ControllerCore:
         from a new snapshot; raises when it cannot take a demand any more.
         """
         self._check_accepts(self._state)
-        plan = pending.plan
+        plan, note = pending.plan, pending.timing_note
         if not self.is_current(pending):
             snapshot = self.snapshot()
-            plan = plan_motion(self.config.law, snapshot.start[0], pending.waypoints,
-                               self._vlim, snapshot.start[1])
+            plan, note = plan_demand(self.config.law, snapshot.start[0], pending.waypoints,
+                                     self._vlim, snapshot.start[1], pending.timing,
+                                     self.arm.lower, self.arm.upper)
+        self._timing = note
         self._plan, self._t_plan = plan, pending.now
         self._motion_id += 1
         self._waypoints_total, self._waypoint = len(pending.waypoints), 0
@@ -701,6 +710,8 @@ class ControllerCore:
             pending = self._pending_config['config']
             values['pending_parameters'] = ', '.join(
                 f'{name} {value}' for name, value in config_changes(self.config, pending))
+        if self._timing:
+            values['timing'] = self._timing
         values.update(self._result)
         values.update(self._rejection)
         return Status(self._state, self._level, self._message, values)

@@ -194,14 +194,20 @@ class ControllerNode(Node):
         self.demands.put(msg)
 
     def demand_loop(self):
-        """Take the queued demands in order until ``None`` comes (the node closes)."""
+        """
+        Take the queued demands in order until ``None`` comes (the node closes).
+
+        An item is a /joint_demands message, or ``(message, Timing)`` from the action server
+        (a goal's ``time_from_start`` and velocities, ``control.timed_plan``).
+        """
         while True:
             msg = self.demands.get()
             if msg is None or not self.running:
                 return
-            self.take_demand(msg)       # never raises: refuses with a reason instead
+            msg, timing = msg if isinstance(msg, tuple) else (msg, None)
+            self.take_demand(msg, timing)   # never raises: refuses with a reason instead
 
-    def take_demand(self, msg):
+    def take_demand(self, msg, timing=None):
         """
         Accept waypoints or say why not: every demand ends accepted or refused with a reason.
 
@@ -222,7 +228,7 @@ class ControllerNode(Node):
             for attempt in range(DEMAND_ATTEMPTS):
                 with self.lock:
                     snapshot = self.core.snapshot()
-                pending = self.core.prepare_demand(now, Q, snapshot, goal_id)
+                pending = self.core.prepare_demand(now, Q, snapshot, goal_id, timing)
                 with self.lock:
                     if attempt + 1 == DEMAND_ATTEMPTS or self.core.is_current(pending):
                         motion_id = self.core.commit_demand(pending)

@@ -6,13 +6,23 @@ joint_trajectory_controller uses (``/controller/follow_joint_trajectory``). A go
 in any order and are mapped by name (the set must be the arm's six: INVALID_JOINTS otherwise);
 its points become one demand of the controller, through the same queue as /joint_demands
 (labelled ``waypoints goal fjt-<uuid>`` so the controller's status names it), so a goal outside
-the joint limits is refused with the core's reason (INVALID_GOAL). The motion goes through the
-points with the controller's velocity law (``profile``; the continuous law is time-optimal
-within the limits); ``time_from_start`` and ``velocities`` are checked (finite, non-decreasing)
-but not tracked: the arm never moves slower than its law (see the README).
+the joint limits is refused with the core's reason (INVALID_GOAL).
 
-While the motion runs, feedback at ``FEEDBACK_PERIOD`` carries desired (the law's reference),
-actual (the latest /joint_states) and their difference. Results: SUCCESSFUL when the controller
+Timing: when the points carry ``time_from_start`` (any non-zero), the arm reaches each point at
+its time, counted from when the controller takes the goal (``trajectory.header.stamp`` is not
+used), with the points' ``velocities`` and ``accelerations`` when given (all points or none):
+piecewise cubic or quintic Hermite from the present reference, as joint_trajectory_controller
+interpolates (``control.timed_plan``; a first point at time 0 is the start state). When that
+timing breaks a limit (a joint's speed, ``a_max``, a joint limit between the points) or cannot
+be followed (times not increasing, a non-zero last velocity, a first point at time 0 far from
+the arm) the goal is not refused: the arm goes time-optimal through the same points with the
+controller's velocity law, the reason is logged as a warning and ends the result's
+``error_string`` (the status value ``timing`` says the same). Points whose ``time_from_start``
+are all zero are untimed: the law's motion (``profile``; the continuous law is time-optimal).
+
+While the motion runs, feedback at ``FEEDBACK_PERIOD`` carries desired (the reference: the
+timed plan or the law's, positions, velocities and ``time_from_start`` into it), actual (the
+latest /joint_states) and their difference. Results: SUCCESSFUL when the controller
 reports the motion arrived and every joint is within its goal tolerance;
 GOAL_TOLERANCE_VIOLATED when a joint is not (or settling timed out); PATH_TOLERANCE_VIOLATED when
 a joint leaves its path tolerance (the arm then stops with the usual deceleration) or the
@@ -24,9 +34,12 @@ running goal: it is aborted with INVALID_GOAL (as joint_trajectory_controller) a
 """
 
 from control_msgs.action import FollowJointTrajectory
+from mover6_control.control.timed_plan import Timing
+from mover6_control.errors import InvalidInputError
 from mover6_control.nodes import conversions
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.duration import Duration
 from rclpy.task import Future
 from trajectory_msgs.msg import JointTrajectoryPoint
 
@@ -67,6 +80,37 @@ def map_goal(trajectory, joint_names):
         last = t
         rows.append([float(point.positions[i]) for i in order])
     return rows
+
+
+def map_timing(trajectory, joint_names):
+    """
+    Return the ``Timing`` of a JointTrajectory's points in ``joint_names`` order.
+
+    Raises ``ValueError`` with ``(error_code, reason)`` when velocities or accelerations are
+    given for some points and not others, have the wrong length or are not finite.
+    """
+    names = list(trajectory.joint_names)
+    order = [names.index(name) for name in joint_names]
+    points = list(trajectory.points)
+    times = [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in points]
+    columns = {}
+    for field in ('velocities', 'accelerations'):
+        given = [len(getattr(p, field)) > 0 for p in points]
+        if any(given) and not all(given):
+            raise ValueError(Result.INVALID_GOAL, f'{field} are given for some points and not '
+                                                  f'others: give them for all or none')
+        if not any(given):
+            continue
+        for k, point in enumerate(points):
+            if len(getattr(point, field)) != len(names):
+                raise ValueError(Result.INVALID_GOAL,
+                                 f'point {k} has {len(getattr(point, field))} {field} for '
+                                 f'{len(names)} joints')
+        columns[field] = [[float(getattr(p, field)[i]) for i in order] for p in points]
+    try:
+        return Timing(times, columns.get('velocities'), columns.get('accelerations'))
+    except InvalidInputError as err:
+        raise ValueError(Result.INVALID_GOAL, str(err))
 
 
 def tolerances(entries, joint_names, default):
@@ -133,6 +177,7 @@ class FollowJointTrajectoryServer:
         goal_id = 'fjt-' + bytes(handle.goal_id.uuid).hex()[:12]
         try:
             rows = map_goal(goal.trajectory, names)
+            timing = map_timing(goal.trajectory, names)
         except ValueError as err:
             return self.finish(handle, err.args[0], err.args[1])
         path_tol = tolerances(goal.path_tolerance, names,
@@ -140,7 +185,8 @@ class FollowJointTrajectoryServer:
         goal_tol = tolerances(goal.goal_tolerance, names,
                               node.get_parameter('goal_tolerance').value)
         self.active = handle
-        node.demands.put(conversions.make_demands(rows, goal_id))
+        demand = conversions.make_demands(rows, goal_id)
+        node.demands.put((demand, timing) if timing.timed else demand)
         waited = 0.0
         while goal_id not in node.goal_motions and goal_id not in node.goal_rejections:
             if waited > ACCEPT_TIMEOUT or not node.running:
@@ -152,6 +198,7 @@ class FollowJointTrajectoryServer:
             return self.finish(handle, Result.INVALID_GOAL,
                                f'refused: {node.goal_rejections.pop(goal_id)}')
         motion_id = node.goal_motions[goal_id]
+        note = self.timing_note(goal_id, motion_id, timing)
         stopping = None          # why the arm is being stopped: (code, text, how)
         while node.running:
             with node.lock:
@@ -166,7 +213,7 @@ class FollowJointTrajectoryServer:
                                    f'(motion {values["motion_id"]})')
             desired, actual = self.reference(plan, motion_id), node.last_q
             if actual is not None and desired is not None:
-                error = [d - a for d, a in zip(desired, actual)]
+                error = [d - a for d, a in zip(desired[0], actual)]
                 handle.publish_feedback(self.feedback(desired, actual, error))
                 bad = violations(error, path_tol, names)
                 if bad and stopping is None and values['state'] == 'executing':
@@ -192,7 +239,8 @@ class FollowJointTrajectoryServer:
                         return self.finish(handle, Result.GOAL_TOLERANCE_VIOLATED,
                                            f'goal tolerance: {bad}')
                     return self.finish(handle, Result.SUCCESSFUL,
-                                       f'goal {goal_id} reached (motion {motion_id})', 'succeed')
+                                       f'goal {goal_id} reached (motion {motion_id}){note}',
+                                       'succeed')
                 code = (Result.GOAL_TOLERANCE_VIOLATED if 'goal tolerance' in
                         values.get('reason', '') else Result.PATH_TOLERANCE_VIOLATED)
                 return self.finish(handle, code, f'motion {motion_id} {result}: '
@@ -200,21 +248,47 @@ class FollowJointTrajectoryServer:
             await self.sleep(FEEDBACK_PERIOD)
         return self.finish(handle, Result.PATH_TOLERANCE_VIOLATED, 'the controller closed')
 
+    def timing_note(self, goal_id, motion_id, timing):
+        """
+        Log how a timed goal's timing is followed; return '' or '; timing: <why not>'.
+
+        The controller's status names it (``timing``) for the motion the goal became.
+        """
+        if not timing.timed:
+            return ''
+        with self.node.lock:
+            values = self.node.core.status().values
+        note = values.get('timing', '') if int(values['motion_id']) == motion_id else ''
+        if note == 'as given':
+            self.node.get_logger().info(f'follow_joint_trajectory: goal {goal_id}: '
+                                        f'time_from_start followed ({timing.times[-1]:.3f} s)')
+            return ''
+        if note:
+            self.node.get_logger().warning(f'follow_joint_trajectory: goal {goal_id}: {note}')
+            return f'; timing: {note}'
+        return ''
+
     def reference(self, plan, motion_id):
-        """Return the law's reference positions now (the goal once the reference ended)."""
+        """
+        Return ``(q, qd, t)`` of the reference now (the goal once it ended), None before it.
+
+        ``t`` [s] is the time into the plan, the feedback's ``time_from_start``.
+        """
         start = self.node.motion_starts.get(motion_id)
         if plan is None or start is None:
             return None
         t = min(max(self.node.now() - start, 0.0), plan.duration)
-        q_ref, _ = plan.sample(t)
-        return [float(v) for v in q_ref]
+        q_ref, qd_ref = plan.sample(t)
+        return [float(v) for v in q_ref], [float(v) for v in qd_ref], t
 
     def feedback(self, desired, actual, error):
         """Build a feedback message (joint order: the controller's)."""
         msg = FollowJointTrajectory.Feedback()
         msg.header.stamp = self.node.get_clock().now().to_msg()
         msg.joint_names = list(self.node.joint_names)
-        msg.desired = JointTrajectoryPoint(positions=desired)
+        q_ref, qd_ref, t = desired
+        msg.desired = JointTrajectoryPoint(positions=q_ref, velocities=qd_ref)
+        msg.desired.time_from_start = Duration(seconds=t).to_msg()
         msg.actual = JointTrajectoryPoint(positions=[float(v) for v in actual])
         msg.error = JointTrajectoryPoint(positions=error)
         return msg
