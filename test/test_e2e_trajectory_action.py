@@ -6,12 +6,15 @@ joint names in reversed order and follows feedback and results.
 """
 
 from control_msgs.action import FollowJointTrajectory
+from mover6_control.control.timed_plan import timed_plan, Timing
+from mover6_control.control.velocity_laws import LawConfig, plan_motion
 from mover6_control.kinematics.arm import mover6
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import pytest
 import rclpy
 from rclpy.action import ActionClient
+from rclpy.duration import Duration
 from ros_testing import Stack, wait_until
 from trajectory_msgs.msg import JointTrajectoryPoint
 
@@ -20,6 +23,8 @@ pytestmark = pytest.mark.e2e
 ARM = mover6()
 Result = FollowJointTrajectory.Result
 NAMES = list(ARM.joint_names)
+FEEDBACK_STEP = 0.06     # [s] half the feedback period (0.1 s) and a little
+LATENCY = 0.03           # [s] a state and a command in flight: two or three control ticks
 
 
 @pytest.fixture(scope='module')
@@ -147,6 +152,83 @@ def test_second_goal_preempts_the_first(stack, client):
     status, result = result_of(node, second)
     assert result.error_code == Result.SUCCESSFUL, result.error_string
     assert np.abs(node.q - q_goal).max() < 0.01
+
+
+def timed_goal(rows, times):
+    """Return a goal through ``rows`` (arm order) at ``times`` [s], names reversed."""
+    goal = make_goal(*rows)
+    for point, t in zip(goal.trajectory.points, times):
+        point.time_from_start = Duration(seconds=t).to_msg()
+    return goal
+
+
+def plan_time(msg):
+    """Return ``(stamp - desired.time_from_start)`` of a feedback: when its plan started [s]."""
+    stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+    tfs = msg.desired.time_from_start
+    return stamp - (tfs.sec + tfs.nanosec * 1e-9)
+
+
+def test_timed_goal_arrives_at_its_time_from_start(stack, client):
+    """Points at 2 s and 4 s (the law alone: about 1 s): the reference is the timed plan."""
+    node, action = client
+    q_start = node.q.copy()
+    Q = np.array([q_start + [0.25, 0.1, 0, 0, 0, 0], q_start + [0.5, 0.2, 0, 0, 0, 0]])
+    timing = Timing([2.0, 4.0])
+    expected = timed_plan(q_start, Q, timing, ARM.velocity_limits, LawConfig().a_max)
+    assert plan_motion(LawConfig(), q_start, Q, ARM.velocity_limits).duration < 2.0
+    feedback = []
+    handle = send(node, action, timed_goal(Q, timing.times),
+                  feedback=lambda msg: feedback.append(msg.feedback))
+    status, result = result_of(node, handle)
+    assert result.error_code == Result.SUCCESSFUL, f'{result.error_string}\n{stack.report()}'
+    assert 'timing' not in result.error_string
+    moving = [f for f in feedback if 0.0 < Duration.from_msg(f.desired.time_from_start)
+              .nanoseconds * 1e-9 < 4.0]
+    assert len(moving) >= 20                       # 10 Hz over the 4 s
+    for msg in moving:                             # desired: the timed plan at its time
+        t = Duration.from_msg(msg.desired.time_from_start).nanoseconds * 1e-9
+        q_ref, qd_ref = expected.sample(t)
+        assert np.abs(np.array(msg.desired.positions) - q_ref).max() < 0.002
+        assert np.abs(np.array(msg.desired.velocities) - qd_ref).max() < 0.002
+    start = plan_time(moving[0])
+    # The arm reaches each point at its time, behind by a tick or two of control latency.
+    for k, t_point in enumerate(timing.times):
+        near = min(feedback, key=lambda f: abs(stamp_s(f) - start - t_point))
+        assert abs(stamp_s(near) - start - t_point) <= FEEDBACK_STEP
+        speed = np.abs(expected.sample(t_point)[1]).max()
+        lag = speed * LATENCY + np.abs(np.array(near.desired.positions) - Q[k]).max()
+        assert np.abs(np.array(near.actual.positions) - Q[k]).max() <= lag + 0.002, (
+            f'point {k} at {t_point} s: {near.actual.positions}, want {Q[k]}')
+    # Not early either: halfway to the first point's time the arm is far from it.
+    early = min(feedback, key=lambda f: abs(stamp_s(f) - start - 1.0))
+    assert np.abs(np.array(early.actual.positions) - Q[0]).max() > 0.1
+    assert np.abs(node.q - Q[-1]).max() < 0.01
+
+
+def test_timed_goal_beyond_the_limits_goes_time_optimal(stack, client):
+    """A timing that breaks a_max: time-optimal through the points, the reason in the result."""
+    node, action = client
+    q_start = node.q.copy()
+    Q = np.array([q_start + [-0.3, 0, 0, 0, 0, 0], q_start + [-0.6, 0, 0, 0, 0, 0]])
+    law = plan_motion(LawConfig(), q_start, Q, ARM.velocity_limits).duration
+    feedback = []
+    handle = send(node, action, timed_goal(Q, [0.2, 0.4]),
+                  feedback=lambda msg: feedback.append(msg.feedback))
+    status, result = result_of(node, handle)
+    assert result.error_code == Result.SUCCESSFUL, f'{result.error_string}\n{stack.report()}'
+    assert 'timing: time-optimal through the points: the given timing breaks the limits' in (
+        result.error_string)
+    # The reference took the law's time, not the goal's 0.4 s.
+    longest = max(Duration.from_msg(f.desired.time_from_start).nanoseconds * 1e-9
+                  for f in feedback)
+    assert longest == pytest.approx(law, abs=0.01) and law > 1.0
+    assert np.abs(node.q - Q[-1]).max() < 0.01
+
+
+def stamp_s(msg):
+    """Return a feedback's stamp [s]."""
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 
 def planner_parameters(node, names):

@@ -147,3 +147,48 @@ def test_malformed_timing_is_invalid_input():
         Timing([1.0], None, np.zeros((1, N)))
     with pytest.raises(InvalidInputError, match='waypoints'):
         timed_plan(Q0, rows(0.5, 1.0), Timing([1.0]), VLIM, A_MAX)
+
+
+def run_core(core, timing, Q, until, dt=0.01):
+    """Drive ``core`` (an arm that follows its commands) from rest; return (t, q) per tick."""
+    q, t, log = np.zeros(N), 0.0, []
+    core.on_joint_states(t, q)
+    core.tick(t)
+    core.on_demands(t, Q) if timing is None else core.commit_demand(
+        core.prepare_demand(t, Q, timing=timing))
+    while t < until:
+        core.on_joint_states(t, q)
+        out = core.tick(t)
+        log.append((t, q.copy(), core.status().values))
+        q = q + out.qd * dt
+        t = round(t + dt, 9)
+    return log
+
+
+def test_core_follows_the_timing_and_says_so():
+    """The controller core: each point near its time (closed loop), the status says 'as given'."""
+    from mover6_control.control.controller_core import ControllerCore
+    from mover6_control.kinematics.arm import mover6
+    core = ControllerCore(mover6())
+    Q = rows(0.2, 0.4)
+    log = run_core(core, Timing([2.0, 4.0]), Q, 6.0)
+    assert log[-1][2]['timing'] == 'as given' and log[-1][2]['result'] == 'arrived'
+    at = {round(t, 2): q for t, q, _ in log}
+    assert np.abs(at[2.0] - Q[0]).max() < 0.01       # one tick of feedforward lag at most
+    assert np.abs(at[1.0] - Q[0]).max() > 0.05       # not there early (time-optimal would be)
+    assert np.abs(at[3.5] - Q[1]).max() > 0.005      # nor at the end
+    assert np.abs(at[4.0] - Q[1]).max() < 0.002      # there at its time, within tolerance
+
+
+def test_core_falls_back_to_time_optimal_and_says_why():
+    """Timing beyond a_max: the law's time-optimal plan, its reason in the status."""
+    from mover6_control.control.controller_core import ControllerCore
+    from mover6_control.kinematics.arm import mover6
+    core = ControllerCore(mover6())
+    Q = rows(0.2, 0.4)
+    log = run_core(core, Timing([0.3, 0.5]), Q, 4.0)
+    note = log[-1][2]['timing']
+    assert note.startswith('time-optimal through the points: the given timing breaks the limits')
+    assert 'joint 1' in note and log[-1][2]['result'] == 'arrived'
+    assert core.plan is None or core.plan.duration == pytest.approx(
+        plan_motion(LAW, Q0, Q, mover6().velocity_limits).duration)
