@@ -14,8 +14,9 @@ Physics runs in its own thread, paced against the monotonic wall clock at
 ``real_time_factor`` (0 = as fast as it can); callbacks and the physics thread share the
 ``Simulator`` under a lock. In 'vendor_driver' mode /joint_states come at the driver's own rate
 (one per 50 ms cycle) and ``publish_rate`` is not used. Stamps are sim time with
-``publish_clock`` (the bridge drives the clock), the node's clock otherwise. All parameters are
-read at start.
+``publish_clock`` (the bridge drives the clock), the node's clock otherwise. Parameters are
+read at start; ``real_time_factor`` and ``publish_rate`` also apply live when set (``ros2 param
+set``), the others are read-only.
 """
 
 import os

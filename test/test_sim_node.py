@@ -288,6 +288,41 @@ def test_parameter_service_refuses_bad_values_and_describes_ranges(harness):
     assert initial_q.description.endswith('[rad]')
 
 
+def test_publish_rate_set_live_changes_the_rate_of_joint_states(harness):
+    """
+    ``ros2 param set /sim_bridge publish_rate 20.0``: /joint_states come at 20 Hz, then 100 again.
+
+    Set through the parameter service as ``ros2 param set`` does; the rate is what a subscriber
+    counts over a window of arrivals (wall clock) and of stamps, with generous margins.
+    """
+    from rclpy.parameter_client import AsyncParameterClient
+    h = harness
+    arrivals = []             # (monotonic arrival [s], stamp [s]) of each /joint_states
+    h.node.create_subscription(
+        JointState, 'joint_states',
+        lambda m: arrivals.append((time.monotonic(), conversions.stamp_to_seconds(
+            m.header.stamp))), 100)
+    client = AsyncParameterClient(h.node, 'sim_bridge')
+    assert h.spin_until(client.services_are_ready)
+
+    def rate_after_setting(value, count):
+        future = client.set_parameters([Parameter('publish_rate', value=value)])
+        assert h.spin_until(future.done)
+        assert future.result().results[0].successful, future.result().results[0].reason
+        assert h.bridge.get_parameter('publish_rate').value == value
+        start = len(arrivals) + 2         # skip what was already in flight
+        assert h.spin_until(lambda: len(arrivals) >= start + count), (value, len(arrivals))
+        window = np.array(arrivals[start:])
+        wall = (len(window) - 1) / (window[-1, 0] - window[0, 0])
+        stamped = (len(window) - 1) / (window[-1, 1] - window[0, 1])
+        return wall, stamped
+
+    wall, stamped = rate_after_setting(20.0, 30)
+    assert 12.0 < wall < 30.0 and 15.0 < stamped < 25.0, (wall, stamped)
+    wall, stamped = rate_after_setting(100.0, 150)
+    assert 60.0 < wall < 140.0 and 80.0 < stamped < 120.0, (wall, stamped)
+
+
 @pytest.mark.parametrize('bad', [{'mode': 'turbo'}, {'publish_rate': 1000.0},
                                  {'limit_set': 'lax'}, {'initial_q': [0.0, 0.0]},
                                  {'real_time_factor': -1.0}])
