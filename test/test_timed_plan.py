@@ -192,3 +192,30 @@ def test_core_falls_back_to_time_optimal_and_says_why():
     assert 'joint 1' in note and log[-1][2]['result'] == 'arrived'
     assert core.plan is None or core.plan.duration == pytest.approx(
         plan_motion(LAW, Q0, Q, mover6().velocity_limits).duration)
+
+
+def test_action_goal_timing_mapped_by_name():
+    """A goal's times, velocities and accelerations in the arm's joint order; mixes refused."""
+    pytest.importorskip('control_msgs.action')
+    from mover6_control.nodes.trajectory_action import map_timing, Result
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    names = [f'joint{i}' for i in range(1, 7)]
+    trajectory = JointTrajectory(joint_names=names[::-1])
+    for k in range(2):
+        point = JointTrajectoryPoint(positions=[0.0] * N, velocities=[0.1 * k, 0, 0, 0, 0, 0.2],
+                                     accelerations=[0.0] * N)
+        point.time_from_start.sec, point.time_from_start.nanosec = k + 1, 500_000_000
+        trajectory.points.append(point)
+    timing = map_timing(trajectory, names)
+    np.testing.assert_allclose(timing.times, [1.5, 2.5])
+    np.testing.assert_allclose(timing.velocities[1], [0.2, 0, 0, 0, 0, 0.1])
+    assert timing.accelerations.shape == (2, N) and timing.timed
+    trajectory.points[0].velocities = []
+    with pytest.raises(ValueError) as err:
+        map_timing(trajectory, names)
+    assert err.value.args[0] == Result.INVALID_GOAL and 'some points' in err.value.args[1]
+    trajectory.points[0].velocities = [0.0] * N
+    trajectory.points[1].accelerations = [float('nan')] * N
+    with pytest.raises(ValueError) as err:
+        map_timing(trajectory, names)
+    assert err.value.args[0] == Result.INVALID_GOAL and 'finite' in err.value.args[1]
