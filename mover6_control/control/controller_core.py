@@ -41,7 +41,7 @@ move two ticks, a wrist goal between two ticks may not settle, and the motion th
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
@@ -186,6 +186,7 @@ class PendingDemand:
     motion_id: int
     demand_id: str = ''
     config: Optional[ControllerConfig] = None   # the config it was planned with
+    profile: str = ''        # the demand's own profile ('': the ``profile`` parameter's)
 
 
 class ControllerCore:
@@ -222,6 +223,7 @@ class ControllerCore:
         self._level = 'WARN'
         self._result = {}
         self._rejection = {}             # the last refused demand, until one is accepted
+        self._motion_profile = ''        # the profile the running (or last) motion is timed by
         self._arrived_at = None          # [s] when the running motion arrived (None: not yet)
         self._changed = True
 
@@ -336,7 +338,8 @@ class ControllerCore:
         """Note joint states rejected at ``now`` [s] (missing joints, non-finite): fault."""
         self._bad_states = str(reason)
 
-    def on_demands(self, now: float, waypoints: np.ndarray, demand_id: str = '') -> int:
+    def on_demands(self, now: float, waypoints: np.ndarray, demand_id: str = '',
+                   profile: str = '') -> int:
         """
         Accept waypoints (N, n) [rad] at ``now`` [s] and return the new motion id.
 
@@ -348,7 +351,7 @@ class ControllerCore:
         """
         try:
             return self.commit_demand(self.prepare_demand(now, waypoints, self.snapshot(),
-                                                          demand_id))
+                                                          demand_id, profile))
         except InvalidInputError as err:
             self.reject(now, str(err), demand_id)
             raise
@@ -361,7 +364,7 @@ class ControllerCore:
 
     def prepare_demand(self, now: float, waypoints: np.ndarray,
                        snapshot: Optional[Snapshot] = None,
-                       demand_id: str = '') -> PendingDemand:
+                       demand_id: str = '', profile: str = '') -> PendingDemand:
         """
         Check a demand and plan it from ``snapshot``; return a ``PendingDemand``.
 
@@ -369,7 +372,8 @@ class ControllerCore:
         a node calls it without holding its lock while the ticks go on (planning the continuous
         law takes tens of milliseconds), with a snapshot taken under the lock, then
         ``commit_demand`` under the lock. Without ``snapshot`` it takes one itself (the caller
-        then holds the lock). Raises as ``on_demands``.
+        then holds the lock). ``profile`` times this demand only (``law_for``). Raises as
+        ``on_demands``, and for an unknown ``profile``.
         """
         config = self.config       # read once, before the limits it comes with (_apply)
         vlim = self._vlim
@@ -380,9 +384,21 @@ class ControllerCore:
         if q_start is None:
             raise InvalidInputError(f'cannot take a demand while {snapshot.state}: no joint '
                                     f'states yet')
-        plan = plan_motion(config.law, q_start, Q, vlim, qd_start)
+        plan = plan_motion(self.law_for(profile, config), q_start, Q, vlim, qd_start)
         return PendingDemand(now, Q, plan, snapshot.moving, snapshot.motion_id, demand_id,
-                             config)
+                             config, profile)
+
+    def law_for(self, profile: str = '', config: Optional[ControllerConfig] = None) -> LawConfig:
+        """
+        Return the law of a demand: ``config``'s (default: in force) with its own ``profile``.
+
+        A demand's profile ('' : none) changes that demand's law only, never the configuration;
+        an unknown one raises ``InvalidInputError`` (the demand is refused with the reason).
+        """
+        law = (self.config if config is None else config).law
+        if not profile or profile == law.profile:
+            return law
+        return replace(law, profile=profile)
 
     def check_demand(self, waypoints: np.ndarray) -> np.ndarray:
         """Return the demand as (N, n) [rad] inside the limits, or raise ``InvalidInputError``."""
@@ -416,16 +432,17 @@ class ControllerCore:
         plan = pending.plan
         if not self.is_current(pending):
             snapshot = self.snapshot()
-            plan = plan_motion(self.config.law, snapshot.start[0], pending.waypoints,
-                               self._vlim, snapshot.start[1])
+            plan = plan_motion(self.law_for(pending.profile), snapshot.start[0],
+                               pending.waypoints, self._vlim, snapshot.start[1])
         self._plan, self._t_plan = plan, pending.now
         self._motion_id += 1
         self._waypoints_total, self._waypoint = len(pending.waypoints), 0
         self._result = {}
         self._rejection = {}
         self._arrived_at = None
+        self._motion_profile = pending.profile or self.config.law.profile
         self._set(sm.DEMAND, 'OK', f'motion {self._motion_id}: {len(pending.waypoints)} '
-                                   f'waypoint(s), {self.config.law.profile}, '
+                                   f'waypoint(s), {self._motion_profile}, '
                                    f'{plan.duration:.2f} s')
         return self._motion_id
 
@@ -701,6 +718,8 @@ class ControllerCore:
             pending = self._pending_config['config']
             values['pending_parameters'] = ', '.join(
                 f'{name} {value}' for name, value in config_changes(self.config, pending))
+        if self._motion_profile:
+            values['motion_profile'] = self._motion_profile
         values.update(self._result)
         values.update(self._rejection)
         return Status(self._state, self._level, self._message, values)
