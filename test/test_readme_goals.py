@@ -12,6 +12,7 @@ import shlex
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.planning.planner_core import plan_path_goal, plan_pose_goal, PlannerSettings
+from mover6_control.planning.via_joint import plan_via_path_goal
 from mover6_control.tools.goal_cli import build_parser, poses_from_numbers
 import numpy as np
 import pytest
@@ -57,6 +58,8 @@ def plan_readme_goal(argv, q_start=HOME):
         return plan_pose_goal(ARM, q_start, T_goal, args.motion or DEFAULT_MOTION,
                               PlannerSettings())
     targets = poses_from_numbers(args.via + args.numbers, args.quat, ARM, args.absolute)
+    if args.shape == 'joint':       # /path_goal/joint: the via-point joint move
+        return plan_via_path_goal(ARM, q_start, targets[:-1], targets[-1], PlannerSettings())
     return plan_path_goal(ARM, q_start, targets[:-1], targets[-1],
                           args.shape or DEFAULT_PATH_MOTION, PlannerSettings())
 
