@@ -6,8 +6,8 @@ from mover6_control.control.controller_core import ControllerConfig, ControllerC
 from mover6_control.control.velocity_laws import LawConfig, predicted_duration, PROFILES
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
-from mover6_control.parameters import CONTROLLER, PLANNER
 from mover6_control.motion.paths import goal_relative_to_start
+from mover6_control.parameters import CONTROLLER, PLANNER
 from mover6_control.planning.planner_core import plan_pose_goal
 from mover6_control.planning.via_joint import plan_via_joint_move
 import numpy as np
