@@ -12,6 +12,7 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes import conversions
 from mover6_control.nodes.controller_node import ControllerNode
+from mover6_control.tools.goal_cli import EXIT_ARRIVED, EXIT_REFUSED, Outcome, run
 import numpy as np
 import pytest
 import rclpy
@@ -85,6 +86,55 @@ def test_goal_frame_carries_a_profile_and_stays_a_frame():
     msg.header.frame_id = 'base_link profile a b'
     with pytest.raises(InvalidInputError, match='profile <name>'):
         conversions.goal_profile_from_header(msg.header)
+
+
+# --- the goal command ------------------------------------------------------------------------
+
+class RecordingClient:
+    """Stands in for GoalClient: records how each goal is sent, 'arrives' at once."""
+
+    arm = ARM
+
+    def __init__(self):
+        self.sent = []
+
+    def wait_ready(self, **kwargs):
+        return None
+
+    def send_pose(self, T, frame_id='base_link', **kwargs):
+        self.sent.append(('pose', frame_id, kwargs.get('motion')))
+        return Outcome(EXIT_ARRIVED, 'arrived')
+
+    def send_path(self, poses, frame_id='base_link', shape=None, **kwargs):
+        self.sent.append(('path', frame_id, shape, len(poses)))
+        return Outcome(EXIT_ARRIVED, 'arrived')
+
+    def send_joints(self, Q, profile='', **kwargs):
+        self.sent.append(('joints', profile))
+        return Outcome(EXIT_ARRIVED, 'arrived')
+
+
+@pytest.mark.parametrize('argv, sent', [
+    (['0.3', '0.05', '0.36', '0', '0', '0', '--profile', 'quintic'],
+     ('pose', 'base_link profile quintic', None)),
+    (['0.3', '0.05', '0.36', '0', '0', '0'], ('pose', 'base_link', None)),
+    (['path', '--shape', 'joint', '--profile', 'cubic', '--via', '0.32', '0', '0.38', '0', '0',
+      '0', '0.30', '0.08', '0.34', '0', '0', '0'],
+     ('path', 'base_link profile cubic', 'joint', 2)),
+    (['joints', '0.2', '0.1', '0.3', '0', '0.4', '0', '--profile', 'bspline'],
+     ('joints', 'bspline')),
+])
+def test_goal_command_sends_the_profile_with_the_goal(argv, sent):
+    client = RecordingClient()
+    assert run(argv, client, out=lambda text: None) == EXIT_ARRIVED
+    assert client.sent == [sent]
+
+
+def test_goal_command_refuses_an_unknown_profile(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        run(['0.3', '0.05', '0.36', '0', '0', '0', '--profile', 'banana'], RecordingClient())
+    assert exit_.value.code == EXIT_REFUSED
+    assert "invalid choice: 'banana'" in capsys.readouterr().err
 
 
 # --- the core --------------------------------------------------------------------------------
