@@ -59,3 +59,32 @@ def test_readme_parabolic_goal_arrives_from_home(stack, client):
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, f'{shlex.join(goal_argv(lines[0]))}\n{out}\n{stack.report()}'
     assert 'RESULT arrived' in out, out
+
+
+@pytest.mark.parametrize('mark', ['--shape joint', '--profile'])
+def test_readme_via_joint_and_profile_goals_arrive_from_home(stack, client, mark):
+    """The README's via-point joint move and its per-goal profile line, from home: exit 0."""
+    lines = [line for line in readme_goal_lines() if mark in line]
+    assert len(lines) == 1, lines
+    argv = goal_argv(lines[0])
+    reset = client.create_client(Trigger, 'sim_bridge/reset')
+    assert reset.wait_for_service(timeout_sec=10.0), stack.report()
+    future = reset.call_async(Trigger.Request())
+    assert client.spin_until(future.done, 10.0) and future.result().success, stack.report()
+    assert client.spin_until(
+        lambda: client.q is not None and np.abs(client.q).max() < 1e-3, 10.0), client.q
+    proc = subprocess.run([sys.executable, '-m', 'mover6_control.tools.goal_cli',
+                           *argv, '--timeout', '60'],
+                          capture_output=True, text=True, timeout=120,
+                          cwd=os.path.dirname(CONFIG_DIR))
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, f'{shlex.join(argv)}\n{out}\n{stack.report()}'
+    assert 'RESULT arrived' in out, out
+    if mark == '--profile':
+        # The controller timed that motion with the goal's law; its parameter is unchanged.
+        profile = argv[argv.index('--profile') + 1]
+        client.spin_until(lambda: client.values(client.controller_status).get(
+            'motion_profile') == profile, 5.0)
+        values = client.values(client.controller_status)
+        assert values.get('motion_profile') == profile, values
+        assert values.get('profile') == 'continuous', values

@@ -312,3 +312,63 @@ def test_acknowledged_demand_is_sent_once(nodes):
     controller_status.publish(conversions.make_status(
         'controller', 'OK', 'motion 1 accepted', {'state': 'executing', 'goal_id': goal_id}))
     assert not spin_until(executor, lambda: len(probe.demands) > 1, 2.0 * RESEND_AFTER + 0.5)
+
+
+def send_path_to(executor, probe, topic, poses, frame='base_link'):
+    """Publish a PoseArray on ``topic`` and wait for the planner's answer; return the status."""
+    pub = probe.create_publisher(PoseArray, topic, 10)
+    assert spin_until(executor, lambda: pub.get_subscription_count() > 0)
+    n = len(probe.statuses)
+    msg = PoseArray()
+    msg.header.frame_id = frame
+    msg.poses = [conversions.matrix_to_pose(T) for T in poses]
+    pub.publish(msg)
+    assert spin_until(executor, lambda: len(probe.statuses) > n), 'planner did not answer'
+    return probe.statuses[-1]
+
+
+def test_path_goal_joint_plans_the_via_point_polynomial(nodes):
+    """/path_goal/joint [via, goal]: a joint move through the via pose, timed as announced."""
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    via = pose_from_xyzabc(0.33, -0.02, 0.38, 0.0, np.pi / 2, 0.0)
+    goal = pose_from_xyzabc(0.28, 0.10, 0.36, 0.0, np.pi / 2, 0.0)
+    status = send_path_to(executor, probe, 'path_goal/joint', (via, goal))
+    assert status.level == DiagnosticStatus.OK, status.message
+    values = conversions.status_values(status)
+    assert values['motion'] == 'joint' and 'profile' not in values
+    assert spin_until(executor, lambda: len(probe.demands) >= 1)
+    Q = conversions.demands_from_msg(probe.demands[-1])
+    assert conversions.demand_profile_from_msg(probe.demands[-1]) == ''
+    assert np.abs(Q[0] - HOME).max() < 1e-6
+    assert min(np.linalg.norm(fk(ARM, q)[:3, 3] - via[:3, 3]) for q in Q) < 1e-4
+    assert np.linalg.norm(fk(ARM, Q[-1])[:3, 3] - goal[:3, 3]) < 1e-3
+    # Two via poses are not this shape's: refused, nothing sent for it (the first goal's
+    # demand may be sent again: no controller acknowledges it here).
+    status = send_path_to(executor, probe, 'path_goal/joint', (via, via, goal))
+    assert status.level == DiagnosticStatus.ERROR and 'exactly one via pose' in status.message
+    assert conversions.status_values(status)['reason'] == 'invalid_goal'
+    spin_until(executor, lambda: False, timeout=0.5)
+    assert {conversions.demand_id_from_msg(m) for m in probe.demands} == {values['goal_id']}
+
+
+def test_a_goals_profile_is_forwarded_with_its_demand(nodes):
+    """Frame id 'base_link profile quintic': the demand asks for it, the parameter stays."""
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    status = send_pose(executor, probe, GOAL, frame='base_link profile quintic')
+    assert status.level == DiagnosticStatus.OK, status.message
+    values = conversions.status_values(status)
+    assert values['profile'] == 'quintic'
+    assert spin_until(executor, lambda: len(probe.demands) >= 1)
+    msg = probe.demands[-1]
+    assert msg.layout.dim[0].label == f'waypoints goal {values["goal_id"]} profile quintic'
+    assert planner.get_parameter('profile').value == 'continuous'
+    # An unknown profile is refused before anything is sent for it.
+    status = send_pose(executor, probe, GOAL, frame='base_link profile banana')
+    assert status.level == DiagnosticStatus.ERROR and 'banana' in status.message
+    assert conversions.status_values(status)['reason'] == 'invalid_goal'
+    spin_until(executor, lambda: False, timeout=0.5)
+    assert {conversions.demand_id_from_msg(m) for m in probe.demands} == {values['goal_id']}

@@ -6,8 +6,10 @@ from mover6_control.control.controller_core import ControllerConfig, ControllerC
 from mover6_control.control.velocity_laws import LawConfig, predicted_duration, PROFILES
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
+from mover6_control.motion.paths import goal_relative_to_start
 from mover6_control.parameters import CONTROLLER, PLANNER
 from mover6_control.planning.planner_core import plan_pose_goal
+from mover6_control.planning.via_joint import plan_via_joint_move
 import numpy as np
 import pytest
 
@@ -21,13 +23,21 @@ def report_linear_example():
     return plan_pose_goal(ARM, np.zeros(6), T_goal, 'linear')
 
 
-def controller_plan_duration(profile, q_start, waypoints):
+def controller_plan_duration(profile, q_start, waypoints, demand_profile=''):
     """Return the duration [s] the controller core announces when given ``waypoints``."""
     core = ControllerCore(ARM, ControllerConfig(law=LawConfig(profile=profile)))
     core.on_joint_states(0.0, q_start)
     core.tick(0.0)
-    core.on_demands(0.0, waypoints)
+    core.on_demands(0.0, waypoints, profile=demand_profile)
     return float(re.search(r'([0-9.]+) s$', core.status().message).group(1))
+
+
+def via_joint_example():
+    """Return the README's joint move from home through (0.32, 0, 0.38) to (0.30, 0.08, 0.34)."""
+    T_home = fk(ARM, np.zeros(6))
+    return plan_via_joint_move(ARM, np.zeros(6),
+                               goal_relative_to_start(T_home, 0.32, 0.0, 0.38, 0.0, 0.0, 0.0),
+                               goal_relative_to_start(T_home, 0.30, 0.08, 0.34, 0.0, 0.0, 0.0))
 
 
 def test_the_planner_times_with_the_controllers_default_profile():
@@ -55,3 +65,21 @@ def test_prediction_holds_from_a_measured_start(profile):
     # for 19 s, is 5.0 % of the longer and must still fail).
     assert abs(predicted - planned) <= max(0.05 * min(predicted, planned), 0.005 + 1e-9), (
         predicted, planned)
+
+
+@pytest.mark.parametrize('profile', PROFILES)
+def test_via_point_joint_move_prediction_is_the_controllers(profile):
+    """The via-point polynomial's waypoints are timed by the controller's law, as announced."""
+    plan = via_joint_example()
+    predicted = predicted_duration(profile, np.zeros(6), plan.q, ARM.velocity_limits)
+    planned = controller_plan_duration(profile, np.zeros(6), plan.q)
+    assert abs(predicted - planned) <= max(0.05 * planned, 0.005 + 1e-9), (predicted, planned)
+
+
+@pytest.mark.parametrize('profile', PROFILES)
+def test_a_demands_own_profile_is_timed_as_predicted(profile):
+    """A goal's profile (the demand's label) times that motion as the planner predicts it."""
+    plan = report_linear_example()
+    predicted = predicted_duration(profile, np.zeros(6), plan.q, ARM.velocity_limits)
+    planned = controller_plan_duration('continuous', np.zeros(6), plan.q, demand_profile=profile)
+    assert abs(predicted - planned) <= max(0.05 * planned, 0.005 + 1e-9), (predicted, planned)

@@ -9,9 +9,11 @@ core with the planner node's defaults, under the default limits (within_90_deg).
 import os
 import shlex
 
+from mover6_control.errors import UnreachableError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.planning.planner_core import plan_path_goal, plan_pose_goal, PlannerSettings
+from mover6_control.planning.via_joint import plan_via_path_goal
 from mover6_control.tools.goal_cli import build_parser, poses_from_numbers
 import numpy as np
 import pytest
@@ -41,23 +43,25 @@ def goal_argv(line):
     return argv
 
 
-def plan_readme_goal(argv, q_start=HOME):
-    """Plan a parsed README goal as the goal command and the planner node would."""
+def plan_readme_goal(argv, q_start=HOME, arm=ARM):
+    """Plan a parsed README goal as the goal command and the planner node would, for ``arm``."""
     args = build_parser().parse_args(argv)
     if args.command == 'pose':
-        T_goal = poses_from_numbers(args.numbers, args.quat, ARM, args.absolute)[0]
+        T_goal = poses_from_numbers(args.numbers, args.quat, arm, args.absolute)[0]
         if args.peak_height is not None:
             # As GoalClient.send_pose: the peak pose, above the mid-point of the present tool
             # position and the goal, on /path_goal/parabolic.
-            T_peak = fk(ARM, q_start)
+            T_peak = fk(arm, q_start)
             T_peak[:3, 3] = (0.5 * (T_peak[:3, 3] + T_goal[:3, 3])
                              + np.array([0.0, 0.0, args.peak_height]))
-            return plan_path_goal(ARM, q_start, T_peak[None], T_goal, 'parabolic',
+            return plan_path_goal(arm, q_start, T_peak[None], T_goal, 'parabolic',
                                   PlannerSettings())
-        return plan_pose_goal(ARM, q_start, T_goal, args.motion or DEFAULT_MOTION,
+        return plan_pose_goal(arm, q_start, T_goal, args.motion or DEFAULT_MOTION,
                               PlannerSettings())
-    targets = poses_from_numbers(args.via + args.numbers, args.quat, ARM, args.absolute)
-    return plan_path_goal(ARM, q_start, targets[:-1], targets[-1],
+    targets = poses_from_numbers(args.via + args.numbers, args.quat, arm, args.absolute)
+    if args.shape == 'joint':       # /path_goal/joint: the via-point joint move
+        return plan_via_path_goal(arm, q_start, targets[:-1], targets[-1], PlannerSettings())
+    return plan_path_goal(arm, q_start, targets[:-1], targets[-1],
                           args.shape or DEFAULT_PATH_MOTION, PlannerSettings())
 
 
@@ -78,3 +82,22 @@ def test_every_readme_goal_plans_from_home(line):
     assert np.allclose(plan.q[0], HOME)
     assert all(ARM.within_limits(q) for q in plan.q), line
     assert plan.final_position_error <= 1e-3 and plan.final_orientation_error <= 0.01
+
+
+def test_the_issues_parabolic_peak_of_4_cm_needs_the_hardware_limits():
+    """
+    The issue's parabolic example (peak 0.04 m) from home: the README shows 0.02 m, and why.
+
+    Along that parabola the wrist's two branches need q4 down to about -2.0 rad (q5 <= 0) or up
+    to about 2.45 rad (q5 >= 0): no wrist choice keeps it within +-90 deg, so the default limits
+    refuse it (the largest peak they plan from home is about 0.032 m); the hardware limits
+    (q4 +-2.443 rad) plan it.
+    """
+    line = [line for line in readme_goal_lines() if '--motion parabolic' in line][0]
+    argv = goal_argv(line)
+    argv[argv.index('--peak-height') + 1] = '0.04'
+    with pytest.raises(UnreachableError) as err:
+        plan_readme_goal(argv)
+    assert err.value.reason == 'joint_limits'
+    plan = plan_readme_goal(argv, arm=mover6('hardware'))
+    assert plan.final_position_error <= 1e-3 and plan.q[:, 3].min() < -np.pi / 2

@@ -41,7 +41,7 @@ move two ticks, a wrist goal between two ticks may not settle, and the motion th
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
@@ -189,6 +189,7 @@ class PendingDemand:
     config: Optional[ControllerConfig] = None   # the config it was planned with
     timing: Optional[Timing] = None     # the points' times (timed_plan); None: the law's
     timing_note: str = ''               # plan_demand's note: '', 'as given', or why not
+    profile: str = ''                   # the demand's own profile ('': the parameter's)
 
 
 class ControllerCore:
@@ -225,6 +226,7 @@ class ControllerCore:
         self._level = 'WARN'
         self._result = {}
         self._rejection = {}             # the last refused demand, until one is accepted
+        self._motion_profile = ''        # the profile the running (or last) motion is timed by
         self._arrived_at = None          # [s] when the running motion arrived (None: not yet)
         self._timing = ''                # timed_plan.plan_demand's note on the latest motion
         self._changed = True
@@ -340,7 +342,8 @@ class ControllerCore:
         """Note joint states rejected at ``now`` [s] (missing joints, non-finite): fault."""
         self._bad_states = str(reason)
 
-    def on_demands(self, now: float, waypoints: np.ndarray, demand_id: str = '') -> int:
+    def on_demands(self, now: float, waypoints: np.ndarray, demand_id: str = '',
+                   profile: str = '') -> int:
         """
         Accept waypoints (N, n) [rad] at ``now`` [s] and return the new motion id.
 
@@ -352,7 +355,7 @@ class ControllerCore:
         """
         try:
             return self.commit_demand(self.prepare_demand(now, waypoints, self.snapshot(),
-                                                          demand_id))
+                                                          demand_id, profile=profile))
         except InvalidInputError as err:
             self.reject(now, str(err), demand_id)
             raise
@@ -365,7 +368,8 @@ class ControllerCore:
 
     def prepare_demand(self, now: float, waypoints: np.ndarray,
                        snapshot: Optional[Snapshot] = None,
-                       demand_id: str = '', timing: Optional[Timing] = None) -> PendingDemand:
+                       demand_id: str = '', timing: Optional[Timing] = None,
+                       profile: str = '') -> PendingDemand:
         """
         Check a demand and plan it from ``snapshot``; return a ``PendingDemand``.
 
@@ -373,9 +377,10 @@ class ControllerCore:
         a node calls it without holding its lock while the ticks go on (planning the continuous
         law takes tens of milliseconds), with a snapshot taken under the lock, then
         ``commit_demand`` under the lock. Without ``snapshot`` it takes one itself (the caller
-        then holds the lock). Raises as ``on_demands``. With ``timing`` (a goal's
-        ``time_from_start`` and velocities) the plan follows it where it can
-        (``timed_plan.plan_demand``; its note goes to the status as ``timing``).
+        then holds the lock). Raises as ``on_demands``, and for an unknown ``profile``. With
+        ``timing`` (a goal's ``time_from_start`` and velocities) the plan follows it where it can
+        (``timed_plan.plan_demand``; its note goes to the status as ``timing``). ``profile``
+        times this demand only (``law_for``).
         """
         config = self.config       # read once, before the limits it comes with (_apply)
         vlim = self._vlim
@@ -386,10 +391,22 @@ class ControllerCore:
         if q_start is None:
             raise InvalidInputError(f'cannot take a demand while {snapshot.state}: no joint '
                                     f'states yet')
-        plan, note = plan_demand(config.law, q_start, Q, vlim, qd_start, timing,
-                                 self.arm.lower, self.arm.upper)
+        plan, note = plan_demand(self.law_for(profile, config), q_start, Q, vlim, qd_start,
+                                 timing, self.arm.lower, self.arm.upper)
         return PendingDemand(now, Q, plan, snapshot.moving, snapshot.motion_id, demand_id,
-                             config, timing, note)
+                             config, timing, note, profile)
+
+    def law_for(self, profile: str = '', config: Optional[ControllerConfig] = None) -> LawConfig:
+        """
+        Return the law of a demand: ``config``'s (default: in force) with its own ``profile``.
+
+        A demand's profile ('' : none) changes that demand's law only, never the configuration;
+        an unknown one raises ``InvalidInputError`` (the demand is refused with the reason).
+        """
+        law = (self.config if config is None else config).law
+        if not profile or profile == law.profile:
+            return law
+        return replace(law, profile=profile)
 
     def check_demand(self, waypoints: np.ndarray) -> np.ndarray:
         """Return the demand as (N, n) [rad] inside the limits, or raise ``InvalidInputError``."""
@@ -423,9 +440,9 @@ class ControllerCore:
         plan, note = pending.plan, pending.timing_note
         if not self.is_current(pending):
             snapshot = self.snapshot()
-            plan, note = plan_demand(self.config.law, snapshot.start[0], pending.waypoints,
-                                     self._vlim, snapshot.start[1], pending.timing,
-                                     self.arm.lower, self.arm.upper)
+            plan, note = plan_demand(self.law_for(pending.profile), snapshot.start[0],
+                                     pending.waypoints, self._vlim, snapshot.start[1],
+                                     pending.timing, self.arm.lower, self.arm.upper)
         self._timing = note
         self._plan, self._t_plan = plan, pending.now
         self._motion_id += 1
@@ -433,8 +450,9 @@ class ControllerCore:
         self._result = {}
         self._rejection = {}
         self._arrived_at = None
+        self._motion_profile = pending.profile or self.config.law.profile
         self._set(sm.DEMAND, 'OK', f'motion {self._motion_id}: {len(pending.waypoints)} '
-                                   f'waypoint(s), {self.config.law.profile}, '
+                                   f'waypoint(s), {self._motion_profile}, '
                                    f'{plan.duration:.2f} s')
         return self._motion_id
 
@@ -712,6 +730,8 @@ class ControllerCore:
                 f'{name} {value}' for name, value in config_changes(self.config, pending))
         if self._timing:
             values['timing'] = self._timing
+        if self._motion_profile:
+            values['motion_profile'] = self._motion_profile
         values.update(self._result)
         values.update(self._rejection)
         return Status(self._state, self._level, self._message, values)

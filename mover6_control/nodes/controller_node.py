@@ -8,7 +8,9 @@ and /controller/status (diagnostic_msgs/DiagnosticStatus, transient local, on ev
 at ``status_rate``). Services ~/stop and ~/reset (std_srvs/Trigger); the action
 ~/follow_joint_trajectory (control_msgs/FollowJointTrajectory, ``trajectory_action``). A demand
 may name the goal it is for (``layout.dim[0].label`` = ``waypoints goal <id>``, as the planner
-writes it): the status then carries it as ``goal_id`` next to the ``motion_id`` it became.
+writes it): the status then carries it as ``goal_id`` next to the ``motion_id`` it became. A
+label ending in ``profile <name>`` times that demand with its own law (``motion_profile`` in the
+status; the ``profile`` parameter does not change).
 All the logic is
 in ``mover6_control.control.controller_core``; this node converts, calls it and publishes. For
 the Mover6's vendor driver set ``jog_units`` to fraction_of_max; ``driver_tick_size`` and
@@ -225,10 +227,12 @@ class ControllerNode(Node):
             return
         try:
             Q = conversions.demands_from_msg(msg, len(self.joint_names))
+            profile = conversions.demand_profile_from_msg(msg)   # this demand's law only
             for attempt in range(DEMAND_ATTEMPTS):
                 with self.lock:
                     snapshot = self.core.snapshot()
-                pending = self.core.prepare_demand(now, Q, snapshot, goal_id, timing)
+                pending = self.core.prepare_demand(now, Q, snapshot, goal_id, timing=timing,
+                                                   profile=profile)
                 with self.lock:
                     if attempt + 1 == DEMAND_ATTEMPTS or self.core.is_current(pending):
                         motion_id = self.core.commit_demand(pending)

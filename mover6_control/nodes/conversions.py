@@ -124,19 +124,23 @@ def demands_from_msg(msg, n_joints=6):
 
 DEMAND_LABEL = 'waypoints'
 DEMAND_ID_MARK = ' goal '
+DEMAND_OPTIONS = ('goal', 'profile')   # the words of a demand label, each with one value
 
 
-def make_demands(Q, goal_id=''):
+def make_demands(Q, goal_id='', profile=''):
     """
     Build a Float32MultiArray (with layout) from waypoints (n, 6) [rad].
 
     A ``goal_id`` goes into the first dimension's label, ``waypoints goal <goal_id>``, where
-    ``ros2 topic echo`` shows it; ``demand_id_from_msg`` reads it back.
+    ``ros2 topic echo`` shows it; ``demand_id_from_msg`` reads it back. A ``profile`` (the
+    controller's law for this demand only) follows: ``waypoints goal <goal_id> profile cubic``
+    (``demand_profile_from_msg``).
     """
     Q = np.asarray(Q, dtype=float)
     n, m = Q.shape
     msg = Float32MultiArray()
     label = DEMAND_LABEL + (DEMAND_ID_MARK + goal_id if goal_id else '')
+    label += f' profile {profile}' if profile else ''
     msg.layout.dim = [
         MultiArrayDimension(label=label, size=n, stride=n * m),
         MultiArrayDimension(label='joints', size=m, stride=m),
@@ -145,12 +149,40 @@ def make_demands(Q, goal_id=''):
     return msg
 
 
+def demand_options_from_msg(msg):
+    """
+    Return the options of a demand's label as a dict (``goal``, ``profile``; absent: not given).
+
+    The label is ``waypoints``, then any of ``goal <id>`` and ``profile <name>`` in any order
+    (typable in ``ros2 topic pub``). A demand without layout or with another label carries no
+    options (the Mover6 report's flat arrays). Raises ``InvalidInputError`` for a word without
+    a value, an unknown word or a word given twice.
+    """
+    dims = list(msg.layout.dim)
+    words = (dims[0].label if dims else '').split()
+    if not words or words[0] != DEMAND_LABEL:
+        return {}
+    options = {}
+    for key, value in zip(words[1::2], words[2::2] + [None]):
+        if key not in DEMAND_OPTIONS or value is None or key in options:
+            raise InvalidInputError(
+                f'demand label "{dims[0].label}": expected "waypoints [goal <id>] '
+                f'[profile <name>]"')
+        options[key] = value
+    return options
+
+
 def demand_id_from_msg(msg):
     """Return the goal id a demand carries (``make_demands``), '' when it carries none."""
-    dims = list(msg.layout.dim)
-    label = dims[0].label if dims else ''
-    head, mark, goal_id = label.partition(DEMAND_ID_MARK)
-    return goal_id.strip() if mark and head == DEMAND_LABEL else ''
+    try:
+        return demand_options_from_msg(msg).get('goal', '')
+    except InvalidInputError:
+        return ''
+
+
+def demand_profile_from_msg(msg):
+    """Return the profile a demand asks for, '' for the controller's; raises on a bad label."""
+    return demand_options_from_msg(msg).get('profile', '')
 
 
 # --- poses ---------------------------------------------------------------------------------
@@ -178,9 +210,26 @@ def matrix_to_pose(T):
     return pose
 
 
+GOAL_PROFILE_MARK = ' profile '
+
+
+def goal_profile_from_header(header):
+    """
+    Return the profile a goal asks for: its frame id ``base_link profile <name>``, else ''.
+
+    The one text field of a PoseStamped or PoseArray carries the option, in the words of the
+    demand label (``make_demands``), so ``ros2 topic pub`` can type it.
+    """
+    _, mark, profile = header.frame_id.partition(GOAL_PROFILE_MARK)
+    if mark and len(profile.split()) != 1:
+        raise InvalidInputError(f'goal frame "{header.frame_id}": expected '
+                                '"<frame> profile <name>"')
+    return profile.strip()
+
+
 def check_frame(header, expected_frame):
     """Raise when a header's frame is not ``expected_frame`` (an empty frame is accepted)."""
-    frame = header.frame_id.lstrip('/')
+    frame = header.frame_id.partition(GOAL_PROFILE_MARK)[0].lstrip('/')
     if frame and frame != expected_frame:
         raise InvalidInputError(
             f'goal frame is "{header.frame_id}", expected "{expected_frame}" '

@@ -9,8 +9,13 @@ Subscribes /pose_goal (geometry_msgs/PoseStamped), /path_goal (geometry_msgs/Pos
 A goal's shape travels with the goal, never through the parameters: /pose_goal/linear,
 /pose_goal/parabolic (peak ``peak_height`` above the mid-point), /pose_goal/joint, and
 /path_goal/spline, /path_goal/arc, /path_goal/parabolic (PoseArray [peak, goal]: the Mover6
-report's eq. 12) plan that shape; /pose_goal and /path_goal plan the default shapes, the
-``motion`` and ``path_motion`` parameters. Each goal gets a ``goal_id``: its header stamp and
+report's eq. 12) plan that shape; /path_goal/joint (PoseArray [via, goal]) plans a joint move
+through the via pose, the Jacobians and trajectories report's via-point polynomial
+(``planning.via_joint``); /pose_goal and /path_goal plan the default shapes, the
+``motion`` and ``path_motion`` parameters. A goal whose frame id is ``base_link profile <name>``
+asks the controller to time its motion with that profile: the demand carries it (``waypoints
+goal <goal_id> profile <name>``) and the predicted duration is timed with it; no parameter of
+either node changes. Each goal gets a ``goal_id``: its header stamp and
 the planner's goal counter, ``<sec>.<nanosec>-<seq>`` (``ros2 topic echo`` shows both). The
 status about a goal carries it (``goal_id``, ``goal_stamp``, ``goal_seq``) and so do the
 demands planned for it (``layout.dim[0].label`` = ``waypoints goal <goal_id>``), which the
@@ -29,6 +34,7 @@ from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.parameters import PLANNER
 from mover6_control.planning.planner_core import (PATH_MOTIONS, plan_path_goal, plan_pose_goal,
                                                   PlannerSettings, POSE_MOTIONS)
+from mover6_control.planning.via_joint import plan_via_path_goal
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -72,6 +78,7 @@ class PlannerNode(Node):
         for shape in PATH_MOTIONS:
             self.create_subscription(PoseArray, f'path_goal/{shape}',
                                      lambda msg, shape=shape: self.on_path_goal(msg, shape), 10)
+        self.create_subscription(PoseArray, 'path_goal/joint', self.on_via_joint_goal, 10)
         self.publish_status('OK', 'waiting for goals', {'result': 'ready'})
         self.get_logger().info(
             f'planner ready: motion={self.get_parameter("motion").value}, '
@@ -104,6 +111,13 @@ class PlannerNode(Node):
             poses = conversions.pose_array_to_matrices(msg, self.frame_id())
             return plan_path_goal(self.arm, q, poses[:-1], poses[-1], motion, settings)
         self.handle_goal(msg.header, motion, plan)
+
+    def on_via_joint_goal(self, msg):
+        """Plan a joint move through one via pose (PoseArray [via, goal]): ``via_joint``."""
+        def plan(q, settings):
+            poses = conversions.pose_array_to_matrices(msg, self.frame_id())
+            return plan_via_path_goal(self.arm, q, poses[:-1], poses[-1], settings)
+        self.handle_goal(msg.header, 'joint', plan)
 
     # --- planning --------------------------------------------------------------------------
 
@@ -139,11 +153,15 @@ class PlannerNode(Node):
         self.goal = {'goal_id': f'{stamp}-{self.goal_seq}', 'goal_stamp': stamp,
                      'goal_seq': self.goal_seq}
         try:
+            profile = conversions.goal_profile_from_header(header)
+            if profile:
+                self.goal['profile'] = profile      # forwarded with the demand
             q_now = self.current_q()
             plan = plan_fn(q_now, self.settings())
             # One timing model: the controller's law times the waypoints from the same start.
             plan = dataclasses.replace(plan, predicted_duration=predicted_duration(
-                self.get_parameter('profile').value, q_now, plan.q, self.arm.velocity_limits))
+                profile or self.get_parameter('profile').value, q_now, plan.q,
+                self.arm.velocity_limits))
         except UnreachableError as err:
             self.refuse(motion, str(err), err.reason, err.details)
             return
@@ -209,7 +227,7 @@ class PlannerNode(Node):
             self.refuse(motion, 'nobody subscribes to /joint_demands: is the controller running?',
                         'no_controller', {}, goal)
             return
-        msg = conversions.make_demands(plan.q, goal['goal_id'])
+        msg = conversions.make_demands(plan.q, goal['goal_id'], goal.get('profile', ''))
         self.demands_pub.publish(msg)
         self.unconfirmed = (goal['goal_id'], msg, self.get_clock().now(), 1)
         values = {'result': 'planned', 'motion': motion, 'waypoints': plan.n_waypoints,

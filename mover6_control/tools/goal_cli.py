@@ -13,15 +13,20 @@ the home orientation. With ``--absolute`` A B C are base-frame ZYX angles, R = R
     goal pose 0.30 -0.08 0.32 0 0 0 --motion parabolic --peak-height 0.02
     goal pose --quat 0.30 0.05 0.36 0 0.7071068 0 0.7071068
     goal path --shape spline --via 0.32 -0.03 0.36 0 0 0 0.29 0.10 0.35 0 0 0
+    goal path --shape joint --via 0.32 0.0 0.38 0 0 0 0.30 0.08 0.34 0 0 0
+    goal pose 0.30 0.05 0.36 0 0 0 --profile quintic  # this goal timed by the 3-4-5 law
     goal joints 0.2 0.1 0.3 0 0.4 0                   # straight to /joint_demands
     goal stop                                         # the controller's ~/stop service
 
 The RESULT line gives the pose reached, in the goal's own convention. ``--motion`` and
 ``--shape`` pick the topic of that shape (/pose_goal/parabolic, /path_goal/arc ...);
 ``--peak-height`` sends the parabola by its peak pose (/path_goal/parabolic, the Mover6 report's
-eq. 12). No node's parameters change. The command follows only its own goal: the planner's
-status names it by its stamp (``goal_stamp``), and the controller's status by the ``goal_id``
-the planner gave it.
+eq. 12); ``--shape joint`` moves in joint space through one via pose (/path_goal/joint, the
+Jacobians and trajectories report's via-point polynomial). ``--profile`` asks the controller to
+time this goal's motion with that law (the goal's frame id ``base_link profile <name>``; the
+demand's label ``... profile <name>``). No node's parameters change. The command follows only
+its own goal: the planner's status names it by its stamp (``goal_stamp``), and the controller's
+status by the ``goal_id`` the planner gave it.
 
 Exit codes: 0 arrived, 1 motion failed (fault, aborted, stopped, timed out), 2 goal refused or
 malformed, 3 nodes not found.
@@ -34,6 +39,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
+from mover6_control.control.velocity_laws import PROFILES
 from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
@@ -386,12 +392,12 @@ class GoalClient(Node):
         """Wait until ``pub`` is matched with a reader (a topic made just now is not yet)."""
         self.spin_until(lambda: pub.get_subscription_count() > 0, timeout)
 
-    def send_joints(self, Q, **kwargs):
-        """Send joint waypoints (n, 6) straight to /joint_demands and follow them."""
+    def send_joints(self, Q, profile='', **kwargs):
+        """Send joint waypoints (n, 6) to /joint_demands (timed by ``profile``) and follow them."""
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         stamp = self.get_clock().now().to_msg()
         goal_id = f'{self.get_name()}-{stamp.sec}.{stamp.nanosec:09d}'
-        msg = conversions.make_demands(Q, goal_id)
+        msg = conversions.make_demands(Q, goal_id, profile)
         if not self.spin_until(lambda: self.demands_pub.get_subscription_count() > 0, 10.0):
             return Outcome(EXIT_NO_NODES, 'no subscriber on /joint_demands')
         return self.run_goal(lambda: self.demands_pub.publish(msg), planned=False,
@@ -435,6 +441,9 @@ def build_parser():
                         help='seconds to wait for the motion to finish (default 60)')
     common.add_argument('--frame', default='base_link', help='frame of the goal (base_link)')
     common.add_argument('--quiet', action='store_true', help='print only the result line')
+    common.add_argument('--profile', choices=PROFILES,
+                        help="the controller's law for this goal only (default: its profile "
+                             'parameter, which does not change)')
     angles = argparse.ArgumentParser(add_help=False)
     angles.add_argument('--absolute', action='store_true',
                         help='A B C are base-frame ZYX angles, R = Rz(A) Ry(B) Rx(C) (home is '
@@ -459,9 +468,10 @@ def build_parser():
     path.add_argument('--via', type=float, nargs='+', default=[], metavar='N',
                       help='via poses (alternative spelling: put them before the goal)')
     path.add_argument('--quat', action='store_true', help='orientations as quaternions')
-    path.add_argument('--shape', choices=('spline', 'arc', 'parabolic'),
+    path.add_argument('--shape', choices=('spline', 'arc', 'parabolic', 'joint'),
                       help="the path's shape (its topic /path_goal/<shape>; parabolic: one via "
-                           "pose, the peak; default: the planner's path_motion parameter)")
+                           'pose, the peak; joint: one via pose, a joint move; default: the '
+                           "planner's path_motion parameter)")
     joints = sub.add_parser('joints', parents=[common],
                             help='send joint waypoints straight to /joint_demands')
     joints.add_argument('numbers', type=float, nargs='+', metavar='Q',
@@ -510,19 +520,21 @@ def run(argv, client=None, out=print):
         out(f'RESULT failed: {problem}')
         return EXIT_NO_NODES
     kwargs = {'timeout': args.timeout, 'progress': say}
+    profile = getattr(args, 'profile', None)
+    frame = args.frame + (f' profile {profile}' if profile else '')   # goal_profile_from_header
     if args.command == 'pose':
         if args.peak_height is not None and args.motion not in (None, 'parabolic'):
             out(f'RESULT refused: --peak-height is for parabolic moves, not {args.motion}')
             return EXIT_REFUSED
         say(f'sending pose goal {np.round(targets[0][:3, 3], 4).tolist()} m')
-        outcome = client.send_pose(targets[0], frame_id=args.frame, motion=args.motion,
+        outcome = client.send_pose(targets[0], frame_id=frame, motion=args.motion,
                                    peak_height=args.peak_height, **kwargs)
     elif args.command == 'path':
         say(f'sending path goal with {len(targets) - 1} via poses')
-        outcome = client.send_path(targets, frame_id=args.frame, shape=args.shape, **kwargs)
+        outcome = client.send_path(targets, frame_id=frame, shape=args.shape, **kwargs)
     else:
         say(f'sending {len(targets)} joint waypoints')
-        outcome = client.send_joints(targets, **kwargs)
+        outcome = client.send_joints(targets, profile=profile or '', **kwargs)
     convention = None
     if args.command in ('pose', 'path'):
         ref = (0.0, 0.0, 0.0)
