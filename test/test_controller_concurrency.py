@@ -6,8 +6,9 @@ tick thread (``tick``), the executor (``on_joint_states``, ``request_stop``, ``r
 demand thread, which takes a ``snapshot`` under the lock, plans from it without the lock
 (``prepare_demand``) and commits under the lock (``commit_demand``) only if ``is_current``.
 
-- a regression test for the race of the old ``prepare_demand``, which read ``_ref`` (now the robot's reference) twice
-  outside the lock: a tick clearing it in between raised inside the demand thread;
+- a regression test for the race of the old ``prepare_demand``, which read ``_ref`` (now the
+  robot's ``reference``) twice outside the lock: a tick clearing it in between raised inside
+  the demand thread;
 - a seeded random schedule of those steps (thousands of interleavings, deterministic), and the
   same steps from real threads, checking the invariants: no exception, every demand accepted
   or refused with a reason (kept in the status), every command finite and inside the limits, a

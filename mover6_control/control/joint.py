@@ -29,8 +29,8 @@ class Joint:
 
     ``q`` [rad] and ``qd`` [rad/s] are the measured position and velocity; ``demand`` [rad] is the
     position the joint is sent to and ``q_initial`` [rad] the measured position when that demand
-    was set (the Mover6 report's ``init_state``). ``lower``/``upper`` [rad] are the position limits,
-    ``velocity_limit`` [rad/s] the speed limit and ``acceleration_limit`` [rad/s^2] the
+    was set (the Mover6 report's ``init_state``). ``lower``/``upper`` [rad] are the position
+    limits, ``velocity_limit`` [rad/s] the speed limit and ``acceleration_limit`` [rad/s^2] the
     acceleration limit (inf: none). ``goal_tolerance`` [rad]: the joint has arrived this close
     to its demand. ``encoder_tick`` [rad]: one tick of a driver that moves whole ticks (the
     Mover6's vendor driver), None for a driver that takes velocities.

@@ -271,16 +271,18 @@ class Robot:
         if len(velocities) and len(velocities) != len(names):
             raise InvalidInputError(
                 f'joint_states has {len(names)} names but {len(velocities)} velocities')
-        repeated = sorted({n for n in names if names.count(n) > 1})
-        if repeated:
-            raise InvalidInputError(f'joint_states repeats joints {repeated}')
-        unknown = [n for n in names if n not in self._index]
-        if unknown:
-            raise InvalidInputError(f'joint_states has unknown joints {unknown} (the robot has '
-                                    f'{list(self._names)})')
+        problems = []
         missing = [n for n in self._names if n not in names]
         if missing:
-            raise InvalidInputError(f'joint_states lacks joints {missing} (has {names})')
+            problems.append(f'lacks joints {missing}')
+        unknown = [n for n in names if n not in self._index]
+        if unknown:
+            problems.append(f'has unknown joints {unknown}')
+        repeated = sorted({n for n in names if names.count(n) > 1})
+        if repeated:
+            problems.append(f'repeats joints {repeated}')
+        if problems:
+            raise InvalidInputError(f'joint_states {", ".join(problems)} (has {names})')
         order = [names.index(n) for n in self._names]
         q = positions[order]
         qd = velocities[order] if len(velocities) else np.zeros(self.n_joints)
@@ -357,7 +359,7 @@ class Robot:
     def command(self, gain: float, velocity_limits: np.ndarray,
                 q: Optional[np.ndarray] = None) -> np.ndarray:
         """
-        Return this tick's command (n,) [rad/s] from the law's reference (``follow``/``hold``).
+        Return the velocities (n,) [rad/s] to command now, from the law's reference.
 
         ``qd_ref + gain (q_ref - q)`` within ``velocity_limits`` (n,) [rad/s], one common factor
         (``velocity_laws.closed_loop_command``); ``q`` defaults to the measured position (the
