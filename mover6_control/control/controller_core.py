@@ -34,6 +34,11 @@ known to a tick. Two things make the arm arrive anyway:
   status as ``goal_tolerance``), and the arm has arrived only when both the reading and the
   reading minus what was commanded since (from two cycles before it came: maybe in flight) are
   within it, so a joint still moving does not arrive on a stale reading and then drift out.
+- after arrival (settling to one tick) each joint more than half a tick off gets one pulse of
+  the whole number of ticks nearest its error (``velocity_laws.tick_pulse_command``: the
+  driver truncates the speed to exactly that), then none until a reading shows it landed; so
+  every joint ends on the tick nearest its goal (a closed loop on the lagging readings crept:
+  4-10 ticks off a second after arrival).
 
 This assumes the readings come once per driver cycle (or less often) and that two and a half
 control periods plus the delays of a reading and of a command stay under one driver cycle (at
@@ -53,16 +58,17 @@ from mover6_control.control.robot import Robot
 from mover6_control.control.velocity_laws import (dead_zone_command,
                                                   driver_velocity_limits, guard_position_limits,
                                                   JOG_UNITS, LawConfig, min_jog_speed, MotionPlan,
-                                                  plan_motion, plan_stop, to_jog_units)
+                                                  plan_motion, plan_stop, tick_pulse_command,
+                                                  to_jog_units)
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 from mover6_control.validation import as_positive
 import numpy as np
 
-# After arrival the gain is at least this fraction of the error per control period
-# (rad_per_s) or per driver cycle (fraction_of_max, on the error minus what is in flight).
+# After arrival the gain is at least this fraction of the error per control period (rad_per_s).
 FINE_GAIN_PER_TICK = 0.25
-FINE_GAIN_PER_CYCLE = 0.25
+# fraction_of_max, after arrival: readings after a whole-tick pulse starts before the next may.
+PULSE_READINGS = 3
 
 
 @dataclass(frozen=True)
@@ -207,6 +213,7 @@ class ControllerCore:
         self._n_states_seen = 0          # the robot's n_states as of the previous tick
         self._pulse_until = np.full(n, -np.inf)  # [s] end of each joint's one-tick pulse
         self._pulse_after = np.zeros(n, dtype=int)  # no new pulse before this many readings
+        self._pulse_speed = np.zeros(n)  # [rad/s] the command of each joint's running pulse
         self._travel = np.zeros(n)       # [rad] integral of the commands sent
         self._state = sm.WAITING_FOR_STATES
         self._t_fault = None
@@ -497,7 +504,8 @@ class ControllerCore:
             qd = np.zeros(self.arm.n_joints)
             self.robot.reference = None
         else:
-            if self._whole_tick_driver and self._state in (sm.EXECUTING, sm.SETTLING):
+            if (self._whole_tick_driver and self._state in (sm.EXECUTING, sm.SETTLING)
+                    and self._arrived_at is None):     # after arrival: whole-tick pulses
                 qd = self._whole_ticks(now, qd)
             qd = guard_position_limits(qd, self.robot.q, self.robot.lower, self.robot.upper,
                                        self._dt)
@@ -529,6 +537,7 @@ class ControllerCore:
         qd, dead = dead_zone_command(qd, self.robot.error, self.robot.encoder_ticks,
                                      self._min_speed, pulsing | may_start)
         started = dead & ~pulsing & may_start & (qd != 0.0)
+        self._pulse_speed[started] = qd[started]
         self._pulse_until[started] = now + self.config.driver_cycle + 0.5 * self._dt
         self._pulse_after[started] = self.robot.n_states + 2
         law = ~dead & (qd != 0.0)          # moved by the law: in flight for up to two cycles
@@ -631,7 +640,7 @@ class ControllerCore:
                 self._set(sm.SETTLED, 'OK', f'motion {self._motion_id} arrived; {how} '
                                             f'(max joint error {worst:.6f} rad); holding')
                 return None
-            return self._fine_command()
+            return self._fine_command(now)
         return self.robot.command(self.config.position_gain, self._vlim)
 
     def _within(self, tol):
@@ -643,20 +652,44 @@ class ControllerCore:
         # would otherwise declare arrival and coast one tick past the goal).
         return self.robot.within(tol, 2.0 * self._dt * self.robot.qd)
 
-    def _fine_command(self):
+    def _fine_command(self, now):
         """
         Return the command that closes the last of the error after arrival (n,) [rad/s].
 
-        The gain is at least ``FINE_GAIN_PER_TICK`` per control period (rad_per_s; the
-        readings are fresh) or per driver cycle on the error minus what is still in flight
-        (fraction_of_max: the readings lag up to two cycles), so the error falls from the goal
-        tolerance to the settle tolerance in a fraction of a second without overshoot.
+        rad_per_s: the closed loop with a gain of at least ``FINE_GAIN_PER_TICK`` per control
+        period (the readings are fresh), so the error falls from the goal tolerance to the
+        settle tolerance in a fraction of a second without overshoot. fraction_of_max: the
+        whole-tick pulses of ``_tick_pulses``.
         """
         if not self._whole_tick_driver:
             gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / self._dt)
             return self.robot.command(gain, self._vlim)
-        gain = max(self.config.position_gain, FINE_GAIN_PER_CYCLE / self.config.driver_cycle)
-        return self.robot.command(gain, self._vlim, self.robot.q + self._in_flight())
+        return self._tick_pulses(now)
+
+    def _tick_pulses(self, now):
+        """
+        Return the command that moves each joint onto the tick nearest its goal (n,) [rad/s].
+
+        The readings lag the driver by up to two cycles, so a closed loop on them either creeps
+        (a low gain: 4-10 ticks off a second after arrival) or oscillates. The driver is exact
+        instead: a command held over one cycle boundary moves ``trunc(speed * cycle / tick)``
+        ticks. So a joint whose reading is more than half a tick off gets one pulse of the
+        whole number of ticks nearest its error (``velocity_laws.tick_pulse_command``), lasting
+        one driver cycle (as ``_whole_ticks``), and no new one until a reading shows it landed
+        (``PULSE_READINGS`` readings later; the law's last moves too). Each pulse closes the
+        error to the nearest tick, up to the servo's lag in the reading it was computed from.
+        """
+        ticks, cycle = self.robot.encoder_ticks, self.config.driver_cycle
+        error = self.robot.error
+        pulsing = now < self._pulse_until
+        fresh = self.robot.n_states > self._n_states_seen
+        start = (fresh & ~pulsing & (self.robot.n_states >= self._pulse_after)
+                 & (np.abs(error) > 0.5 * ticks))
+        speed = tick_pulse_command(error, ticks, cycle, self._vlim)
+        self._pulse_speed[start] = speed[start]
+        self._pulse_until[start] = now + cycle + 0.5 * self._dt
+        self._pulse_after[start] = self.robot.n_states + PULSE_READINGS
+        return np.where(pulsing | start, self._pulse_speed, 0.0)
 
     def _tick_stopping(self, now):
         t = self.robot.follow(now)
