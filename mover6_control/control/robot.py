@@ -351,11 +351,6 @@ class Robot:
         error = self.error
         return (np.abs(error) <= tolerance) & (np.abs(error - still_to_move) <= tolerance)
 
-    @property
-    def arrived(self) -> bool:
-        """Return True when every joint is within its goal tolerance of the reference."""
-        return bool(np.all(np.abs(self.error) <= self._goal_tolerance))
-
     def command(self, gain: float, velocity_limits: np.ndarray,
                 q: Optional[np.ndarray] = None) -> np.ndarray:
         """
