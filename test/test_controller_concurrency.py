@@ -6,8 +6,9 @@ tick thread (``tick``), the executor (``on_joint_states``, ``request_stop``, ``r
 demand thread, which takes a ``snapshot`` under the lock, plans from it without the lock
 (``prepare_demand``) and commits under the lock (``commit_demand``) only if ``is_current``.
 
-- a regression test for the race of the old ``prepare_demand``, which read ``_ref`` twice
-  outside the lock: a tick clearing it in between raised inside the demand thread;
+- a regression test for the race of the old ``prepare_demand``, which read ``_ref`` (now the
+  robot's ``reference``) twice outside the lock: a tick clearing it in between raised inside
+  the demand thread;
 - a seeded random schedule of those steps (thousands of interleavings, deterministic), and the
   same steps from real threads, checking the invariants: no exception, every demand accepted
   or refused with a reason (kept in the status), every command finite and inside the limits, a
@@ -19,6 +20,7 @@ import threading
 
 from mover6_control.control import state_machine as sm
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.robot import Robot
 from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
@@ -29,22 +31,42 @@ ARM = mover6()
 DT = 0.01
 
 
-class RacingCore(ControllerCore):
-    """A core whose ``_ref`` is cleared (as a tick ending the motion does) right after a read."""
+class RacingRobot(Robot):
+    """A robot whose ``reference`` is cleared (as a tick ending the motion does) after a read."""
 
     clear_after_next_read = False
 
     @property
-    def _ref(self):
+    def reference(self):
         value = self.__dict__.get('_ref_value')
         if self.clear_after_next_read:
             self.clear_after_next_read = False
             self.__dict__['_ref_value'] = None       # the tick thread ran just now
         return value
 
-    @_ref.setter
-    def _ref(self, value):
+    @reference.setter
+    def reference(self, value):
         self.__dict__['_ref_value'] = value
+
+
+class RacingCore(ControllerCore):
+    """A core whose robot's reference (``_ref`` before) is cleared right after a read."""
+
+    def __init__(self, arm, config):
+        super().__init__(arm, config)
+        self.robot = RacingRobot(self.robot.name, self.robot.joints)
+
+    @property
+    def _ref(self):
+        return self.robot.__dict__.get('_ref_value')
+
+    @property
+    def clear_after_next_read(self):
+        return self.robot.clear_after_next_read
+
+    @clear_after_next_read.setter
+    def clear_after_next_read(self, value):
+        self.robot.clear_after_next_read = value
 
 
 def test_a_tick_clearing_the_reference_during_prepare_demand_changes_nothing():

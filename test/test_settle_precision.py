@@ -71,9 +71,6 @@ def test_rad_per_s_within_0_2_mrad_one_second_after_arrival(profile):
         assert not np.any(jog)                           # idle: zero command
 
 
-@pytest.mark.xfail(strict=True, reason='open: J1-J4 end 30-80 urad (4-10 ticks) from the goal '
-                   '1 s after arrival; the readings lag up to two driver cycles and a higher '
-                   'gain on the error minus what is in flight oscillates')
 @pytest.mark.parametrize('profile', ['continuous', 'trapezoidal'])
 def test_fraction_of_max_within_one_tick_one_second_after_arrival(profile):
     ticks = np.array(MOVER6_TICK_SIZE)

@@ -11,7 +11,8 @@ from hypothesis import given, settings
 import hypothesis.strategies as st
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.control.velocity_laws import (dead_zone_command, LawConfig, min_jog_speed,
-                                                  TICK_MARGIN)
+                                                  TICK_MARGIN, tick_pulse_command,
+                                                  to_jog_units)
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 import numpy as np
@@ -136,6 +137,22 @@ def test_dead_zone_command(qd, error, may_move):
     lifted = dead & may_move & (np.abs(error) > TICK / 2)
     np.testing.assert_array_equal(out[lifted], np.sign(error[lifted]) * speed[lifted])
     np.testing.assert_array_equal(out[dead & ~lifted], 0.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(error=st.lists(st.floats(-0.02, 0.02), min_size=6, max_size=6))
+def test_tick_pulse_moves_the_nearest_whole_number_of_ticks_in_one_cycle(error):
+    """Held over one cycle, the driver truncates the pulse to round(error / tick) ticks."""
+    error = np.array(error)
+    vlim = np.asarray(ARM.velocity_limits) * 0.25
+    qd = tick_pulse_command(error, TICK, MOVER6_DRIVER_CYCLE, vlim)
+    assert np.all(np.abs(qd) <= vlim)
+    # What the simulated driver does with the JointJog fraction (``Simulator._vendor_cycle``).
+    step = to_jog_units(qd, ARM.velocity_limits, 'fraction_of_max') * vlim * MOVER6_DRIVER_CYCLE
+    moved = np.trunc(step / TICK + np.copysign(1e-9, step))
+    k_max = np.floor(vlim * MOVER6_DRIVER_CYCLE / TICK - (TICK_MARGIN - 1.0))
+    nearest = np.minimum(np.abs(np.round(error / TICK)), k_max)
+    np.testing.assert_array_equal(moved, np.sign(error) * nearest)
 
 
 # --- configuration and status --------------------------------------------------------------

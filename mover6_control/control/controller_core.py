@@ -1,10 +1,14 @@
 """
 The controller without ROS: joint states and demands in, one velocity command per tick out.
 
-``ControllerCore`` owns the state machine (``state_machine``), the running ``MotionPlan``
-(``velocity_laws``) and the safety checks. The node calls ``on_joint_states``,
-``on_invalid_states``, ``on_demands``, ``request_stop`` and ``reset`` from its callbacks and
-``tick(now)`` from its timer, and publishes what comes back. Time is always an argument [s], so
+``ControllerCore`` owns the model of the arm, a ``Robot`` (``control.robot``: its ``Joint``s
+with limits, goal tolerance and encoder tick, the measured states, the running ``MotionPlan``
+of the selected velocity law and its reference), the state machine (``state_machine``), which
+decides from what the robot reports, and the safety checks. The node hands /joint_states to the
+robot by name (``on_named_joint_states``; ``on_joint_states`` takes them in chain order) and
+calls ``on_invalid_states``, ``on_demands``, ``request_stop`` and ``reset`` from its callbacks
+and ``tick(now)`` from its timer, and publishes what comes back; every tick asks the robot for
+its command (``Robot.command``). Time is always an argument [s], so
 tests drive it with synthetic time and no sleeps.
 
 Safety, per tick: joint states older than ``state_timeout``, or reported incomplete or
@@ -30,6 +34,11 @@ known to a tick. Two things make the arm arrive anyway:
   status as ``goal_tolerance``), and the arm has arrived only when both the reading and the
   reading minus what was commanded since (from two cycles before it came: maybe in flight) are
   within it, so a joint still moving does not arrive on a stale reading and then drift out.
+- after arrival (settling to one tick) each joint more than half a tick off gets one pulse of
+  the whole number of ticks nearest its error (``velocity_laws.tick_pulse_command``: the
+  driver truncates the speed to exactly that), then none until a reading shows it landed; so
+  every joint ends on the tick nearest its goal (a closed loop on the lagging readings crept:
+  4-10 ticks off a second after arrival).
 
 This assumes the readings come once per driver cycle (or less often) and that two and a half
 control periods plus the delays of a reading and of a command stay under one driver cycle (at
@@ -45,20 +54,21 @@ from dataclasses import dataclass, field, replace
 from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
+from mover6_control.control.robot import Robot
 from mover6_control.control.timed_plan import plan_demand, Timing
-from mover6_control.control.velocity_laws import (closed_loop_command, dead_zone_command,
-                                                  driver_velocity_limits, guard_position_limits,
-                                                  JOG_UNITS, LawConfig, min_jog_speed, MotionPlan,
-                                                  plan_stop, to_jog_units)
+from mover6_control.control.velocity_laws import (dead_zone_command, driver_velocity_limits,
+                                                  guard_position_limits, JOG_UNITS, LawConfig,
+                                                  min_jog_speed, MotionPlan, plan_stop,
+                                                  tick_pulse_command, to_jog_units)
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 from mover6_control.validation import as_positive
 import numpy as np
 
-# After arrival the gain is at least this fraction of the error per control period
-# (rad_per_s) or per driver cycle (fraction_of_max, on the error minus what is in flight).
+# After arrival the gain is at least this fraction of the error per control period (rad_per_s).
 FINE_GAIN_PER_TICK = 0.25
-FINE_GAIN_PER_CYCLE = 0.25
+# fraction_of_max, after arrival: readings after a whole-tick pulse starts before the next may.
+PULSE_READINGS = 3
 
 
 @dataclass(frozen=True)
@@ -198,30 +208,22 @@ class ControllerCore:
     def __init__(self, arm: ArmModel, config: Optional[ControllerConfig] = None):
         """Make a controller for ``arm`` (an ``ArmModel``) with ``config``."""
         self.arm = arm
+        self.robot = Robot.from_arm(arm)  # the model: joints, states, demand, reference
         self.config = None
         self._pending_config = None      # applies when the running motion ends
         self._apply(self._derive(ControllerConfig() if config is None else config))
         n = arm.n_joints
-        self._n_states = 0               # valid joint states received so far
-        self._n_states_seen = 0          # ... as of the previous tick
+        self._n_states_seen = 0          # the robot's n_states as of the previous tick
         self._pulse_until = np.full(n, -np.inf)  # [s] end of each joint's one-tick pulse
         self._pulse_after = np.zeros(n, dtype=int)  # no new pulse before this many readings
+        self._pulse_speed = np.zeros(n)  # [rad/s] the command of each joint's running pulse
         self._travel = np.zeros(n)       # [rad] integral of the commands sent
         self._state = sm.WAITING_FOR_STATES
-        self._q = None
-        self._qd_measured = None
-        self._t_states = None
-        self._bad_states = None          # reason why the latest states were rejected
         self._t_fault = None
-        self._plan = None
-        self._t_plan = 0.0
-        self._ref = None                 # (q_ref, qd_ref) of the last tick
-        self._qd_cmd = np.zeros(n)
         self._motion_id = 0
         self._waypoints_total = 0
         self._waypoint = 0
         self._t_settle = 0.0
-        self._error = np.zeros(n)
         self._message = 'waiting for /joint_states'
         self._level = 'WARN'
         self._result = {}
@@ -269,9 +271,12 @@ class ControllerCore:
 
     def _apply(self, derived):
         """Install what ``_derive`` returned (the config last: ``prepare_demand`` reads it)."""
-        self._tol, self._settle_tol = derived['tol'], derived['settle_tol']
+        config = derived['config']
+        self.robot.set_limits(derived['tol'], config.law.a_max, derived['ticks'])
+        self._settle_tol = derived['settle_tol']
         self._vlim, self._dt = derived['vlim'], derived['dt']
-        self._ticks, self._min_speed = derived['ticks'], derived['min_speed']
+        self._min_speed = derived['min_speed']
+        self._whole_tick_driver = derived['ticks'] is not None
         old = getattr(self, '_travel_log', ())
         self._travel_log = deque(old, maxlen=derived['log_length'])
         self.config = derived['config']
@@ -307,7 +312,7 @@ class ControllerCore:
     @property
     def goal_tolerance(self) -> np.ndarray:
         """Return the goal tolerance (n,) [rad] in use (at least one tick in fraction_of_max)."""
-        return self._tol.copy()
+        return self.robot.goal_tolerances
 
     # --- inputs -------------------------------------------------------------------------------
 
@@ -324,23 +329,36 @@ class ControllerCore:
     @property
     def plan(self) -> Optional[MotionPlan]:
         """Return the running ``MotionPlan`` (None when none)."""
-        return self._plan
+        return self.robot.plan
 
     def on_joint_states(self, now: float, q: Sequence[float],
                         qd: Optional[Sequence[float]] = None) -> None:
-        """Take valid measured positions (n,) [rad] received at ``now`` [s]."""
+        """
+        Take valid measured positions (n,) [rad] in chain order, received at ``now`` [s].
+
+        The same as ``on_named_joint_states`` with the robot's joint names; raises
+        ``InvalidInputError`` (states unchanged) when ``q`` is not a finite (n,) array.
+        """
         q = self.arm.check_q(q, 'joint_states position')
-        self._q = q
         # Measured velocity, when the states carry one: arrival also asks where the arm is going.
-        self._qd_measured = (np.zeros_like(q) if qd is None
-                             else np.nan_to_num(np.asarray(qd, dtype=float), nan=0.0))
-        self._t_states = now
-        self._bad_states = None
-        self._n_states += 1
+        qd = None if qd is None else np.nan_to_num(np.asarray(qd, dtype=float), nan=0.0)
+        self.robot.measure(now, self.robot.joint_names, q, qd)
+
+    def on_named_joint_states(self, now: float, names: Sequence[str],
+                              positions: Sequence[float],
+                              velocities: Optional[Sequence[float]] = None) -> None:
+        """
+        Hand a /joint_states message's names, positions and velocities to the robot (by name).
+
+        Other joints are ignored. A missing or repeated name, arrays of different lengths or a
+        non-finite value raise ``InvalidInputError`` and make the states invalid with that
+        reason (fault).
+        """
+        self.robot.measure(now, names, positions, velocities)
 
     def on_invalid_states(self, now: float, reason: str) -> None:
         """Note joint states rejected at ``now`` [s] (missing joints, non-finite): fault."""
-        self._bad_states = str(reason)
+        self.robot.invalidate(reason)
 
     def on_demands(self, now: float, waypoints: np.ndarray, demand_id: str = '',
                    profile: str = '') -> int:
@@ -362,9 +380,10 @@ class ControllerCore:
 
     def snapshot(self) -> Snapshot:
         """Return the ``Snapshot`` a demand is planned from (call it under the node's lock)."""
-        state, ref = self._state, self._ref          # each read once
+        state, ref = self._state, self.robot.reference          # each read once
         moving = state != sm.IDLE and ref is not None
-        return Snapshot(state, ref if moving else (self._q, None), moving, self._motion_id)
+        q = self.robot.q if self.robot.measured else None
+        return Snapshot(state, ref if moving else (q, None), moving, self._motion_id)
 
     def prepare_demand(self, now: float, waypoints: np.ndarray,
                        snapshot: Optional[Snapshot] = None,
@@ -444,7 +463,7 @@ class ControllerCore:
                                      pending.waypoints, self._vlim, snapshot.start[1],
                                      pending.timing, self.arm.lower, self.arm.upper)
         self._timing = note
-        self._plan, self._t_plan = plan, pending.now
+        self.robot.give(plan, pending.now)
         self._motion_id += 1
         self._waypoints_total, self._waypoint = len(pending.waypoints), 0
         self._result = {}
@@ -482,16 +501,17 @@ class ControllerCore:
         """Decelerate to rest and hold; return ``(True, message)`` or why nothing moved."""
         if self._state not in (sm.EXECUTING, sm.SETTLING):
             return True, f'not moving ({self._state}); command is zero'
-        q_ref, qd_ref = self._ref if self._ref is not None else (self._q, self._qd_cmd)
-        self._plan, self._t_plan = plan_stop(q_ref, qd_ref, self.config.law.a_max), now
+        ref = self.robot.reference
+        q_ref, qd_ref = ref if ref is not None else (self.robot.q, self.robot.commanded)
+        self.robot.give(plan_stop(q_ref, qd_ref, self.config.law.a_max), now)
         self._result = {'result': 'stopped', 'reason': 'stop requested'}
         self._set(sm.STOP, 'OK', f'stopping motion {self._motion_id} on request')
-        return True, f'stopping within {self._plan.duration:.2f} s'
+        return True, f'stopping within {self.robot.plan.duration:.2f} s'
 
     def reset(self, now: float) -> None:
         """Leave fault: wait for fresh joint states again."""
         if self._state == sm.FAULT:
-            self._q = None
+            self.robot.forget_states()
             self._set(sm.RESET, 'WARN', 'reset: waiting for /joint_states')
 
     # --- the tick -----------------------------------------------------------------------------
@@ -509,16 +529,18 @@ class ControllerCore:
             qd = self._tick_stopping(now)
         if qd is None or self._state not in sm.MOVING_STATES:
             qd = np.zeros(self.arm.n_joints)
-            self._ref = None
+            self.robot.reference = None
         else:
-            if self._ticks is not None and self._state in (sm.EXECUTING, sm.SETTLING):
+            if (self._whole_tick_driver and self._state in (sm.EXECUTING, sm.SETTLING)
+                    and self._arrived_at is None):     # after arrival: whole-tick pulses
                 qd = self._whole_ticks(now, qd)
-            qd = guard_position_limits(qd, self._q, self.arm.lower, self.arm.upper, self._dt)
-        self._n_states_seen = self._n_states
-        if self._ticks is not None:
+            qd = guard_position_limits(qd, self.robot.q, self.robot.lower, self.robot.upper,
+                                       self._dt)
+        self._n_states_seen = self.robot.n_states
+        if self._whole_tick_driver:
             self._travel_log.append((now, self._travel.copy()))
             self._travel = self._travel + qd * self._dt
-        self._qd_cmd = qd
+        self.robot.commanded = qd
         jog = to_jog_units(qd, self.arm.velocity_limits, self.config.jog_units,
                            self.config.speed_override)
         if self._pending_config is not None and self._state not in sm.MOVING_STATES:
@@ -537,16 +559,17 @@ class ControllerCore:
         joint one tick; the next may start only on a reading that shows it.
         """
         pulsing = now < self._pulse_until
-        fresh = self._n_states > self._n_states_seen
-        may_start = fresh & (self._n_states >= self._pulse_after)
-        qd, dead = dead_zone_command(qd, self._error, self._ticks, self._min_speed,
-                                     pulsing | may_start)
+        fresh = self.robot.n_states > self._n_states_seen
+        may_start = fresh & (self.robot.n_states >= self._pulse_after)
+        qd, dead = dead_zone_command(qd, self.robot.error, self.robot.encoder_ticks,
+                                     self._min_speed, pulsing | may_start)
         started = dead & ~pulsing & may_start & (qd != 0.0)
+        self._pulse_speed[started] = qd[started]
         self._pulse_until[started] = now + self.config.driver_cycle + 0.5 * self._dt
-        self._pulse_after[started] = self._n_states + 2
+        self._pulse_after[started] = self.robot.n_states + 2
         law = ~dead & (qd != 0.0)          # moved by the law: in flight for up to two cycles
         self._pulse_until[law] = -np.inf
-        self._pulse_after[law] = self._n_states + 3
+        self._pulse_after[law] = self.robot.n_states + 3
         return qd
 
     def _in_flight(self):
@@ -558,7 +581,7 @@ class ControllerCore:
         be on its way; counting from two cycles before the reading came also covers delays of
         up to a cycle (erring towards 'in flight' only delays the arrival).
         """
-        since = self._t_states - 2.0 * self.config.driver_cycle
+        since = self.robot.t_states - 2.0 * self.config.driver_cycle
         start = self._travel
         for t, travel in reversed(self._travel_log):
             start = travel
@@ -567,52 +590,43 @@ class ControllerCore:
         return self._travel - start
 
     def _check_states(self, now):
-        if self._q is None:
-            if self._bad_states is not None:
-                message = f'waiting for valid /joint_states: {self._bad_states}'
+        if not self.robot.measured:
+            if self.robot.invalid_reason is not None:
+                message = f'waiting for valid /joint_states: {self.robot.invalid_reason}'
                 if message != self._message:
                     self._message, self._changed = message, True
             return
-        if self._bad_states is not None:
-            reason = f'invalid /joint_states: {self._bad_states}'
-        elif now - self._t_states > self.config.state_timeout:
-            reason = (f'/joint_states stale: last valid {now - self._t_states:.3f} s ago '
-                      f'(timeout {self.config.state_timeout} s)')
-        else:
-            reason = None
+        reason = self.robot.states_problem(now, self.config.state_timeout)
         if reason is not None:
             if self._state != sm.FAULT and sm.accepts(self._state, sm.STATES_INVALID):
                 if self._state in sm.MOVING_STATES:
                     self._result = {'result': 'fault', 'reason': reason}
-                self._plan = None
+                self.robot.drop_plan()
                 self._t_fault = now
                 self._set(sm.STATES_INVALID, 'ERROR', reason)
             return
         if self._state == sm.WAITING_FOR_STATES:
             self._set(sm.STATES_VALID, 'OK', 'joint states received; idle')
-        elif self._state == sm.FAULT and self._t_states > self._t_fault:
+        elif self._state == sm.FAULT and self.robot.t_states > self._t_fault:
             self._set(sm.STATES_VALID, 'OK', 'valid joint states again; idle')
 
     def _tick_executing(self, now):
-        t = now - self._t_plan
-        q_ref, qd_ref = self._plan.sample(t)
-        self._ref = (q_ref, qd_ref)
-        self._waypoint = self._plan.waypoints_reached(t)
-        self._error = q_ref - self._q
-        worst = float(np.max(np.abs(self._error)))
+        t = self.robot.follow(now)
+        q_ref, qd_ref = self.robot.reference
+        self._waypoint = self.robot.plan.waypoints_reached(t)
+        worst = float(np.max(np.abs(self.robot.error)))
         if worst > self.config.path_tolerance:
-            self._plan, self._t_plan = plan_stop(q_ref, qd_ref, self.config.law.a_max), now
+            self.robot.give(plan_stop(q_ref, qd_ref, self.config.law.a_max), now)
             reason = (f'tracking error {worst:.3f} rad above path tolerance '
                       f'{self.config.path_tolerance} rad')
             self._result = {'result': 'aborted', 'reason': reason}
             self._set(sm.PATH_ERROR, 'WARN', f'aborting motion {self._motion_id}: {reason}')
             return self._tick_stopping(now)
-        if t >= self._plan.duration:
+        if t >= self.robot.plan.duration:
             self._t_settle = now
             self._set(sm.REFERENCE_DONE, 'OK', f'motion {self._motion_id}: settling')
             return self._tick_settling(now)
-        return closed_loop_command(q_ref, qd_ref, self._q, self.config.position_gain,
-                                   self._vlim)
+        return self.robot.command(self.config.position_gain, self._vlim)
 
     def _tick_settling(self, now):
         """
@@ -623,13 +637,12 @@ class ControllerCore:
         joint is inside the settle tolerance or ``settle_time`` has passed since the arrival,
         then the controller goes idle and holds with a zero command.
         """
-        goal = self._plan.q_goal
-        self._ref = (goal, np.zeros_like(goal))
+        goal = self.robot.plan.q_goal
+        self.robot.hold(goal)
         self._waypoint = self._waypoints_total
-        self._error = goal - self._q
-        worst = float(np.max(np.abs(self._error)))
+        worst = float(np.max(np.abs(self.robot.error)))
         if self._arrived_at is None:
-            if np.all(self._within(self._tol)):
+            if np.all(self._within(self.robot.goal_tolerances)):
                 self._arrived_at = now
                 self._result = {'result': 'arrived', 'final_joint_error': f'{worst:.6f}'}
                 self._message = (f'motion {self._motion_id} arrived (max joint error '
@@ -645,7 +658,7 @@ class ControllerCore:
         if self._arrived_at is not None:
             fine = np.all(self._within(self._settle_tol))
             if fine or now - self._arrived_at >= self.config.settle_time:
-                if self._ticks is not None and np.any(self._in_flight() != 0.0):
+                if self._whole_tick_driver and np.any(self._in_flight() != 0.0):
                     # Settle time over: command zero until what is in flight has landed, so
                     # the arm is still once idle (the driver lags up to two cycles).
                     return np.zeros_like(goal)
@@ -654,47 +667,62 @@ class ControllerCore:
                 self._set(sm.SETTLED, 'OK', f'motion {self._motion_id} arrived; {how} '
                                             f'(max joint error {worst:.6f} rad); holding')
                 return None
-            return self._fine_command(goal)
-        return closed_loop_command(goal, np.zeros_like(goal), self._q,
-                                   self.config.position_gain, self._vlim)
+            return self._fine_command(now)
+        return self.robot.command(self.config.position_gain, self._vlim)
 
     def _within(self, tol):
         """Return which joints are within ``tol`` (n,) of the goal, counting what still moves."""
-        within = np.abs(self._error) <= tol
-        if self._ticks is not None:
-            within &= np.abs(self._error - self._in_flight()) <= tol
-        else:
-            # Not arrived while still moving: where the arm will be two ticks from now must be
-            # within tolerance too (a law that ends at full speed, such as the synchronised one,
-            # would otherwise declare arrival and coast one tick past the goal).
-            within &= np.abs(self._error - 2.0 * self._dt * self._qd_measured) <= tol
-        return within
+        if self._whole_tick_driver:
+            return self.robot.within(tol, self._in_flight())
+        # Not arrived while still moving: where the arm will be two ticks from now must be
+        # within tolerance too (a law that ends at full speed, such as the synchronised one,
+        # would otherwise declare arrival and coast one tick past the goal).
+        return self.robot.within(tol, 2.0 * self._dt * self.robot.qd)
 
-    def _fine_command(self, goal):
+    def _fine_command(self, now):
         """
         Return the command that closes the last of the error after arrival (n,) [rad/s].
 
-        The gain is at least ``FINE_GAIN_PER_TICK`` per control period (rad_per_s; the
-        readings are fresh) or per driver cycle on the error minus what is still in flight
-        (fraction_of_max: the readings lag up to two cycles), so the error falls from the goal
-        tolerance to the settle tolerance in a fraction of a second without overshoot.
+        rad_per_s: the closed loop with a gain of at least ``FINE_GAIN_PER_TICK`` per control
+        period (the readings are fresh), so the error falls from the goal tolerance to the
+        settle tolerance in a fraction of a second without overshoot. fraction_of_max: the
+        whole-tick pulses of ``_tick_pulses``.
         """
-        if self._ticks is None:
+        if not self._whole_tick_driver:
             gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / self._dt)
-            q = self._q
-        else:
-            gain = max(self.config.position_gain,
-                       FINE_GAIN_PER_CYCLE / self.config.driver_cycle)
-            q = self._q + self._in_flight()
-        return closed_loop_command(goal, np.zeros_like(goal), q, gain, self._vlim)
+            return self.robot.command(gain, self._vlim)
+        return self._tick_pulses(now)
+
+    def _tick_pulses(self, now):
+        """
+        Return the command that moves each joint onto the tick nearest its goal (n,) [rad/s].
+
+        The readings lag the driver by up to two cycles, so a closed loop on them either creeps
+        (a low gain: 4-10 ticks off a second after arrival) or oscillates. The driver is exact
+        instead: a command held over one cycle boundary moves ``trunc(speed * cycle / tick)``
+        ticks. So a joint whose reading is more than half a tick off gets one pulse of the
+        whole number of ticks nearest its error (``velocity_laws.tick_pulse_command``), lasting
+        one driver cycle (as ``_whole_ticks``), and no new one until a reading shows it landed
+        (``PULSE_READINGS`` readings later; the law's last moves too). Each pulse closes the
+        error to the nearest tick, up to the servo's lag in the reading it was computed from.
+        """
+        ticks, cycle = self.robot.encoder_ticks, self.config.driver_cycle
+        error = self.robot.error
+        pulsing = now < self._pulse_until
+        fresh = self.robot.n_states > self._n_states_seen
+        start = (fresh & ~pulsing & (self.robot.n_states >= self._pulse_after)
+                 & (np.abs(error) > 0.5 * ticks))
+        speed = tick_pulse_command(error, ticks, cycle, self._vlim)
+        self._pulse_speed[start] = speed[start]
+        self._pulse_until[start] = now + cycle + 0.5 * self._dt
+        self._pulse_after[start] = self.robot.n_states + PULSE_READINGS
+        return np.where(pulsing | start, self._pulse_speed, 0.0)
 
     def _tick_stopping(self, now):
-        t = now - self._t_plan
-        q_ref, qd_ref = self._plan.sample(t)
-        self._ref = (q_ref, qd_ref)
-        self._error = q_ref - self._q
-        if t >= self._plan.duration:
-            self._plan = None
+        t = self.robot.follow(now)
+        qd_ref = self.robot.reference[1]
+        if t >= self.robot.plan.duration:
+            self.robot.drop_plan()
             result = self._result.get('result', 'stopped')
             self._set(sm.AT_REST, 'OK' if result == 'stopped' else 'WARN',
                       f'motion {self._motion_id} {result}: at rest, holding')
@@ -711,7 +739,7 @@ class ControllerCore:
     def status(self) -> Status:
         """Return the ``Status`` to publish now (state, level, reason, figures)."""
         moving = self._state in sm.MOVING_STATES
-        error = self._error if moving else np.zeros(self.arm.n_joints)
+        error = self.robot.error if moving else np.zeros(self.arm.n_joints)
         values = {
             'state': self._state,
             'motion_id': self._motion_id,
@@ -722,7 +750,7 @@ class ControllerCore:
             'profile': self.config.law.profile,
             'jog_units': self.config.jog_units,
             'rate': f'{self.config.rate:g}',
-            'goal_tolerance': ' '.join(f'{t:.6f}' for t in self._tol),
+            'goal_tolerance': ' '.join(f'{t:.6f}' for t in self.robot.goal_tolerances),
         }
         if self._pending_config is not None:
             pending = self._pending_config['config']

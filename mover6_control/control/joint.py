@@ -3,9 +3,12 @@ One joint of the arm: what the Mover6 report's ``Joint`` class holds, as a small
 
 The Mover6 report keeps per joint a name, the measured value, the demand, the state at the start of
 the move and a velocity, and computes the sign of the move and the trapezoidal velocity (eq.
-16-18). This keeps the same facts plus the joint's limits, and fixes the report's sign at zero
-distance (a division by zero there: here a joint at its demand has direction 0). The trapezoid
-itself is the one of ``motion.time_laws``.
+16-18). This keeps the same facts plus what the controller needs of a joint: its limits
+(position, velocity, acceleration), its goal tolerance and, for the vendor driver, its encoder
+tick; and fixes the report's sign at zero distance (a division by zero there: here a joint at
+its demand has direction 0). The trapezoid itself is the one of ``motion.time_laws``.
+``control.robot.Robot`` holds the joints of the arm the controller drives and hands out
+``Joint`` values of its present state.
 """
 
 from __future__ import annotations
@@ -26,8 +29,11 @@ class Joint:
 
     ``q`` [rad] and ``qd`` [rad/s] are the measured position and velocity; ``demand`` [rad] is the
     position the joint is sent to and ``q_initial`` [rad] the measured position when that demand
-    was set (the Mover6 report's ``init_state``). ``lower``/``upper`` [rad] are the position limits
-    and ``velocity_limit`` [rad/s] the speed limit.
+    was set (the Mover6 report's ``init_state``). ``lower``/``upper`` [rad] are the position
+    limits, ``velocity_limit`` [rad/s] the speed limit and ``acceleration_limit`` [rad/s^2] the
+    acceleration limit (inf: none). ``goal_tolerance`` [rad]: the joint has arrived this close
+    to its demand. ``encoder_tick`` [rad]: one tick of a driver that moves whole ticks (the
+    Mover6's vendor driver), None for a driver that takes velocities.
     """
 
     name: str
@@ -38,6 +44,9 @@ class Joint:
     qd: float = 0.0
     demand: float = 0.0
     q_initial: float = 0.0
+    acceleration_limit: float = math.inf
+    goal_tolerance: float = 0.002
+    encoder_tick: Optional[float] = None
 
     def __post_init__(self):
         """Check that the limits make sense and every value is finite."""
@@ -47,6 +56,12 @@ class Joint:
             raise InvalidInputError(
                 f'joint {self.name}: limits [{self.lower}, {self.upper}] are not an interval')
         as_positive(self.velocity_limit, f'joint {self.name}: velocity limit')
+        if not self.acceleration_limit > 0.0:
+            raise InvalidInputError(f'joint {self.name}: acceleration limit must be > 0, got '
+                                    f'{self.acceleration_limit}')
+        as_positive(self.goal_tolerance, f'joint {self.name}: goal tolerance')
+        if self.encoder_tick is not None:
+            as_positive(self.encoder_tick, f'joint {self.name}: encoder tick')
         for field in ('q', 'qd', 'demand', 'q_initial'):
             if not math.isfinite(getattr(self, field)):
                 raise InvalidInputError(f'joint {self.name}: {field} is not finite')
@@ -71,6 +86,11 @@ class Joint:
     def within_limits(self, q: float, tol: float = 1e-9) -> bool:
         """Return True when ``q`` [rad] is inside the limits, with ``tol`` [rad]."""
         return self.lower - tol <= q <= self.upper + tol
+
+    @property
+    def arrived(self) -> bool:
+        """Return True when the measured position is within the goal tolerance of the demand."""
+        return abs(self.distance_to_go) <= self.goal_tolerance
 
     @property
     def distance_to_go(self) -> float:

@@ -317,6 +317,26 @@ def dead_zone_command(qd: np.ndarray, error: np.ndarray, tick_size: np.ndarray,
     return out, dead
 
 
+def tick_pulse_command(error: np.ndarray, tick_size: np.ndarray, driver_cycle: float,
+                       velocity_limits: np.ndarray) -> np.ndarray:
+    """
+    Return the speeds (n,) [rad/s] that move each joint whole ticks towards ``error`` in a cycle.
+
+    For a driver that moves ``trunc(speed * driver_cycle / tick)`` ticks per cycle: each joint
+    gets ``k = round(error / tick_size)`` ticks (``error`` (n,) [rad], ``tick_size`` (n,)
+    [rad]), at most what ``velocity_limits`` (n,) [rad/s] allow in one ``driver_cycle`` [s],
+    commanded as ``(|k| + TICK_MARGIN - 1) tick / cycle`` so the truncation gives exactly ``k``.
+    Held for one driver cycle it closes the error to the nearest tick in one step (zero for a
+    joint within half a tick).
+    """
+    tick_size = np.asarray(tick_size, dtype=float)
+    k_max = np.maximum(np.floor(np.asarray(velocity_limits) * driver_cycle / tick_size
+                                - (TICK_MARGIN - 1.0)), 1.0)
+    k = np.minimum(np.abs(np.round(np.asarray(error, dtype=float) / tick_size)), k_max)
+    return np.where(k > 0.0, np.sign(error) * (k + TICK_MARGIN - 1.0) * tick_size / driver_cycle,
+                    0.0)
+
+
 # --- laws -----------------------------------------------------------------------------------
 
 def _check_inputs(q_start, waypoints, velocity_limits, qd_start):

@@ -12,7 +12,10 @@ writes it): the status then carries it as ``goal_id`` next to the ``motion_id`` 
 label ending in ``profile <name>`` times that demand with its own law (``motion_profile`` in the
 status; the ``profile`` parameter does not change).
 All the logic is
-in ``mover6_control.control.controller_core``; this node converts, calls it and publishes. For
+in ``mover6_control.control.controller_core``, whose model of the arm is a
+``control.robot.Robot`` (``self.core.robot``): the node hands each /joint_states message's
+names, positions and velocities to it (mapped by name there), converts demands, calls the core
+and publishes. For
 the Mover6's vendor driver set ``jog_units`` to fraction_of_max; ``driver_tick_size`` and
 ``driver_cycle`` (defaults: the Mover6's) let the core move joints that a command under one
 encoder tick per cycle would leave standing, and widen the goal tolerance to one tick.
@@ -179,16 +182,18 @@ class ControllerNode(Node):
         self.publish_status(self.now())
 
     def on_joint_states(self, msg):
-        """Take a JointState by name; an incomplete or non-finite one faults the core."""
+        """
+        Hand a JointState's names, positions and velocities to the core's robot (by name).
+
+        Other joints (a gripper) are ignored; a missing or repeated joint, or a non-finite value,
+        makes the states invalid with that reason: the core faults.
+        """
         now = self.now()
         try:
-            q, qd = conversions.joint_state_from_msg(msg, self.joint_names)
             with self.lock:
-                self.core.on_joint_states(now, q, qd)
-            self.last_q = q
+                self.core.on_named_joint_states(now, msg.name, msg.position, msg.velocity)
+                self.last_q = self.core.robot.q
         except InvalidInputError as err:
-            with self.lock:
-                self.core.on_invalid_states(now, str(err))
             self.get_logger().warning(f'bad /joint_states: {err}', throttle_duration_sec=1.0)
 
     def on_demands(self, msg):
