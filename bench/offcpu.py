@@ -15,7 +15,8 @@ Use (perf must be allowed to trace the process: root, or ``perf_event_paranoid``
 
 ``bench_churn --offcpu`` records the controller's Fast DDS threads during its run. Idle waits
 (a receive thread in ``recvfrom`` or ``wait_pop``, the event thread's timed wait, the
-shared-memory watchdog) are left out of the report unless ``--all``.
+shared-memory watchdog, the asynchronous writer thread waiting for work) are left out of the
+report unless ``--all``.
 """
 
 import argparse
@@ -26,7 +27,7 @@ import sys
 
 # Frames of waits that are a thread's normal idle state, not a stall.
 IDLE_FRAMES = ('recvfrom', 'Port::wait_pop', 'SharedMemWatchdog', 'event_service',
-               'ResourceEvent::run', 'select_poll', 'epoll_wait')
+               'ResourceEvent::run', 'select_poll', 'epoll_wait', 'FlowControllerImpl')
 HEADER = re.compile(r'\s*(\S.*?)\s+(\d+)\s+([\d.]+):')
 
 
