@@ -25,7 +25,7 @@ import time
 from control_msgs.msg import JointJog
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import LIMIT_SETS, load_urdf, mover6
-from mover6_control.nodes import conversions, dds_transport, params, shutdown
+from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.parameters import SIM_BRIDGE
 import numpy as np
 from rclpy.node import Node
@@ -334,8 +334,7 @@ class SimBridgeNode(Node):
 
 def main(args=None):
     """Run the sim_bridge node until Ctrl-C, SIGTERM or shutdown (one or more signals: exit 0)."""
-    note = dds_transport.use_udp_between_processes()     # before rclpy.init: see there
-    shutdown.run_node(lambda: dds_transport.logged(SimBridgeNode(), note), args)
+    shutdown.run_node(SimBridgeNode, args)
 
 
 if __name__ == '__main__':

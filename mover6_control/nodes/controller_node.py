@@ -46,7 +46,7 @@ from mover6_control.control.state_machine import FAULT
 from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.kinematics.arm import LIMIT_SETS, mover6
-from mover6_control.nodes import conversions, dds_transport, params, shutdown
+from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from mover6_control.parameters import CONTROLLER
 from rcl_interfaces.msg import SetParametersResult
@@ -405,8 +405,7 @@ def main(args=None):
     # default 5 ms switch interval while the executor thread runs Python: this keeps the period
     # error p99 well under a millisecond at 100 Hz (bench/bench_controller.py).
     sys.setswitchinterval(0.0005)
-    note = dds_transport.use_udp_between_processes()     # before rclpy.init: see there
-    shutdown.run_node(lambda: dds_transport.logged(ControllerNode(), note), args)
+    shutdown.run_node(ControllerNode, args)
 
 
 if __name__ == '__main__':
