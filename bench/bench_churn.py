@@ -19,33 +19,70 @@ as ``ros2 topic echo`` does), waits for one message and exits. Figures:
 - the bridge's "joints halted" lines (a /JointJog older than its 0.2 s ``command_timeout``);
 - motions sent, arrived, and ended otherwise (aborted, fault, stopped).
 
-The variants run one after the other in the same run, each with a fresh stack: ``default`` (the
-controller as rmw_fastrtps sets it up), ``async`` (``RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``
-for the controller), ``udp_only`` (``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``, no shared memory) and
-``rt_prio_50`` (``tick_priority:=50``: the tick thread at SCHED_FIFO 50 where allowed).
-The machine is shared: the load average is printed and stored.
+The variants run one after the other in the same run (``--repeat N``: N times, alternately),
+each with a fresh stack; the environment applies to the controller and the bridge: ``default``
+(Fast DDS as rmw_fastrtps sets it up), ``async`` (``RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``)
+and ``rt_prio_50`` (``tick_priority:=50``: the tick thread at SCHED_FIFO 50 where allowed). The
+machine is shared: the load average is printed and stored. Halts are counted from the bridge's
+log between the first motion and the end of the last (the controller stops before the bridge,
+so the bridge halts once more at teardown: reported apart).
 
-What the stalls are, as measured so far: the controller's stack (``MOVER6_TICK_WATCHDOG``) shows
-the tick thread inside ``Publisher.publish`` (JointJog, or /controller/status with ``async``) for
-about 330 ms while a churn process joins. rclpy's ``publish`` keeps the interpreter lock during
-``rcl_publish``, so a blocked DDS write stops every Python thread of the node: the /joint_states
-callback too (the controller faulted with "/joint_states stale: 0.334 s"). A publisher thread
-would therefore not help. Stalls of 50-130 ms also happen with the tick thread asleep in
-``Clock.sleep_until`` (a gdb stack taken at the moment): the loaded machine's scheduler, which a
-real-time ``tick_priority`` addresses where the system allows it.
+What the stalls are, measured (``--offcpu``: perf records where the controller's Fast DDS
+threads wait, ``bench/offcpu.py`` prints the longest waits with their stacks; the tick thread's
+own stack comes from ``MOVER6_TICK_WATCHDOG``):
 
-Run: ``./run.sh bench churn`` or ``./run.sh exec python -m bench.bench_churn [--quick]``
-(``--quick``: 16 churn processes instead of 40). Writes bench/results/churn.json.
+- the tick thread sits in ``Publisher.publish`` (JointJog) for ~333 ms. rclpy keeps the
+  interpreter lock during ``rcl_publish``, so every Python thread of the node stops with it;
+- the publish waits for the participant's send lock (Fast DDS 2.14 ``RTPSParticipantImpl::
+  sendSync`` holds one mutex per participant across the send on every transport). Meanwhile the
+  receive thread that handles discovery holds it: a churn process's reader was discovered,
+  ``StatefulWriter::matched_reader_add`` sends to it at once, and the shared-memory transport
+  opens the new process's port: ``SharedMemGlobal::open_port_internal`` polls the port's health
+  check (``nanosleep``) for 333 ms. The shared-memory receive threads wait on the PDP mutex
+  meanwhile, so /joint_states stop arriving too (``state_timeout`` 0.25 s: the controller faults).
+  333 ms is a third of the default ``healthy_check_timeout_ms`` (1000): the health check of a
+  fresh, healthy port waits for the port's watchdog round (eProsima/Fast-DDS issue 6535, open).
+  Every reliable writer matched by a new process takes that path; rmw's own
+  ``ros_discovery_info`` writer is matched by every new ROS process, so no QoS of ours avoids it;
+- asynchronous publication moves the JointJog write to Fast DDS's thread, which then waits for
+  the same lock (and the status writer is the one being matched): the JointJog still arrives
+  ~360 ms late;
+- the shared-memory transport cannot be switched off the usual ways while
+  ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is ``LOCALHOST``: rmw_fastrtps (Jazzy) then sets the
+  participant's transports itself (shared memory plus UDPv4), so neither
+  ``FASTDDS_BUILTIN_TRANSPORTS`` nor an XML transport setting has any effect (a ``udp_only``
+  variant that was here measured the default configuration twice; ``controller_dds_threads``
+  in the JSON lists the threads the controller ran). A GUID prefix of another host (which rmw
+  does take from the XML profile) does not help either: Fast DDS picks shared memory per remote
+  locator (``SHMLocator::is_shm_and_from_this_host``, the host id inside the locator), and the
+  controller still opened a joining process's port. Left: a Fast DDS with issue 6535 fixed, or
+  discovery range ``SYSTEM_DEFAULT`` with an XML profile that keeps UDP on the loopback interface
+  and drops shared memory (not measured here: every process must run with ``LOCALHOST``);
+- the shorter gaps (20-150 ms, ``ticks_over_30ms``) are the process waiting for a CPU on a
+  loaded machine (two cores, load 4-11 during these runs; the watchdog then finds the tick
+  thread anywhere in its Python code). ``rt_prio_50`` narrows them (period error p50 and p99)
+  but cannot remove them: the real-time tick thread still needs the interpreter lock, which a
+  preempted normal-priority thread of the node may hold. The stall warning is logged from the
+  tick thread (rclpy's throttled logger inspects the caller's source file, and /rosout is a DDS
+  write): in one run the tick that logged a 72 ms gap began a 360 ms gap itself, its log line
+  stamped 350 ms after the tick started.
+
+Run: ``./run.sh bench churn`` or ``./run.sh exec python -m bench.bench_churn [--quick]
+[--variant NAME] [--repeat N] [--offcpu]`` (``--quick``: 16 churn processes instead of 40).
+Writes
+bench/results/churn.json.
 """
 
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
 import time
 
+from bench import offcpu as offcpu_tool
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -59,14 +96,15 @@ AT_ONCE = 4                  # churn processes alive at the same time
 CHURN_TIMEOUT = 30.0         # [s] a churn process that saw no status by then is killed
 MOTIONS = np.array([[0.5, -0.4, 0.3, 0.4, -0.3, 0.6], [-0.4, 0.3, -0.3, -0.4, 0.4, -0.5]])
 HALT_LINE = '/JointJog command stale: joints halted'
-# The candidates measured side by side (environment of the controller process only): Fast DDS as
-# rmw_fastrtps sets it up; asynchronous publication (writes handed to Fast DDS's own thread);
-# UDP only (no shared-memory transport). Neither changed the stalls in our runs (see the module
-# doc); they stay so that a fix can be measured against them.
+LOG_STAMP = re.compile(r'^\[\w+\] \[(\d+\.\d+)\]')   # a ROS log line: [LEVEL] [wall time]
+# The candidates measured side by side (environment of the controller and bridge processes,
+# parameters of the controller): Fast DDS as rmw_fastrtps sets it up; asynchronous publication
+# (writes handed to Fast DDS's own thread); the tick thread at real-time priority. None removes
+# the 333 ms stalls (see the module doc); they stay so that a fix can be measured against them.
 VARIANTS = (('default', {}, {}),
             ('async', {'RMW_FASTRTPS_PUBLICATION_MODE': 'ASYNCHRONOUS'}, {}),
-            ('udp_only', {'FASTDDS_BUILTIN_TRANSPORTS': 'UDPv4'}, {}),
             ('rt_prio_50', {}, {'tick_priority': 50}))
+STALL = 0.2                  # [s] a tick gap this long is a stall (the driver halts at 0.2 s)
 
 
 def echo_main(topic):
@@ -124,8 +162,43 @@ class Churn:
         self.running = []
 
 
-def run_variant(name, env_extra, params, total, log_dir):
-    """Run the stack with ``env_extra`` for the controller under churn; return the figures."""
+def dds_threads(pid):
+    """Return the sorted names of the Fast DDS threads (``dds.*``) of process ``pid``."""
+    names = set()
+    for tid in os.listdir(f'/proc/{pid}/task'):
+        try:
+            with open(f'/proc/{pid}/task/{tid}/comm') as f:
+                name = f.read().strip()
+        except OSError:
+            continue
+        if name.startswith('dds.'):
+            names.add(name)
+    return sorted(names)
+
+
+def log_lines_between(path, line, wall_t0, wall_t1):
+    """Count the lines of ROS log ``path`` containing ``line``: (inside, after) [t0, t1] (wall)."""
+    inside = after = 0
+    with open(path) as f:
+        for text in f:
+            if line not in text:
+                continue
+            stamp = LOG_STAMP.search(text)
+            t = float(stamp.group(1)) if stamp else float('inf')
+            if wall_t0 <= t <= wall_t1:
+                inside += 1
+            elif t > wall_t1:
+                after += 1
+    return inside, after
+
+
+def run_variant(name, env_extra, params, total, log_dir, offcpu=False):
+    """
+    Run the stack with ``env_extra`` for the controller under churn; return the figures.
+
+    ``offcpu``: record where the controller's Fast DDS threads wait (``bench.offcpu``) during the
+    motions; the longest waits go to ``offcpu.txt`` in the variant's log directory.
+    """
     from control_msgs.msg import JointJog
     from diagnostic_msgs.msg import DiagnosticStatus
     from mover6_control.nodes import conversions
@@ -140,7 +213,18 @@ def run_variant(name, env_extra, params, total, log_dir):
     variant_dir = os.path.join(log_dir, name)
     os.makedirs(variant_dir, exist_ok=True)
     probe_path = os.path.join(variant_dir, 'ticks.npy')
-    bridge = NodeProcess('sim_bridge', variant_dir, ros_args=ns_args)
+    perf_path = os.path.join(variant_dir, 'perf.data')
+    perf = None
+    saved = {k: os.environ.get(k) for k in env_extra}
+    os.environ.update(env_extra)          # the bridge runs as the controller does
+    try:
+        bridge = NodeProcess('sim_bridge', variant_dir, ros_args=ns_args)
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                del os.environ[key]
+            else:
+                os.environ[key] = value
     cmd = [sys.executable, '-m', 'bench.bench_controller', '--probe', probe_path, '--ros-args',
            '--params-file', os.path.join(ROOT, 'config', 'controller.yaml'),
            '-p', f'rate:={RATE}']
@@ -175,7 +259,11 @@ def run_variant(name, env_extra, params, total, log_dir):
             raise RuntimeError(f'{name}: the controller did not become idle within 60 s '
                                f'(last status {statuses[-1:]})')
         time.sleep(0.5)
-        t0 = time.monotonic()
+        threads = dds_threads(controller.pid)
+        if offcpu:
+            perf_log = open(os.path.join(variant_dir, 'perf.log'), 'w')
+            perf = offcpu_tool.start_recording(controller.pid, perf_path, log=perf_log)
+        t0, wall_t0 = time.monotonic(), time.time()
         waiting_for = None    # the motion id of the demand sent last, until it ends
         sent_at = t0
         # Motions back and forth until the churn is over and the last motion has ended.
@@ -204,10 +292,13 @@ def run_variant(name, env_extra, params, total, log_dir):
                 sent += 1
                 waiting_for = int(status.get('motion_id', 0)) + 1
                 sent_at = time.monotonic()
-        t1 = time.monotonic()
+        t1, wall_t1 = time.monotonic(), time.time()
         last_status = statuses[-1]
     finally:
         churn.stop()
+        if perf is not None:
+            offcpu_tool.stop_recording(perf)
+            perf_log.close()
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown(context=context)
@@ -226,10 +317,17 @@ def run_variant(name, env_extra, params, total, log_dir):
     err = np.abs(periods - 1.0 / RATE)
     jog = np.array(jog_times)
     jog = jog[(jog >= t0) & (jog <= t1)]
-    with open(bridge.log_path) as f:
-        halts = f.read().count(HALT_LINE)
-    with open(controller_log.name) as f:
-        stall_lines = sum('the tick thread stalled' in line for line in f)
+    halts, halts_after = log_lines_between(bridge.log_path, HALT_LINE, wall_t0, wall_t1)
+    stall_lines, _ = log_lines_between(controller_log.name, 'the tick thread stalled', wall_t0,
+                                       wall_t1)
+    longest_waits = []
+    if perf is not None:
+        with open(os.path.join(variant_dir, 'offcpu.txt'), 'w') as f:
+            found = offcpu_tool.report(perf_path, top=8, min_ms=20.0, out=f)
+        for duration, _, thread, state, _, stack in found[:3]:
+            frames = [offcpu_tool.short(s) for s in stack if 'eprosima' in s]
+            longest_waits.append({'ms': round(duration * 1e3, 1), 'thread': thread,
+                                  'state': state, 'frames': frames[:6]})
     results = list(motions.values())
     return {'variant': name, 'env': env_extra, 'params': params, 'seconds': t1 - t0,
             'ticks': int(len(ticks)),
@@ -240,10 +338,13 @@ def run_variant(name, env_extra, params, total, log_dir):
             'period_error_p99_ms': float(np.percentile(err, 99) * 1e3),
             'period_error_max_ms': float(np.max(err) * 1e3),
             'ticks_over_30ms': int(np.sum(periods > 0.030)),
+            f'ticks_over_{STALL * 1e3:.0f}ms': int(np.sum(periods > STALL)),
             'controller_max_tick_gap_ms': float(last_status.get('max_tick_gap', 'nan')) * 1e3,
             'controller_stall_warnings': stall_lines,
             'jointjog_received_max_gap_ms': float(np.max(np.diff(jog)) * 1e3),
-            'bridge_halts': halts, 'motions_sent': sent,
+            'bridge_halts': halts, 'bridge_halts_at_teardown': halts_after,
+            'controller_dds_threads': threads, 'offcpu_longest_waits': longest_waits,
+            'motions_sent': sent,
             'motions_arrived': results.count('arrived'),
             'motions_not_arrived': len(results) - results.count('arrived'),
             'motion_results': results, 'log_dir': variant_dir}
@@ -256,20 +357,27 @@ def main(argv=None):
                         help=f'{CHURN_QUICK} churn processes instead of {CHURN}')
     parser.add_argument('--variant', action='append', choices=[v[0] for v in VARIANTS],
                         help='run only this variant (may repeat)')
+    parser.add_argument('--repeat', type=int, default=1,
+                        help='run the variants this many times, alternately')
+    parser.add_argument('--offcpu', action='store_true',
+                        help="record where the controller's DDS threads wait (perf; see "
+                        'bench/offcpu.py)')
     args = parser.parse_args(argv)
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.setdefault('ROS_DOMAIN_ID', '33')
     total = CHURN_QUICK if args.quick else CHURN
     log_dir = tempfile.mkdtemp(prefix='bench_churn_')
     load = os.getloadavg()
-    results = {'quick': args.quick, 'rate_hz': RATE, 'cpus': os.cpu_count(),
+    results = {'quick': args.quick, 'repeat': args.repeat, 'rate_hz': RATE, 'cpus': os.cpu_count(),
                'load_average_at_start': list(load), 'variants': []}
     print(f'load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} CPUs '
           '(other processes on the machine disturb every figure below); logs in ' + log_dir)
-    for name, env_extra, params in VARIANTS:
-        if args.variant and name not in args.variant:
-            continue
-        row = run_variant(name, env_extra, params, total, log_dir)
+    runs = [(rep, v) for rep in range(args.repeat) for v in VARIANTS
+            if not args.variant or v[0] in args.variant]
+    for repetition, (name, env_extra, params) in runs:
+        row = run_variant(name, env_extra, params, total,
+                          os.path.join(log_dir, f'run{repetition + 1}'), args.offcpu)
+        row['repetition'] = repetition + 1
         row['load_average_after'] = list(os.getloadavg())
         results['variants'].append(row)
         print(f'{name}: {json.dumps({k: v for k, v in row.items() if k != "motion_results"})}',
@@ -277,13 +385,16 @@ def main(argv=None):
     print(f'\n{total} processes join and leave the graph (each echoes /controller/status once) '
           f'during motions; controller at {RATE:g} Hz. Goal: largest gap < 30 ms, no halt, '
           'no aborted motion')
-    print(f'{"variant":>8} {"ticks":>6} {"max gap [ms]":>13} {"err p50 [ms]":>13} '
-          f'{"err p99 [ms]":>13} {">30 ms":>7} {"jog rx max gap [ms]":>20} {"halts":>6} '
+    stall_key = f'ticks_over_{STALL * 1e3:.0f}ms'
+    print(f'{"variant":>10} {"ticks":>6} {"max gap [ms]":>13} {"err p50 [ms]":>13} '
+          f'{"err p99 [ms]":>13} {">30 ms":>7} {f">{STALL * 1e3:.0f} ms":>7} '
+          f'{"jog rx max gap [ms]":>20} {"halts":>6} '
           f'{"motions ok/sent":>16} {"load 1 min":>11}')
     for row in results['variants']:
-        print(f'{row["variant"]:>8} {row["ticks"]:6d} {row["max_tick_gap_ms"]:13.1f} '
+        print(f'{row["variant"]:>10} {row["ticks"]:6d} {row["max_tick_gap_ms"]:13.1f} '
               f'{row["period_error_p50_ms"]:13.3f} {row["period_error_p99_ms"]:13.3f} '
-              f'{row["ticks_over_30ms"]:7d} {row["jointjog_received_max_gap_ms"]:20.1f} '
+              f'{row["ticks_over_30ms"]:7d} {row[stall_key]:7d} '
+              f'{row["jointjog_received_max_gap_ms"]:20.1f} '
               f'{row["bridge_halts"]:6d} '
               f'{row["motions_arrived"]:>7d}/{row["motions_sent"]:<8d} '
               f'{row["load_average_after"][0]:11.2f}')

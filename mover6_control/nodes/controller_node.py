@@ -122,10 +122,8 @@ class ControllerNode(Node):
         self.destroyed = False
         self.pending_logged = False      # 'applies to the next motion' said, not yet applied
         self.tick_thread = threading.Thread(target=self.tick_loop, daemon=True)
-        self.tick_thread.start()
         self.demands = queue.SimpleQueue()   # /joint_demands messages not yet taken; None: end
         self.demand_thread = threading.Thread(target=self.demand_loop, daemon=True)
-        self.demand_thread.start()
         # Goal ids (the planner's, or an action goal's) of the demands: echoed in the status.
         self.motion_goals = {}       # motion_id -> goal id ('' for none)
         self.goal_motions = {}       # goal id -> motion_id
@@ -133,6 +131,10 @@ class ControllerNode(Node):
         self.motion_starts = {}      # motion_id -> node clock [s] its plan counts from
         self.last_q = None           # the latest valid joint positions, for the action
         self.trajectory_server = FollowJointTrajectoryServer(self)
+        # Started once every attribute exists: a tick thread at real-time priority (tick_priority)
+        # runs at once and publishes a status, which reads motion_goals (it raised before).
+        self.tick_thread.start()
+        self.demand_thread.start()
         ticks = ''
         if config.jog_units == 'fraction_of_max':
             ticks = (' (whole ticks; goal tolerance '

@@ -1,0 +1,49 @@
+"""
+The controller's threads start only once the node is whole (found by bench churn, issue 12).
+
+With ``tick_priority`` the real-time tick thread ran before ``__init__`` had finished, published
+a status, and died on a missing attribute: the controller never ticked. Here a started thread
+runs at once, in the caller, the worst order a scheduler can choose.
+"""
+
+import threading
+
+from mover6_control.nodes import controller_node
+from mover6_control.nodes.controller_node import ControllerNode
+import pytest
+import rclpy
+
+NS = 'thread_start'
+
+
+class RunsAtOnce(threading.Thread):
+    """A thread whose ``start`` runs its target in the caller, before ``start`` returns."""
+
+    def start(self):
+        """Run the target now (an exception propagates to the caller)."""
+        self.run()
+
+
+def test_threads_start_after_every_attribute_exists(monkeypatch):
+    ran = []
+
+    def one_tick(node):
+        node.publish_status(node.now())      # what a real-time tick thread does first
+        ran.append('tick')
+
+    monkeypatch.setattr(controller_node.threading, 'Thread', RunsAtOnce)
+    monkeypatch.setattr(ControllerNode, 'tick_loop', one_tick)
+    monkeypatch.setattr(ControllerNode, 'demand_loop', lambda node: ran.append('demand'))
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = ControllerNode(context=context, namespace=NS)
+        assert ran == ['tick', 'demand']
+        node.running = False
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+if __name__ == '__main__':
+    pytest.main([__file__])
