@@ -27,8 +27,10 @@ that lock. Demands are planned in a third thread, in the order they came: the co
 plans a long path for tens of milliseconds, hundreds on a loaded machine, and neither the ticks
 nor the /joint_states callback may wait that long (states unread for ``state_timeout`` fault the
 controller); a plan that the controller moved on from meanwhile is made again, also outside the
-lock. JointJog and status are published outside it too: a DDS write can block (0.33 s was seen
-right after start-up).
+lock. JointJog and status are published outside it too: a DDS write can block. Measured
+(``bench/bench_churn.py``): Fast DDS 2.14 holds one send lock per participant, and its discovery
+thread holds it while it opens the shared-memory port of a process that just joined the graph,
+which can take 333 ms (eProsima/Fast-DDS issue 6535); every write of the node waits that long.
 
 The status value ``max_tick_gap`` [s] is the longest time between two ticks since the node
 started (node clock; nominal ``1 / rate``), and a tick later than ``TICK_GAP_WARN`` logs a
@@ -343,11 +345,6 @@ class ControllerNode(Node):
         time_now = self.get_clock().now()
         now = time_now.nanoseconds * 1e-9
         gap = self.note_tick(time_now.nanoseconds)
-        if gap > TICK_GAP_WARN:
-            self.get_logger().warning(
-                f'tick {gap * 1e3:.0f} ms after the one before (period '
-                f'{1e3 / self.core.config.rate:.0f} ms): the tick thread stalled',
-                throttle_duration_sec=1.0)
         with self.lock:
             out = self.core.tick(now)
             fault_change = None
@@ -372,6 +369,11 @@ class ControllerNode(Node):
         # while the sim bridge was being matched), and the callbacks must not wait for it.
         self.jog_pub.publish(
             conversions.make_joint_jog(self.joint_names, out.jog, time_now.to_msg()))
+        if gap > TICK_GAP_WARN:         # logged after the command went, not before it
+            self.get_logger().warning(
+                f'tick {gap * 1e3:.0f} ms after the one before (period '
+                f'{1e3 / self.core.config.rate:.0f} ms): the tick thread stalled',
+                throttle_duration_sec=1.0)
         if status_due:
             self.publish_status(now)
 
