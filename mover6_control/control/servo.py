@@ -92,7 +92,7 @@ class ServoConfig:
 
 @dataclass(frozen=True, eq=False)
 class TwistCommand:
-    """A flange twist: ``linear`` (3,) [m/s], ``angular`` (3,) [rad/s] in ``frame``, at ``stamp``."""
+    """A flange twist: ``linear`` (3,) [m/s] and ``angular`` (3,) [rad/s] in ``frame``."""
 
     stamp: float
     linear: np.ndarray
