@@ -508,8 +508,7 @@ class ControllerCore:
                     raise InvalidInputError(f'jog command older than the timeout {timeout:g} s '
                                             'by its stamp')
         except InvalidInputError as err:
-            if self._jog_refused != str(err):     # a stream of refusals: one status change
-                self._jog_refused, self._changed = str(err), True
+            self.note_jog_refused(str(err))
             raise
         self._jog = command
         if self._jog_refused:
@@ -519,6 +518,11 @@ class ControllerCore:
             self._jog_kind = ''
             self._result = {}
             self._set(sm.JOG, 'OK', 'jogging')
+
+    def note_jog_refused(self, reason: str) -> None:
+        """Keep why a jog command was refused (status: ``jog_refused``) until one is taken."""
+        if self._jog_refused != reason:     # a stream of the same refusal: one status change
+            self._jog_refused, self._changed = reason, True
 
     def _tick_jogging(self, now):
         """Return this tick's jogging command; back to idle once stale and at rest."""
