@@ -34,7 +34,7 @@ class Terminal:
         except Exception as err:  # noqa: B902 - the test reads it
             self.error = err
 
-    def type(self, keys, every=0.0):
+    def keys(self, keys, every=0.0):
         for key in keys:
             os.write(self.master, key.encode())
             if every:
@@ -44,7 +44,7 @@ class Terminal:
         """Repeat ``key`` every ``every`` s for ``seconds``, as a terminal's autorepeat."""
         end = time.monotonic() + seconds
         while time.monotonic() < end:
-            self.type(key)
+            self.keys(key)
             time.sleep(every)
         return time.monotonic()
 
@@ -59,7 +59,7 @@ def terminal():
     term = Terminal()
     yield term
     if term.thread.is_alive():
-        term.type('x')
+        term.keys('x')
     term.close()
 
 
@@ -85,7 +85,7 @@ def test_publishes_while_held_and_nothing_otherwise(terminal):
 def test_a_single_press_lasts_the_first_hold_then_stops(terminal):
     """One key press (no repeat yet) moves for the first hold only."""
     t0 = time.monotonic()
-    terminal.type('r')
+    terminal.keys('r')
     time.sleep(FIRST_HOLD + 0.4)
     times = [t for t, _ in terminal.sent]
     assert times and times[-1] - t0 < FIRST_HOLD + 0.1
@@ -94,11 +94,11 @@ def test_a_single_press_lasts_the_first_hold_then_stops(terminal):
 
 def test_frame_speed_rotation_and_stop_keys(terminal):
     """t: tool frame; +: faster; o: yaw; space: one zero twist, keys released."""
-    terminal.type('t+', every=0.05)
+    terminal.keys('t+', every=0.05)
     terminal.hold('o', 0.3)
     command = terminal.sent[-1][1]
     assert command == ('twist', [0.0] * 3, [0.0, 0.0, 0.4 * SPEED_STEPS[2]], 'link6')
-    terminal.type(' ')
+    terminal.keys(' ')
     time.sleep(0.2)
     assert terminal.sent[-1][1] == ('twist', [0.0] * 3, [0.0] * 3, 'link6')
     count = len(terminal.sent)
@@ -107,8 +107,8 @@ def test_frame_speed_rotation_and_stop_keys(terminal):
 
 
 def test_joint_mode(terminal):
-    """m: joint mode; a digit picks the joint; s jogs it negative."""
-    terminal.type('m3', every=0.05)
+    """The m key: joint mode; a digit picks the joint; s jogs it negative."""
+    terminal.keys('m3', every=0.05)
     terminal.hold('s', 0.3)
     assert terminal.sent[-1][1] == ('joint', ['joint3'], [-MAX_JOINT * SPEED_STEPS[1]])
     assert any('joint mode, joint3' in line for line in terminal.lines)
@@ -118,7 +118,7 @@ def test_quit_restores_the_terminal(terminal):
     """x ends the loop with code 0 and the terminal's settings back as they were."""
     during = termios.tcgetattr(terminal.slave)
     assert during[3] & termios.ECHO == 0 and during[3] & termios.ICANON == 0
-    terminal.type('x')
+    terminal.keys('x')
     terminal.thread.join(timeout=5.0)
     assert terminal.code == 0 and terminal.error is None
     assert termios.tcgetattr(terminal.slave) == terminal.saved
@@ -131,7 +131,7 @@ def test_an_exception_restores_the_terminal_too():
 
     term = Terminal(publish)
     try:
-        term.type('w')
+        term.keys('w')
         term.thread.join(timeout=5.0)
         assert isinstance(term.error, RuntimeError)
         assert termios.tcgetattr(term.slave) == term.saved
