@@ -115,7 +115,7 @@ def test_joint_mode(terminal):
 
 
 def test_quit_restores_the_terminal(terminal):
-    """x ends the loop with code 0 and the terminal's settings back as they were."""
+    """The x key ends the loop with code 0 and the terminal settings back as they were."""
     during = termios.tcgetattr(terminal.slave)
     assert during[3] & termios.ECHO == 0 and during[3] & termios.ICANON == 0
     terminal.keys('x')
