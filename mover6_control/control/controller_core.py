@@ -501,8 +501,9 @@ class ControllerCore:
             command = make()
             if self._state != sm.JOGGING:
                 if self._state != sm.IDLE:
+                    hint = '; stop the motion first' if self._state in sm.MOVING_STATES else ''
                     raise InvalidInputError(f'jogging refused while {self._state}: '
-                                            f'{self._message}; stop the motion first')
+                                            f'{self._message}{hint}')
                 timeout = self.config.servo.command_timeout
                 if now - command.stamp > timeout:
                     raise InvalidInputError(f'jog command older than the timeout {timeout:g} s '

@@ -20,8 +20,9 @@ Safety, in MoveIt Servo's terms, every stop with a reason:
   per tick by ``a_max`` (one common factor as well);
 - the condition number of the normalised Jacobian (scale-free) above
   ``lower_singularity_threshold`` slows a motion that goes towards a singularity, linearly to
-  zero at ``hard_stop_singularity_threshold``; a motion whose next ``SINGULARITY_LOOKAHEAD``
-  seconds at full speed reach the hard threshold halts; motion away from it is never slowed;
+  zero at ``hard_stop_singularity_threshold``, and halts when slowed under
+  ``MIN_SINGULARITY_SCALE`` or when its next tick would reach the hard threshold; motion away
+  from a singularity is never slowed;
 - a joint within ``joint_limit_margin`` of a limit and moving towards it halts the motion;
 - ``veto`` (the hook for collision checking): a callable ``veto(q, q_next)`` returning a reason
   (str) halts the motion before ``q_next``; None lets it go.
@@ -38,9 +39,9 @@ from mover6_control.kinematics.forward import fk_frames_batch
 import numpy as np
 
 FRAMES = ('base_link', 'link6')
-# [s] how far ahead, at the unslowed speed, a motion towards a singularity is looked at: it
-# halts once that point is past the hard threshold (a slow-down alone only approaches it).
-SINGULARITY_LOOKAHEAD = 0.1
+# Below this fraction of its speed a motion towards a singularity halts: the linear slow-down
+# alone would only creep towards the hard threshold, never reach it, never stop.
+MIN_SINGULARITY_SCALE = 0.1
 # [rad] joint step used to tell whether a motion goes towards a singularity or away from it.
 DIRECTION_STEP = 1e-3
 
@@ -307,13 +308,12 @@ def _twist_target(arm, config, state, command, q, dt, vlim, reach):
     ahead = condition(normalised_jacobian(arm, q + qd * (DIRECTION_STEP / norm), reach))
     if ahead <= cond:
         return qd, J, reference, twist, '', False, 1.0, cond
-    look = condition(normalised_jacobian(arm, q + qd * SINGULARITY_LOOKAHEAD, reach))
-    if cond >= hard or look >= hard:
-        reason = (f'halted before a singularity: condition {cond:.1f} (hard stop at {hard:g}, '
-                  f'reached within {SINGULARITY_LOOKAHEAD:g} s at this speed); move away '
-                  'from it')
-        return np.zeros_like(qd), J, reference, twist, reason, True, 0.0, cond
     scale = (hard - cond) / (hard - lower)
+    if (scale < MIN_SINGULARITY_SCALE
+            or condition(normalised_jacobian(arm, q + qd * scale * dt, reach)) >= hard):
+        reason = (f'halted before a singularity: condition {cond:.1f} (slows from {lower:g}, '
+                  f'hard stop at {hard:g}); move away from it')
+        return np.zeros_like(qd), J, reference, twist, reason, True, 0.0, cond
     reason = (f'slowed to {scale:.0%} near a singularity: condition {cond:.1f} (slows from '
               f'{lower:g}, halts at {hard:g})')
     return qd * scale, J, reference, twist, reason, False, scale, cond
