@@ -118,7 +118,7 @@ class Jogger(Node):
 
 @pytest.fixture(scope='module')
 def jogger(tmp_path_factory):
-    """The bridge (starting at Q_AWAY) and the controller as processes; a jogger here."""
+    """Start the bridge (at Q_AWAY) and the controller as processes; yield a jogger here."""
     initial = '[' + ', '.join(f'{v:.1f}' for v in Q_AWAY) + ']'
     with Stack(tmp_path_factory.mktemp('e2e_servo_logs'), sim={'initial_q': initial},
                names=('sim_bridge', 'controller')) as stack:
