@@ -226,3 +226,13 @@ def test_bad_commands_and_settings_are_refused():
 def test_servo_defaults_are_the_controller_parameters(name):
     """Each servo setting defaults to its ``servo_*`` parameter of the controller."""
     assert getattr(ServoConfig(), name) == CONTROLLER[f'servo_{name}'].default
+
+
+def test_a_vanishing_twist_keeps_everything_finite():
+    """A twist of denormal values (found by the property test) leaves no NaN behind."""
+    state, q = initial_state(ARM), Q_AWAY.copy()
+    for k, vx in enumerate([0.02, 5e-324, 5e-324, 0.02]):
+        out = servo_step(ARM, CONFIG, state, TwistCommand(k * DT, [vx, 0, 0], [0, 0, 0]), q,
+                         k * DT, DT, ARM.velocity_limits)
+        assert np.all(np.isfinite(out.qd)) and np.all(np.isfinite(out.state.reference))
+        state, q = out.state, q + out.qd * DT

@@ -31,6 +31,7 @@ Safety, in MoveIt Servo's terms, every stop with a reason:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Callable, Optional
 
 from mover6_control.errors import InvalidInputError
@@ -198,6 +199,7 @@ def initial_state(arm: ArmModel, qd: Optional[np.ndarray] = None) -> ServoState:
     return ServoState(qd)
 
 
+@lru_cache(maxsize=16)             # an ArmModel is immutable and hashed by identity
 def arm_reach(arm: ArmModel) -> float:
     """Return the arm's reach [m]: the summed link lengths from the second joint to the tip."""
     lengths = [np.linalg.norm(arm.origins[i, :3, 3]) for i in range(1, arm.n_joints)]
@@ -216,7 +218,10 @@ def pose_and_jacobian(arm: ArmModel, q: np.ndarray,
     n = arm.n_joints
     z = np.einsum('nij,nj->ni', frames[:n, :3, :3], arm.axes)
     J = np.empty((6, n))
-    J[:3] = np.cross(z, frames[n, :3, 3] - frames[:n, :3, 3]).T
+    r = frames[n, :3, 3] - frames[:n, :3, 3]
+    J[0] = z[:, 1] * r[:, 2] - z[:, 2] * r[:, 1]      # z x r, column by column
+    J[1] = z[:, 2] * r[:, 0] - z[:, 0] * r[:, 2]
+    J[2] = z[:, 0] * r[:, 1] - z[:, 1] * r[:, 0]
     J[:3] /= arm_reach(arm) if reach is None else reach
     J[3:] = z.T
     return frames[n], J
@@ -376,7 +381,10 @@ def _advance(reference, twist, achieved, reach, dt):
     """
     weights = np.array([1.0 / reach] * 3 + [1.0] * 3)
     wanted = twist * weights
-    progress = float(np.clip(achieved @ wanted / (wanted @ wanted), 0.0, 1.0))
+    size = float(wanted @ wanted)
+    if not size > 1e-300:          # a vanishing twist (denormal values): nothing to advance
+        return reference
+    progress = float(np.clip(achieved @ wanted / size, 0.0, 1.0))
     out = reference.copy()
     out[:3, 3] += twist[:3] * progress * dt
     out[:3, :3] = _rotation_matrix(twist[3:] * progress * dt) @ reference[:3, :3]
