@@ -7,6 +7,10 @@ a +0.02 m/s twist along x for 2 s moves the flange 35-45 mm along x, on the line
 orientation kept, and the arm is at rest within 0.3 s of the last command; the same in the tool
 frame; stale commands stop it; towards the wrist singularity it slows and halts before it with
 the reason on the status, and away from it it moves.
+
+Everything runs on the simulation's clock (``publish_clock``, ``use_sim_time``): every duration
+here, the twists' stamps and the 0.3 s to rest are the arm's own time, so a loaded machine that
+slows the physics down slows the whole test with it instead of failing it.
 """
 
 import time
@@ -23,6 +27,7 @@ import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from ros_testing import Stack, wait_until
 from sensor_msgs.msg import JointState
@@ -36,10 +41,11 @@ REST_SPEED = 0.002      # [rad/s] every joint slower than this: at rest
 
 
 class Jogger(Node):
-    """Send twists; record /joint_states, /JointJog and /controller/status with arrival times."""
+    """Send twists; record /joint_states, /JointJog and /controller/status in sim time."""
 
     def __init__(self):
-        super().__init__('e2e_jogger')
+        super().__init__('e2e_jogger',
+                         parameter_overrides=[Parameter('use_sim_time', value=True)])
         self.twist_pub = self.create_publisher(TwistStamped, 'controller/delta_twist_cmds', 10)
         self.reset_pub = self.create_publisher(JointState, 'sim_bridge/reset_to', 10)
         self.states = []        # (t, q, qd)
@@ -52,20 +58,32 @@ class Jogger(Node):
         self.executor_ = SingleThreadedExecutor()
         self.executor_.add_node(self)
 
+    def now(self):
+        """Return the sim time [s]."""
+        return self.get_clock().now().nanoseconds * 1e-9
+
     def on_states(self, msg):
         q, qd = conversions.joint_state_from_msg(msg, list(ARM.joint_names))
-        self.states.append((time.monotonic(), q, qd))
+        self.states.append((conversions.stamp_to_seconds(msg.header.stamp), q, qd))
 
     def on_jog(self, msg):
-        self.jogs.append((time.monotonic(), np.array(msg.velocities)))
+        self.jogs.append((conversions.stamp_to_seconds(msg.header.stamp),
+                          np.array(msg.velocities)))
 
     def on_status(self, msg):
-        self.statuses.append((time.monotonic(), msg))
+        self.statuses.append((self.now(), msg))
 
     def spin(self, seconds):
+        """Serve callbacks for ``seconds`` of wall time."""
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             self.executor_.spin_once(timeout_sec=min(0.005, max(end - time.monotonic(), 0.0)))
+
+    def spin_sim(self, seconds):
+        """Serve callbacks for ``seconds`` of sim time (at most 30 times that of wall time)."""
+        end, wall_end = self.now() + seconds, time.monotonic() + 30.0 * seconds
+        while self.now() < end and time.monotonic() < wall_end:
+            self.spin(0.005)
 
     @property
     def q(self):
@@ -76,7 +94,7 @@ class Jogger(Node):
 
     def send(self, linear, angular, frame='base_link', age=0.0):
         msg = TwistStamped()
-        stamp = self.get_clock().now().nanoseconds * 1e-9 - age
+        stamp = self.now() - age
         msg.header.stamp = conversions.seconds_to_stamp(stamp)
         msg.header.frame_id = frame
         msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z = (float(v) for v in linear)
@@ -85,13 +103,18 @@ class Jogger(Node):
         self.twist_pub.publish(msg)
 
     def stream(self, seconds, linear, angular, frame='base_link', age=0.0, until=None):
-        """Send the twist at ``RATE`` for ``seconds`` (or until ``until()``); return last time."""
-        end = time.monotonic() + seconds
-        last = time.monotonic()
-        while time.monotonic() < end and not (until and until()):
+        """
+        Send the twist every ``1 / RATE`` for ``seconds`` (or until ``until()``), in sim time.
+
+        Return the sim time of the last one sent.
+        """
+        end = self.now() + seconds
+        wall_end = time.monotonic() + 30.0 * seconds
+        last = self.now()
+        while self.now() < end and time.monotonic() < wall_end and not (until and until()):
             self.send(linear, angular, frame, age)
-            last = time.monotonic()
-            self.spin(1.0 / RATE)
+            last = self.now()
+            self.spin_sim(1.0 / RATE)
         return last
 
     def at_rest_since(self, t):
@@ -111,22 +134,27 @@ class Jogger(Node):
         return '\n'.join(lines)
 
     def reset_to(self, q):
+        """Put the simulated arm at ``q`` once the controller is idle (no jog still running)."""
+        assert wait_until(lambda: self.status().get('state') == 'idle', 5.0, self.spin), \
+            self.status()
         self.reset_pub.publish(JointState(name=list(ARM.joint_names), position=list(q)))
         assert wait_until(lambda: np.allclose(self.q, q, atol=1e-3), 5.0, self.spin), self.q
-        self.spin(0.3)
+        self.spin_sim(0.3)
 
 
 @pytest.fixture(scope='module')
 def jogger(tmp_path_factory):
     """Start the bridge (at Q_AWAY) and the controller as processes; yield a jogger here."""
     initial = '[' + ', '.join(f'{v:.1f}' for v in Q_AWAY) + ']'
-    with Stack(tmp_path_factory.mktemp('e2e_servo_logs'), sim={'initial_q': initial},
+    with Stack(tmp_path_factory.mktemp('e2e_servo_logs'),
+               sim={'initial_q': initial, 'publish_clock': 'true'},
+               controller={'use_sim_time': 'true'},
                names=('sim_bridge', 'controller')) as stack:
         rclpy.init()
         node = Jogger()
         try:
-            ready = wait_until(lambda: node.states and node.status().get('state') == 'idle',
-                               30.0, node.spin)
+            ready = wait_until(lambda: node.states and node.now() > 0.0
+                               and node.status().get('state') == 'idle', 30.0, node.spin)
             assert ready, stack.report()
             node.stack = stack
             yield node
@@ -139,11 +167,11 @@ def jogger(tmp_path_factory):
 def jog_line(node, frame):
     """Jog +0.02 m/s along x of ``frame`` for 2 s from Q_AWAY; return the figures."""
     node.reset_to(Q_AWAY)
-    node.since = time.monotonic()
+    node.since = node.now()
     T0 = fk(ARM, node.q)
     x = np.array([1.0, 0.0, 0.0]) if frame == 'base_link' else T0[:3, 0]
     last = node.stream(2.0, [0.02, 0.0, 0.0], [0.0, 0.0, 0.0], frame)
-    node.spin(1.0)
+    node.spin_sim(1.0)
     T1 = fk(ARM, node.q)
     d = T1[:3, 3] - T0[:3, 3]
     along = float(d @ x)
@@ -180,7 +208,7 @@ def test_stale_commands_stop_the_arm(jogger):
     assert 'older than the timeout' in jogger.status().get('jog_refused', ''), jogger.status()
     jogger.stream(0.5, [0.02, 0.0, 0.0], [0.0, 0.0, 0.0])          # fresh: jogging
     assert jogger.status()['state'] == 'jogging'
-    switched = time.monotonic()
+    switched = jogger.now()
     jogger.stream(1.0, [0.02, 0.0, 0.0], [0.0, 0.0, 0.0], age=0.5)  # stale from now on
     assert jogger.at_rest_since(switched) - switched < 0.3
     values = jogger.status()
@@ -191,14 +219,14 @@ def test_towards_the_wrist_singularity_slows_and_halts_away_moves(jogger):
     """Turning q5 towards 0: slowed, then halted before it with the reason; back: it moves."""
     jogger.reset_to(Q_AWAY)
     column = jacobian(ARM, jogger.q)[:, 4] * 0.3          # joint 5 alone at 0.3 rad/s
-    start = time.monotonic()
+    start = jogger.now()
 
     def halted():
         return 'halted before a singularity' in jogger.status().get('jog_reason', '')
 
     jogger.stream(8.0, -column[:3], -column[3:], until=halted)
     assert halted(), f'{jogger.status()}\n{jogger.stack.report()}'
-    halt_seen = time.monotonic()
+    halt_seen = jogger.now()
     jogger.stream(0.5, -column[:3], -column[3:])           # still asking: stays halted
     assert halted() and jogger.at_rest_since(halt_seen) - halt_seen < 0.3
     q_halt = jogger.q.copy()
@@ -213,3 +241,15 @@ def test_towards_the_wrist_singularity_slows_and_halts_away_moves(jogger):
     assert max(speeds[-20:]) < 0.5 * max(speeds), 'slowed before halting'
     jogger.stream(1.0, column[:3], column[3:])              # away from it
     assert jogger.q[4] > q_halt[4] + 0.1, (q_halt, jogger.q)
+
+
+def test_bad_commands_are_refused_with_the_reason(jogger):
+    """An unknown frame or a non-finite twist moves nothing; the status says why."""
+    jogger.reset_to(Q_AWAY)
+    q0 = jogger.q.copy()
+    jogger.stream(0.3, [0.02, 0.0, 0.0], [0.0, 0.0, 0.0], frame='world')
+    assert 'frame' in jogger.status().get('jog_refused', ''), jogger.status()
+    jogger.stream(0.3, [float('nan'), 0.0, 0.0], [0.0, 0.0, 0.0])
+    assert 'non-finite' in jogger.status().get('jog_refused', ''), jogger.status()
+    assert np.max(np.abs(jogger.q - q0)) < 1e-3
+    assert jogger.status()['state'] == 'idle'
