@@ -10,7 +10,10 @@ the reason on the status, and away from it it moves.
 
 Everything runs on the simulation's clock (``publish_clock``, ``use_sim_time``): every duration
 here, the twists' stamps and the 0.3 s to rest are the arm's own time, so a loaded machine that
-slows the physics down slows the whole test with it instead of failing it.
+slows the physics down slows the whole test with it instead of failing it. The physics runs at
+half real time (``real_time_factor`` 0.5) so that this process, which sends the twists, keeps a
+steady rate in sim time on a loaded machine too: a gap over the 0.1 s command timeout would
+(rightly) make the controller decelerate and start the line again from where the arm is.
 """
 
 import time
@@ -51,6 +54,7 @@ class Jogger(Node):
         self.states = []        # (t, q, qd)
         self.jogs = []          # (t, velocities)
         self.statuses = []      # (t, DiagnosticStatus)
+        self.sent = []          # sim time of each twist sent
         self.create_subscription(JointState, 'joint_states', self.on_states, 10)
         self.create_subscription(JointJog, 'JointJog', self.on_jog, 50)
         qos = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -95,6 +99,7 @@ class Jogger(Node):
     def send(self, linear, angular, frame='base_link', age=0.0):
         msg = TwistStamped()
         stamp = self.now() - age
+        self.sent.append(self.now())
         msg.header.stamp = conversions.seconds_to_stamp(stamp)
         msg.header.frame_id = frame
         msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z = (float(v) for v in linear)
@@ -129,8 +134,11 @@ class Jogger(Node):
         times = [t for t, _ in self.jogs if t >= since]
         gap = max(np.diff(times)) if len(times) > 1 else float('nan')
         moving = [t - since for t, v in self.jogs if t >= since and np.any(v)]
+        sent = [t for t in self.sent if t >= since]
+        sent_gap = max(np.diff(sent)) if len(sent) > 1 else float('nan')
         lines.append(f'{len(times)} JointJog, longest gap {gap:.3f} s, non-zero from '
-                     f'{moving[:1]} to {moving[-1:]} s')
+                     f'{moving[:1]} to {moving[-1:]} s; {len(sent)} twists sent, longest gap '
+                     f'{sent_gap:.3f} s')
         return '\n'.join(lines)
 
     def reset_to(self, q):
@@ -147,7 +155,7 @@ def jogger(tmp_path_factory):
     """Start the bridge (at Q_AWAY) and the controller as processes; yield a jogger here."""
     initial = '[' + ', '.join(f'{v:.1f}' for v in Q_AWAY) + ']'
     with Stack(tmp_path_factory.mktemp('e2e_servo_logs'),
-               sim={'initial_q': initial, 'publish_clock': 'true'},
+               sim={'initial_q': initial, 'publish_clock': 'true', 'real_time_factor': 0.5},
                controller={'use_sim_time': 'true'},
                names=('sim_bridge', 'controller')) as stack:
         rclpy.init()

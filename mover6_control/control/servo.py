@@ -161,10 +161,11 @@ def joint_jog_command(arm: ArmModel, stamp: float, names: list,
 
 @dataclass(frozen=True, eq=False)
 class ServoState:
-    """What one tick keeps for the next: the last command ``qd`` (n,) and the reference pose."""
+    """What one tick keeps for the next: the last command ``qd`` (n,), reference pose, time."""
 
     qd: np.ndarray
     reference: Optional[np.ndarray] = None     # (4, 4) base -> flange; None: not holding one
+    time: Optional[float] = None               # [s] of the tick that made it (None: none yet)
 
 
 @dataclass(frozen=True, eq=False)
@@ -285,7 +286,10 @@ def _limit_halt(arm, q, qd, margin):
 
 def _twist_target(arm, config, state, command, q, dt, vlim, reach):
     """
-    Return ``(target qd, J, reference, twist in base, reason, halted, scale, condition)``.
+    Return ``(target qd, fraction, reference, twist in base, reason, halted, scale, condition)``.
+
+    ``fraction`` (0 to 1) is how much of the commanded speed the target keeps after the speed
+    limit and the singularity slow-down.
 
     The target is the speed-limited damped least squares solution for the commanded twist plus
     the correction towards the reference pose, slowed near a singularity.
@@ -309,19 +313,19 @@ def _twist_target(arm, config, state, command, q, dt, vlim, reach):
     lower = config.lower_singularity_threshold
     hard = config.hard_stop_singularity_threshold
     if norm == 0.0 or cond < lower:
-        return qd, J, reference, twist, '', False, 1.0, cond
+        return qd, speed_factor, reference, twist, '', False, 1.0, cond
     ahead = condition(normalised_jacobian(arm, q + qd * (DIRECTION_STEP / norm), reach))
     if ahead <= cond:
-        return qd, J, reference, twist, '', False, 1.0, cond
+        return qd, speed_factor, reference, twist, '', False, 1.0, cond
     scale = (hard - cond) / (hard - lower)
     if (scale < MIN_SINGULARITY_SCALE
             or condition(normalised_jacobian(arm, q + qd * scale * dt, reach)) >= hard):
         reason = (f'halted before a singularity: condition {cond:.1f} (slows from {lower:g}, '
                   f'hard stop at {hard:g}); move away from it')
-        return np.zeros_like(qd), J, reference, twist, reason, True, 0.0, cond
+        return np.zeros_like(qd), 0.0, reference, twist, reason, True, 0.0, cond
     reason = (f'slowed to {scale:.0%} near a singularity: condition {cond:.1f} (slows from '
               f'{lower:g}, halts at {hard:g})')
-    return qd * scale, J, reference, twist, reason, False, scale, cond
+    return qd * scale, speed_factor * scale, reference, twist, reason, False, scale, cond
 
 
 def servo_step(arm: ArmModel, config: ServoConfig, state: ServoState, command, q: np.ndarray,
@@ -331,6 +335,8 @@ def servo_step(arm: ArmModel, config: ServoConfig, state: ServoState, command, q
 
     ``command`` is a ``TwistCommand``, a ``JointJogCommand`` or None (no command yet);
     ``dt`` [s] is the tick period and ``vlim`` (n,) [rad/s] the joint speed limits in force.
+    The reference pose advances by the time since the tick before (``dt`` on the first), so a
+    late or skipped tick does not leave it, and the arm it holds, behind.
     """
     q = arm.check_q(q)
     vlim = np.asarray(vlim, dtype=float)
@@ -349,7 +355,7 @@ def servo_step(arm: ArmModel, config: ServoConfig, state: ServoState, command, q
         if not (np.any(command.linear) or np.any(command.angular)):
             target, reason, halted = np.zeros(arm.n_joints), 'zero twist commanded', True
         else:
-            target, J, reference, twist, reason, halted, scale, cond = _twist_target(
+            target, fraction, reference, twist, reason, halted, scale, cond = _twist_target(
                 arm, config, state, command, q, dt, vlim, reach)
     elif isinstance(command, JointJogCommand):
         if command.velocities.shape != (arm.n_joints,):
@@ -367,24 +373,25 @@ def servo_step(arm: ArmModel, config: ServoConfig, state: ServoState, command, q
             target, reason, halted, scale = np.zeros(arm.n_joints), 'halted: ' + why, True, 0.0
     qd = _accelerate(state.qd, target, config.a_max, dt)
     if reference is not None:
-        reference = _advance(reference, twist, J @ qd, reach, dt)
-    return ServoOutput(qd, ServoState(qd, reference), reason, halted, stale, scale, cond)
+        elapsed = dt if state.time is None else min(max(now - state.time, 0.0),
+                                                    config.command_timeout)
+        size = float(target @ target)
+        if halted or not size > 1e-300:   # a vanishing target (denormal twist): no progress
+            progress = 0.0
+        else:    # the acceleration limit's share of the target reached this tick
+            progress = fraction * float(np.clip(qd @ target / size, 0.0, 1.0))
+        reference = _advance(reference, twist, progress, elapsed)
+    return ServoOutput(qd, ServoState(qd, reference, now), reason, halted, stale, scale, cond)
 
 
-def _advance(reference, twist, achieved, reach, dt):
+def _advance(reference, twist, progress, dt):
     """
-    Return the reference pose moved by the commanded ``twist`` as far as the arm follows it.
+    Return the reference pose moved by ``progress`` (0 to 1) of the commanded ``twist`` in ``dt``.
 
-    ``achieved`` is the normalised twist of this tick's command; its projection on the
-    normalised commanded twist (0 to 1) says how much of the commanded motion is happening, so
-    a slowed or accelerating arm does not fall behind its reference.
+    ``progress`` is the share of the commanded motion this tick's command makes (after the
+    speed, singularity and acceleration limits, not counting the correction), so a slowed or
+    accelerating arm does not fall behind its reference, nor an arm ahead of it hold it back.
     """
-    weights = np.array([1.0 / reach] * 3 + [1.0] * 3)
-    wanted = twist * weights
-    size = float(wanted @ wanted)
-    if not size > 1e-300:          # a vanishing twist (denormal values): nothing to advance
-        return reference
-    progress = float(np.clip(achieved @ wanted / size, 0.0, 1.0))
     out = reference.copy()
     out[:3, 3] += twist[:3] * progress * dt
     out[:3, :3] = _rotation_matrix(twist[3:] * progress * dt) @ reference[:3, :3]
