@@ -202,11 +202,16 @@ def loop(fd, teleop, publish, show=None, status=lambda: '', rate=RATE, clock=tim
 
 
 def terminal_show(out=sys.stdout):
-    """Return a ``show`` that rewrites the last line of ``out``."""
+    """Return a ``show`` that rewrites the last line of ``out`` when the line changes."""
+    shown = ['']
+
     def show(line):
-        width = os.get_terminal_size(out.fileno()).columns if out.isatty() else 200
-        out.write('\r' + line[:max(width - 1, 10)] + '\x1b[K')
-        out.flush()
+        width = os.get_terminal_size(out.fileno()).columns if out.isatty() else 0
+        line = line[:(width or 100) - 1]          # a terminal of unknown size: 100 columns
+        if line != shown[0]:
+            out.write('\r' + line + '\x1b[K')
+            out.flush()
+            shown[0] = line
     return show
 
 
