@@ -288,11 +288,9 @@ def _twist_target(arm, config, state, command, q, dt, vlim, reach):
     """
     Return ``(target qd, fraction, reference, twist in base, reason, halted, scale, condition)``.
 
-    ``fraction`` (0 to 1) is how much of the commanded speed the target keeps after the speed
-    limit and the singularity slow-down.
-
     The target is the speed-limited damped least squares solution for the commanded twist plus
-    the correction towards the reference pose, slowed near a singularity.
+    the correction towards the reference pose, slowed near a singularity; ``fraction`` (0 to 1)
+    is how much of the commanded speed it keeps after the speed limit and the slow-down.
     """
     T, J = pose_and_jacobian(arm, q, reach)
     reference = T.copy() if state.reference is None else state.reference
