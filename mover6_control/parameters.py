@@ -225,6 +225,21 @@ CONTROLLER = _table(
       'real-time priority (SCHED_FIFO 1 to 99) of the tick thread; 0 = off (normal '
       'scheduling); refused without the right (logged once); set at start', 0, 99,
       read_only=True),
+    P('servo_command_timeout', 'float', 0.1, 's',
+      'jogging: a twist or joint jog older than this (by its stamp) decelerates the arm to rest',
+      0.001, 10.0),
+    P('servo_pose_gain', 'float', 5.0, '1/s',
+      'jogging: gain holding the tool on the commanded line and orientation', 0.0, 100.0),
+    P('servo_damping', 'float', 0.01, '',
+      'jogging: damped least squares factor on the Jacobian normalised by the reach', 0.0, 1.0),
+    P('servo_lower_singularity_threshold', 'float', 17.0, '',
+      'jogging: condition number (Jacobian normalised by the reach) where a motion towards a '
+      'singularity starts slowing down', 1.0, 1e6),
+    P('servo_hard_stop_singularity_threshold', 'float', 30.0, '',
+      'jogging: condition number where a motion towards a singularity halts (above the lower '
+      'threshold)', 1.0, 1e6),
+    P('servo_joint_limit_margin', 'float', 0.1, 'rad',
+      'jogging: a joint this close to a limit halts the motion towards it', 0.0, 1.0),
 )
 
 SIM_BRIDGE = _table(

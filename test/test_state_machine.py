@@ -30,10 +30,21 @@ def test_stop_and_path_error_decelerate_then_idle():
 def test_new_demand_replaces_the_running_motion():
     assert sm.step(sm.EXECUTING, sm.DEMAND) == sm.EXECUTING
     assert sm.step(sm.SETTLING, sm.DEMAND) == sm.EXECUTING
-    assert sm.ACCEPTS_DEMANDS == {sm.IDLE, sm.EXECUTING, sm.SETTLING}
+    assert sm.ACCEPTS_DEMANDS == {sm.IDLE, sm.EXECUTING, sm.SETTLING, sm.JOGGING}
 
 
-@pytest.mark.parametrize('state', [sm.IDLE, sm.EXECUTING, sm.SETTLING, sm.STOPPING])
+def test_jogging_starts_from_idle_only_and_gives_way_to_a_demand():
+    assert sm.step(sm.IDLE, sm.JOG) == sm.JOGGING
+    for state in (sm.EXECUTING, sm.SETTLING, sm.STOPPING, sm.FAULT, sm.WAITING_FOR_STATES):
+        assert sm.step(state, sm.JOG) == state
+    assert sm.step(sm.JOGGING, sm.JOG_DONE) == sm.IDLE
+    assert sm.step(sm.JOGGING, sm.DEMAND) == sm.EXECUTING
+    assert sm.step(sm.JOGGING, sm.STOP) == sm.STOPPING
+    assert sm.JOGGING in sm.MOVING_STATES
+
+
+@pytest.mark.parametrize('state', [sm.IDLE, sm.EXECUTING, sm.SETTLING, sm.STOPPING,
+                                   sm.JOGGING])
 def test_bad_states_fault_from_every_active_state(state):
     assert sm.step(state, sm.STATES_INVALID) == sm.FAULT
 

@@ -55,6 +55,8 @@ from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
 from mover6_control.control.robot import Robot
+from mover6_control.control.servo import (initial_state, joint_jog_command, servo_step,
+                                          ServoConfig, TwistCommand)
 from mover6_control.control.timed_plan import plan_demand, Timing
 from mover6_control.control.velocity_laws import (dead_zone_command, driver_velocity_limits,
                                                   guard_position_limits, JOG_UNITS, LawConfig,
@@ -104,6 +106,7 @@ class ControllerConfig:
     driver_cycle: float = MOVER6_DRIVER_CYCLE
     settle_tolerance: float = 0.0001
     settle_time: float = 1.0
+    servo: ServoConfig = field(default_factory=ServoConfig)   # jogging (control.servo)
 
     def __post_init__(self):
         """Check every setting."""
@@ -138,6 +141,9 @@ def config_changes(old: ControllerConfig, new: ControllerConfig) -> list:
         a, b = getattr(old, name), getattr(new, name)
         if name == 'law':
             changes += [(key, getattr(b, key)) for key in type(b).__dataclass_fields__
+                        if getattr(a, key) != getattr(b, key)]
+        elif name == 'servo':
+            changes += [(f'servo_{key}', getattr(b, key)) for key in type(b).__dataclass_fields__
                         if getattr(a, key) != getattr(b, key)]
         elif not np.array_equal(np.asarray(a), np.asarray(b)):
             changes.append((name, b))
@@ -232,6 +238,11 @@ class ControllerCore:
         self._arrived_at = None          # [s] when the running motion arrived (None: not yet)
         self._timing = ''                # timed_plan.plan_demand's note on the latest motion
         self._changed = True
+        self._jog = None                 # latest servo command (control.servo), None: none
+        self._jog_state = None           # servo state kept between ticks
+        self._jog_kind = ''              # 'free', 'slowed', 'halted', 'stale': status changes
+        self._jog_values = {}            # jogging figures for the status
+        self._jog_refused = ''           # why the latest jog command was refused ('' taken)
 
     def _derive(self, config):
         """
@@ -499,7 +510,7 @@ class ControllerCore:
 
     def request_stop(self, now: float) -> tuple[bool, str]:
         """Decelerate to rest and hold; return ``(True, message)`` or why nothing moved."""
-        if self._state not in (sm.EXECUTING, sm.SETTLING):
+        if self._state not in (sm.EXECUTING, sm.SETTLING, sm.JOGGING):
             return True, f'not moving ({self._state}); command is zero'
         ref = self.robot.reference
         q_ref, qd_ref = ref if ref is not None else (self.robot.q, self.robot.commanded)
@@ -514,6 +525,74 @@ class ControllerCore:
             self.robot.forget_states()
             self._set(sm.RESET, 'WARN', 'reset: waiting for /joint_states')
 
+    # --- jogging (control.servo) --------------------------------------------------------------
+
+    def on_twist(self, now: float, stamp: float, linear: Sequence[float],
+                 angular: Sequence[float], frame: str = 'base_link') -> None:
+        """
+        Take a flange twist [m/s, rad/s] in ``frame`` stamped ``stamp`` [s], at ``now`` [s].
+
+        Idle, a fresh command starts jogging; jogging, it replaces the previous command. Raises
+        ``InvalidInputError`` with the reason (kept in the status as ``jog_refused``) for a bad
+        command or while a motion executes, settles or stops (stop it first), or in fault.
+        """
+        self._take_jog(now, lambda: TwistCommand(stamp, linear, angular, frame))
+
+    def on_joint_jog(self, now: float, stamp: float, names: Sequence[str],
+                     velocities: Sequence[float]) -> None:
+        """Take joint velocities [rad/s] by joint name, stamped ``stamp`` [s]; as ``on_twist``."""
+        self._take_jog(now, lambda: joint_jog_command(self.arm, stamp, names, velocities))
+
+    def _take_jog(self, now, make):
+        try:
+            command = make()
+            if self._state != sm.JOGGING:
+                if self._state != sm.IDLE:
+                    hint = '; stop the motion first' if self._state in sm.MOVING_STATES else ''
+                    raise InvalidInputError(f'jogging refused while {self._state}: '
+                                            f'{self._message}{hint}')
+                timeout = self.config.servo.command_timeout
+                if now - command.stamp > timeout:
+                    raise InvalidInputError(f'jog command older than the timeout {timeout:g} s '
+                                            'by its stamp')
+        except InvalidInputError as err:
+            self.note_jog_refused(str(err))
+            raise
+        self._jog = command
+        if self._jog_refused:
+            self._jog_refused, self._changed = '', True
+        if self._state == sm.IDLE:
+            self._jog_state = initial_state(self.arm)
+            self._jog_kind = ''
+            self._result = {}
+            self._set(sm.JOG, 'OK', 'jogging')
+
+    def note_jog_refused(self, reason: str) -> None:
+        """Keep why a jog command was refused (status: ``jog_refused``) until one is taken."""
+        if self._jog_refused != reason:     # a stream of the same refusal: one status change
+            self._jog_refused, self._changed = reason, True
+
+    def _tick_jogging(self, now):
+        """Return this tick's jogging command; back to idle once stale and at rest."""
+        q = self.robot.q
+        out = servo_step(self.arm, self.config.servo, self._jog_state, self._jog, q, now,
+                         self._dt, self._vlim)
+        self._jog_state = out.state
+        self.robot.reference = (q, out.qd)      # a demand now starts from the jog's velocity
+        kind = ('stale' if out.stale else 'halted' if out.halted
+                else 'slowed' if out.scale < 1.0 else 'free')
+        self._jog_values = {'jog_reason': out.reason, 'jog_condition': f'{out.condition:.2f}',
+                            'jog_scale': f'{out.scale:.3f}'}
+        self._message = f'jogging: {out.reason}' if out.reason else 'jogging'
+        self._level = 'OK' if kind in ('free', 'stale') else 'WARN'
+        if kind != self._jog_kind:
+            self._jog_kind, self._changed = kind, True
+        if out.stale and out.at_rest:
+            self._result = {'result': 'jog_stopped', 'reason': out.reason}
+            self._set(sm.JOG_DONE, 'OK', f'jog ended, at rest: {out.reason}; idle')
+            return None
+        return out.qd
+
     # --- the tick -----------------------------------------------------------------------------
 
     def tick(self, now: float) -> TickOutput:
@@ -527,6 +606,8 @@ class ControllerCore:
             qd = self._tick_settling(now)
         elif state == sm.STOPPING:
             qd = self._tick_stopping(now)
+        elif state == sm.JOGGING:
+            qd = self._tick_jogging(now)
         if qd is None or self._state not in sm.MOVING_STATES:
             qd = np.zeros(self.arm.n_joints)
             self.robot.reference = None
@@ -762,4 +843,8 @@ class ControllerCore:
             values['motion_profile'] = self._motion_profile
         values.update(self._result)
         values.update(self._rejection)
+        if self._state == sm.JOGGING:
+            values.update(self._jog_values)
+        if self._jog_refused:
+            values['jog_refused'] = self._jog_refused
         return Status(self._state, self._level, self._message, values)

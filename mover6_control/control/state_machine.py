@@ -9,6 +9,9 @@ The controller's states and the table of transitions between them, with a pure s
     executing --demand--> executing (the new motion replaces the running one)
     idle | executing | settling | stopping --states_invalid--> fault
     fault --states_valid | reset--> idle | waiting_for_states
+    idle --jog--> jogging --jog_done--> idle     (control.servo: a twist or joint jog)
+    jogging --demand--> executing (from the jog's velocity) | --stop--> stopping
+    jogging --states_invalid--> fault
 
 Any (state, event) pair not in ``TRANSITIONS`` leaves the state unchanged: that is deliberate
 (for example a stop request while idle, or a stale-state event while already in fault).
@@ -22,7 +25,8 @@ EXECUTING = 'executing'
 SETTLING = 'settling'
 STOPPING = 'stopping'
 FAULT = 'fault'
-STATES = (WAITING_FOR_STATES, IDLE, EXECUTING, SETTLING, STOPPING, FAULT)
+JOGGING = 'jogging'
+STATES = (WAITING_FOR_STATES, IDLE, EXECUTING, SETTLING, STOPPING, FAULT, JOGGING)
 
 STATES_VALID = 'states_valid'          # fresh, complete, finite joint states arrived
 STATES_INVALID = 'states_invalid'      # joint states stale, incomplete or non-finite
@@ -34,8 +38,10 @@ STOP = 'stop'                          # stop requested (service)
 PATH_ERROR = 'path_error'              # tracking error above the path tolerance
 AT_REST = 'at_rest'                    # the stopping ramp has ended
 RESET = 'reset'                        # reset requested
+JOG = 'jog'                            # a fresh twist or joint jog command arrived while idle
+JOG_DONE = 'jog_done'                  # the jog commands went stale and the arm is at rest
 EVENTS = (STATES_VALID, STATES_INVALID, DEMAND, REFERENCE_DONE, SETTLED, SETTLE_TIMEOUT, STOP,
-          PATH_ERROR, AT_REST, RESET)
+          PATH_ERROR, AT_REST, RESET, JOG, JOG_DONE)
 
 TRANSITIONS = {
     (WAITING_FOR_STATES, STATES_VALID): IDLE,
@@ -60,10 +66,16 @@ TRANSITIONS = {
 
     (FAULT, STATES_VALID): IDLE,
     (FAULT, RESET): WAITING_FOR_STATES,
+
+    (IDLE, JOG): JOGGING,
+    (JOGGING, JOG_DONE): IDLE,
+    (JOGGING, DEMAND): EXECUTING,
+    (JOGGING, STOP): STOPPING,
+    (JOGGING, STATES_INVALID): FAULT,
 }
 
 # States in which the arm may be commanded to move; in the others the command is zero.
-MOVING_STATES = frozenset({EXECUTING, SETTLING, STOPPING})
+MOVING_STATES = frozenset({EXECUTING, SETTLING, STOPPING, JOGGING})
 # States that accept a new demand.
 ACCEPTS_DEMANDS = frozenset(state for state, event in TRANSITIONS if event == DEMAND)
 

@@ -11,6 +11,10 @@ may name the goal it is for (``layout.dim[0].label`` = ``waypoints goal <id>``, 
 writes it): the status then carries it as ``goal_id`` next to the ``motion_id`` it became. A
 label ending in ``profile <name>`` times that demand with its own law (``motion_profile`` in the
 status; the ``profile`` parameter does not change).
+Jogging, as MoveIt Servo names it: ~/delta_twist_cmds (geometry_msgs/TwistStamped, flange
+twist in base_link or link6) and ~/delta_joint_cmds (control_msgs/JointJog, velocities by name)
+drive the arm live (``control.servo``); a refused command is logged and its reason is the
+status value ``jog_refused``.
 All the logic is
 in ``mover6_control.control.controller_core``, whose model of the arm is a
 ``control.robot.Robot`` (``self.core.robot``): the node hands each /joint_states message's
@@ -48,7 +52,9 @@ import threading
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import TwistStamped
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.servo import ServoConfig
 from mover6_control.control.state_machine import FAULT
 from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError, Mover6Error
@@ -85,11 +91,21 @@ def config_from_parameters(get):
         path_tolerance=get('path_tolerance'), rate=get('rate'), jog_units=get('jog_units'),
         speed_override=get('speed_override'), driver_tick_size=tuple(get('driver_tick_size')),
         driver_cycle=get('driver_cycle'), settle_tolerance=get('settle_tolerance'),
-        settle_time=get('settle_time'))
+        settle_time=get('settle_time'), servo=servo_config_from_parameters(get))
     limit_set = get('limit_set')
     if limit_set not in LIMIT_SETS:
         raise InvalidInputError(f'limit_set must be one of {LIMIT_SETS}, got {limit_set!r}')
     return limit_set, config
+
+
+def servo_config_from_parameters(get):
+    """Return the ``ServoConfig`` of the ``servo_*`` parameters (and ``a_max``)."""
+    return ServoConfig(
+        command_timeout=get('servo_command_timeout'), pose_gain=get('servo_pose_gain'),
+        damping=get('servo_damping'),
+        lower_singularity_threshold=get('servo_lower_singularity_threshold'),
+        hard_stop_singularity_threshold=get('servo_hard_stop_singularity_threshold'),
+        joint_limit_margin=get('servo_joint_limit_margin'), a_max=get('a_max'))
 
 
 class ControllerNode(Node):
@@ -113,6 +129,8 @@ class ControllerNode(Node):
                                                 STATUS_QOS)
         self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
         self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
+        self.create_subscription(TwistStamped, '~/delta_twist_cmds', self.on_twist, 10)
+        self.create_subscription(JointJog, '~/delta_joint_cmds', self.on_joint_jog, 10)
         self.create_service(Trigger, '~/stop', self.on_stop)
         self.create_service(Trigger, '~/reset', self.on_reset)
         self.lock = threading.RLock()        # the core's state
@@ -199,6 +217,32 @@ class ControllerNode(Node):
                 self.last_q = self.core.robot.q
         except InvalidInputError as err:
             self.get_logger().warning(f'bad /joint_states: {err}', throttle_duration_sec=1.0)
+
+    def on_twist(self, msg):
+        """Take a jog twist (~/delta_twist_cmds) or say why not."""
+        now = self.now()
+        try:
+            stamp, linear, angular, frame = conversions.twist_command_from_msg(msg, now)
+            with self.lock:
+                self.core.on_twist(now, stamp, linear, angular, frame)
+        except InvalidInputError as err:
+            with self.lock:
+                self.core.note_jog_refused(str(err))
+            self.get_logger().warning(f'refused ~/delta_twist_cmds: {err}',
+                                      throttle_duration_sec=1.0)
+
+    def on_joint_jog(self, msg):
+        """Take a joint jog (~/delta_joint_cmds) or say why not."""
+        now = self.now()
+        try:
+            stamp, names, velocities = conversions.joint_jog_command_from_msg(msg, now)
+            with self.lock:
+                self.core.on_joint_jog(now, stamp, names, velocities)
+        except InvalidInputError as err:
+            with self.lock:
+                self.core.note_jog_refused(str(err))
+            self.get_logger().warning(f'refused ~/delta_joint_cmds: {err}',
+                                      throttle_duration_sec=1.0)
 
     def on_demands(self, msg):
         """Hand a /joint_demands message to the demand thread (it plans there)."""

@@ -278,6 +278,36 @@ def joint_jog_from_msg(msg):
     return names, np.array(velocities)
 
 
+# --- jogging: ~/delta_twist_cmds, ~/delta_joint_cmds -----------------------------------------
+
+def twist_command_from_msg(msg, now):
+    """
+    Return ``(stamp, linear, angular, frame)`` of a TwistStamped jog command.
+
+    A zero stamp (``ros2 topic pub`` leaves it so) counts as received at ``now`` [s]; an empty
+    ``frame_id`` is ``base_link``. Raises on non-finite values.
+    """
+    linear = [msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z]
+    angular = [msg.twist.angular.x, msg.twist.angular.y, msg.twist.angular.z]
+    if not all(math.isfinite(v) for v in linear + angular):
+        raise InvalidInputError(f'twist has non-finite values: {linear} {angular}')
+    stamp = stamp_to_seconds(msg.header.stamp)
+    return (now if stamp == 0.0 else stamp), linear, angular, msg.header.frame_id or 'base_link'
+
+
+def joint_jog_command_from_msg(msg, now):
+    """
+    Return ``(stamp, names, velocities)`` of a JointJog jog command (velocities only).
+
+    A zero stamp counts as received at ``now`` [s]; displacements are refused (not supported).
+    """
+    if len(msg.displacements):
+        raise InvalidInputError('JointJog displacements are not supported: send velocities')
+    names, velocities = joint_jog_from_msg(msg)
+    stamp = stamp_to_seconds(msg.header.stamp)
+    return (now if stamp == 0.0 else stamp), names, velocities
+
+
 # --- status --------------------------------------------------------------------------------
 
 def make_status(name, level, message, values=None, hardware_id='mover6'):

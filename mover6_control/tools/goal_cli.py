@@ -17,6 +17,7 @@ the home orientation. With ``--absolute`` A B C are base-frame ZYX angles, R = R
     goal pose 0.30 0.05 0.36 0 0 0 --profile quintic  # this goal timed by the 3-4-5 law
     goal joints 0.2 0.1 0.3 0 0.4 0                   # straight to /joint_demands
     goal stop                                         # the controller's ~/stop service
+    goal jog                                          # keyboard jogging (tools/teleop.py)
 
 The RESULT line gives the pose reached, in the goal's own convention. ``--motion`` and
 ``--shape`` pick the topic of that shape (/pose_goal/parabolic, /path_goal/arc ...);
@@ -588,6 +589,9 @@ def format_outcome(outcome, convention=None):
 def main(args=None):
     """Entry point of ``ros2 run mover6_control goal``."""
     argv = sys.argv[1:] if args is None else list(args)
+    if argv[:1] == ['jog']:                  # goal jog: the keyboard teleop
+        from mover6_control.tools import teleop
+        sys.exit(teleop.main(argv[1:]))
     ros_args = []
     if '--ros-args' in argv:
         idx = argv.index('--ros-args')

@@ -1,0 +1,396 @@
+"""
+Jogging, as MoveIt Servo does it: the latest twist or joint-jog command to this tick's rates.
+
+``servo_step`` is one pure function of the arm, the settings (``ServoConfig``), what it kept from
+the tick before (``ServoState``), the latest command (``TwistCommand`` or ``JointJogCommand``),
+the measured joints and the time [s]; it returns the joint velocities of this tick and why the
+motion is slowed or halted (``ServoOutput``). No clock, no I/O: the controller calls it.
+
+A twist (linear [m/s], angular [rad/s] of the flange, in ``base_link`` or in the flange frame
+``link6``) becomes joint rates by damped least squares of the geometric Jacobian
+(``kinematics.forward.jacobian``) with its linear rows divided by the arm's reach
+(``arm_reach``), so that metres and radians weigh alike. A reference pose, integrated from the
+commanded twist as far as the arm actually follows it, is held by a small proportional term
+(``pose_gain``), so the tool does not drift off the commanded line or orientation.
+
+Safety, in MoveIt Servo's terms, every stop with a reason:
+
+- a command older than ``command_timeout`` (by its stamp) decelerates the arm to rest;
+- joint speeds are limited by one common factor (the direction is kept), the change of speed
+  per tick by ``a_max`` (one common factor as well);
+- the condition number of the normalised Jacobian (scale-free) above
+  ``lower_singularity_threshold`` slows a motion that goes towards a singularity, linearly to
+  zero at ``hard_stop_singularity_threshold``, and halts when slowed under
+  ``MIN_SINGULARITY_SCALE`` or when its next tick would reach the hard threshold; motion away
+  from a singularity is never slowed;
+- a joint within ``joint_limit_margin`` of a limit and moving towards it halts the motion;
+- ``veto`` (the hook for collision checking): a callable ``veto(q, q_next)`` returning a reason
+  (str) halts the motion before ``q_next``; None lets it go.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Callable, Optional
+
+from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.arm import ArmModel
+from mover6_control.kinematics.forward import fk_frames_batch
+import numpy as np
+
+FRAMES = ('base_link', 'link6')
+# Below this fraction of its speed a motion towards a singularity halts: the linear slow-down
+# alone would only creep towards the hard threshold, never reach it, never stop.
+MIN_SINGULARITY_SCALE = 0.1
+# [rad] joint step used to tell whether a motion goes towards a singularity or away from it.
+DIRECTION_STEP = 1e-3
+
+
+@dataclass(frozen=True)
+class ServoConfig:
+    """
+    The jogging settings (the controller's ``servo_*`` parameters).
+
+    ``command_timeout`` [s]: a command older than this (by its stamp) stops the arm.
+    ``pose_gain`` [1/s]: gain holding the reference line and orientation. ``damping``: damped
+    least squares factor on the normalised Jacobian (no unit). ``lower_singularity_threshold``,
+    ``hard_stop_singularity_threshold``: condition numbers of the normalised Jacobian where the
+    slow-down starts and where the motion halts. ``joint_limit_margin`` [rad]: halt a joint
+    moving towards a limit this close. ``a_max`` [rad/s^2]: largest change of any joint's speed.
+    ``veto``: ``veto(q, q_next) -> Optional[str]``, a reason to halt before ``q_next`` (issue
+    14's collision check plugs in here); None checks nothing.
+    """
+
+    command_timeout: float = 0.1
+    pose_gain: float = 5.0
+    damping: float = 0.01
+    lower_singularity_threshold: float = 17.0
+    hard_stop_singularity_threshold: float = 30.0
+    joint_limit_margin: float = 0.1
+    a_max: float = 1.0
+    veto: Optional[Callable[[np.ndarray, np.ndarray], Optional[str]]] = field(
+        default=None, compare=False)
+
+    def __post_init__(self):
+        """Check every setting."""
+        for name in ('command_timeout', 'lower_singularity_threshold',
+                     'hard_stop_singularity_threshold', 'a_max'):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0.0):
+                raise InvalidInputError(f'servo {name} must be positive, got {value}')
+        for name in ('pose_gain', 'damping', 'joint_limit_margin'):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0.0):
+                raise InvalidInputError(f'servo {name} must be >= 0, got {value}')
+        if self.hard_stop_singularity_threshold <= self.lower_singularity_threshold:
+            raise InvalidInputError(
+                f'servo hard_stop_singularity_threshold ({self.hard_stop_singularity_threshold})'
+                f' must be above lower_singularity_threshold '
+                f'({self.lower_singularity_threshold})')
+        if self.veto is not None and not callable(self.veto):
+            raise InvalidInputError(f'servo veto must be callable, got {self.veto!r}')
+
+
+@dataclass(frozen=True, eq=False)
+class TwistCommand:
+    """A flange twist: ``linear`` (3,) [m/s] and ``angular`` (3,) [rad/s] in ``frame``."""
+
+    stamp: float
+    linear: np.ndarray
+    angular: np.ndarray
+    frame: str = 'base_link'
+
+    def __post_init__(self):
+        """Check the values and the frame; freeze the arrays."""
+        _check_stamp(self.stamp)
+        for name in ('linear', 'angular'):
+            arr = np.array(getattr(self, name), dtype=float).reshape(-1)
+            if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+                raise InvalidInputError(f'twist {name} must be 3 finite values, got '
+                                        f'{arr.tolist()}')
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        if self.frame not in FRAMES:
+            raise InvalidInputError(f'twist frame must be one of {FRAMES}, got '
+                                    f'"{self.frame}"')
+
+
+@dataclass(frozen=True, eq=False)
+class JointJogCommand:
+    """Joint velocities ``velocities`` (n,) [rad/s] in the arm's joint order, stamped [s]."""
+
+    stamp: float
+    velocities: np.ndarray
+
+    def __post_init__(self):
+        """Check the values; freeze the array."""
+        _check_stamp(self.stamp)
+        arr = np.array(self.velocities, dtype=float).reshape(-1)
+        if not arr.size or not np.all(np.isfinite(arr)):
+            raise InvalidInputError(f'joint jog velocities must be finite, got {arr.tolist()}')
+        arr.setflags(write=False)
+        object.__setattr__(self, 'velocities', arr)
+
+
+def _check_stamp(stamp):
+    if not np.isfinite(stamp):
+        raise InvalidInputError(f'command stamp must be finite, got {stamp}')
+
+
+def joint_jog_command(arm: ArmModel, stamp: float, names: list,
+                      velocities: list) -> JointJogCommand:
+    """
+    Return a ``JointJogCommand`` from joint ``names`` and their ``velocities`` [rad/s].
+
+    Joints not named stay still; an unknown or repeated name, or as many names as values not,
+    raises ``InvalidInputError``.
+    """
+    names, values = list(names), list(velocities)
+    if not names:
+        raise InvalidInputError('joint jog names no joint')
+    if len(names) != len(values):
+        raise InvalidInputError(f'joint jog has {len(names)} names but {len(values)} velocities')
+    if len(set(names)) != len(names):
+        raise InvalidInputError(f'joint jog names repeat: {names}')
+    qd = np.zeros(arm.n_joints)
+    for name, value in zip(names, values):
+        qd[arm.joint_index(name)] = value
+    return JointJogCommand(stamp, qd)
+
+
+@dataclass(frozen=True, eq=False)
+class ServoState:
+    """What one tick keeps for the next: the last command ``qd`` (n,), reference pose, time."""
+
+    qd: np.ndarray
+    reference: Optional[np.ndarray] = None     # (4, 4) base -> flange; None: not holding one
+    time: Optional[float] = None               # [s] of the tick that made it (None: none yet)
+
+
+@dataclass(frozen=True, eq=False)
+class ServoOutput:
+    """
+    One tick of jogging.
+
+    ``qd`` (n,) [rad/s] the command; ``state`` for the next tick; ``reason`` why the motion is
+    slowed or halted ('' when it runs freely); ``halted`` True when a stop condition holds (the
+    arm decelerates to rest); ``stale`` True when the command timed out; ``scale`` the factor
+    the singularity slow-down applied; ``condition`` the normalised Jacobian's condition number
+    (nan in joint mode).
+    """
+
+    qd: np.ndarray
+    state: ServoState
+    reason: str
+    halted: bool
+    stale: bool
+    scale: float
+    condition: float
+
+    @property
+    def at_rest(self) -> bool:
+        """Return True when the command is zero."""
+        return not np.any(self.qd)
+
+
+def initial_state(arm: ArmModel, qd: Optional[np.ndarray] = None) -> ServoState:
+    """Return the state jogging starts from: the current command ``qd`` (rest when None)."""
+    qd = np.zeros(arm.n_joints) if qd is None else np.array(qd, dtype=float)
+    return ServoState(qd)
+
+
+@lru_cache(maxsize=16)             # an ArmModel is immutable and hashed by identity
+def arm_reach(arm: ArmModel) -> float:
+    """Return the arm's reach [m]: the summed link lengths from the second joint to the tip."""
+    lengths = [np.linalg.norm(arm.origins[i, :3, 3]) for i in range(1, arm.n_joints)]
+    return float(sum(lengths) + np.linalg.norm(arm.tool[:3, 3]))
+
+
+def pose_and_jacobian(arm: ArmModel, q: np.ndarray,
+                      reach: Optional[float] = None) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the flange pose (4, 4) and the normalised Jacobian (6, n) at ``q`` from one FK pass.
+
+    The Jacobian is ``kinematics.forward.jacobian``'s (columns ``[z_i x (p - o_i); z_i]``) with
+    its linear rows divided by the reach [m] (``arm_reach`` when None), so it is scale-free.
+    """
+    frames = fk_frames_batch(arm, np.asarray(q, dtype=float)[None, :])[0]
+    n = arm.n_joints
+    z = np.einsum('nij,nj->ni', frames[:n, :3, :3], arm.axes)
+    J = np.empty((6, n))
+    r = frames[n, :3, 3] - frames[:n, :3, 3]
+    J[0] = z[:, 1] * r[:, 2] - z[:, 2] * r[:, 1]      # z x r, column by column
+    J[1] = z[:, 2] * r[:, 0] - z[:, 0] * r[:, 2]
+    J[2] = z[:, 0] * r[:, 1] - z[:, 1] * r[:, 0]
+    J[:3] /= arm_reach(arm) if reach is None else reach
+    J[3:] = z.T
+    return frames[n], J
+
+
+def normalised_jacobian(arm: ArmModel, q: np.ndarray, reach: Optional[float] = None) -> np.ndarray:
+    """Return the geometric Jacobian (6, n) with its linear rows divided by the reach [m]."""
+    return pose_and_jacobian(arm, q, reach)[1]
+
+
+def condition(J: np.ndarray) -> float:
+    """Return the condition number of ``J`` (inf when singular)."""
+    s = np.linalg.svd(J, compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0.0 else float('inf')
+
+
+def damped_rates(J: np.ndarray, twist: np.ndarray, damping: float) -> np.ndarray:
+    """Return ``J^T (J J^T + damping^2 I)^-1 twist``: damped least squares joint rates."""
+    m = J.shape[0]
+    return J.T @ np.linalg.solve(J @ J.T + damping ** 2 * np.eye(m), twist)
+
+
+def _rotation_vector(R):
+    """Return the rotation vector (3,) [rad] of ``R`` (angles under pi)."""
+    axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
+    sin = float(np.linalg.norm(axis))
+    angle = float(np.arctan2(sin, (np.trace(R) - 1.0) / 2.0))
+    return axis if sin < 1e-12 else axis * (angle / sin)
+
+
+def _rotation_matrix(rotvec):
+    """Return the rotation matrix of the rotation vector ``rotvec`` (3,) [rad] (Rodrigues)."""
+    angle = float(np.linalg.norm(rotvec))
+    if angle < 1e-15:
+        return np.eye(3)
+    x, y, z = rotvec / angle
+    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
+
+
+def _accelerate(qd_prev, target, a_max, dt):
+    """Return the step from ``qd_prev`` towards ``target``, by one factor within ``a_max``."""
+    delta = target - qd_prev
+    biggest = float(np.max(np.abs(delta)))
+    if biggest <= a_max * dt:
+        return target.copy()
+    return qd_prev + delta * (a_max * dt / biggest)
+
+
+def _limit_halt(arm, q, qd, margin):
+    """Return why ``qd`` drives a joint within ``margin`` of a limit further towards it, or ''."""
+    for i, name in enumerate(arm.joint_names):
+        if qd[i] > 0.0 and q[i] >= arm.upper[i] - margin:
+            return (f'{name} at {q[i]:.3f} rad, within {margin:g} rad of its upper limit '
+                    f'{arm.upper[i]:.3f}, moving towards it')
+        if qd[i] < 0.0 and q[i] <= arm.lower[i] + margin:
+            return (f'{name} at {q[i]:.3f} rad, within {margin:g} rad of its lower limit '
+                    f'{arm.lower[i]:.3f}, moving towards it')
+    return ''
+
+
+def _twist_target(arm, config, state, command, q, dt, vlim, reach):
+    """
+    Return ``(target qd, fraction, reference, twist in base, reason, halted, scale, condition)``.
+
+    The target is the speed-limited damped least squares solution for the commanded twist plus
+    the correction towards the reference pose, slowed near a singularity; ``fraction`` (0 to 1)
+    is how much of the commanded speed it keeps after the speed limit and the slow-down.
+    """
+    T, J = pose_and_jacobian(arm, q, reach)
+    reference = T.copy() if state.reference is None else state.reference
+    R_ref = reference[:3, :3]
+    if command.frame == 'link6':
+        linear, angular = R_ref @ command.linear, R_ref @ command.angular
+    else:
+        linear, angular = command.linear, command.angular
+    twist = np.concatenate([linear, angular])
+    error = np.concatenate([reference[:3, 3] - T[:3, 3], _rotation_vector(R_ref @ T[:3, :3].T)])
+    scaled = np.diag([1.0 / reach] * 3 + [1.0] * 3)
+    wanted = scaled @ (twist + config.pose_gain * error)
+    qd = damped_rates(J, wanted, config.damping)
+    speed_factor = min(1.0, float(np.min(vlim / np.maximum(np.abs(qd), 1e-300))))
+    qd = qd * speed_factor
+    cond = condition(J)
+    norm = float(np.linalg.norm(qd))
+    lower = config.lower_singularity_threshold
+    hard = config.hard_stop_singularity_threshold
+    if norm == 0.0 or cond < lower:
+        return qd, speed_factor, reference, twist, '', False, 1.0, cond
+    ahead = condition(normalised_jacobian(arm, q + qd * (DIRECTION_STEP / norm), reach))
+    if ahead <= cond:
+        return qd, speed_factor, reference, twist, '', False, 1.0, cond
+    scale = (hard - cond) / (hard - lower)
+    if (scale < MIN_SINGULARITY_SCALE
+            or condition(normalised_jacobian(arm, q + qd * scale * dt, reach)) >= hard):
+        reason = (f'halted before a singularity: condition {cond:.1f} (slows from {lower:g}, '
+                  f'hard stop at {hard:g}); move away from it')
+        return np.zeros_like(qd), 0.0, reference, twist, reason, True, 0.0, cond
+    reason = (f'slowed to {scale:.0%} near a singularity: condition {cond:.1f} (slows from '
+              f'{lower:g}, halts at {hard:g})')
+    return qd * scale, speed_factor * scale, reference, twist, reason, False, scale, cond
+
+
+def servo_step(arm: ArmModel, config: ServoConfig, state: ServoState, command, q: np.ndarray,
+               now: float, dt: float, vlim: np.ndarray) -> ServoOutput:
+    """
+    Return this tick's ``ServoOutput`` for ``command`` at ``now`` [s] from measured ``q`` [rad].
+
+    ``command`` is a ``TwistCommand``, a ``JointJogCommand`` or None (no command yet);
+    ``dt`` [s] is the tick period and ``vlim`` (n,) [rad/s] the joint speed limits in force.
+    The reference pose advances by the time since the tick before (``dt`` on the first), so a
+    late or skipped tick does not leave it, and the arm it holds, behind.
+    """
+    q = arm.check_q(q)
+    vlim = np.asarray(vlim, dtype=float)
+    if not (np.isfinite(dt) and dt > 0.0):
+        raise InvalidInputError(f'dt must be positive, got {dt}')
+    reach = arm_reach(arm)
+    reference, twist = None, None
+    reason, halted, stale, scale, cond = '', False, False, 1.0, float('nan')
+    if command is None:
+        target, reason, halted, stale = np.zeros(arm.n_joints), 'no command yet', True, True
+    elif now - command.stamp > config.command_timeout:
+        target, halted, stale = np.zeros(arm.n_joints), True, True
+        reason = (f'commands stale: the latest is {now - command.stamp:.3f} s old (timeout '
+                  f'{config.command_timeout:g} s)')
+    elif isinstance(command, TwistCommand):
+        if not (np.any(command.linear) or np.any(command.angular)):
+            target, reason, halted = np.zeros(arm.n_joints), 'zero twist commanded', True
+        else:
+            target, fraction, reference, twist, reason, halted, scale, cond = _twist_target(
+                arm, config, state, command, q, dt, vlim, reach)
+    elif isinstance(command, JointJogCommand):
+        if command.velocities.shape != (arm.n_joints,):
+            raise InvalidInputError(f'joint jog must have {arm.n_joints} velocities, got '
+                                    f'{command.velocities.size}')
+        target = command.velocities / max(1.0, float(np.max(np.abs(command.velocities) / vlim)))
+    else:
+        raise InvalidInputError(f'unknown servo command {command!r}')
+    if not halted:
+        why = _limit_halt(arm, q, target, config.joint_limit_margin)
+        if not why and config.veto is not None:
+            why = config.veto(q, q + target * dt) or ''
+            why = f'vetoed: {why}' if why else ''
+        if why:
+            target, reason, halted, scale = np.zeros(arm.n_joints), 'halted: ' + why, True, 0.0
+    qd = _accelerate(state.qd, target, config.a_max, dt)
+    if reference is not None:
+        elapsed = dt if state.time is None else min(max(now - state.time, 0.0),
+                                                    config.command_timeout)
+        size = float(target @ target)
+        if halted or not size > 1e-300:   # a vanishing target (denormal twist): no progress
+            progress = 0.0
+        else:    # the acceleration limit's share of the target reached this tick
+            progress = fraction * float(np.clip(qd @ target / size, 0.0, 1.0))
+        reference = _advance(reference, twist, progress, elapsed)
+    return ServoOutput(qd, ServoState(qd, reference, now), reason, halted, stale, scale, cond)
+
+
+def _advance(reference, twist, progress, dt):
+    """
+    Return the reference pose moved by ``progress`` (0 to 1) of the commanded ``twist`` in ``dt``.
+
+    ``progress`` is the share of the commanded motion this tick's command makes (after the
+    speed, singularity and acceleration limits, not counting the correction), so a slowed or
+    accelerating arm does not fall behind its reference, nor an arm ahead of it hold it back.
+    """
+    out = reference.copy()
+    out[:3, 3] += twist[:3] * progress * dt
+    out[:3, :3] = _rotation_matrix(twist[3:] * progress * dt) @ reference[:3, :3]
+    return out
