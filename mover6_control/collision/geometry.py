@@ -11,10 +11,11 @@ geometry.
 
 The Mover6's capsules follow its link lengths (the URDF: base 0.130 m, shoulder 0.0625 m, upper
 arm 0.190 m, elbow offset 0.060 m, forearm 0.290 m, wrist 0.055 m) and housing radii of 35 to
-60 mm, read off the vendor's drawings and photos (estimates, not vendor data). The capsules of
-neighbouring links overlap at their joint, as the housings do; the ends are trimmed so that
-links two or more apart are clear of each other at home (the smallest home clearance, upper arm
-to forearm, is 15 mm). Another arm gets capsules from each joint to the next, tapering from 40
+60 mm, estimated from the vendor's photos (not vendor data). The capsules of neighbouring links
+overlap at their joint, as the housings do; the ends are trimmed so that links two or more apart
+are clear of each other at home and the elbow folds to the vendor's own limit of joint 3
+(1.31 rad, the hardware limit set) with 9 mm to spare: the vendor's limits are what the real arm
+does without hitting itself. Another arm gets capsules from each joint to the next, tapering from 40
 to 20 mm.
 
 Self-collision counts between links two or more apart in the chain (base, link1, ..., link6
@@ -39,9 +40,9 @@ TOOL = 'tool'
 MOVER6_CAPSULES = {
     0: ((0.0, 0.0, 0.0), (0.0, 0.0, 0.07), 0.06),
     1: ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0625), 0.05),
-    2: ((0.0, 0.0, 0.0), (0.0, 0.0, 0.19), 0.045),
+    2: ((0.0, 0.0, 0.0), (0.0, 0.0, 0.19), 0.04),
     3: ((0.0, 0.0, 0.0), (-0.06, 0.0, 0.0), 0.04),
-    4: ((0.0, 0.0, 0.08), (0.0, 0.0, 0.25), 0.04),
+    4: ((0.0, 0.0, 0.10), (0.0, 0.0, 0.25), 0.035),
     5: ((0.0, 0.0, 0.0), (0.0, 0.0, 0.055), 0.035),
 }
 
@@ -311,7 +312,10 @@ def collision_mjcf(geometry: CollisionGeometry) -> str:
         indent += '  '
         lines.append(f'{indent}<joint name="{joint}" type="hinge" axis="{_vec(arm.axes[i])}" '
                      'limited="false"/>')
-        lines += [indent + geom_xml(s, 'mass="0.1"') for s in body_shapes(geometry, i + 1)]
+        shapes = body_shapes(geometry, i + 1)
+        lines += [indent + geom_xml(s, 'mass="0.1"') for s in shapes]
+        if not shapes:
+            lines.append(f'{indent}<inertial pos="0 0 0" mass="0.1" diaginertia="1e-4 1e-4 1e-4"/>')
     for _ in arm.joint_names:
         indent = indent[:-2]
         lines.append(f'{indent}</body>')

@@ -224,6 +224,9 @@ class ControllerCore:
         self._rejection = {}             # the last refused demand, until one is accepted
         self._arrived_at = None          # [s] when the running motion arrived (None: not yet)
         self._changed = True
+        # A callable(plan) that raises on a colliding motion (collision_guard.CollisionGuard);
+        # the node sets it. None: no collision check.
+        self.collision_guard = None
 
     def _derive(self, config):
         """
@@ -381,6 +384,9 @@ class ControllerCore:
             raise InvalidInputError(f'cannot take a demand while {snapshot.state}: no joint '
                                     f'states yet')
         plan = plan_motion(config.law, q_start, Q, vlim, qd_start)
+        guard = self.collision_guard
+        if guard is not None:
+            guard(plan)         # raises InvalidInputError: the motion collides
         return PendingDemand(now, Q, plan, snapshot.moving, snapshot.motion_id, demand_id,
                              config)
 

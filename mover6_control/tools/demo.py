@@ -3,9 +3,9 @@ The showcase a new user runs first (``./run.sh demo``).
 
 Starts the three nodes headless through ``scripts/launch.sh`` and sends, through the real nodes,
 the Mover6 report's two examples (its linear example and its IK example), then a parabolic
-move, a spline through via poses and a joint move home, then two goals that must be refused: one
-out of reach and one reachable only outside the joint limits (the closest pose inside them is
-printed). Goals are written as the goal CLI reads them (X Y Z A B C, A B C relative to the home
+move, a spline through via poses and a joint move home, then three goals that must be refused:
+one at the table surface (the tool would go into the table: a collision), one out of reach and
+one reachable only outside the joint limits (the closest pose inside them is printed). Goals are written as the goal CLI reads them (X Y Z A B C, A B C relative to the home
 orientation, as the Mover6 report). Records /joint_states and writes a report folder: plots of
 what ran, an animation of the arm and a metrics table (Markdown and JSON). Exits 0 only when
 every move arrived within tolerance and each refusal was refused for its reason.
@@ -59,6 +59,9 @@ SHOWCASE = (
           (0.22, 0.08, 0.28, 0.0, 1.5708, 0.0)]),
     Step('joint', 'a joint-space move back home', 'pose', {'motion': 'joint'},
          [(0.345, 0.0, 0.4425, 0.0, 0.0, 0.0)]),
+    Step('table', 'a goal at the table surface, tool pointing down (must be refused: the tool '
+         'would go into the table)', 'pose', {'motion': 'linear'},
+         [(0.25, 0.0, 0.0, 0.0, 1.5708, 0.0)], expect='collision'),
     Step('out_of_reach', 'a goal out of reach (must be refused)', 'pose', {'motion': 'linear'},
          [(0.9, 0.0, 0.4, 0.0, 0.0, 0.0)], expect='out_of_reach'),
     # The IK example's position with the home orientation: its only solutions need joint3 at
