@@ -90,7 +90,10 @@ class SimBridgeNode(Node):
         self._next_publish = self.sim.time
         self._last_reading_time = None
         self._mujoco_warnings = {}
-
+        self._contact_report = None      # (contact_steps, touching) last reported
+        self.contacts_pub = self.create_publisher(
+            DiagnosticStatus, '~/contacts',
+            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self.joint_states_pub = self.create_publisher(JointState, 'joint_states', 10)
         self.clock_pub = (self.create_publisher(Clock, 'clock', 10)
                           if self.publish_clock else None)

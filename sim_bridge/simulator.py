@@ -170,7 +170,8 @@ class Simulator:
         self._inv_tau = 1.0 / (_LIMIT_APPROACH * self.config.physics_dt)
         opt = self.config.model
         self._feedforward = (opt.kv + opt.damping) / opt.kv
-        self._contact_flags = self.model.opt.disableflags & ~int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        contact_off = int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        self._contact_flags = self.model.opt.disableflags & ~contact_off
         self._geom_names = [mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, g) or str(g)
                             for g in range(self.model.ngeom)]
         self.step_count = 0

@@ -1,5 +1,7 @@
 """
-The collision checker: does a joint path (N x 6) sweep the arm into the table, itself or a zone?
+The collision checker: whether a joint path (N x 6) sweeps the arm into anything.
+
+Into the table, into itself or into a keep-out zone.
 
 ``CollisionChecker.check_path`` samples the motion densely between the waypoints (straight in
 joint space, no joint moving more than ``max_joint_step`` between samples), and returns a
@@ -17,8 +19,9 @@ builds from the same shapes as the simulator's, one reused ``MjData``, per sampl
 ``mj_kinematics`` + ``mj_collision`` (a bounding-box broad phase, then exact capsule, box and
 plane narrow phases), about 3.5 us per sample unloaded; ``bench_collision`` on a loaded machine:
 1.2 ms median, 1.4 ms p95 for a planned 100-waypoint path (157 samples), 8 ms for 1000
-waypoints (1057 samples). Every geom reports contacts up to ``HORIZON`` apart (the table's up to its
-margin further), so the clearances below that are exact and only close pairs cost anything.
+waypoints (1057 samples). Every geom reports contacts up to ``HORIZON`` apart (the table's up
+to its margin further), so the clearances below that are exact and only close pairs cost
+anything.
 Measured against it: vectorised closed-form capsule distances in numpy over all samples at once
 (one ``fk_frames_batch``, then one segment-to-segment distance per pair) took 4.8 ms for 300
 samples without keep-out boxes and 35 ms with one (a golden-section search of the box's signed

@@ -15,8 +15,8 @@ arm 0.190 m, elbow offset 0.060 m, forearm 0.290 m, wrist 0.055 m) and housing r
 overlap at their joint, as the housings do; the ends are trimmed so that links two or more apart
 are clear of each other at home and the elbow folds to the vendor's own limit of joint 3
 (1.31 rad, the hardware limit set) with 9 mm to spare: the vendor's limits are what the real arm
-does without hitting itself. Another arm gets capsules from each joint to the next, tapering from 40
-to 20 mm.
+does without hitting itself. Another arm gets capsules from each joint to the next, tapering
+from 40 to 20 mm.
 
 Self-collision counts between links two or more apart in the chain (base, link1, ..., link6
 with the tool); neighbours touch at their joint by construction and are never checked.
@@ -315,7 +315,8 @@ def collision_mjcf(geometry: CollisionGeometry) -> str:
         shapes = body_shapes(geometry, i + 1)
         lines += [indent + geom_xml(s, 'mass="0.1"') for s in shapes]
         if not shapes:
-            lines.append(f'{indent}<inertial pos="0 0 0" mass="0.1" diaginertia="1e-4 1e-4 1e-4"/>')
+            lines.append(f'{indent}<inertial pos="0 0 0" mass="0.1" '
+                         'diaginertia="1e-4 1e-4 1e-4"/>')
     for _ in arm.joint_names:
         indent = indent[:-2]
         lines.append(f'{indent}</body>')

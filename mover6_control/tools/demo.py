@@ -5,8 +5,9 @@ Starts the three nodes headless through ``scripts/launch.sh`` and sends, through
 the Mover6 report's two examples (its linear example and its IK example), then a parabolic
 move, a spline through via poses and a joint move home, then three goals that must be refused:
 one at the table surface (the tool would go into the table: a collision), one out of reach and
-one reachable only outside the joint limits (the closest pose inside them is printed). Goals are written as the goal CLI reads them (X Y Z A B C, A B C relative to the home
-orientation, as the Mover6 report). Records /joint_states and writes a report folder: plots of
+one reachable only outside the joint limits (the closest pose inside them is printed). Goals
+are written as the goal CLI reads them (X Y Z A B C, A B C relative to the home orientation, as
+the Mover6 report). Records /joint_states and writes a report folder: plots of
 what ran, an animation of the arm and a metrics table (Markdown and JSON). Exits 0 only when
 every move arrived within tolerance and each refusal was refused for its reason.
 """
