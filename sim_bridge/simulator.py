@@ -28,7 +28,8 @@ Contacts: the model's geoms are the collision checker's (``mover6_control.collis
 exert no force, but after every physics step MuJoCo's collision detection runs on them
 (``mj_collision``, the physics' contact flag lifted for that call only): ``contacts()`` names
 the shapes touching now, ``contact_steps`` counts the steps with any contact and
-``first_contact`` keeps the first (time, shapes, depth) since the last reset.
+``first_contact`` keeps the first (time, the deepest pair's shapes, its depth) since the last
+reset.
 
 Encoder ticks of the Mover6: the vendor driver (cpr_robot, CPRMover6.cpp) sets gear ratios 528.2,
 528.2, 528.2, 499.1, 1, 1 and 1440, 1440, 1440, 1440, 1024, 1024 encoder ticks per motor turn,
@@ -327,9 +328,9 @@ class Simulator:
         if data.ncon:
             self.contact_steps += 1
             if self.first_contact is None:
-                names = self.contacts()
-                depth = float(-data.contact.dist[:data.ncon].min())
-                self.first_contact = (self.time, names[0] if names else (), depth)
+                dist = data.contact.dist[:data.ncon]
+                deepest = int(np.argmin(dist))
+                self.first_contact = (self.time, self.contacts()[deepest], float(-dist[deepest]))
 
     def contacts(self) -> list[tuple[str, str]]:
         """Return the pairs of geom names in contact after the last step (or reset)."""
