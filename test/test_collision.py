@@ -224,7 +224,7 @@ def test_plan_samples_cover_the_whole_motion_within_the_step():
     from mover6_control.control.velocity_laws import LawConfig, plan_motion
     W = np.array([[0.5, 0.2, -0.3, 0.4, 0.6, -0.8], [0.0, 0.1, 0.0, 0.0, 0.0, 0.0]])
     plan = plan_motion(LawConfig(), HOME, W, ARM.velocity_limits, np.zeros(6))
-    Q = plan_samples(plan, ARM.velocity_limits, 0.01)
+    Q = plan_samples(plan, 0.01)
     assert np.allclose(Q[0], HOME) and np.allclose(Q[-1], W[-1])
     assert np.abs(np.diff(Q, axis=0)).max() <= 0.01 + 1e-12
 
