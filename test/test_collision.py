@@ -246,3 +246,15 @@ def test_the_simulator_has_the_checkers_shapes_and_agrees_on_contacts():
         assert touching != free, (q, sim.contacts())
         hits += touching
     assert 10 < hits < 140
+
+
+def test_an_arm_touching_something_can_be_moved_away_but_not_deeper():
+    """From a pose in the table: home is allowed (escape), further down is not."""
+    q_in = ik_closed_form(ARM, table_goal(), within_limits=True)[0]
+    away = np.stack([q_in, HOME])
+    assert not CHECKER.check_path(away).free
+    assert CHECKER.check_path(away, escape=True).free
+    assert collision_refusal(CHECKER, away) is None
+    deeper = np.stack([q_in, q_in + np.array([0.0, 0.2, 0.0, 0.0, 0.0, 0.0])])
+    check = CHECKER.check_path(deeper, escape=True)
+    assert not check.free and check.first.shapes == ('link6 tool', 'table')

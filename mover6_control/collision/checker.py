@@ -44,6 +44,8 @@ import numpy as np
 # [m] contacts closer than this are reported, so a clearance below it is known exactly.
 HORIZON = 0.05
 KINDS = {0: 'self', 1: 'keep_out', 2: 'table'}
+# [m] how much deeper a contact the arm starts in may get along an escaping path.
+ESCAPE_TOLERANCE = 1e-4
 
 
 @dataclass(frozen=True)
@@ -184,8 +186,15 @@ class CollisionChecker:
         return tuple(np.concatenate(parts) for parts in zip(*rows))
 
     def check_configurations(self, Q: np.ndarray, segment: np.ndarray | None = None,
-                             fraction: np.ndarray | None = None) -> PathCheck:
-        """Return the ``PathCheck`` of samples (m, n) as they are (no samples added)."""
+                             fraction: np.ndarray | None = None,
+                             escape: bool = False) -> PathCheck:
+        """
+        Return the ``PathCheck`` of samples (m, n) as they are (no samples added).
+
+        ``escape`` True: the first sample is where the arm is now, and a contact it is already
+        in does not count as long as that pair gets no deeper (by 0.1 mm) along the path, so
+        an arm that is touching something can still be moved away from it.
+        """
         Q = np.asarray(Q, dtype=float).reshape(-1, self.arm.n_joints)
         m = len(Q)
         if not self.settings.enabled or m == 0:
@@ -202,7 +211,14 @@ class CollisionChecker:
             cap = HORIZON + (self._table_margin if code == 2 else 0.0)
             clearance[word] = float(sel.min()) if sel.size else cap
             clearance[word] = min(clearance[word], cap)
-        hit = np.flatnonzero(clear < 0.0)
+        colliding = clear < 0.0
+        if escape and np.any(colliding & (sample == 0)):
+            key = g1 * self.model.ngeom + g2
+            start = colliding & (sample == 0)
+            allowed = dict(zip(key[start].tolist(), clear[start].tolist()))
+            limit = np.array([allowed.get(k, 0.0) for k in key.tolist()]) - ESCAPE_TOLERANCE
+            colliding &= clear < limit
+        hit = np.flatnonzero(colliding)
         if len(hit) == 0:
             return PathCheck(None, clearance, m)
         first = int(sample[hit].min())
@@ -219,18 +235,19 @@ class CollisionChecker:
                                  int(segment[first]), float(fraction[first]), Q[first].copy()),
                          clearance, m)
 
-    def check_path(self, waypoints: np.ndarray,
-                   max_joint_step: float | None = None) -> PathCheck:
+    def check_path(self, waypoints: np.ndarray, max_joint_step: float | None = None,
+                   escape: bool = False) -> PathCheck:
         """
         Return the ``PathCheck`` of the straight joint-space motion through ``waypoints``.
 
-        Samples every ``max_joint_step`` [rad] (default the settings') between waypoints.
+        Samples every ``max_joint_step`` [rad] (default the settings') between waypoints;
+        ``escape`` as ``check_configurations``.
         """
         W = np.asarray(waypoints, dtype=float).reshape(-1, self.arm.n_joints)
         if not self.settings.enabled:
             return PathCheck(None, {}, 0)
         Q, segment = densify(W, max_joint_step or self.settings.max_joint_step)
-        return self.check_configurations(Q, segment)
+        return self.check_configurations(Q, segment, escape=escape)
 
     def message(self, check: PathCheck) -> str:
         """Return the first contact of ``check`` in words ('' when free)."""

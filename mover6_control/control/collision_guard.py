@@ -56,7 +56,7 @@ class CollisionGuard:
         if not self.settings.enabled:
             return
         Q = plan_samples(plan, self.settings.max_joint_step)
-        check = self.checker.check_configurations(Q)
+        check = self.checker.check_configurations(Q, escape=True)   # Q[0]: where it is
         if not check.free:
             raise InvalidInputError(
                 f'collision: {self.checker.message(check).replace("the path", "the motion")}; '

@@ -217,10 +217,12 @@ def collision_refusal(checker: CollisionChecker, q: np.ndarray,
     Return the ``UnreachableError`` (reason 'collision') of waypoints ``q`` (n, 6), or None.
 
     The whole swept motion is checked: the straight joint-space lines between the waypoints,
-    sampled every ``checker.settings.max_joint_step``. The message names the shapes, the depth
-    and where: "link6 tool is 14 mm into the table margin at 62 % of the path".
+    sampled every ``checker.settings.max_joint_step``. ``q[0]`` is where the arm is: a contact
+    it is in already may get shallower but no deeper (``escape``), so it can be moved out. The
+    message names the shapes, the depth and where: "link6 tool is 14 mm into the table margin
+    at 62 % of the path".
     """
-    check = checker.check_path(q)
+    check = checker.check_path(q, escape=True)
     if check.free:
         return None
     first = check.first
