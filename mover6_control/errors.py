@@ -26,6 +26,9 @@ REASONS = {
     'invalid_goal': 'the goal or the present state cannot be planned from: a malformed pose, '
                     'a bad setting, or joint states too old to know the current pose',
     'no_controller': 'nothing subscribes to /joint_demands: the plan would reach no controller',
+    'collision': 'the motion, swept between its waypoints, would put a part of the arm or its '
+                 'tool into the table margin, into another part of the arm or into a keep-out '
+                 'box',
 }
 
 

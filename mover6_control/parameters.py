@@ -135,6 +135,35 @@ PROFILE_TEXT = (
     'quintic (3-4-5), septic (4-5-6-7), sharp_trapezoid; through all waypoints within them: '
     'cubic_spline, quintic_spline, bspline, multi_trapezoid')
 
+# The collision check of the planner and the controller (mover6_control.collision): the same
+# parameters on both nodes.
+TOOL_SHAPES = ('capsule', 'box', 'none')
+
+
+def _collision_specs(who):
+    """Return the collision-check parameters of the planner or the controller (``who``)."""
+    return (
+        P('collision_check', 'bool', True, '',
+          f'check every motion {who}, swept between its waypoints, against the table, the arm '
+          'itself and the keep-out boxes; refuse one that touches'),
+        P('tool_shape', 'str', 'capsule', '',
+          'volume of the tool on the flange for the collision check: capsule, box or none',
+          allowed=TOOL_SHAPES),
+        P('tool_size', 'float_list', (0.06, 0.06, 0.08), 'm',
+          'tool width (flange x), depth (flange y) and length (along the flange z axis, from '
+          'the flange); a capsule is max(width, depth) across (default: a small gripper)',
+          0.001, 1.0),
+        P('table_margin', 'float', 0.02, 'm',
+          'clearance every part of the arm and tool keeps above the table (z = 0 of base_link)',
+          0.0, 0.5),
+        P('keep_out_boxes', 'float_list', (0.0,) * 6, 'm',
+          'keep-out zones in base_link, 6 values per box: x, y, z min then x, y, z max; a box '
+          'without volume is none (default: none)', -5.0, 5.0),
+        P('collision_step', 'float', 0.01, 'rad',
+          'largest joint step between two checked samples of a motion', 0.0005, 0.5),
+    )
+
+
 PLANNER = _table(
     P('motion', 'str', 'linear', '', 'shape of /pose_goal moves',
       allowed=('linear', 'parabolic', 'joint')),
@@ -171,6 +200,7 @@ PLANNER = _table(
       "the controller's velocity law the predicted duration is timed with (set it as the "
       "controller's profile; its other law parameters are the controller's defaults)",
       allowed=PROFILES),
+    *_collision_specs('it plans'),
 )
 
 CONTROLLER = _table(
@@ -240,6 +270,7 @@ CONTROLLER = _table(
       'threshold)', 1.0, 1e6),
     P('servo_joint_limit_margin', 'float', 0.1, 'rad',
       'jogging: a joint this close to a limit halts the motion towards it', 0.0, 1.0),
+    *_collision_specs('it is sent directly (/joint_demands, the trajectory action)'),
 )
 
 SIM_BRIDGE = _table(

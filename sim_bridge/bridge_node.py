@@ -10,6 +10,13 @@ stamped) and, with ``publish_clock``, /clock after every physics step. Services:
 one control period while paused: one /joint_states period, or one 50 ms driver cycle in
 vendor mode).
 
+Contacts: ~/contacts (diagnostic_msgs/DiagnosticStatus, transient local) reports what the
+simulator's collision detection found on the arm's collision geometry (the checker's shapes):
+OK with ``contact_steps`` 0 while nothing has touched since the last reset, WARN naming the
+first contact (time, shapes, depth) and the shapes touching now once anything has. Sent at start,
+on a reset and whenever ``contact_steps`` or the shapes touching change (at most once per
+/joint_states period).
+
 Physics runs in its own thread, paced against the monotonic wall clock at
 ``real_time_factor`` (0 = as fast as it can); callbacks and the physics thread share the
 ``Simulator`` under a lock. In 'vendor_driver' mode /joint_states come at the driver's own rate
@@ -24,12 +31,14 @@ import threading
 import time
 
 from control_msgs.msg import JointJog
+from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import LIMIT_SETS, load_urdf, mover6
 from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.parameters import SIM_BRIDGE
 import numpy as np
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from sim_bridge.model import ModelOptions
@@ -82,7 +91,10 @@ class SimBridgeNode(Node):
         self._next_publish = self.sim.time
         self._last_reading_time = None
         self._mujoco_warnings = {}
-
+        self._contact_report = None      # (contact_steps, touching) last reported
+        self.contacts_pub = self.create_publisher(
+            DiagnosticStatus, '~/contacts',
+            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self.joint_states_pub = self.create_publisher(JointState, 'joint_states', 10)
         self.clock_pub = (self.create_publisher(Clock, 'clock', 10)
                           if self.publish_clock else None)
@@ -306,6 +318,28 @@ class SimBridgeNode(Node):
         self._mujoco_warnings = warnings
         if new:
             self.get_logger().error(f'MuJoCo warnings {new}: the physics was reset by MuJoCo')
+        self._report_contacts()
+
+    def _report_contacts(self):
+        """Publish ~/contacts when the contact count or the shapes touching changed."""
+        with self.lock:
+            steps, first = self.sim.contact_steps, self.sim.first_contact
+            touching = ', '.join(sorted(f'{a}-{b}' for a, b in self.sim.contacts()))
+        if (steps, touching) == self._contact_report:
+            return
+        self._contact_report = (steps, touching)
+        values = {'contact_steps': steps, 'touching': touching}
+        if first is None:
+            self.contacts_pub.publish(conversions.make_status(
+                'sim_bridge contacts', 'OK', 'no contact since the last reset', values))
+            return
+        t, shapes, depth = first
+        values.update(first_contact_time=f'{t:.3f}', first_contact='-'.join(shapes),
+                      first_contact_depth=f'{depth:.4f}')
+        text = f'{" and ".join(shapes)} touched at {t:.3f} s ({depth * 1e3:.1f} mm deep)'
+        self.get_logger().warning(f'contact: {text}', throttle_duration_sec=2.0)
+        self.contacts_pub.publish(conversions.make_status('sim_bridge contacts', 'WARN', text,
+                                                          values))
 
     def _publish_state(self, reading):
         """Publish a ``JointReading`` on /joint_states."""

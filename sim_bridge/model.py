@@ -6,10 +6,12 @@ i is a hinge on the URDF axis with the URDF limits as its range, and a site name
 link sits at the arm's ``tool`` transform. MuJoCo's forward kinematics therefore equals the core's
 ``fk`` to rounding error.
 
-What URDF does not say is added here, with values that are assumptions, not vendor data:
-capsules along each link (radius tapering from ``base_radius`` to ``tip_radius``), masses of
-``linear_density`` [kg/m] times the link length plus ``joint_mass`` [kg] (about 3 kg for the
-Mover6, near the vendor's stated weight of a few kilograms), a reflected rotor inertia
+The geoms are the collision geometry of ``mover6_control.collision.geometry`` (link capsules,
+the tool on the flange, the table plane, the base and any keep-out boxes), the very shapes the
+collision checker uses: one model of the arm's volume, not two. What URDF does not say is added
+here, with values that are assumptions, not vendor data: masses of ``linear_density`` [kg/m]
+times the link length plus ``joint_mass`` [kg] (about 3 kg for the Mover6, near the vendor's
+stated weight of a few kilograms), shared by the geoms of each body, a reflected rotor inertia
 ``armature`` [kg m^2] and a viscous ``damping`` [N m s/rad] per joint. Every body carries gravity
 compensation routed through the actuators, as the arm's own position-controlled drives hold
 against gravity; ``effort`` then reads the whole motor torque including the gravity load.
@@ -20,7 +22,8 @@ damping implicitly, so a stiff servo is stable at a 1 to 2 ms step. The servo to
 limited: MuJoCo's implicit step linearises the servo and a clamped force makes it overshoot and
 ring (measured here: unstable for kv >= 100 with a 100 N m clamp), so speed limits are enforced
 on the command side (``Simulator``) instead.
-Contacts are off: the bridge stands in for the drives, not for collision checking.
+Contacts exert no force (the physics' contact flag is off): the bridge stands in for the drives.
+The geoms do collide for detection, which ``Simulator`` runs after every step to report contacts.
 """
 
 from __future__ import annotations
@@ -28,6 +31,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from mover6_control.collision.geometry import (body_shapes, build_geometry, CollisionGeometry,
+                                               geom_xml, mjcf_excludes, world_geoms_xml)
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
 import mujoco
@@ -44,14 +49,11 @@ class ModelOptions:
     armature: float = 0.01           # reflected rotor inertia [kg m^2]
     linear_density: float = 2.5      # link mass per length [kg/m]
     joint_mass: float = 0.15         # mass of each joint's motor [kg]
-    base_radius: float = 0.04        # capsule radius at the base [m]
-    tip_radius: float = 0.02         # capsule radius at the tip [m]
     gravity: bool = True
 
     def __post_init__(self):
         """Check that every value is finite and positive where it must be."""
-        for name in ('physics_dt', 'kv', 'linear_density', 'base_radius',
-                     'tip_radius'):
+        for name in ('physics_dt', 'kv', 'linear_density'):
             value = getattr(self, name)
             if not np.isfinite(value) or value <= 0.0:
                 raise InvalidInputError(f'{name} must be positive and finite, got {value}')
@@ -87,24 +89,28 @@ def _segment(p_end, axis):
     return 0.04 * np.asarray(axis, dtype=float)
 
 
-def _capsule(name, p_end, radius, mass):
-    """Return a capsule geom from the body origin to ``p_end`` [m] with ``mass`` [kg]."""
-    return (f'<geom name="{name}" type="capsule" fromto="0 0 0 {_vec(p_end)}" '
-            f'size="{_num(radius)}" mass="{_num(mass)}" contype="0" conaffinity="0" '
-            'rgba="0.95 0.55 0.1 1"/>')
+def _body_geoms(geometry, body, mass):
+    """Return the geoms of ``body`` sharing ``mass`` [kg] (an inertial when it has none)."""
+    shapes = body_shapes(geometry, body)
+    if not shapes:
+        return [f'<inertial pos="0 0 0" mass="{_num(mass)}" diaginertia="1e-4 1e-4 1e-4"/>']
+    each = _num(mass / len(shapes))
+    return [geom_xml(s, f'mass="{each}" rgba="0.95 0.55 0.1 1"') for s in shapes]
 
 
-def build_mjcf(arm: ArmModel, options: ModelOptions | None = None) -> str:
+def build_mjcf(arm: ArmModel, options: ModelOptions | None = None,
+               geometry: CollisionGeometry | None = None) -> str:
     """
-    Return the MJCF text (str) of ``arm`` (an ``ArmModel``) with ``options``.
+    Return the MJCF text (str) of ``arm`` (an ``ArmModel``) with ``options`` and ``geometry``.
 
     Names: joints and actuators carry the arm's joint names, bodies are ``<joint>_link``, the
-    tool site is ``arm.tip_link``. Ranges are the arm's limits; infinite limits leave a joint
-    unlimited.
+    tool site is ``arm.tip_link``, geoms are the shapes' names (spaces as underscores). Ranges
+    are the arm's limits; infinite limits leave a joint unlimited. ``geometry`` defaults to
+    ``build_geometry(arm)`` (the default tool, no keep-out box).
     """
     opt = options or ModelOptions()
+    geometry = build_geometry(arm) if geometry is None else geometry
     n = arm.n_joints
-    radii = np.linspace(opt.base_radius, opt.tip_radius, n)
     gravity = '0 0 -9.81' if opt.gravity else '0 0 0'
     lines = [
         f'<mujoco model="{arm.name}">',
@@ -123,12 +129,8 @@ def build_mjcf(arm: ArmModel, options: ModelOptions | None = None) -> str:
         '  </asset>',
         '  <worldbody>',
         '    <light pos="0.5 -0.5 1.5" dir="-0.3 0.3 -1" directional="true"/>',
-        '    <geom name="floor" type="plane" size="1 1 0.01" rgba="0.85 0.85 0.82 1" '
-        'contype="0" conaffinity="0"/>',
-        '    <geom name="base" type="cylinder" size="0.06 {h}" pos="0 0 {h}" '
-        'contype="0" conaffinity="0" rgba="0.3 0.3 0.3 1" mass="1"/>'.format(
-            h=_num(max(arm.origins[0][2, 3], 0.01) / 2.0)),
     ]
+    lines += ['    ' + g for g in world_geoms_xml(geometry)]
     indent = '    '
     for i, joint in enumerate(arm.joint_names):
         origin = arm.origins[i]
@@ -144,7 +146,7 @@ def build_mjcf(arm: ArmModel, options: ModelOptions | None = None) -> str:
         lines.append(f'{indent}<joint name="{joint}" type="hinge" axis="{_vec(arm.axes[i])}"'
                      f'{rng} damping="{_num(opt.damping)}" armature="{_num(opt.armature)}" '
                      'actuatorgravcomp="true"/>')
-        lines.append(indent + _capsule(f'{joint}_geom', p_end, radii[i], mass))
+        lines += [indent + g for g in _body_geoms(geometry, i + 1, mass)]
     tool = arm.tool
     lines.append(f'{indent}<site name="{arm.tip_link}" pos="{_vec(tool[:3, 3])}" '
                  f'quat="{_vec(_quat(tool[:3, :3]))}" size="0.01" rgba="0.1 0.4 0.9 1"/>')
@@ -152,6 +154,9 @@ def build_mjcf(arm: ArmModel, options: ModelOptions | None = None) -> str:
         indent = indent[:-2]
         lines.append(f'{indent}</body>')
     lines.append('  </worldbody>')
+    lines.append('  <contact>')
+    lines += ['    ' + e for e in mjcf_excludes(geometry, [f'{j}_link' for j in arm.joint_names])]
+    lines.append('  </contact>')
     lines.append('  <actuator>')
     for joint in arm.joint_names:
         lines.append(f'    <velocity name="{joint}" joint="{joint}" kv="{_num(opt.kv)}"/>')
@@ -160,9 +165,10 @@ def build_mjcf(arm: ArmModel, options: ModelOptions | None = None) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def build_model(arm: ArmModel, options: ModelOptions | None = None) -> mujoco.MjModel:
+def build_model(arm: ArmModel, options: ModelOptions | None = None,
+                geometry: CollisionGeometry | None = None) -> mujoco.MjModel:
     """Return a compiled ``mujoco.MjModel`` of ``arm``; see ``build_mjcf``."""
-    return mujoco.MjModel.from_xml_string(build_mjcf(arm, options))
+    return mujoco.MjModel.from_xml_string(build_mjcf(arm, options, geometry))
 
 
 def joint_qpos_addresses(model: mujoco.MjModel,

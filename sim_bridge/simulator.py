@@ -24,6 +24,13 @@ ROS-free and clock-free: the caller steps the physics, passes the receive time o
     target in a straight line over the next cycle. Steps below one tick per cycle are lost, so
     J5 and J6 (2 pi / 1024 rad per tick) stand still under about 7 deg/s.
 
+Contacts: the model's geoms are the collision checker's (``mover6_control.collision``). They
+exert no force, but after every physics step MuJoCo's collision detection runs on them
+(``mj_collision``, the physics' contact flag lifted for that call only): ``contacts()`` names
+the shapes touching now, ``contact_steps`` counts the steps with any contact and
+``first_contact`` keeps the first (time, the deepest pair's shapes, its depth) since the last
+reset.
+
 Encoder ticks of the Mover6: the vendor driver (cpr_robot, CPRMover6.cpp) sets gear ratios 528.2,
 528.2, 528.2, 499.1, 1, 1 and 1440, 1440, 1440, 1440, 1024, 1024 encoder ticks per motor turn,
 so one tick is 2 pi / (gear * ticks) of the joint: 8.26e-6 rad for J1 to J3, 8.74e-6 rad for J4
@@ -164,6 +171,10 @@ class Simulator:
         self._inv_tau = 1.0 / (_LIMIT_APPROACH * self.config.physics_dt)
         opt = self.config.model
         self._feedforward = (opt.kv + opt.damping) / opt.kv
+        contact_off = int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        self._contact_flags = self.model.opt.disableflags & ~contact_off
+        self._geom_names = [mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, g) or str(g)
+                            for g in range(self.model.ngeom)]
         self.step_count = 0
         self.command_count = 0       # commands accepted since construction
         self.applied_count = 0       # the last command_count that a physics step used
@@ -302,6 +313,30 @@ class Simulator:
                 self._servo_control()
             mujoco.mj_step(self.model, self.data)
             self.step_count += 1
+            self._detect_contacts()
+
+    def _detect_contacts(self):
+        """Run MuJoCo's collision detection on the present state; note any contact."""
+        model, data = self.model, self.data
+        flags = model.opt.disableflags
+        model.opt.disableflags = self._contact_flags
+        try:
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_collision(model, data)
+        finally:
+            model.opt.disableflags = flags
+        if data.ncon:
+            self.contact_steps += 1
+            if self.first_contact is None:
+                dist = data.contact.dist[:data.ncon]
+                deepest = int(np.argmin(dist))
+                self.first_contact = (self.time, self.contacts()[deepest], float(-dist[deepest]))
+
+    def contacts(self) -> list[tuple[str, str]]:
+        """Return the pairs of geom names in contact after the last step (or reset)."""
+        c = self.data.contact
+        return [(self._geom_names[int(a)], self._geom_names[int(b)])
+                for a, b in zip(c.geom1[:self.data.ncon], c.geom2[:self.data.ncon])]
 
     def run_for(self, duration: float) -> None:
         """Advance the physics by ``duration`` [s] (rounded to whole steps)."""
@@ -400,6 +435,9 @@ class Simulator:
         self.data.time = t
         self.data.qpos[self._qadr] = q
         mujoco.mj_forward(self.model, self.data)
+        self.contact_steps = 0
+        self.first_contact = None
+        self._detect_contacts()
         n = self.arm.n_joints
         self._set_held(np.zeros(n))
         self._cmd_time = None

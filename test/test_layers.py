@@ -19,6 +19,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 LAYER_OF = {
     'mover6_control': 'base',            # errors, resources, validation, parameters
     'mover6_control.kinematics': 'kinematics',
+    'mover6_control.collision': 'collision',
     'mover6_control.motion': 'motion',
     'mover6_control.control': 'control',
     'mover6_control.planning': 'planning',
@@ -32,13 +33,15 @@ LAYER_OF = {
 MAY_IMPORT = {
     'base': set(),
     'kinematics': {'base'},
+    'collision': {'base', 'kinematics'},
     'motion': {'base', 'kinematics'},
-    'control': {'base', 'kinematics', 'motion'},
-    'planning': {'base', 'kinematics', 'motion'},
-    'sim': {'base', 'kinematics'},
-    'nodes': {'base', 'kinematics', 'motion', 'control', 'planning'},
+    'control': {'base', 'kinematics', 'motion', 'collision'},
+    'planning': {'base', 'kinematics', 'motion', 'collision'},
+    'sim': {'base', 'kinematics', 'collision'},
+    'nodes': {'base', 'kinematics', 'motion', 'control', 'planning', 'collision'},
     'sim_node': {'base', 'kinematics', 'sim', 'nodes'},
-    'tools': {'base', 'kinematics', 'motion', 'control', 'planning', 'nodes', 'sim'},
+    'tools': {'base', 'kinematics', 'motion', 'control', 'planning', 'nodes', 'sim',
+              'collision'},
 }
 
 

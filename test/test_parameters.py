@@ -11,6 +11,8 @@ import math
 import os
 import re
 
+from mover6_control.collision.checker import CollisionSettings
+from mover6_control.collision.geometry import TOOL_SHAPES, ToolVolume
 from mover6_control.control.controller_core import ControllerConfig
 from mover6_control.control.velocity_laws import JOG_UNITS, LawConfig, PROFILES
 from mover6_control.errors import InvalidInputError
@@ -40,6 +42,13 @@ DATACLASS_DEFAULTS = (
     + [(SimConfig, name, SIM_BRIDGE, name)
        for name in ('mode', 'command_timeout', 'speed_override')]
     + [(ModelOptions, name, SIM_BRIDGE, name) for name in ('physics_dt', 'kv', 'damping')]
+    + [(cls, name, table, param) for table in (PLANNER, CONTROLLER)
+       for cls, name, param in ((CollisionSettings, 'enabled', 'collision_check'),
+                                (CollisionSettings, 'table_margin', 'table_margin'),
+                                (CollisionSettings, 'keep_out', 'keep_out_boxes'),
+                                (CollisionSettings, 'max_joint_step', 'collision_step'),
+                                (ToolVolume, 'shape', 'tool_shape'),
+                                (ToolVolume, 'size', 'tool_size'))]
 )
 
 
@@ -77,6 +86,8 @@ def test_allowed_values_are_the_core_names():
     for table in NODES.values():
         assert table['limit_set'].allowed == LIMIT_SETS
         assert table['limit_set'].read_only
+    for table in (PLANNER, CONTROLLER):
+        assert table['tool_shape'].allowed == TOOL_SHAPES
 
 
 def test_mover6_driver_constants_are_the_arms():

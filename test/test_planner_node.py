@@ -372,3 +372,21 @@ def test_a_goals_profile_is_forwarded_with_its_demand(nodes):
     assert conversions.status_values(status)['reason'] == 'invalid_goal'
     spin_until(executor, lambda: False, timeout=0.5)
     assert {conversions.demand_id_from_msg(m) for m in probe.demands} == {values['goal_id']}
+
+
+def test_goal_into_the_table_is_refused_for_a_collision_and_the_switch_applies_live(nodes):
+    """The issue's table goal: refused, naming the tool, the table, the depth; off: planned."""
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    T = fk(ARM, HOME)
+    T[:3, :3] = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]) @ T[:3, :3]
+    T[:3, 3] = (0.25, 0.0, 0.0)                # flange pointing down at the table surface
+    status = send_pose(executor, probe, T)
+    refused(executor, probe, status, 'collision')
+    assert 'link6 tool is 100 mm into the table margin' in status.message
+    values = conversions.status_values(status)
+    assert values['shapes'] == 'link6 tool and table'
+    planner.set_parameters([Parameter('collision_check', value=False)])
+    status = send_pose(executor, probe, T)
+    assert status.level == DiagnosticStatus.OK, status.message

@@ -144,7 +144,7 @@ def test_gravity_is_compensated_at_rest():
 
 @pytest.mark.parametrize('bad', [{'physics_dt': 0.0}, {'physics_dt': 0.05},
                                  {'kv': -1.0}, {'damping': float('nan')},
-                                 {'armature': -0.1}, {'tip_radius': 0.0}])
+                                 {'armature': -0.1}, {'linear_density': 0.0}])
 def test_options_are_checked(bad):
     """Nonsense physical parameters are refused with a reason."""
     with pytest.raises(InvalidInputError):

@@ -331,3 +331,24 @@ def test_bad_parameters_are_refused(bad):
     overrides = [Parameter(k, value=v) for k, v in bad.items()]
     with pytest.raises(ValueError):
         SimBridgeNode(parameter_overrides=overrides)
+
+
+def test_contacts_are_reported_on_their_topic(harness):
+    """~/contacts: OK with no contact at home; WARN naming the shapes once the tool is in."""
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    h = harness
+    reports = []
+    h.node.create_subscription(DiagnosticStatus, 'sim_bridge/contacts', reports.append,
+                               QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    assert h.spin_until(lambda: bool(reports))
+    assert reports[-1].level == DiagnosticStatus.OK, reports[-1].message
+    assert conversions.status_values(reports[-1])['contact_steps'] == '0'
+    # Tool pointing down 80 mm into the table (the table goal of issue 14).
+    h.reset_to_pub.publish(JointState(name=['joint2', 'joint3', 'joint5'],
+                                      position=[0.78, 0.59, 0.2]))
+    assert h.spin_until(lambda: reports[-1].level == DiagnosticStatus.WARN)
+    values = conversions.status_values(reports[-1])
+    assert values['first_contact'] == 'table-link6_tool'
+    assert 'table-link6_tool' in values['touching']
+    assert int(values['contact_steps']) > 0

@@ -243,6 +243,9 @@ class ControllerCore:
         self._jog_kind = ''              # 'free', 'slowed', 'halted', 'stale': status changes
         self._jog_values = {}            # jogging figures for the status
         self._jog_refused = ''           # why the latest jog command was refused ('' taken)
+        # A callable(plan) that raises on a colliding motion (collision_guard.CollisionGuard);
+        # the node sets it. None: no collision check.
+        self.collision_guard = None
 
     def _derive(self, config):
         """
@@ -423,6 +426,9 @@ class ControllerCore:
                                     f'states yet')
         plan, note = plan_demand(self.law_for(profile, config), q_start, Q, vlim, qd_start,
                                  timing, self.arm.lower, self.arm.upper)
+        guard = self.collision_guard
+        if guard is not None:
+            guard(plan)         # raises InvalidInputError: the motion collides
         return PendingDemand(now, Q, plan, snapshot.moving, snapshot.motion_id, demand_id,
                              config, timing, note, profile)
 
@@ -473,6 +479,8 @@ class ControllerCore:
             plan, note = plan_demand(self.law_for(pending.profile), snapshot.start[0],
                                      pending.waypoints, self._vlim, snapshot.start[1],
                                      pending.timing, self.arm.lower, self.arm.upper)
+            if self.collision_guard is not None:
+                self.collision_guard(plan)      # the new plan is checked as the first was
         self._timing = note
         self.robot.give(plan, pending.now)
         self._motion_id += 1

@@ -53,6 +53,7 @@ import threading
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
+from mover6_control.control.collision_guard import CollisionGuard
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.control.servo import ServoConfig
 from mover6_control.control.state_machine import FAULT
@@ -121,6 +122,7 @@ class ControllerNode(Node):
         self.add_on_set_parameters_callback(self.on_set_parameters)
         self.add_post_set_parameters_callback(self.on_parameters_set)
         self.core = ControllerCore(mover6(limit_set), config)
+        self.apply_collision_parameters()
         self.joint_names = list(self.core.arm.joint_names)
         self.status_period = 1.0 / max(self.get_parameter('status_rate').value, 1e-3)
         self.last_status = None
@@ -194,6 +196,7 @@ class ControllerNode(Node):
         names = ', '.join(f'{p.name} {p.value}' for p in parameters)
         _, config = config_from_parameters(lambda n: self.get_parameter(n).value)
         self.status_period = 1.0 / max(self.get_parameter('status_rate').value, 1e-3)
+        self.apply_collision_parameters()
         with self.lock:
             now_applied = self.core.reconfigure(config)
             self.pending_logged = not now_applied
@@ -202,6 +205,14 @@ class ControllerNode(Node):
         else:
             self.get_logger().info(f'parameters set ({names}): applies to the next motion')
         self.publish_status(self.now())
+
+    def apply_collision_parameters(self):
+        """Give the core the collision check of the parameters (None when it is off)."""
+        get = self.get_parameter
+        settings = params.collision_settings(lambda n: get(n).value)
+        if self.core.collision_guard is None or self.core.collision_guard.settings != settings:
+            self.core.collision_guard = (CollisionGuard(self.core.arm, settings)
+                                         if settings.enabled else None)
 
     def on_joint_states(self, msg):
         """

@@ -7,6 +7,8 @@ the unit, ``floating_point_range`` / ``integer_range``, allowed values as
 bridge alike.
 """
 
+from mover6_control.collision.checker import CollisionSettings
+from mover6_control.collision.geometry import ToolVolume
 from mover6_control.errors import InvalidInputError
 from mover6_control.parameters import check_value
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
@@ -81,3 +83,12 @@ def make_set_callback(table):
                 return SetParametersResult(successful=False, reason=str(err))
         return SetParametersResult(successful=True)
     return on_set_parameters
+
+
+def collision_settings(get):
+    """Return the ``CollisionSettings`` of the collision parameters (planner or controller)."""
+    return CollisionSettings(
+        enabled=bool(get('collision_check')),
+        tool=ToolVolume(get('tool_shape'), tuple(get('tool_size'))),
+        table_margin=float(get('table_margin')), keep_out=tuple(get('keep_out_boxes')),
+        max_joint_step=float(get('collision_step')))

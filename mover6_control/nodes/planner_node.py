@@ -26,6 +26,7 @@ import dataclasses
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
+from mover6_control.collision.checker import CollisionChecker
 from mover6_control.control.velocity_laws import predicted_duration
 from mover6_control.errors import Mover6Error, UnreachableError
 from mover6_control.kinematics.arm import mover6
@@ -64,6 +65,7 @@ class PlannerNode(Node):
         self.pending = None      # a plan waiting for /joint_demands readers to be matched
         self.unconfirmed = None  # (goal_id, message, last sent, times sent): not yet acknowledged
         self.controller_values = {}
+        self._checker = None     # the collision checker of the latest settings
         self.create_timer(0.02, self.publish_pending)
         self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'planner/status', STATUS_QOS)
@@ -101,7 +103,7 @@ class PlannerNode(Node):
         motion = motion or self.get_parameter('motion').value
         self.handle_goal(msg.header, motion, lambda q, settings: plan_pose_goal(
             self.arm, q, conversions.pose_stamped_to_matrix(msg, self.frame_id()), motion,
-            settings))
+            settings, self.checker(settings)))
 
     def on_path_goal(self, msg, motion=None):
         """Plan a path goal (via poses then the goal) with ``motion`` (or ``path_motion``)."""
@@ -109,7 +111,8 @@ class PlannerNode(Node):
 
         def plan(q, settings):
             poses = conversions.pose_array_to_matrices(msg, self.frame_id())
-            return plan_path_goal(self.arm, q, poses[:-1], poses[-1], motion, settings)
+            return plan_path_goal(self.arm, q, poses[:-1], poses[-1], motion, settings,
+                                  self.checker(settings))
         self.handle_goal(msg.header, motion, plan)
 
     def on_via_joint_goal(self, msg):
@@ -133,7 +136,16 @@ class PlannerNode(Node):
             max_angle_step=p['max_angle_step'], peak_height=p['peak_height'],
             max_joint_step=p['max_joint_step'], max_condition=p['max_condition'],
             position_tolerance=p['position_tolerance'],
-            orientation_tolerance=p['orientation_tolerance'])
+            orientation_tolerance=p['orientation_tolerance'],
+            collision=params.collision_settings(lambda n: p[n]))
+
+    def checker(self, settings):
+        """Return the collision checker of ``settings`` (kept while they do not change)."""
+        if not settings.collision.enabled:
+            return None
+        if self._checker is None or self._checker.settings != settings.collision:
+            self._checker = CollisionChecker(self.arm, settings.collision)
+        return self._checker
 
     def current_q(self):
         """Return the latest joint positions, or raise when there are none or they are old."""
@@ -243,7 +255,8 @@ class PlannerNode(Node):
     def refuse(self, motion, text, reason, details, goal=None):
         """Report a refused goal on /planner/status and in the log; publish no demands."""
         values = {'result': 'refused', 'motion': motion, 'reason': reason}
-        for key in ('waypoint', 'position_error', 'orientation_error'):
+        for key in ('waypoint', 'position_error', 'orientation_error', 'fraction', 'shapes',
+                    'depth'):
             if key in details:
                 values[key] = details[key]
         closest = details.get('closest_pose')

@@ -3,12 +3,14 @@ The showcase a new user runs first (``./run.sh demo``).
 
 Starts the three nodes headless through ``scripts/launch.sh`` and sends, through the real nodes,
 the Mover6 report's two examples (its linear example and its IK example), then a parabolic
-move, a spline through via poses and a joint move home, then two goals that must be refused: one
-out of reach and one reachable only outside the joint limits (the closest pose inside them is
-printed). Goals are written as the goal CLI reads them (X Y Z A B C, A B C relative to the home
-orientation, as the Mover6 report). Records /joint_states and writes a report folder: plots of
+move, a spline through via poses and a joint move home, then three goals that must be refused:
+one at the table surface (the tool would go into the table: a collision), one out of reach and
+one reachable only outside the joint limits (the closest pose inside them is printed). Goals
+are written as the goal CLI reads them (X Y Z A B C, A B C relative to the home orientation, as
+the Mover6 report). Records /joint_states and writes a report folder: plots of
 what ran, an animation of the arm and a metrics table (Markdown and JSON). Exits 0 only when
-every move arrived within tolerance and each refusal was refused for its reason.
+every move arrived within tolerance, each refusal was refused for its reason and the simulator
+reported no contact (/sim_bridge/contacts).
 """
 
 import argparse
@@ -19,6 +21,7 @@ import subprocess
 import sys
 import time
 
+from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk_batch
 from mover6_control.resources import CONFIG_DIR
@@ -26,6 +29,7 @@ from mover6_control.tools.goal_cli import (EXIT_REFUSED, format_numbers, format_
                                            GoalClient, poses_from_numbers)
 import numpy as np
 import rclpy
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 
 # The folder that holds config/ and scripts/: the repository, or share/mover6_control installed
@@ -59,6 +63,9 @@ SHOWCASE = (
           (0.22, 0.08, 0.28, 0.0, 1.5708, 0.0)]),
     Step('joint', 'a joint-space move back home', 'pose', {'motion': 'joint'},
          [(0.345, 0.0, 0.4425, 0.0, 0.0, 0.0)]),
+    Step('table', 'a goal at the table surface, tool pointing down (must be refused: the tool '
+         'would go into the table)', 'pose', {'motion': 'linear'},
+         [(0.25, 0.0, 0.0, 0.0, 1.5708, 0.0)], expect='collision'),
     Step('out_of_reach', 'a goal out of reach (must be refused)', 'pose', {'motion': 'linear'},
          [(0.9, 0.0, 0.4, 0.0, 0.0, 0.0)], expect='out_of_reach'),
     # The IK example's position with the home orientation: its only solutions need joint3 at
@@ -71,12 +78,20 @@ JOINT_TOLERANCE = 0.01     # [rad] the demo's pass mark for the final joint erro
 
 
 class Recorder:
-    """Record /joint_states (time [s], q (6,), qd (6,)) into lists."""
+    """Record /joint_states (time [s], q (6,), qd (6,)) into lists, and the sim's contacts."""
 
     def __init__(self, node, joint_names):
         self.joint_names = joint_names
         self.t, self.q, self.qd = [], [], []
+        self.contacts = None     # the latest /sim_bridge/contacts values
         node.create_subscription(JointState, 'joint_states', self.on_msg, 100)
+        node.create_subscription(
+            DiagnosticStatus, 'sim_bridge/contacts', self.on_contacts,
+            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+
+    def on_contacts(self, msg):
+        """Keep the simulator's latest contact report."""
+        self.contacts = {kv.key: kv.value for kv in msg.values}
 
     def on_msg(self, msg):
         """Store one sample, mapped by name."""
@@ -279,6 +294,7 @@ def main(argv=None):
         f'{env.get("ROS_DOMAIN_ID", "0")}, logs in {report_dir}/logs)')
     stack = start_stack(os.path.join(report_dir, 'logs'), env)
     rows = []
+    contacts = None
     arm = mover6()
     rclpy.init()
     client = GoalClient(name='demo')
@@ -290,6 +306,8 @@ def main(argv=None):
             return 1
         for step in steps:
             rows.append(run_step(client, recorder, arm, step, say))
+        client.spin_until(lambda: False, 0.2)      # the last contact report
+        contacts = recorder.contacts
     finally:
         client.destroy_node()
         rclpy.try_shutdown()
@@ -301,6 +319,13 @@ def main(argv=None):
         if gif:
             files.append(gif)
     ok = passed(rows, steps)
+    if contacts is None:
+        say('simulator contacts: no report (a sim_bridge without /sim_bridge/contacts)')
+    else:
+        touched = contacts.get('contact_steps', '0') != '0'
+        say('simulator contacts: ' + (f'the arm touched: {contacts.get("first_contact")}'
+                                      if touched else 'none: no motion touched anything'))
+        ok = ok and not touched
     with open(os.path.join(report_dir, 'metrics.md')) as f:
         say('\n' + f.read())
     say(f'report: {report_dir} ({len(files)} files)')
