@@ -1,6 +1,7 @@
 """Jogging in the controller core: the state machine shared with motions, reasons on status."""
 
 from mover6_control.control import state_machine as sm
+from mover6_control.control.collision_guard import CollisionGuard
 from mover6_control.control.controller_core import (config_changes, ControllerConfig,
                                                     ControllerCore)
 from mover6_control.control.servo import ServoConfig
@@ -136,3 +137,38 @@ def test_servo_settings_changes_are_named_with_their_parameter():
     old = ControllerConfig()
     new = ControllerConfig(servo=ServoConfig(command_timeout=0.2))
     assert config_changes(old, new) == [('servo_command_timeout', 0.2)]
+
+
+def test_a_jog_towards_the_table_halts_before_it_and_a_jog_away_moves():
+    """With the collision check on, the jog's next poses are checked: it halts in time."""
+    core, sim = make()
+    guard = CollisionGuard(core.arm)
+    core.collision_guard = guard
+    sim.q = np.array([0.0, 0.3, 0.5, 0.0, 0.8, 0.0])        # flange down, 153 mm above z = 0
+    sim.tick()
+    assert guard.checker.check_configurations(sim.q[None]).free
+
+    def down(core, t):
+        core.on_twist(t, t, [0.0, 0.0, -0.03], [0.0, 0.0, 0.0], 'base_link')
+
+    z0 = fk(core.arm, sim.q)[2, 3]
+    reason = ''
+    while not reason.startswith('halted: vetoed: collision ahead'):
+        out = sim.tick(down)
+        reason = core.status().values.get('jog_reason', '')
+        assert out.state == sm.JOGGING and sim.t < 5.0, reason
+        assert guard.checker.check_configurations(sim.q[None]).free
+    assert 'table margin' in reason
+    for _ in range(50):                                    # held there, still commanding down
+        out = sim.tick(down)
+        assert guard.checker.check_configurations(sim.q[None]).free
+    assert np.all(out.qd == 0.0)
+    z_halt = fk(core.arm, sim.q)[2, 3]
+    assert z0 - z_halt > 0.03                              # it did come down before halting
+
+    def up(core, t):
+        core.on_twist(t, t, [0.0, 0.0, 0.03], [0.0, 0.0, 0.0], 'base_link')
+
+    for _ in range(100):
+        sim.tick(up)
+    assert fk(core.arm, sim.q)[2, 3] > z_halt + 0.02

@@ -181,7 +181,7 @@ def test_a_joint_near_its_limit_halts_towards_it_and_moves_away():
 
 
 def test_the_veto_hook_halts_with_its_reason():
-    """A veto (issue 14's collision check) sees the next pose and halts with its reason."""
+    """A veto (the collision check) sees the poses up to where it could stop; halts with why."""
     seen = []
 
     def veto(q, q_next):
@@ -192,7 +192,9 @@ def test_the_veto_hook_halts_with_its_reason():
     out = servo_step(ARM, config, initial_state(ARM), JointJogCommand(0.0, [0, 0.2, 0, 0, 0, 0]),
                      Q_AWAY, 0.0, DT, ARM.velocity_limits)
     assert out.halted and out.reason == 'halted: vetoed: link4 would hit the table'
-    assert seen and np.allclose(seen[0][1] - seen[0][0], [0, 0.2 * DT, 0, 0, 0, 0])
+    # It sees the pose one tick ahead plus the distance to stop from 0.2 rad/s at a_max.
+    ahead = 0.2 * DT + 0.2 ** 2 / (2.0 * config.a_max)
+    assert seen and np.allclose(seen[0][1] - seen[0][0], [0, ahead, 0, 0, 0, 0])
     out = servo_step(ARM, config, initial_state(ARM), JointJogCommand(0.0, [0, -0.2, 0, 0, 0, 0]),
                      Q_AWAY, 0.0, DT, ARM.velocity_limits)
     assert not out.halted and out.qd[1] < 0.0

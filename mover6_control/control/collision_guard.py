@@ -11,6 +11,8 @@ against the same shapes (``collision.checker.CollisionChecker``). ROS-free, cloc
 
 from __future__ import annotations
 
+import re
+
 from mover6_control.collision.checker import CollisionChecker, CollisionSettings, densify
 from mover6_control.control.velocity_laws import MotionPlan
 from mover6_control.errors import InvalidInputError
@@ -61,3 +63,19 @@ class CollisionGuard:
             raise InvalidInputError(
                 f'collision: {self.checker.message(check).replace("the path", "the motion")}; '
                 'demand refused')
+
+    def veto(self, q: np.ndarray, q_ahead: np.ndarray) -> str | None:
+        """
+        Return why a jog from ``q`` towards ``q_ahead`` (n,) [rad] must halt, or None.
+
+        The servo's hook (``servo.ServoConfig.veto``): the straight joint motion between the two
+        is checked densely; a contact the arm is already in may get shallower, not deeper.
+        """
+        if not self.settings.enabled:
+            return None
+        Q = densify(np.array([q, q_ahead], dtype=float), self.settings.max_joint_step)[0]
+        check = self.checker.check_configurations(Q, escape=True)
+        if check.free:
+            return None
+        return 'collision ahead: ' + re.sub(r' at \d+ % of the path$', '',
+                                            self.checker.message(check))

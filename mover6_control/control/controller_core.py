@@ -246,6 +246,7 @@ class ControllerCore:
         # A callable(plan) that raises on a colliding motion (collision_guard.CollisionGuard);
         # the node sets it. None: no collision check.
         self.collision_guard = None
+        self._servo_vetoed = (None, None, None)   # (servo config, guard, the two combined)
 
     def _derive(self, config):
         """
@@ -583,7 +584,12 @@ class ControllerCore:
     def _tick_jogging(self, now):
         """Return this tick's jogging command; back to idle once stale and at rest."""
         q = self.robot.q
-        out = servo_step(self.arm, self.config.servo, self._jog_state, self._jog, q, now,
+        servo, guard = self.config.servo, self.collision_guard
+        if guard is not None and servo.veto is None:     # the jog's next poses are checked too
+            if self._servo_vetoed[0] is not servo or self._servo_vetoed[1] is not guard:
+                self._servo_vetoed = (servo, guard, replace(servo, veto=guard.veto))
+            servo = self._servo_vetoed[2]
+        out = servo_step(self.arm, servo, self._jog_state, self._jog, q, now,
                          self._dt, self._vlim)
         self._jog_state = out.state
         self.robot.reference = (q, out.qd)      # a demand now starts from the jog's velocity

@@ -24,8 +24,8 @@ Safety, in MoveIt Servo's terms, every stop with a reason:
   ``MIN_SINGULARITY_SCALE`` or when its next tick would reach the hard threshold; motion away
   from a singularity is never slowed;
 - a joint within ``joint_limit_margin`` of a limit and moving towards it halts the motion;
-- ``veto`` (the hook for collision checking): a callable ``veto(q, q_next)`` returning a reason
-  (str) halts the motion before ``q_next``; None lets it go.
+- ``veto`` (the hook for collision checking): a callable ``veto(q, q_ahead)`` returning a
+  reason (str) halts the motion before ``q_ahead``, where it would stop; None lets it go.
 """
 
 from __future__ import annotations
@@ -58,8 +58,9 @@ class ServoConfig:
     ``hard_stop_singularity_threshold``: condition numbers of the normalised Jacobian where the
     slow-down starts and where the motion halts. ``joint_limit_margin`` [rad]: halt a joint
     moving towards a limit this close. ``a_max`` [rad/s^2]: largest change of any joint's speed.
-    ``veto``: ``veto(q, q_next) -> Optional[str]``, a reason to halt before ``q_next`` (issue
-    14's collision check plugs in here); None checks nothing.
+    ``veto``: ``veto(q, q_ahead) -> Optional[str]``, a reason to halt before ``q_ahead`` (this
+    tick's step plus the distance to stop at ``a_max``); the controller plugs its collision check
+    (``collision_guard.CollisionGuard.veto``) in here when it is on; None checks nothing.
     """
 
     command_timeout: float = 0.1
@@ -365,7 +366,10 @@ def servo_step(arm: ArmModel, config: ServoConfig, state: ServoState, command, q
     if not halted:
         why = _limit_halt(arm, q, target, config.joint_limit_margin)
         if not why and config.veto is not None:
-            why = config.veto(q, q + target * dt) or ''
+            # Ahead by this tick and the distance to stop from the target speed at a_max, so a
+            # veto leaves room to decelerate before the vetoed pose.
+            ahead = q + target * dt + target * np.abs(target) / (2.0 * config.a_max)
+            why = config.veto(q, ahead) or ''
             why = f'vetoed: {why}' if why else ''
         if why:
             target, reason, halted, scale = np.zeros(arm.n_joints), 'halted: ' + why, True, 0.0
