@@ -36,7 +36,7 @@ from typing import Callable, Optional
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
-from mover6_control.kinematics.forward import fk_frames_batch
+from mover6_control.kinematics.forward import fk_and_jacobian
 import numpy as np
 
 FRAMES = ('base_link', 'link6')
@@ -215,17 +215,9 @@ def pose_and_jacobian(arm: ArmModel, q: np.ndarray,
     The Jacobian is ``kinematics.forward.jacobian``'s (columns ``[z_i x (p - o_i); z_i]``) with
     its linear rows divided by the reach [m] (``arm_reach`` when None), so it is scale-free.
     """
-    frames = fk_frames_batch(arm, np.asarray(q, dtype=float)[None, :])[0]
-    n = arm.n_joints
-    z = np.einsum('nij,nj->ni', frames[:n, :3, :3], arm.axes)
-    J = np.empty((6, n))
-    r = frames[n, :3, 3] - frames[:n, :3, 3]
-    J[0] = z[:, 1] * r[:, 2] - z[:, 2] * r[:, 1]      # z x r, column by column
-    J[1] = z[:, 2] * r[:, 0] - z[:, 0] * r[:, 2]
-    J[2] = z[:, 0] * r[:, 1] - z[:, 1] * r[:, 0]
+    T, J = fk_and_jacobian(arm, q)
     J[:3] /= arm_reach(arm) if reach is None else reach
-    J[3:] = z.T
-    return frames[n], J
+    return T, J
 
 
 def normalised_jacobian(arm: ArmModel, q: np.ndarray, reach: Optional[float] = None) -> np.ndarray:
