@@ -34,6 +34,8 @@ def _skew4(axis):
 _CHUNK = 4096  # samples per block: keeps the working set in cache
 _TOP = np.eye(4)[:3]  # the top rows of the identity
 _TOP.setflags(write=False)
+# a x b = a[_NEXT] b[_LAST] - a[_LAST] b[_NEXT]
+_NEXT, _LAST = np.array([1, 2, 0]), np.array([2, 0, 1])
 
 
 def _aligned_axis(axis):
@@ -148,9 +150,8 @@ def _jacobian_of_frames(frames, axes):
     z = np.einsum('...nij,nj->...ni', frames[..., :n, :3, :3], axes)   # (..., n, 3)
     r = frames[..., n, None, :3, 3] - frames[..., :n, :3, 3]
     J = np.empty(frames.shape[:-3] + (6, n))
-    J[..., 0, :] = z[..., 1] * r[..., 2] - z[..., 2] * r[..., 1]      # z x r, column by column
-    J[..., 1, :] = z[..., 2] * r[..., 0] - z[..., 0] * r[..., 2]
-    J[..., 2, :] = z[..., 0] * r[..., 1] - z[..., 1] * r[..., 0]
+    J[..., :3, :] = np.swapaxes(z[..., _NEXT] * r[..., _LAST] - z[..., _LAST] * r[..., _NEXT],
+                                -1, -2)                              # z x r
     J[..., 3:, :] = np.swapaxes(z, -1, -2)
     return J
 
