@@ -85,7 +85,6 @@ def test_batched_fk_equals_single_fk():
         np.testing.assert_allclose(frames[0][:3, 3], fk_frames(arm, np.zeros(6))[0][:3, 3])
 
 
-
 @pytest.mark.parametrize('name', ['mover6', 'minibot', 'tilted'])
 def test_single_configuration_path_equals_the_batched_one(name):
     # fk, fk_frames, jacobian and fk_and_jacobian of one configuration skip the batched set-up.
