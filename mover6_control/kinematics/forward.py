@@ -70,7 +70,7 @@ def _turn(T, step, s, c):
     """
     Return the top rows (..., 3, 4) of ``T O Rot(k, q)`` for frames ``T`` (..., 3, 4).
 
-    ``s`` and ``c`` are sin(q) and cos(q): scalars for one frame, (m, 1) for m frames. ``T O``
+    ``s`` and ``c`` are sin(q) and cos(q): floats for one frame, (m, 1) for m frames. ``T O``
     is one (3m, 4) x (4, 4) product. A rotation about a coordinate axis e_j mixes two columns:
     ``(a, b) <- (c a + s b, c b - s a)`` for the two other axes. Any other axis uses Rodrigues,
     ``T O Rot(k, q) = T O + sin(q) T (O K) + (1 - cos(q)) T (O K^2)``.
@@ -79,13 +79,13 @@ def _turn(T, step, s, c):
     shape = T.shape
     flat = T.reshape(-1, 4)
     if sign is None:
-        return ((flat @ O).reshape(shape) + s[..., None] * (flat @ a).reshape(shape)
-                + (1.0 - c[..., None]) * (flat @ b).reshape(shape))
+        s, c = np.asarray(s)[..., None], np.asarray(c)[..., None]
+        return ((flat @ O).reshape(shape) + s * (flat @ a).reshape(shape)
+                + (1.0 - c) * (flat @ b).reshape(shape))
     T = (flat @ O).reshape(shape)
     s = s * sign
-    col_a = T[..., a] * c + T[..., b] * s
-    T[..., b] = T[..., b] * c - T[..., a] * s
-    T[..., a] = col_a
+    col_a, col_b = T[..., a], T[..., b]
+    T[..., a], T[..., b] = col_a * c + col_b * s, col_b * c - col_a * s
     return T
 
 
@@ -127,8 +127,8 @@ def _frames(arm, q):
     broadcasting), which costs more than the arithmetic for one configuration.
     """
     n = len(q)
-    s = np.sin(q)
-    c = np.cos(q)
+    s = np.sin(q).tolist()
+    c = np.cos(q).tolist()
     out = np.zeros((n + 1, 4, 4))
     out[:, 3, 3] = 1.0
     T = _TOP
