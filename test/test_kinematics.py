@@ -9,7 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel, from_dh, minibot, mover6
-from mover6_control.kinematics.forward import (condition_number, fk, fk_batch, fk_frames, jacobian,
+from mover6_control.kinematics.forward import (condition_number, fk, fk_and_jacobian, fk_batch,
+                                               fk_frames, fk_frames_batch, jacobian,
                                                jacobian_batch, joint_rates, joint_torques,
                                                manipulability)
 import numpy as np
@@ -82,6 +83,36 @@ def test_batched_fk_equals_single_fk():
         frames = fk_frames(arm, Q[7])
         np.testing.assert_allclose(frames[-1], T[7], atol=1e-12)
         np.testing.assert_allclose(frames[0][:3, 3], fk_frames(arm, np.zeros(6))[0][:3, 3])
+
+
+@pytest.mark.parametrize('name', ['mover6', 'minibot', 'tilted'])
+def test_single_configuration_path_equals_the_batched_one(name):
+    # fk, fk_frames, jacobian and fk_and_jacobian of one configuration skip the batched set-up.
+    rng = np.random.default_rng(11)
+    arm = {'mover6': mover6, 'minibot': minibot}.get(name, lambda: _tilted_arm(rng))()
+    Q = rng.uniform(-np.pi, np.pi, (200, arm.n_joints))
+    frames, J = fk_frames_batch(arm, Q), jacobian_batch(arm, Q)
+    for k, q in enumerate(Q):
+        np.testing.assert_allclose(fk_frames(arm, q), frames[k], rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(fk(arm, q), frames[k, -1], rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(jacobian(arm, q), J[k], rtol=0.0, atol=1e-12)
+        T, J_k = fk_and_jacobian(arm, q)
+        np.testing.assert_allclose(T, frames[k, -1], rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(J_k, J[k], rtol=0.0, atol=1e-12)
+
+
+def _tilted_arm(rng, n=5):
+    """Return an arm with random joint origins and axes off the coordinate axes (but one)."""
+    origins = np.tile(np.eye(4), (n, 1, 1))
+    origins[:, :3, :3] = Rotation.random(n, random_state=rng).as_matrix()
+    origins[:, :3, 3] = rng.uniform(-0.3, 0.3, (n, 3))
+    axes = rng.normal(size=(n, 3))
+    axes[0] = [0.0, 0.0, -1.0]                        # mix in an aligned one
+    tool = np.eye(4)
+    tool[:3, 3] = [0.01, 0.02, 0.1]
+    return ArmModel(name='tilted', joint_names=tuple(f'j{i}' for i in range(n)),
+                    origins=origins, axes=axes, tool=tool, lower=-np.full(n, 3.0),
+                    upper=np.full(n, 3.0), velocity_limits=np.ones(n))
 
 
 @settings(max_examples=30, deadline=None)

@@ -32,11 +32,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import lru_cache
+import math
 from typing import Callable, Optional
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
-from mover6_control.kinematics.forward import fk_frames_batch
+from mover6_control.kinematics.forward import fk_and_jacobian
 import numpy as np
 
 FRAMES = ('base_link', 'link6')
@@ -216,17 +217,9 @@ def pose_and_jacobian(arm: ArmModel, q: np.ndarray,
     The Jacobian is ``kinematics.forward.jacobian``'s (columns ``[z_i x (p - o_i); z_i]``) with
     its linear rows divided by the reach [m] (``arm_reach`` when None), so it is scale-free.
     """
-    frames = fk_frames_batch(arm, np.asarray(q, dtype=float)[None, :])[0]
-    n = arm.n_joints
-    z = np.einsum('nij,nj->ni', frames[:n, :3, :3], arm.axes)
-    J = np.empty((6, n))
-    r = frames[n, :3, 3] - frames[:n, :3, 3]
-    J[0] = z[:, 1] * r[:, 2] - z[:, 2] * r[:, 1]      # z x r, column by column
-    J[1] = z[:, 2] * r[:, 0] - z[:, 0] * r[:, 2]
-    J[2] = z[:, 0] * r[:, 1] - z[:, 1] * r[:, 0]
+    T, J = fk_and_jacobian(arm, q)
     J[:3] /= arm_reach(arm) if reach is None else reach
-    J[3:] = z.T
-    return frames[n], J
+    return T, J
 
 
 def normalised_jacobian(arm: ArmModel, q: np.ndarray, reach: Optional[float] = None) -> np.ndarray:
@@ -242,26 +235,33 @@ def condition(J: np.ndarray) -> float:
 
 def damped_rates(J: np.ndarray, twist: np.ndarray, damping: float) -> np.ndarray:
     """Return ``J^T (J J^T + damping^2 I)^-1 twist``: damped least squares joint rates."""
-    m = J.shape[0]
-    return J.T @ np.linalg.solve(J @ J.T + damping ** 2 * np.eye(m), twist)
+    A = J @ J.T
+    A.flat[::len(A) + 1] += damping ** 2
+    return J.T @ np.linalg.solve(A, twist)
 
 
 def _rotation_vector(R):
     """Return the rotation vector (3,) [rad] of ``R`` (angles under pi)."""
-    axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
-    sin = float(np.linalg.norm(axis))
-    angle = float(np.arctan2(sin, (np.trace(R) - 1.0) / 2.0))
-    return axis if sin < 1e-12 else axis * (angle / sin)
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R.tolist()    # floats: 3x3 is tiny
+    x, y, z = (r21 - r12) / 2.0, (r02 - r20) / 2.0, (r10 - r01) / 2.0
+    sin = math.sqrt(x * x + y * y + z * z)
+    if sin < 1e-12:
+        return np.array([x, y, z])
+    f = math.atan2(sin, (r00 + r11 + r22 - 1.0) / 2.0) / sin
+    return np.array([x * f, y * f, z * f])
 
 
 def _rotation_matrix(rotvec):
     """Return the rotation matrix of the rotation vector ``rotvec`` (3,) [rad] (Rodrigues)."""
-    angle = float(np.linalg.norm(rotvec))
+    x, y, z = rotvec.tolist()                                    # floats: 3x3 is tiny
+    angle = math.sqrt(x * x + y * y + z * z)
     if angle < 1e-15:
         return np.eye(3)
-    x, y, z = rotvec / angle
-    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
+    x, y, z = x / angle, y / angle, z / angle
+    s, v = math.sin(angle), 1.0 - math.cos(angle)    # I + s K + v K^2, K^2 = k k^T - I
+    return np.array([[1.0 - v * (y * y + z * z), v * x * y - s * z, v * x * z + s * y],
+                     [v * x * y + s * z, 1.0 - v * (x * x + z * z), v * y * z - s * x],
+                     [v * x * z - s * y, v * y * z + s * x, 1.0 - v * (x * x + y * y)]])
 
 
 def _accelerate(qd_prev, target, a_max, dt):
@@ -302,13 +302,13 @@ def _twist_target(arm, config, state, command, q, dt, vlim, reach):
         linear, angular = command.linear, command.angular
     twist = np.concatenate([linear, angular])
     error = np.concatenate([reference[:3, 3] - T[:3, 3], _rotation_vector(R_ref @ T[:3, :3].T)])
-    scaled = np.diag([1.0 / reach] * 3 + [1.0] * 3)
-    wanted = scaled @ (twist + config.pose_gain * error)
+    wanted = twist + config.pose_gain * error
+    wanted[:3] *= 1.0 / reach
     qd = damped_rates(J, wanted, config.damping)
     speed_factor = min(1.0, float(np.min(vlim / np.maximum(np.abs(qd), 1e-300))))
     qd = qd * speed_factor
     cond = condition(J)
-    norm = float(np.linalg.norm(qd))
+    norm = math.sqrt(float(qd @ qd))         # np.linalg.norm's own formula, without its checks
     lower = config.lower_singularity_threshold
     hard = config.hard_stop_singularity_threshold
     if norm == 0.0 or cond < lower:
@@ -381,7 +381,7 @@ def servo_step(arm: ArmModel, config: ServoConfig, state: ServoState, command, q
         if halted or not size > 1e-300:   # a vanishing target (denormal twist): no progress
             progress = 0.0
         else:    # the acceleration limit's share of the target reached this tick
-            progress = fraction * float(np.clip(qd @ target / size, 0.0, 1.0))
+            progress = fraction * min(max(float(qd @ target) / size, 0.0), 1.0)
         reference = _advance(reference, twist, progress, elapsed)
     return ServoOutput(qd, ServoState(qd, reference, now), reason, halted, stale, scale, cond)
 
@@ -396,5 +396,6 @@ def _advance(reference, twist, progress, dt):
     """
     out = reference.copy()
     out[:3, 3] += twist[:3] * progress * dt
-    out[:3, :3] = _rotation_matrix(twist[3:] * progress * dt) @ reference[:3, :3]
+    if np.any(twist[3:]) and progress > 0.0:
+        out[:3, :3] = _rotation_matrix(twist[3:] * progress * dt) @ reference[:3, :3]
     return out

@@ -11,6 +11,7 @@ Jacobians and trajectories report, eq. 20).
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError
@@ -31,6 +32,10 @@ def _skew4(axis):
 
 
 _CHUNK = 4096  # samples per block: keeps the working set in cache
+_TOP = np.eye(4)[:3]  # the top rows of the identity
+_TOP.setflags(write=False)
+# a x b = a[_NEXT] b[_LAST] - a[_LAST] b[_NEXT]
+_NEXT, _LAST = np.array([1, 2, 0]), np.array([2, 0, 1])
 
 
 def _aligned_axis(axis):
@@ -41,19 +46,14 @@ def _aligned_axis(axis):
     return None
 
 
-def _chain(arm, Q, keep_frames):
+@lru_cache(maxsize=16)             # an ArmModel is immutable and hashed by identity
+def _steps(arm: ArmModel) -> tuple:
     """
-    Multiply out the chain for configurations ``Q`` (m, n): frames (m, n + 1, 4, 4) or tips.
+    Return, per joint, what ``_turn`` needs, prepared once per arm.
 
-    Vectorised without per-sample matrix products; only the top 3 rows are carried. ``T O``
-    for a block of samples is one (3m, 4) x (4, 4) product. A rotation about a coordinate axis
-    e_j mixes two columns: ``(a, b) <- (c a + s b, c b - s a)`` for the two other axes. Any
-    other axis uses Rodrigues, ``T O Rot(k, q) = T O + sin(q) T (O K) + (1 - cos(q)) T (O K^2)``.
+    ``(O, a, b, sign)`` for an axis +-e_j: a rotation that mixes the columns a and b; or
+    ``(O, O K, O K^2, None)`` for any other axis (Rodrigues), with ``O`` the joint's origin.
     """
-    Q = as_finite_array(Q, (None, arm.n_joints), 'configurations')
-    m, n = Q.shape
-    out = np.zeros((m, n + 1, 4, 4) if keep_frames else (m, 4, 4))
-    out[..., 3, 3] = 1.0
     steps = []
     for origin, axis in zip(arm.origins, arm.axes):
         aligned = _aligned_axis(axis)
@@ -63,6 +63,44 @@ def _chain(arm, Q, keep_frames):
         else:
             K, KK = _skew4(axis)
             steps.append((origin, origin @ K, origin @ KK, None))
+    return tuple(steps)
+
+
+def _turn(T, step, s, c):
+    """
+    Return the top rows (..., 3, 4) of ``T O Rot(k, q)`` for frames ``T`` (..., 3, 4).
+
+    ``s`` and ``c`` are sin(q) and cos(q): floats for one frame, (m, 1) for m frames. ``T O``
+    is one (3m, 4) x (4, 4) product. A rotation about a coordinate axis e_j mixes two columns:
+    ``(a, b) <- (c a + s b, c b - s a)`` for the two other axes. Any other axis uses Rodrigues,
+    ``T O Rot(k, q) = T O + sin(q) T (O K) + (1 - cos(q)) T (O K^2)``.
+    """
+    O, a, b, sign = step
+    shape = T.shape
+    flat = T.reshape(-1, 4)
+    if sign is None:
+        s, c = np.asarray(s)[..., None], np.asarray(c)[..., None]
+        return ((flat @ O).reshape(shape) + s * (flat @ a).reshape(shape)
+                + (1.0 - c) * (flat @ b).reshape(shape))
+    T = (flat @ O).reshape(shape)
+    s = s * sign
+    col_a, col_b = T[..., a], T[..., b]
+    T[..., a], T[..., b] = col_a * c + col_b * s, col_b * c - col_a * s
+    return T
+
+
+def _chain(arm, Q, keep_frames):
+    """
+    Multiply out the chain for configurations ``Q`` (m, n): frames (m, n + 1, 4, 4) or tips.
+
+    Vectorised without per-sample matrix products (``_turn`` on blocks of samples); only the top
+    3 rows are carried.
+    """
+    Q = as_finite_array(Q, (None, arm.n_joints), 'configurations')
+    m, n = Q.shape
+    out = np.zeros((m, n + 1, 4, 4) if keep_frames else (m, 4, 4))
+    out[..., 3, 3] = 1.0
+    steps = _steps(arm)
     for lo in range(0, m, _CHUNK):
         q = Q[lo:lo + _CHUNK]
         k = len(q)
@@ -70,19 +108,7 @@ def _chain(arm, Q, keep_frames):
         c = np.cos(q)
         T = np.broadcast_to(np.eye(4)[:3], (k, 3, 4))
         for i in range(n):
-            O, a, b, sign = steps[i]
-            flat = T.reshape(-1, 4)
-            if sign is not None:
-                T = (flat @ O).reshape(k, 3, 4)
-                si = s[:, i, None] * sign
-                ci = c[:, i, None]
-                col_a = T[:, :, a] * ci + T[:, :, b] * si
-                T[:, :, b] = T[:, :, b] * ci - T[:, :, a] * si
-                T[:, :, a] = col_a
-            else:
-                T = ((flat @ O).reshape(k, 3, 4)
-                     + s[:, i, None, None] * (flat @ a).reshape(k, 3, 4)
-                     + (1.0 - c[:, i, None, None]) * (flat @ b).reshape(k, 3, 4))
+            T = _turn(T, steps[i], s[:, i, None], c[:, i, None])
             if keep_frames:
                 out[lo:lo + k, i, :3] = T
         tip = (T.reshape(-1, 4) @ arm.tool).reshape(k, 3, 4)
@@ -91,6 +117,43 @@ def _chain(arm, Q, keep_frames):
         else:
             out[lo:lo + k, :3] = tip
     return out
+
+
+def _frames(arm, q):
+    """
+    Return the frames (n + 1, 4, 4) of one checked configuration ``q`` (n,): the fast path.
+
+    The batched product's steps on one (3, 4) frame, without its per-call set-up (blocks,
+    broadcasting), which costs more than the arithmetic for one configuration.
+    """
+    n = len(q)
+    s = np.sin(q).tolist()
+    c = np.cos(q).tolist()
+    out = np.zeros((n + 1, 4, 4))
+    out[:, 3, 3] = 1.0
+    T = _TOP
+    for i, step in enumerate(_steps(arm)):
+        T = _turn(T, step, s[i], c[i])
+        out[i, :3] = T
+    out[n, :3] = T @ arm.tool
+    return out
+
+
+def _jacobian_of_frames(frames, axes):
+    """
+    Return the geometric Jacobians (..., 6, n) of frames (..., n + 1, 4, 4) from ``fk_frames``.
+
+    Column i is ``[z_i x (p_tip - o_i); z_i]`` with ``z_i`` joint i's unit axis ``axes[i]`` and
+    ``o_i`` its frame's origin, both in the base frame.
+    """
+    n = len(axes)
+    z = np.einsum('...nij,nj->...ni', frames[..., :n, :3, :3], axes)   # (..., n, 3)
+    r = frames[..., n, None, :3, 3] - frames[..., :n, :3, 3]
+    J = np.empty(frames.shape[:-3] + (6, n))
+    J[..., :3, :] = np.swapaxes(z[..., _NEXT] * r[..., _LAST] - z[..., _LAST] * r[..., _NEXT],
+                                -1, -2)                              # z x r
+    J[..., 3:, :] = np.swapaxes(z, -1, -2)
+    return J
 
 
 def fk_frames_batch(arm: ArmModel, Q: np.ndarray) -> np.ndarray:
@@ -109,14 +172,12 @@ def fk_batch(arm: ArmModel, Q: np.ndarray) -> np.ndarray:
 
 def fk(arm: ArmModel, q: np.ndarray) -> np.ndarray:
     """Return ``T_base_tip`` (4, 4) for one configuration ``q`` (n,) [rad]."""
-    q = arm.check_q(q)
-    return fk_batch(arm, q[None, :])[0]
+    return _frames(arm, arm.check_q(q))[-1]
 
 
 def fk_frames(arm: ArmModel, q: np.ndarray) -> np.ndarray:
     """Return every joint frame and the tip frame (n + 1, 4, 4) for ``q`` (n,) [rad]."""
-    q = arm.check_q(q)
-    return fk_frames_batch(arm, q[None, :])[0]
+    return _frames(arm, arm.check_q(q))
 
 
 def jacobian_batch(arm: ArmModel, Q: np.ndarray) -> np.ndarray:
@@ -126,21 +187,18 @@ def jacobian_batch(arm: ArmModel, Q: np.ndarray) -> np.ndarray:
     Column i is ``[z_i x (p_tip - o_i); z_i]`` with ``z_i`` joint i's unit axis and ``o_i`` a
     point on it, both in the base frame.
     """
-    frames = fk_frames_batch(arm, Q)
-    n = arm.n_joints
-    z = np.einsum('mnij,nj->mni', frames[:, :n, :3, :3], arm.axes)   # (m, n, 3)
-    o = frames[:, :n, :3, 3]
-    p = frames[:, n, None, :3, 3]
-    J = np.empty((len(frames), 6, n))
-    J[:, :3] = np.cross(z, p - o).transpose(0, 2, 1)
-    J[:, 3:] = z.transpose(0, 2, 1)
-    return J
+    return _jacobian_of_frames(fk_frames_batch(arm, Q), arm.axes)
+
+
+def fk_and_jacobian(arm: ArmModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``T_base_tip`` (4, 4) and the geometric Jacobian (6, n) at ``q`` from one pass."""
+    frames = _frames(arm, arm.check_q(q))
+    return frames[-1], _jacobian_of_frames(frames, arm.axes)
 
 
 def jacobian(arm: ArmModel, q: np.ndarray) -> np.ndarray:
     """Return the geometric Jacobian (6, n) at ``q`` (n,) [rad]: rows ``[v; w]``, base frame."""
-    q = arm.check_q(q)
-    return jacobian_batch(arm, q[None, :])[0]
+    return fk_and_jacobian(arm, q)[1]
 
 
 def singular_values(arm: ArmModel, q: np.ndarray) -> np.ndarray:
