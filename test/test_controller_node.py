@@ -302,6 +302,34 @@ def test_a_blocked_publish_holds_up_neither_states_nor_status(ros):
     assert float(arm.status()['max_tick_gap']) >= 0.4
 
 
+def labelled(label):
+    """Return a one-row demand to GOAL whose first dimension is labelled ``label``."""
+    msg = conversions.make_demands(GOAL[None])
+    msg.layout.dim[0].label = label
+    return msg
+
+
+def test_node_times_a_demand_by_its_profile_without_touching_the_parameter(ros):
+    controller, arm, spin_until = ros
+    spin_until(lambda: arm.status().get('state') == 'idle')
+    arm.demand_pub.publish(labelled('waypoints goal typed-1 profile quintic'))
+    spin_until(lambda: arm.status().get('goal_id') == 'typed-1'
+               and arm.status().get('result') == 'arrived')
+    assert arm.status()['motion_profile'] == 'quintic'
+    assert arm.status()['profile'] == 'trapezoidal'
+    assert controller.get_parameter('profile').value == 'trapezoidal'
+    spin_until(lambda: arm.status().get('state') == 'idle')
+
+
+def test_node_refuses_an_unknown_profile_with_the_reason(ros):
+    controller, arm, spin_until = ros
+    spin_until(lambda: arm.status().get('state') == 'idle')
+    arm.demand_pub.publish(labelled('waypoints goal typed-2 profile banana'))
+    spin_until(lambda: arm.status().get('rejected_goal_id') == 'typed-2')
+    assert 'banana' in arm.status()['rejected']
+    assert controller.get_parameter('profile').value == 'trapezoidal'
+
+
 def test_parameters_apply_live(ros):
     """
     A valid set applies at once when idle, after the running motion during one.

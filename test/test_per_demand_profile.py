@@ -1,31 +1,17 @@
-"""A demand's own profile: parsed from its label, timing that motion only (issue 11)."""
+"""A demand's own profile: its label, its motion only (node tests: test_controller_node.py)."""
 
-import os
-import time
-
-from control_msgs.msg import JointJog
-from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.control.velocity_laws import LawConfig, plan_motion
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes import conversions
-from mover6_control.nodes.controller_node import ControllerNode
 from mover6_control.tools.goal_cli import EXIT_ARRIVED, EXIT_REFUSED, Outcome, run
 import numpy as np
 import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile
-from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 
 ARM = mover6()
-NAMES = [f'joint{i}' for i in range(1, 7)]
-NS = f'per_demand_profile_test_{os.getpid()}'
 GOAL = np.array([0.3, -0.2, 0.2, 0.1, -0.1, 0.3])
 
 
@@ -172,80 +158,3 @@ def test_an_unknown_profile_is_refused_with_the_reason_and_the_motion_kept():
     values = core.status().values
     assert values['rejected_goal_id'] == 'bad' and 'banana' in values['rejected']
     assert core.config.law.profile == 'trapezoidal'
-
-
-# --- the node --------------------------------------------------------------------------------
-
-class Arm(Node):
-    """Integrate JointJog into /joint_states and keep the controller's statuses."""
-
-    def __init__(self, context):
-        super().__init__('arm', context=context, namespace=NS)
-        self.q, self.qd, self.last = np.zeros(6), np.zeros(6), time.monotonic()
-        self.statuses = []
-        self.state_pub = self.create_publisher(JointState, 'joint_states', 10)
-        self.demand_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
-        self.create_subscription(JointJog, 'JointJog', self.on_jog, 10)
-        qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.create_subscription(DiagnosticStatus, 'controller/status', self.statuses.append, qos)
-        self.create_timer(0.02, self.on_timer)
-
-    def on_jog(self, msg):
-        self.qd = np.array(conversions.joint_jog_from_msg(msg)[1])
-
-    def on_timer(self):
-        now = time.monotonic()
-        self.q = self.q + self.qd * min(now - self.last, 0.05)
-        self.last = now
-        self.state_pub.publish(conversions.make_joint_state(NAMES, self.q, self.qd))
-
-    def status(self):
-        return conversions.status_values(self.statuses[-1]) if self.statuses else {}
-
-
-@pytest.fixture(scope='module')
-def ros():
-    assert os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    controller = ControllerNode(context=context, namespace=NS, parameter_overrides=[
-        Parameter('profile', value='trapezoidal')])
-    arm = Arm(context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(controller)
-    executor.add_node(arm)
-
-    def spin_until(predicate, timeout=30.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.02)
-            if predicate():
-                return True
-        raise AssertionError(f'timed out; last status {arm.status()}')
-
-    yield controller, arm, spin_until
-    executor.shutdown()
-    controller.destroy_node()
-    arm.destroy_node()
-    rclpy.try_shutdown(context=context)
-
-
-def test_node_times_a_demand_by_its_profile_without_touching_the_parameter(ros):
-    controller, arm, spin_until = ros
-    spin_until(lambda: arm.status().get('state') == 'idle')
-    arm.demand_pub.publish(labelled('waypoints goal typed-1 profile quintic'))
-    spin_until(lambda: arm.status().get('goal_id') == 'typed-1'
-               and arm.status().get('result') == 'arrived')
-    assert arm.status()['motion_profile'] == 'quintic'
-    assert arm.status()['profile'] == 'trapezoidal'
-    assert controller.get_parameter('profile').value == 'trapezoidal'
-    spin_until(lambda: arm.status().get('state') == 'idle')
-
-
-def test_node_refuses_an_unknown_profile_with_the_reason(ros):
-    controller, arm, spin_until = ros
-    spin_until(lambda: arm.status().get('state') == 'idle')
-    arm.demand_pub.publish(labelled('waypoints goal typed-2 profile banana'))
-    spin_until(lambda: arm.status().get('rejected_goal_id') == 'typed-2')
-    assert 'banana' in arm.status()['rejected']
-    assert controller.get_parameter('profile').value == 'trapezoidal'
