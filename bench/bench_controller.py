@@ -18,12 +18,11 @@ Run: ``python -m bench.bench_controller [--quick]``; writes bench/results/contro
 import argparse
 import json
 import os
-import signal
-import subprocess
 import sys
 import tempfile
 import time
 
+from bench.processes import NodeProcess
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.control.velocity_laws import LawConfig, PROFILES
 from mover6_control.kinematics.arm import mover6
@@ -67,7 +66,7 @@ def proc_cpu_seconds(pid):
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
-class SourceNode:
+class SourceNode(NodeProcess):
     """
     The controller node from this source tree in its own process, stopped by its pid.
 
@@ -81,27 +80,7 @@ class SourceNode:
         for key, value in params.items():
             cmd += ['-p', f'{key}:={value}']
         cmd += ['-r', f'__ns:=/{namespace}']
-        self.log_path = os.path.join(log_dir, f'controller_{params["rate"]:g}.log')
-        self.log = open(self.log_path, 'w')
-        self.proc = subprocess.Popen(cmd, stdout=self.log, stderr=subprocess.STDOUT, cwd=root,
-                                     env=dict(os.environ, PYTHONUNBUFFERED='1'))
-        self.pid = self.proc.pid
-
-    def tail(self, lines=30):
-        """Return the last lines of the node's output."""
-        with open(self.log_path) as f:
-            return ''.join(f.readlines()[-lines:])
-
-    def stop(self):
-        """Stop the process: SIGINT, then SIGKILL after 10 s."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(10.0)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(5.0)
-        self.log.close()
+        super().__init__(cmd, os.path.join(log_dir, f'controller_{params["rate"]:g}.log'), root)
 
 
 def bench_node(rate, seconds, log_dir):

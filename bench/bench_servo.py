@@ -19,12 +19,11 @@ Run: ``python -m bench.bench_servo [--quick]``; writes bench/results/servo.json.
 import argparse
 import json
 import os
-import signal
-import subprocess
 import sys
 import tempfile
 import time
 
+from bench.processes import NodeProcess
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import jacobian
@@ -66,33 +65,14 @@ def bench_compute(case, n_ticks):
     return np.array(times)
 
 
-class ControllerProcess:
+class ControllerProcess(NodeProcess):
     """The controller node from this source tree in its own process, stopped by its pid."""
 
     def __init__(self, log_dir, namespace):
         cmd = [sys.executable, '-m', 'mover6_control.nodes.controller_node', '--ros-args',
                '--params-file', os.path.join(ROOT, 'config', 'controller.yaml'),
                '-p', f'rate:={RATE}', '-r', f'__ns:=/{namespace}']
-        self.log_path = os.path.join(log_dir, 'controller.log')
-        self.log = open(self.log_path, 'w')
-        self.proc = subprocess.Popen(cmd, stdout=self.log, stderr=subprocess.STDOUT, cwd=ROOT,
-                                     env=dict(os.environ, PYTHONUNBUFFERED='1'))
-
-    def tail(self, lines=30):
-        """Return the last lines of the node's output."""
-        with open(self.log_path) as f:
-            return ''.join(f.readlines()[-lines:])
-
-    def stop(self):
-        """Stop the process by its pid: SIGINT, then SIGKILL after 10 s."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(10.0)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(5.0)
-        self.log.close()
+        super().__init__(cmd, os.path.join(log_dir, 'controller.log'), ROOT)
 
 
 def bench_latency(samples, log_dir):
