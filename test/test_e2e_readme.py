@@ -42,28 +42,8 @@ def client(stack):
     rclpy.try_shutdown()
 
 
-def test_readme_parabolic_goal_arrives_from_home(stack, client):
-    """The README's parabolic line after a reset to home: exit 0 and RESULT arrived."""
-    lines = [line for line in readme_goal_lines() if '--motion parabolic' in line]
-    assert len(lines) == 1, lines
-    reset = client.create_client(Trigger, 'sim_bridge/reset')
-    assert reset.wait_for_service(timeout_sec=10.0), stack.report()
-    future = reset.call_async(Trigger.Request())
-    assert client.spin_until(future.done, 10.0) and future.result().success, stack.report()
-    assert client.spin_until(
-        lambda: client.q is not None and np.abs(client.q).max() < 1e-3, 10.0), client.q
-    proc = subprocess.run([sys.executable, '-m', 'mover6_control.tools.goal_cli',
-                           *goal_argv(lines[0]), '--timeout', '60'],
-                          capture_output=True, text=True, timeout=120,
-                          cwd=os.path.dirname(CONFIG_DIR))
-    out = proc.stdout + proc.stderr
-    assert proc.returncode == 0, f'{shlex.join(goal_argv(lines[0]))}\n{out}\n{stack.report()}'
-    assert 'RESULT arrived' in out, out
-
-
-@pytest.mark.parametrize('mark', ['--shape joint', '--profile'])
-def test_readme_via_joint_and_profile_goals_arrive_from_home(stack, client, mark):
-    """The README's via-point joint move and its per-goal profile line, from home: exit 0."""
+def run_readme_line_from_home(stack, client, mark):
+    """Reset the arm to home, run the README's one goal line with ``mark``; return its argv."""
     lines = [line for line in readme_goal_lines() if mark in line]
     assert len(lines) == 1, lines
     argv = goal_argv(lines[0])
@@ -80,6 +60,18 @@ def test_readme_via_joint_and_profile_goals_arrive_from_home(stack, client, mark
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, f'{shlex.join(argv)}\n{out}\n{stack.report()}'
     assert 'RESULT arrived' in out, out
+    return argv
+
+
+def test_readme_parabolic_goal_arrives_from_home(stack, client):
+    """The README's parabolic line after a reset to home: exit 0 and RESULT arrived."""
+    run_readme_line_from_home(stack, client, '--motion parabolic')
+
+
+@pytest.mark.parametrize('mark', ['--shape joint', '--profile'])
+def test_readme_via_joint_and_profile_goals_arrive_from_home(stack, client, mark):
+    """The README's via-point joint move and its per-goal profile line, from home: exit 0."""
+    argv = run_readme_line_from_home(stack, client, mark)
     if mark == '--profile':
         # The controller timed that motion with the goal's law; its parameter is unchanged.
         profile = argv[argv.index('--profile') + 1]
