@@ -281,23 +281,33 @@ def _check_plan(arm, plan, settings, checker):
     return plan
 
 
-def plan_joint_move(arm: ArmModel, q_current: np.ndarray, T_goal: np.ndarray,
-                    settings: PlannerSettings):
-    """Plan a straight line in joint space to the IK solution closest to ``q_current``."""
-    solutions = ik_closed_form(arm, T_goal, within_limits=True)
+def closest_solution(arm: ArmModel, T: np.ndarray, q_ref: np.ndarray, what: str) -> np.ndarray:
+    """
+    Return the IK solution (6,) of ``T`` inside the limits nearest ``q_ref`` (largest joint step).
+
+    Raises ``UnreachableError`` as a joint move does: ``joint_limits`` with the closest
+    configuration outside them, or ``out_of_reach``.
+    """
+    solutions = ik_closed_form(arm, T, within_limits=True)
     if len(solutions) == 0:
-        all_solutions = ik_closed_form(arm, T_goal, within_limits=False)
+        all_solutions = ik_closed_form(arm, T, within_limits=False)
         if len(all_solutions) > 0:
-            best = all_solutions[np.argmin(np.abs(all_solutions - q_current).max(axis=1))]
+            best = all_solutions[np.argmin(np.abs(all_solutions - q_ref).max(axis=1))]
             raise UnreachableError(
-                'the goal is reachable only outside the joint limits: '
+                f'the {what} is reachable only outside the joint limits: '
                 + '; '.join(arm.limit_violations(best)),
                 reason='joint_limits',
                 details={'waypoint': 0, 'position_error': 0.0, 'orientation_error': 0.0,
                          'closest_q': best, 'closest_pose': fk(arm, best)})
-        raise UnreachableError('no inverse kinematics solution: the goal is out of reach',
+        raise UnreachableError(f'no inverse kinematics solution: the {what} is out of reach',
                                reason='out_of_reach', details={'waypoint': 0})
-    q_goal = solutions[np.argmin(np.abs(solutions - q_current).max(axis=1))]
+    return solutions[np.argmin(np.abs(solutions - q_ref).max(axis=1))]
+
+
+def plan_joint_move(arm: ArmModel, q_current: np.ndarray, T_goal: np.ndarray,
+                    settings: PlannerSettings):
+    """Plan a straight line in joint space to the IK solution closest to ``q_current``."""
+    q_goal = closest_solution(arm, T_goal, q_current, 'goal')
     n = max(2, int(np.ceil(np.abs(q_goal - q_current).max() / settings.max_joint_step)) + 1,
             int(settings.n_waypoints))
     s = np.linspace(0.0, 1.0, n)[:, None]

@@ -28,11 +28,10 @@ from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.kinematics.forward import fk, fk_batch
-from mover6_control.kinematics.ik_closed_form import ik_closed_form
 from mover6_control.kinematics.rotations import pose_error, validate_transform
 from mover6_control.motion.time_laws import via_point_polynomial
-from mover6_control.planning.planner_core import (check_goal, JointPlan, PlannerSettings,
-                                                  polyline_length, travel_time)
+from mover6_control.planning.planner_core import (check_goal, closest_solution, JointPlan,
+                                                  PlannerSettings, polyline_length, travel_time)
 import numpy as np
 
 if TYPE_CHECKING:
@@ -103,29 +102,6 @@ def sample_curve(arm: ArmModel, q_start: np.ndarray, q_via: np.ndarray, q_goal: 
     q = np.vstack([rows[0], rows[1][1:]])
     q[0] = q_start
     return q
-
-
-def closest_solution(arm: ArmModel, T: np.ndarray, q_ref: np.ndarray, what: str) -> np.ndarray:
-    """
-    Return the IK solution (6,) of ``T`` inside the limits nearest ``q_ref`` (largest joint step).
-
-    Raises ``UnreachableError`` as a joint move does: ``joint_limits`` with the closest
-    configuration outside them, or ``out_of_reach``.
-    """
-    solutions = ik_closed_form(arm, T, within_limits=True)
-    if len(solutions) == 0:
-        all_solutions = ik_closed_form(arm, T, within_limits=False)
-        if len(all_solutions) > 0:
-            best = all_solutions[np.argmin(np.abs(all_solutions - q_ref).max(axis=1))]
-            raise UnreachableError(
-                f'the {what} is reachable only outside the joint limits: '
-                + '; '.join(arm.limit_violations(best)),
-                reason='joint_limits',
-                details={'waypoint': 0, 'position_error': 0.0, 'orientation_error': 0.0,
-                         'closest_q': best, 'closest_pose': fk(arm, best)})
-        raise UnreachableError(f'no inverse kinematics solution: the {what} is out of reach',
-                               reason='out_of_reach', details={'waypoint': 0})
-    return solutions[np.argmin(np.abs(solutions - q_ref).max(axis=1))]
 
 
 def plan_via_joint_move(arm: ArmModel, q_current: np.ndarray, T_via: np.ndarray,
