@@ -83,11 +83,11 @@ import tempfile
 import time
 
 from bench import offcpu as offcpu_tool
+from bench.output import write_json
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
-RESULTS = os.path.join(HERE, 'results')
 sys.path.insert(0, os.path.join(ROOT, 'test'))
 RATE = 100.0
 CHURN = 40
@@ -398,10 +398,7 @@ def main(argv=None):
               f'{row["bridge_halts"]:6d} '
               f'{row["motions_arrived"]:>7d}/{row["motions_sent"]:<8d} '
               f'{row["load_average_after"][0]:11.2f}')
-    os.makedirs(RESULTS, exist_ok=True)
-    with open(os.path.join(RESULTS, 'churn.json'), 'w') as f:
-        json.dump(results, f, indent=2)
-    print(f'\nwritten {os.path.join(RESULTS, "churn.json")}')
+    write_json('churn', results)
 
 
 if __name__ == '__main__':

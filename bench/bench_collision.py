@@ -13,17 +13,15 @@ the figures are wall time on whatever else the machine runs.
 """
 
 import argparse
-import json
-import os
 import time
 
+from bench.output import write_json
 from mover6_control.collision.checker import CollisionChecker, CollisionSettings
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import pose_from_xyzabc
 from mover6_control.planning.planner_core import plan_pose_goal, PlannerSettings
 import numpy as np
 
-RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
 GOALS = (pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0),
          pose_from_xyzabc(0.30, -0.08, 0.32, 0.0, np.pi / 2, 0.0))
 SIZES = (20, 100, 1000)
@@ -89,9 +87,7 @@ def main(argv=None):
     results['goal_met'] = p95_100 < 5.0
     print(f'\ngoal: check of a 100-waypoint path under 5 ms (p95): '
           f'{"met" if results["goal_met"] else "MISSED"} ({p95_100:.2f} ms)')
-    os.makedirs(RESULTS, exist_ok=True)
-    with open(os.path.join(RESULTS, 'collision.json'), 'w') as f:
-        json.dump(results, f, indent=2)
+    write_json('collision', results)
     return 0
 
 

@@ -16,19 +16,18 @@ Run: ``python -m bench.bench_controller [--quick]``; writes bench/results/contro
 """
 
 import argparse
-import json
 import os
 import sys
 import tempfile
 import time
 
+from bench.output import write_json
 from bench.processes import NodeProcess
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.control.velocity_laws import LawConfig, PROFILES
 from mover6_control.kinematics.arm import mover6
 import numpy as np
 
-RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
 DT = 0.01
 MOTION = np.array([[0.4, -0.3, 0.2, 0.3, -0.2, 0.5], [0.1, 0.2, -0.2, 0.0, 0.3, -0.4],
                    [-0.3, 0.1, 0.3, -0.2, 0.1, 0.2]])
@@ -220,10 +219,7 @@ def main(argv=None):
                   f'{row["period_error_median_ms"]:13.3f} {row["period_error_p99_ms"]:13.3f} '
                   f'{row["period_error_max_ms"]:13.3f} {row["cpu_percent_of_one_core"]:8.1f}')
 
-    os.makedirs(RESULTS, exist_ok=True)
-    with open(os.path.join(RESULTS, 'controller.json'), 'w') as f:
-        json.dump(results, f, indent=2)
-    print(f'\nwritten {os.path.join(RESULTS, "controller.json")}')
+    write_json('controller', results)
 
 
 if __name__ == '__main__':

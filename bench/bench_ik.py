@@ -30,12 +30,12 @@ Anchors (issue 3): TRAC-IK 99.8-100 % at 0.2-0.4 ms; KDL 26-75 %.
 """
 
 import argparse
-import json
 import os
 import subprocess
 import sys
 import time
 
+from bench.output import write_json
 from mover6_control.kinematics.arm import minibot, mover6
 from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.ik_closed_form import (ik_closed_form, ik_closed_form_batch,
@@ -45,7 +45,6 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
 THREAD_VARS = ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS')
 TOL = 1e-6   # [m] and [rad] success tolerance of both numeric solvers
 REPEATS = 2  # per-pose timings: the least of this many runs (the machine may be shared)
@@ -214,11 +213,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     out = run(args.quick)
     print_table(out)
-    os.makedirs(RESULTS, exist_ok=True)
-    path = os.path.join(RESULTS, 'ik.json')
-    with open(path, 'w') as f:
-        json.dump(out, f, indent=2)
-    print(f'wrote {path}')
+    write_json('ik', out)
     return 0
 
 

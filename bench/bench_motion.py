@@ -23,17 +23,16 @@ Run: ``python -m bench.bench_motion [--quick]``. Prints tables and writes
 """
 
 import argparse
-import json
 import os
 import time
 
+from bench.output import RESULTS, write_json
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.motion import metrics, paths, time_laws, timing, trajectories
 from mover6_control.tools import plots
 import numpy as np
 
-RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
 A_MAX = 1.0     # [rad/s^2] the controller's default acceleration limit
 J_MAX = 5.0     # [rad/s^3] the controller's default jerk limit
 
@@ -245,12 +244,10 @@ def main(argv=None):
     print(f'lower bound {seed["lower_bound_s"]:.3f} s; continuous / bound ='
           f' {seed["continuous_over_bound"]:.3f}; TOPP on a 20000-point grid'
           f' {seed["topp_fine_grid_s"]:.3f} s')
-    os.makedirs(RESULTS, exist_ok=True)
     out = {'quick': args.quick, 'speed_100_waypoints': speed, 'plan_time': plan,
            'lower_bound_100_waypoints_s': bound100, 'seed_linear': seed}
-    with open(os.path.join(RESULTS, 'motion.json'), 'w') as f:
-        json.dump(out, f, indent=2)
-    print(f'\nwrote {os.path.join(RESULTS, "motion.json")} and {", ".join(seed["figures"])}')
+    write_json('motion', out)
+    print(f'figures: {", ".join(seed["figures"])}')
     return 0
 
 

@@ -8,11 +8,10 @@ bench/results/planner.json.
 """
 
 import argparse
-import json
-import os
 import tempfile
 import time
 
+from bench.output import write_json
 from geometry_msgs.msg import PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import pose_from_xyzabc
@@ -24,7 +23,6 @@ from ros_testing import NodeProcess
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 
-RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
 GOALS = (pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0),
          pose_from_xyzabc(0.30, -0.08, 0.32, 0.0, np.pi / 2, 0.0))
 
@@ -89,9 +87,7 @@ def main(argv=None):
     results['goal_met'] = p95_100 < 20.0
     print(f'goal: p95 under 20 ms at 100 waypoints: {"met" if results["goal_met"] else "MISSED"}'
           f' ({p95_100:.2f} ms)')
-    os.makedirs(RESULTS, exist_ok=True)
-    with open(os.path.join(RESULTS, 'planner.json'), 'w') as f:
-        json.dump(results, f, indent=2)
+    write_json('planner', results)
     return 0
 
 

@@ -49,9 +49,9 @@ import sys
 import tempfile
 import time
 
+from bench.output import write_json
 import numpy as np
 
-RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # Every controller profile (the parameter table's allowed values: only the base layer is imported
 # before the re-exec into the ROS environment).
@@ -356,14 +356,12 @@ def main(argv=None):
     if failures:
         print(f'\n{len(failures)} failed attempt(s), each started afresh (see the JSON)')
     print(f'\n{wall:.0f} s wall; node logs in {log_dir}')
-    os.makedirs(RESULTS, exist_ok=True)
     out = {'goal': {'variant': goal_text, 'position_m': T_goal[:3, 3].tolist(),
                     'orientation': 'home orientation kept (R_home @ Rzyx(0, 0, 0))',
                     'n_waypoints': N_WAYPOINTS, 'checks': tried},
            'quick': bool(args.quick), 'runs_per_profile': runs, 'summary': summary,
            'runs': results, 'failed_attempts': failures, 'wall_s': wall}
-    with open(os.path.join(RESULTS, 'profiles.json'), 'w') as f:
-        json.dump(out, f, indent=2)
+    write_json('profiles', out)
     return 0
 
 

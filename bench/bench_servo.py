@@ -17,19 +17,18 @@ Run: ``python -m bench.bench_servo [--quick]``; writes bench/results/servo.json.
 """
 
 import argparse
-import json
 import os
 import sys
 import tempfile
 import time
 
+from bench.output import write_json
 from bench.processes import NodeProcess
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import jacobian
 import numpy as np
 
-RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DT = 0.01
 RATE = 100.0
@@ -192,10 +191,7 @@ def main(argv=None):
             print(f'{name:>26} {figures[0]:8.2f} {figures[1]:8.2f} {figures[2]:8.2f}')
         results['latency'] = row
 
-    os.makedirs(RESULTS, exist_ok=True)
-    with open(os.path.join(RESULTS, 'servo.json'), 'w') as f:
-        json.dump(results, f, indent=2)
-    print(f'\nwritten {os.path.join(RESULTS, "servo.json")}')
+    write_json('servo', results)
 
 
 if __name__ == '__main__':

@@ -17,7 +17,6 @@ table and writes ``bench/results/sim.json``. ROS traffic stays on localhost, dom
 """
 
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -27,6 +26,7 @@ import time
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('ROS_DOMAIN_ID', os.environ.get('BENCH_SIM_DOMAIN_ID', '31'))
 
+from bench.output import write_json  # noqa: E402
 from control_msgs.msg import JointJog  # noqa: E402
 from mover6_control.kinematics.arm import mover6  # noqa: E402
 import numpy as np  # noqa: E402
@@ -37,7 +37,6 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from sim_bridge.bridge_node import SimBridgeNode  # noqa: E402
 from sim_bridge.simulator import Simulator  # noqa: E402
 
-RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'results')
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CLK_TCK = os.sysconf('SC_CLK_TCK')
 
@@ -207,11 +206,7 @@ def main(argv=None):
     print(f'{"JointJog arrival -> applied step, median [ms]":<52}{lat["median"]:>14.3f}')
     print(f'{"JointJog arrival -> applied step, p95 / max [ms]":<52}'
           f'{lat["p95"]:>7.3f} / {lat["max"]:.3f}')
-    os.makedirs(RESULTS, exist_ok=True)
-    path = os.path.join(RESULTS, 'sim.json')
-    with open(path, 'w') as f:
-        json.dump(results, f, indent=2)
-    print(f'\nwrote {path}')
+    write_json('sim', results)
     return 0
 
 
