@@ -19,10 +19,13 @@ from mover6_control.kinematics.rotations import pose_from_xyzabc
 from mover6_control.motion.metrics import max_deviation_from_polyline
 from mover6_control.nodes import conversions
 from mover6_control.nodes.conversions import status_values
+from mover6_control.parameters import CONTROLLER
 from mover6_control.tools.goal_cli import EXIT_REFUSED, GoalClient
 import numpy as np
 import pytest
 import rclpy
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from ros_testing import Stack
 from sensor_msgs.msg import JointState
 
@@ -37,6 +40,7 @@ VIA = pose_from_xyzabc(0.32, -0.03, 0.36, 0.0, HALF_PI, 0.0)
 C = pose_from_xyzabc(0.29, 0.10, 0.35, 0.0, HALF_PI, 0.0)
 JOINT_TOLERANCE = 0.01   # [rad] the arm's final joints against the last waypoint
 TOOL_TOLERANCE = 0.003   # [m] the arm's final tool position against the goal
+T_MAX = CONTROLLER['t_max'].default   # [s] the controller's default t_max (its config file's)
 
 
 class Client(GoalClient):
@@ -48,6 +52,7 @@ class Client(GoalClient):
         self.jogs = []
         self.create_subscription(JointState, 'joint_states', self.record, 100)
         self.create_subscription(JointJog, 'JointJog', lambda m: self.jogs.append(m), 100)
+        self.controller_params = AsyncParameterClient(self, 'controller')
 
     def record(self, msg):
         """Store /joint_states positions while recording."""
@@ -108,36 +113,51 @@ def test_every_motion_shape_arrives(stack, client):
     arrived(client, stack, client.send_pose(HOME_POSE, timeout=60.0), HOME_POSE)
 
 
-def restart_controller(stack, client, params):
-    """Restart the controller process with ``params``; wait until it has joint states."""
-    stack.params['controller'] = params
-    stack.start('controller')
-    client.controller_status = None
+def configure_controller(stack, client, params):
+    """
+    Set the running controller's ``params`` live (issue 13); wait until its status shows them.
+
+    Idle, the controller applies a set at once; its status then names the profile in force and
+    no pending parameters.
+    """
+    assert client.controller_params.wait_for_services(timeout_sec=10.0), stack.report()
+    future = client.controller_params.set_parameters(
+        [Parameter(name, value=value) for name, value in params.items()])
+    assert client.spin_until(future.done, 10.0), stack.report()
+    for name, result in zip(params, future.result().results):
+        assert result.successful, f'controller refused {name}: {result.reason}'
     profile = params['profile']
-    assert client.spin_until(lambda: client.values(client.controller_status).get('profile')
-                             == profile, 30.0), stack.report()
-    problem = client.wait_ready(timeout=30.0)
-    assert problem is None, f'{problem}\n{stack.report()}'
+
+    def in_force():
+        values = client.values(client.controller_status)
+        return values.get('profile') == profile and 'pending_parameters' not in values
+    assert client.spin_until(in_force, 30.0), (
+        f'{status_values(client.controller_status)}\n{stack.report()}')
 
 
 @pytest.mark.parametrize('profile', PROFILES)
 def test_every_profile_reaches_the_goal(stack, client, profile):
     """Each velocity law drives the simulated arm to the goal within tolerance."""
-    # One Stack for all: only the controller restarts with the profile (~2 s instead of ~5 s).
-    restart_controller(stack, client, {'profile': profile})
+    # One Stack for all: the running controller takes the profile live, with the config file's
+    # t_max (another test sets its own); no restart.
+    configure_controller(stack, client, {'profile': profile, 't_max': T_MAX})
     # A joint move of 5 waypoints keeps the stop-at-each-waypoint laws' run short.
     # The planner announces its duration with the controller's law.
     assert client.set_planner_parameters({'motion': 'joint', 'n_waypoints': 5,
                                           'profile': profile}) is None
     goal = A if np.linalg.norm(fk(ARM, client.q)[:3, 3] - A[:3, 3]) > 0.01 else B
     arrived(client, stack, client.send_pose(goal, timeout=60.0), goal)
+    # The controller's own law (its parameter, no per-demand profile) timed that motion.
+    values = client.values(client.controller_status)
+    assert values.get('motion_profile') == profile, values
     assert client.set_planner_parameters({'n_waypoints': 20, 'profile': 'continuous'}) is None
 
 
 def test_bridge_dies_mid_motion_fault_zero_then_recovery(stack, client):
     """Stop the bridge mid-motion: fault and zero JointJog; restart it: recover and move."""
-    restart_controller(stack, client, {'profile': 'trapezoidal', 't_max': 2.0})
-    assert client.set_planner_parameters({'motion': 'joint'}) is None
+    configure_controller(stack, client, {'profile': 'trapezoidal', 't_max': 2.0})
+    # 5 waypoints of 2 s each: still moving when the bridge stops, and a short move after.
+    assert client.set_planner_parameters({'motion': 'joint', 'n_waypoints': 5}) is None
     goal = A if np.linalg.norm(fk(ARM, client.q)[:3, 3] - A[:3, 3]) > 0.01 else B
     motion0 = int(client.values(client.controller_status).get('motion_id', 0))
     msg = PoseStamped()
@@ -189,3 +209,4 @@ def test_bridge_dies_mid_motion_fault_zero_then_recovery(stack, client):
         client.spin_until(lambda: False, 0.2)
         outcome = client.send_pose(goal, timeout=60.0)
     arrived(client, stack, outcome, goal)
+    assert client.set_planner_parameters({'n_waypoints': 20}) is None
