@@ -30,7 +30,9 @@ pytestmark = pytest.mark.e2e
 NODES = ('sim_bridge', 'controller', 'planner')
 PATTERNS = {'sigint': (signal.SIGINT,),
             'sigint_twice': (signal.SIGINT, signal.SIGINT),
-            'sigterm': (signal.SIGTERM,)}
+            'sigterm': (signal.SIGTERM,),
+            # A process group's SIGTERM, then a launcher's forwarded SIGINT (scripts/launch.sh).
+            'sigterm_then_sigint': (signal.SIGTERM, signal.SIGINT)}
 SIGNAL_GAP = 0.03          # [s] between two signals of one pattern
 READY_LOG = {'sim_bridge': 'mode rad_per_s', 'planner': 'planner ready'}
 START_TIMEOUT = 90.0       # [s] nine processes starting at once on a loaded machine

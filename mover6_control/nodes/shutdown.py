@@ -6,10 +6,13 @@ to the whole process group and launch forwards its own SIGINT to each node tens 
 later, then escalates to SIGTERM. With rclpy's own handlers the first signal shuts the context
 down at once (too early for the controller's last zero JointJog) and the second lands inside
 ``destroy_node()`` as a ``KeyboardInterrupt``: exit code -2 and a half-destroyed node. Here rclpy
-installs no handlers; ours only notes the first SIGINT or SIGTERM and ignores every later one, and
-the main thread spins in short slices and checks the note between them (a Python signal handler
-runs only when the main thread runs Python code, never inside the DDS wait). Teardown then runs
-to its end with the context still valid, and the process exits 0.
+installs no handlers; ours only notes the first SIGINT or SIGTERM and does nothing on every later
+one. It stays installed until teardown is over: switching to SIG_IGN in the handler lost a race
+(a SIGINT that came while the SIGTERM before it was still waiting for its Python handler then
+raised 'OSError: Signal 2 ignored due to race condition' in the main thread). The main thread
+spins in short slices and checks the note between them (a Python signal handler runs only when
+the main thread runs Python code, never inside the DDS wait). Teardown then runs to its end with
+the context still valid, and the process exits 0.
 """
 
 import signal
@@ -24,7 +27,7 @@ SPIN_SLICE = 0.1
 
 
 class StopSignals:
-    """Note the first SIGINT or SIGTERM; from then on, ignore both (teardown must finish)."""
+    """Note the first SIGINT or SIGTERM; any later one does nothing (teardown must finish)."""
 
     def __init__(self):
         self.signum = None
@@ -32,15 +35,27 @@ class StopSignals:
             signal.signal(signum, self.on_signal)
 
     def on_signal(self, signum, frame):
-        """Record the signal and ignore any further one."""
-        self.ignore()
-        self.signum = signum
+        """Record the first stop signal; a later one changes nothing."""
+        if self.signum is None:
+            self.signum = signum
 
     @staticmethod
-    def ignore():
-        """Ignore SIGINT and SIGTERM from now on."""
-        for signum in STOP_SIGNALS:
-            signal.signal(signum, signal.SIG_IGN)
+    def ignore_from_now():
+        """
+        Ignore SIGINT and SIGTERM for the rest of the process (call it once teardown is done).
+
+        The interpreter puts the default action back for a signal whose handler is a Python
+        function when it exits, so a second signal in its last milliseconds would end the
+        process with -2; SIG_IGN stays. ``signal.signal`` runs the handlers of signals already
+        pending first; one that slips in during the switch itself raises ``OSError`` (the
+        race): it was a repeated stop signal, and is dropped.
+        """
+        try:
+            for signum in STOP_SIGNALS:
+                signal.signal(signum, signal.SIG_IGN)
+        except OSError:
+            for signum in STOP_SIGNALS:
+                signal.signal(signum, signal.SIG_IGN)
 
     @property
     def received(self) -> bool:
@@ -68,7 +83,7 @@ def run_node(make_node, args=None):
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        stop.ignore()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        stop.ignore_from_now()
