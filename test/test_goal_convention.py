@@ -13,7 +13,7 @@ from mover6_control.kinematics.ik_closed_form import ik_closed_form
 from mover6_control.kinematics.reachability import check_pose
 from mover6_control.kinematics.rotations import (euler_zyx_near, euler_zyx_to_matrix,
                                                  matrix_to_euler_zyx, pose_from_xyzabc)
-from mover6_control.tools.goal_cli import (build_parser, EXIT_ARRIVED, EXIT_REFUSED,
+from mover6_control.tools.goal_cli import (build_parser, EXIT_ARRIVED, EXIT_NO_NODES, EXIT_REFUSED,
                                            format_numbers, format_outcome, goal_from_pose,
                                            home_pose, Outcome, pose_from_goal,
                                            poses_from_numbers, run)
@@ -173,3 +173,29 @@ def test_run_sends_the_goal_and_prints_it_back(argv, absolute):
     np.testing.assert_allclose(sent, pose_from_goal(ARM, *IK_EXAMPLE, absolute=absolute),
                                atol=1e-15)
     assert lines[-1].endswith('0.1000 0.1000 0.2000 0.0000 1.5708 0.0000'), lines
+
+
+class StopClient(FakeClient):
+    """A client whose controller ~/stop service is there or not (``available``)."""
+
+    def __init__(self, available):
+        super().__init__()
+        self.available = available
+
+    def stop(self, timeout=10.0):
+        if not self.available:
+            return False, 'the controller stop service is not available', False
+        return True, 'stopping', True
+
+
+def test_stop_exit_codes_follow_the_readme():
+    """'goal stop': 0 when stopped, 3 (the nodes are not there) without a controller."""
+    lines = []
+    assert run(['stop'], StopClient(True), out=lines.append) == EXIT_ARRIVED
+    assert run(['stop'], StopClient(False), out=lines.append) == EXIT_NO_NODES
+    assert lines[-1].startswith('RESULT failed: the controller stop service is not available')
+
+
+def test_help_lists_jog():
+    """The keyboard jogging command is among the commands --help lists."""
+    assert 'jog' in build_parser().format_help()

@@ -6,6 +6,7 @@ from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc
 from mover6_control.motion.metrics import max_deviation_from_polyline
 from mover6_control.planning.planner_core import plan_path_goal, plan_pose_goal, PlannerSettings
+from mover6_control.tools.goal_cli import pose_from_goal
 import numpy as np
 import pytest
 
@@ -102,3 +103,17 @@ def test_unreachable_goal_and_bad_input_raise_with_reasons():
         plan_path_goal(ARM, HOME, np.stack([GOAL, GOAL]), GOAL, 'arc')
     with pytest.raises(InvalidInputError):
         PlannerSettings(n_waypoints=1)
+
+
+def test_a_path_refusal_says_a_joint_move_gets_to_the_goal():
+    """From the report's IK example, the README's next line is refused on the way; joint: fine."""
+    q_ik = plan_pose_goal(ARM, HOME, pose_from_goal(ARM, 0.1, 0.1, 0.2, 0.0, np.pi / 2, 0.0),
+                          'linear').q[-1]
+    goal = pose_from_goal(ARM, 0.30, 0.05, 0.36, 0.0, 0.0, 0.0)
+    with pytest.raises(UnreachableError) as err:
+        plan_pose_goal(ARM, q_ik, goal, 'linear')
+    assert err.value.reason in ('discontinuity', 'joint_limits')
+    assert 'the goal itself is reachable inside the limits: a joint move' in str(err.value)
+    plan = plan_pose_goal(ARM, q_ik, goal, 'joint')
+    position, _ = pose_error(fk(ARM, plan.q[-1]), goal)
+    assert position < 1e-6

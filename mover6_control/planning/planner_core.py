@@ -181,6 +181,10 @@ def _wrist_turns(arm, q_current, T_next, settings):
     return unique
 
 
+# Refusals of the way, not of the goal (checked before, ``check_goal``).
+PATH_ONLY_REASONS = ('discontinuity', 'joint_limits')
+
+
 def _solve(arm, path, q_current, settings):
     """
     Return (q, poses) for ``path`` from ``q_current``, leaving a singular start if needed.
@@ -208,7 +212,11 @@ def _solve(arm, path, q_current, settings):
     if best is not None:
         return best
     details = dict(refusal.details, waypoint=refusal.details.get('waypoint', -1) + 1)
-    raise UnreachableError(str(refusal), reason=refusal.reason, details=details) from None
+    message = str(refusal)
+    if refusal.reason in PATH_ONLY_REASONS:    # the goal itself passed check_goal: say so
+        message += ('; the goal itself is reachable inside the limits: a joint move '
+                    '(/pose_goal/joint, goal --motion joint) gets there')
+    raise UnreachableError(message, reason=refusal.reason, details=details) from None
 
 
 def collision_refusal(checker: CollisionChecker, q: np.ndarray,

@@ -255,13 +255,14 @@ class GoalClient(Node):
         return None
 
     def stop(self, timeout=10.0):
-        """Call the controller's ~/stop service; return its message."""
+        """Call the controller's ~/stop service; return (success, its message, was it there)."""
         if not self.stop_client.wait_for_service(timeout_sec=timeout):
-            return False, 'the controller stop service is not available'
+            return False, ('the controller stop service is not available (is the controller '
+                           'running?)'), False
         future = self.stop_client.call_async(Trigger.Request())
         if not self.spin_until(future.done, timeout):
-            return False, 'stop service call timed out'
-        return future.result().success, future.result().message
+            return False, 'stop service call timed out', True
+        return future.result().success, future.result().message, True
 
     # --- goals -----------------------------------------------------------------------------
 
@@ -327,7 +328,7 @@ class GoalClient(Node):
         if not self.spin_until(motion_done, timeout, tick):
             return Outcome(EXIT_FAILED, f'the motion did not finish within {timeout:.0f} s')
         if self.rejection is not None:
-            return Outcome(EXIT_FAILED, f'the controller rejected the demand: {self.rejection}')
+            return Outcome(EXIT_REFUSED, f'the controller refused the demand: {self.rejection}')
         # 'arrived' comes once inside the goal tolerance; the controller then keeps settling
         # into its fine tolerance before it holds: report the pose it holds.
         self.spin_until(lambda: self.values(self.controller_status).get('state') != 'settling',
@@ -479,6 +480,9 @@ def build_parser():
                         help='6 joint angles [rad] per waypoint')
     sub.add_parser('stop', parents=[common],
                    help='decelerate and hold (the controller ~/stop service)')
+    # Listed for --help; main() hands 'goal jog ...' to the teleop before parsing.
+    sub.add_parser('jog', help='drive the tool live from the keyboard (the teleop; its own '
+                               'keys and options: goal jog --help)')
     return parser
 
 
@@ -512,9 +516,9 @@ def run(argv, client=None, out=print):
         return EXIT_REFUSED
 
     if args.command == 'stop':
-        ok, text = client.stop()
+        ok, text, available = client.stop()
         out(f'RESULT {"stopped" if ok else "failed"}: {text}')
-        return EXIT_ARRIVED if ok else EXIT_FAILED
+        return EXIT_ARRIVED if ok else EXIT_FAILED if available else EXIT_NO_NODES
 
     problem = client.wait_ready(timeout=30.0, need_planner=args.command != 'joints')
     if problem:
