@@ -258,8 +258,9 @@ class TeleopNode(Node):
         """Return the controller's state and message, or that none was heard."""
         if self.status is None:
             return 'controller: not heard yet'
-        values = conversions.status_values(self.status)
-        return f'{values.get("state", "?")}: {self.status.message}'
+        state = conversions.status_values(self.status).get('state', '?')
+        message = self.status.message
+        return state if message in ('', state) else f'{state}: {message}'
 
     def destroy_node(self):
         """Stop the executor, then destroy the node."""
