@@ -9,10 +9,10 @@ Run: ``python -m bench.bench_motion [--quick]``. Prints tables and writes
    stop-at-each trapezoids, ruckig point-to-point).
 2. The Mover6 report's linear example: X=0.445 Y=0 Z=0.4425 A=B=C=0 from home (q = 0), 20
    waypoints, the Mover6 hardware speed limits (arm.py) and a_max = 1 rad/s^2 (the controller's
-   default). A B C are composed relative to the home orientation as the seed's MATLAB does (R_goal
-   = R_home Rzyx(A, B, C)): the tool keeps its orientation and moves 0.1 m along +x. Compared: the
-   seed's scheme (a trapezoid per waypoint, t_blend = t_max / 4, stop at each; both the seed's
-   fixed t_max = 1 s and the shortest t_max the limits allow) against continuous execution, with
+   default). A B C are composed relative to the home orientation as the Mover6 report's MATLAB
+   does (R_goal = R_home Rzyx(A, B, C)): the tool keeps its orientation and moves 0.1 m along +x.
+   Compared: the Mover6 report's scheme (a trapezoid per waypoint, t_blend = t_max / 4, stop at
+   each; both the report's fixed t_max = 1 s and the shortest t_max the limits allow) against continuous execution, with
    the largest Cartesian deviation of each from the straight line (FK every 1 ms) and the
    continuous duration against a lower bound on any trajectory. Plots (PNG, next to the JSON): the
    time laws, the continuous joint trajectories against the joint limits, the desired against the
@@ -50,7 +50,7 @@ def _solve_path(arm, poses, q_start):
     for T in poses:
         sols = ik_closed_form(arm, T, q_ref=q)
         if sols.shape[0] == 0:
-            raise RuntimeError('no IK solution on the seed path')
+            raise RuntimeError('no IK solution on the report path')
         q = sols[0]
         Q.append(q)
     return np.array(Q), 'ik.ik_closed_form (nearest to previous)'
@@ -98,7 +98,7 @@ def bench_speed(arm, quick):
         'quintic spline': lambda: trajectories.quintic_trajectory(Q, v_max=v, a_max=A_MAX),
         'B-spline': lambda: trajectories.bspline_trajectory(Q, v_max=v, a_max=A_MAX),
         'multi-point trapezoid': lambda: trajectories.multipoint_trapezoidal(Q, v, A_MAX),
-        'seed stop-at-each': lambda: trajectories.stop_at_each(
+        'report stop-at-each': lambda: trajectories.stop_at_each(
             Q, time_laws.trapezoidal, v, A_MAX),
         'ruckig point-to-point': lambda: trajectories.ruckig_trajectory(
             Q[0], Q[-1], v, A_MAX, J_MAX),
@@ -136,7 +136,7 @@ def bench_plan_time(arm, quick):
     return rows
 
 
-def bench_seed_linear(arm):
+def bench_report_linear(arm):
     """Time the Mover6 report's linear example: its stop-at-each scheme against continuous."""
     q_home = np.zeros(arm.n_joints)
     T_home = fk(arm, q_home)
@@ -150,11 +150,11 @@ def bench_seed_linear(arm):
         return fk_batch(arm, Qs)
 
     schemes = {}
-    seed_fixed = trajectories.PiecewiseTrajectory(
+    report_fixed = trajectories.PiecewiseTrajectory(
         [trajectories.TimeLawTrajectory(Q[k], Q[k + 1], 1.0, time_laws.trapezoidal(1.0))
          for k in range(len(Q) - 1)])
-    schemes['seed scheme, t_max = 1 s per waypoint'] = seed_fixed
-    schemes['seed scheme, shortest t_max'] = trajectories.stop_at_each(
+    schemes['report scheme, t_max = 1 s per waypoint'] = report_fixed
+    schemes['report scheme, shortest t_max'] = trajectories.stop_at_each(
         Q, time_laws.trapezoidal, v, A_MAX)
     cont, t_build = _timed(lambda: timing.time_parameterize(Q, v, A_MAX), 3)
     schemes['continuous (TOPP on blended path)'] = cont
@@ -171,10 +171,10 @@ def bench_seed_linear(arm):
                                  time_laws.via_fraction(83.14, 90.0, 173.37))],
                             os.path.join(RESULTS, 'motion_time_laws.png')),
         plots.plot_joint_trajectories(t, q, arm.lower, arm.upper,
-                                      os.path.join(RESULTS, 'motion_seed_joints.png'),
+                                      os.path.join(RESULTS, 'motion_report_joints.png'),
                                       QD=qd, QDD=qdd),
         plots.plot_path_3d(paths.positions_of(poses), fk_batch(arm, q)[:, :3, 3],
-                           os.path.join(RESULTS, 'motion_seed_path3d.png'),
+                           os.path.join(RESULTS, 'motion_report_path3d.png'),
                            waypoints=fk_batch(arm, Q)[:, :3, 3]),
     ]
     rows = []
@@ -189,16 +189,16 @@ def bench_seed_linear(arm):
     base = rows[1]['duration_s']
     sweep = []
     for a_max in (0.5, 1.0, 2.0, 5.0):
-        seed_t = trajectories.stop_at_each(Q, time_laws.trapezoidal, v, a_max).duration
+        report_t = trajectories.stop_at_each(Q, time_laws.trapezoidal, v, a_max).duration
         cont_t = timing.time_parameterize(Q, v, a_max).duration
-        sweep.append({'a_max': a_max, 'seed_shortest_s': seed_t, 'continuous_s': cont_t,
-                      'speedup': seed_t / cont_t,
+        sweep.append({'a_max': a_max, 'report_shortest_s': report_t, 'continuous_s': cont_t,
+                      'speedup': report_t / cont_t,
                       'bound_s': timing.time_optimal_bound(Q, v, a_max)})
     return {
         'figures': figures, 'a_max_sweep': sweep,
         'ik': ik_used, 'a_max': A_MAX, 'velocity_limits': v.tolist(), 'rows': rows,
-        'speedup_vs_seed_shortest': base / cont.duration,
-        'speedup_vs_seed_fixed_1s': rows[0]['duration_s'] / cont.duration,
+        'speedup_vs_report_shortest': base / cont.duration,
+        'speedup_vs_report_fixed_1s': rows[0]['duration_s'] / cont.duration,
         'lower_bound_s': bound, 'continuous_over_bound': cont.duration / bound,
         'topp_fine_grid_s': fine.duration, 'continuous_build_ms': 1e3 * t_build,
     }
@@ -226,28 +226,28 @@ def main(argv=None):
     for r in plan:
         print(f'{r["waypoints"]:9d} {r["plan_ms"]:16.1f} {r["plan_ms_min"]:10.1f}'
               f' {r["repeats"]:4d} {r["duration_s"]:17.12f}')
-    seed = bench_seed_linear(arm)
+    report = bench_report_linear(arm)
     print('\nThe Mover6 report linear example (0.1 m along +x, home orientation kept),'
-          f' IK: {seed["ik"]}')
+          f' IK: {report["ik"]}')
     print(f'{"scheme":38s} {"duration s":>10s} {"max dev mm":>10s} {"peak v/limit":>12s}'
           f' {"peak a":>7s}')
-    for r in seed['rows']:
+    for r in report['rows']:
         print(f'{r["scheme"]:38s} {r["duration_s"]:10.3f} {r["max_deviation_mm"]:10.4f}'
               f' {r["peak_v_over_limit"]:12.3f} {r["peak_a_rad_s2"]:7.3f}')
-    print(f'continuous is {seed["speedup_vs_seed_shortest"]:.2f}x faster than the seed scheme'
-          f' (shortest t_max), {seed["speedup_vs_seed_fixed_1s"]:.2f}x than its fixed 1 s')
-    print('speed-up against the seed scheme at its fastest, by acceleration limit:')
-    for r in seed['a_max_sweep']:
-        print(f'  a_max {r["a_max"]:4.1f} rad/s^2: seed {r["seed_shortest_s"]:6.3f} s,'
+    print(f'continuous is {report["speedup_vs_report_shortest"]:.2f}x faster than the report scheme'
+          f' (shortest t_max), {report["speedup_vs_report_fixed_1s"]:.2f}x than its fixed 1 s')
+    print('speed-up against the report scheme at its fastest, by acceleration limit:')
+    for r in report['a_max_sweep']:
+        print(f'  a_max {r["a_max"]:4.1f} rad/s^2: report {r["report_shortest_s"]:6.3f} s,'
               f' continuous {r["continuous_s"]:6.3f} s (bound {r["bound_s"]:6.3f} s),'
               f' {r["speedup"]:.2f}x')
-    print(f'lower bound {seed["lower_bound_s"]:.3f} s; continuous / bound ='
-          f' {seed["continuous_over_bound"]:.3f}; TOPP on a 20000-point grid'
-          f' {seed["topp_fine_grid_s"]:.3f} s')
+    print(f'lower bound {report["lower_bound_s"]:.3f} s; continuous / bound ='
+          f' {report["continuous_over_bound"]:.3f}; TOPP on a 20000-point grid'
+          f' {report["topp_fine_grid_s"]:.3f} s')
     out = {'quick': args.quick, 'speed_100_waypoints': speed, 'plan_time': plan,
-           'lower_bound_100_waypoints_s': bound100, 'seed_linear': seed}
+           'lower_bound_100_waypoints_s': bound100, 'report_linear': report}
     write_json('motion', out)
-    print(f'figures: {", ".join(seed["figures"])}')
+    print(f'figures: {", ".join(report["figures"])}')
     return 0
 
 
