@@ -12,9 +12,9 @@ Run: ``python -m bench.bench_motion [--quick]``. Prints tables and writes
    default). A B C are composed relative to the home orientation as the Mover6 report's MATLAB
    does (R_goal = R_home Rzyx(A, B, C)): the tool keeps its orientation and moves 0.1 m along +x.
    Compared: the Mover6 report's scheme (a trapezoid per waypoint, t_blend = t_max / 4, stop at
-   each; both the report's fixed t_max = 1 s and the shortest t_max the limits allow) against continuous execution, with
-   the largest Cartesian deviation of each from the straight line (FK every 1 ms) and the
-   continuous duration against a lower bound on any trajectory. Plots (PNG, next to the JSON): the
+   each; both the report's fixed t_max = 1 s and the shortest t_max the limits allow) against
+   continuous execution, with the largest Cartesian deviation of each from the straight line (FK
+   every 1 ms) and the continuous duration against a lower bound on any trajectory. Plots (PNG, next to the JSON): the
    time laws, the continuous joint trajectories against the joint limits, the desired against the
    realised tool path.
 3. Plan time: the continuous timing (``timing.time_parameterize``, as the controller's
