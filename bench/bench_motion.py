@@ -9,14 +9,14 @@ Run: ``python -m bench.bench_motion [--quick]``. Prints tables and writes
    stop-at-each trapezoids, ruckig point-to-point).
 2. The Mover6 report's linear example: X=0.445 Y=0 Z=0.4425 A=B=C=0 from home (q = 0), 20
    waypoints, the Mover6 hardware speed limits (arm.py) and a_max = 1 rad/s^2 (the controller's
-   default). A B C are composed relative to the home orientation as the Mover6 report's MATLAB
-   does (R_goal = R_home Rzyx(A, B, C)): the tool keeps its orientation and moves 0.1 m along +x.
+   default). A B C are composed relative to the home orientation as the Mover6 report's MATLAB does
+   (R_goal = R_home Rzyx(A, B, C)): the tool keeps its orientation and moves 0.1 m along +x.
    Compared: the Mover6 report's scheme (a trapezoid per waypoint, t_blend = t_max / 4, stop at
    each; both the report's fixed t_max = 1 s and the shortest t_max the limits allow) against
    continuous execution, with the largest Cartesian deviation of each from the straight line (FK
-   every 1 ms) and the continuous duration against a lower bound on any trajectory. Plots (PNG, next to the JSON): the
-   time laws, the continuous joint trajectories against the joint limits, the desired against the
-   realised tool path.
+   every 1 ms) and the continuous duration against a lower bound on any trajectory. Plots (PNG,
+   next to the JSON): the time laws, the continuous joint trajectories against the joint limits,
+   the desired against the realised tool path.
 3. Plan time: the continuous timing (``timing.time_parameterize``, as the controller's
    ``continuous`` profile calls it) through 20, 100 and 1000 random in-limit waypoints, the median
    of several runs, with the durations (a faster timing must not change them).
@@ -234,7 +234,8 @@ def main(argv=None):
     for r in report['rows']:
         print(f'{r["scheme"]:38s} {r["duration_s"]:10.3f} {r["max_deviation_mm"]:10.4f}'
               f' {r["peak_v_over_limit"]:12.3f} {r["peak_a_rad_s2"]:7.3f}')
-    print(f'continuous is {report["speedup_vs_report_shortest"]:.2f}x faster than the report scheme'
+    print(f'continuous is {report["speedup_vs_report_shortest"]:.2f}x faster than the report'
+          ' scheme'
           f' (shortest t_max), {report["speedup_vs_report_fixed_1s"]:.2f}x than its fixed 1 s')
     print('speed-up against the report scheme at its fastest, by acceleration limit:')
     for r in report['a_max_sweep']:
