@@ -40,7 +40,7 @@ def test_minibot_fk_matches_minibot_report_question_1a():
     assert abs(abs(a) + abs(c) - np.pi) < 1e-9 and abs(b) < 1e-9
 
 
-def test_minibot_config_is_the_seed_table():
+def test_minibot_config_is_the_minibot_report_table():
     arm = minibot()
     direct = from_dh(**MINIBOT_DH_MM, length_unit='mm', name='minibot')
     q = np.array([0.3, -0.4, 1.1, 0.2, -0.7, 2.0])

@@ -24,8 +24,8 @@ from ros_testing import Stack
 pytestmark = pytest.mark.e2e
 
 ARM = mover6()
-# A reachable goal within the seed limits: 5 cm forward-left and 8 cm down from home, tool still
-# pointing along +x (home orientation is Ry(+90 deg), i.e. A=0, B=pi/2, C=0).
+# A reachable goal within the Mover6 report's +-90 deg limits: 5 cm forward-left, 8 cm down from
+# home, tool still pointing along +x (home orientation is Ry(+90 deg), i.e. A=0, B=pi/2, C=0).
 REACHABLE = pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0)
 UNREACHABLE = pose_from_xyzabc(0.90, 0.0, 0.40, 0.0, np.pi / 2, 0.0)
 

@@ -27,11 +27,11 @@ ARMS = {'mover6': mover6, 'mover6_hw': lambda: mover6('hardware'), 'minibot': mi
         'puma560': puma560}
 # The miniBOT report question 1b: the pose (mm, 4-digit rotation) and the two solutions it found
 # [deg].
-SEED_004_R = np.array([[0.7551, 0.4013, 0.5184], [0.6084, -0.7235, -0.3262],
-                       [0.2441, 0.5617, -0.7905]])
-SEED_004_T_MM = np.array([399.1255, 171.01526, 416.0308])
-SEED_004_SOLUTIONS_DEG = np.array([[30.0, -15.998, 148.716, 145.037, 109.042, 156.916],
-                                   [30.0, 60.0, 0.0, 134.998, 50.0, -157.501]])
+MINIBOT_R = np.array([[0.7551, 0.4013, 0.5184], [0.6084, -0.7235, -0.3262],
+                      [0.2441, 0.5617, -0.7905]])
+MINIBOT_T_MM = np.array([399.1255, 171.01526, 416.0308])
+MINIBOT_SOLUTIONS_DEG = np.array([[30.0, -15.998, 148.716, 145.037, 109.042, 156.916],
+                                  [30.0, 60.0, 0.0, 134.998, 50.0, -157.501]])
 
 
 def ur5():
@@ -85,13 +85,13 @@ def test_single_pose_solutions_are_unique_verified_and_sorted(name, seed):
 
 def test_minibot_report_question_1b_all_eight_solutions():
     arm = minibot()
-    u, _, vt = np.linalg.svd(SEED_004_R)   # the seed's rotation is rounded to 4 digits
+    u, _, vt = np.linalg.svd(MINIBOT_R)   # the miniBOT report's rotation is rounded to 4 digits
     T = np.eye(4)
     T[:3, :3] = u @ vt
-    T[:3, 3] = SEED_004_T_MM / 1000.0
+    T[:3, 3] = MINIBOT_T_MM / 1000.0
     sols = ik_closed_form(arm, T)
-    assert len(sols) == 8          # the seed found 2; the q1 + 180 deg family exists too
-    for expected in SEED_004_SOLUTIONS_DEG:
+    assert len(sols) == 8          # the miniBOT report found 2; the q1 + 180 deg family exists too
+    for expected in MINIBOT_SOLUTIONS_DEG:
         nearest = np.abs(np.degrees(sols) - expected).max(axis=1).min()
         assert nearest < 0.01
     for s in sols:
@@ -109,7 +109,7 @@ def test_mover6_report_goal_absolute_vs_relative_reading():
     outside = ik_closed_form(arm, T_abs, within_limits=False)
     assert len(outside) == 8
     assert min(len(arm.limit_violations(q)) for q in outside) == 1   # best: joint 3 only
-    # Relative (the seed's MATLAB): exactly reachable inside the seed's limits.
+    # Relative (the Mover6 report's MATLAB): exactly reachable inside its limits.
     sols = ik_closed_form(arm, T_rel)
     assert len(sols) == 1
     np.testing.assert_allclose(fk(arm, sols[0]), T_rel, atol=1e-12)

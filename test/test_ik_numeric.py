@@ -89,7 +89,7 @@ def _weighted_residual(arm, T, w):
 
 
 def test_closest_pose_is_no_worse_than_scipy_on_the_same_cost():
-    # the Mover6 report's goal read absolutely is outside the seed's limits (joint 3).
+    # the Mover6 report's goal read absolutely is outside its +-90 deg limits (joint 3).
     arm = mover6()
     T = pose_from_xyzabc(0.1, 0.1, 0.2, 0.0, 1.5708, 0.0)
     w = np.array([1.0, 1.0, 1.0, 0.01, 0.01, 0.01])

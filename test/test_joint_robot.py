@@ -51,7 +51,7 @@ def test_joint_rejects_bad_values():
         Joint('j', -1.0, 1.0, 1.0, q=float('inf'))
 
 
-def test_synchronised_seed_numbers():
+def test_synchronised_mover6_report_numbers():
     # the Mover6 report: lambda = 2 rad/s; joint 2 travels furthest (0.8 rad) so t_max = 0.4 s (eq.
     # 1).
     robot = Robot.from_arm(mover6()).with_demand([0.4, -0.8, 0.2, 0.0, 0.1, 0.0])
@@ -71,7 +71,7 @@ def test_synchronised_all_arrive_together(q0, q1, lam):
     np.testing.assert_allclose(np.asarray(q0) + v * t_max, q1, atol=1e-12)
 
 
-def test_trapezoid_seed_defaults_eq16_to_19():
+def test_trapezoid_mover6_report_defaults_eq16_to_19():
     # the Mover6 report: t_max = 1 s, t_blend = t_max / 4; a move of 0.3 rad gives V_max = 0.4
     # rad/s.
     joint = Joint('joint1', -1.571, 1.571, 1.0, q=0.2).with_demand(-0.1)

@@ -20,15 +20,16 @@ from scipy.spatial.transform import Rotation
 Q6 = st.lists(st.floats(-np.pi, np.pi), min_size=6, max_size=6).map(np.array)
 # The Mover6 report eq. 23-29 link lengths l1..l6 [m] (from its verification script).
 L = (0.130, 0.0625, 0.190, -0.06, 0.290, 0.055)
-# The URDF writes pi/2 as 1.57079632679 (error 5e-12 rad), the seed's H_3^2 uses pi/2 exactly.
+# The URDF writes pi/2 as 1.57079632679 (error 5e-12 rad), the miniBOT report's H_3^2 uses pi/2
+# exactly.
 URDF_PI_TOL = 1e-11
 # The miniBOT report question 1b: the two solutions it found [deg] and their joint rates for the
 # twist.
-SEED_004_SOLUTIONS = [([30.0, -15.998, 148.716, 145.037, 109.042, 156.916],
-                       [-0.815, -1.407, 1.779, 2.056, -1.299, 0.792]),
-                      ([30.0, 60.0, 0.0, 134.998, 50.0, -157.501],
-                       [-0.815, 0.425, -1.779, -0.46, -3.518, 1.352])]
-SEED_004_TWIST = np.array([0.100, -0.200, -0.300, 2.0, -1.0, 0.5])  # mm/s -> m/s; rad/s
+MINIBOT_SOLUTIONS = [([30.0, -15.998, 148.716, 145.037, 109.042, 156.916],
+                      [-0.815, -1.407, 1.779, 2.056, -1.299, 0.792]),
+                     ([30.0, 60.0, 0.0, 134.998, 50.0, -157.501],
+                      [-0.815, 0.425, -1.779, -0.46, -3.518, 1.352])]
+MINIBOT_TWIST = np.array([0.100, -0.200, -0.300, 2.0, -1.0, 0.5])  # mm/s -> m/s; rad/s
 
 
 def _h(R, p):
@@ -160,15 +161,15 @@ def test_jacobian_is_the_derivative_of_fk(q, name):
     np.testing.assert_allclose(jacobian_batch(arm, q[None])[0], jacobian(arm, q))
 
 
-@pytest.mark.parametrize('solution_deg, rates', SEED_004_SOLUTIONS)
+@pytest.mark.parametrize('solution_deg, rates', MINIBOT_SOLUTIONS)
 def test_joint_rates_match_minibot_report_question_2(solution_deg, rates):
     arm = minibot()
     q = np.radians(solution_deg)
-    qd = joint_rates(arm, q, SEED_004_TWIST, damping=0.0)
+    qd = joint_rates(arm, q, MINIBOT_TWIST, damping=0.0)
     np.testing.assert_allclose(qd, rates, atol=2e-3)
-    np.testing.assert_allclose(jacobian(arm, q) @ qd, SEED_004_TWIST, atol=1e-9)
+    np.testing.assert_allclose(jacobian(arm, q) @ qd, MINIBOT_TWIST, atol=1e-9)
     # The default small damping changes nothing measurable away from singularities.
-    np.testing.assert_allclose(joint_rates(arm, q, SEED_004_TWIST), qd, atol=1e-3)
+    np.testing.assert_allclose(joint_rates(arm, q, MINIBOT_TWIST), qd, atol=1e-3)
 
 
 def test_damping_bounds_the_rates_at_a_singularity():

@@ -1,4 +1,4 @@
-"""Cartesian pose paths: ends exact, shapes as the seeds define them, SLERP, sampling, errors."""
+"""Cartesian pose paths: ends exact, shapes as the reports define them, SLERP, sampling, errors."""
 
 from hypothesis import given, settings
 import hypothesis.strategies as st

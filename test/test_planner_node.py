@@ -155,7 +155,7 @@ def test_unreachable_goal_is_refused_with_closest_pose(nodes):
 
 
 def test_goal_beyond_joint_limits_is_refused(nodes):
-    """A pose the arm reaches only with a joint past its seed limit: joint_limits."""
+    """A pose the arm reaches only with a joint past its +-90 deg limit: joint_limits."""
     executor, planner, probe = nodes
     connected(executor, probe)
     give_state(executor, planner, probe, HOME)

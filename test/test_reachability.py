@@ -8,14 +8,14 @@ from mover6_control.kinematics.rotations import euler_zyx_to_matrix, pose_error,
 import numpy as np
 import pytest
 
-SEED_000_GOAL = (0.1, 0.1, 0.2, 0.0, 1.5708, 0.0)   # X Y Z [m], A B C [rad]
+REPORT_IK_GOAL = (0.1, 0.1, 0.2, 0.0, 1.5708, 0.0)   # X Y Z [m], A B C [rad]
 
 
 def mover6_report_goal(reading):
     """Return the Mover6 report's example goal read absolutely or relatively (its MATLAB)."""
-    T = pose_from_xyzabc(*SEED_000_GOAL)
+    T = pose_from_xyzabc(*REPORT_IK_GOAL)
     if reading == 'relative':
-        T[:3, :3] = fk(mover6(), np.zeros(6))[:3, :3] @ euler_zyx_to_matrix(*SEED_000_GOAL[3:])
+        T[:3, :3] = fk(mover6(), np.zeros(6))[:3, :3] @ euler_zyx_to_matrix(*REPORT_IK_GOAL[3:])
     return T
 
 
@@ -27,7 +27,7 @@ def _check_closest(verdict, arm, T):
     assert verdict.message and verdict.message[0].isalpha()
 
 
-def test_mover6_report_goal_read_absolutely_is_outside_the_seed_limits():
+def test_mover6_report_goal_read_absolutely_is_outside_the_90_deg_limits():
     arm = mover6()
     T = mover6_report_goal('absolute')
     v = check_pose(arm, T)
@@ -36,7 +36,7 @@ def test_mover6_report_goal_read_absolutely_is_outside_the_seed_limits():
     _check_closest(v, arm, T)
     assert arm.within_limits(v.details['closest_q'])
     np.testing.assert_allclose(v.closest_pose, fk(arm, v.details['closest_q']), atol=1e-12)
-    # Closer than the seed's constrained optimiser got (6.7 mm, its eq. 21-22 answer).
+    # Closer than the Mover6 report's constrained optimiser got (6.7 mm, its eq. 21-22 answer).
     assert 0.0 < v.position_error < 0.0067
     assert not arm.within_limits(v.details['q_outside_limits'])
 

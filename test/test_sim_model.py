@@ -39,7 +39,7 @@ def test_fk_agrees_with_core(limit_set, data):
     np.testing.assert_allclose(T_mj, fk(arm, q), atol=1e-9, rtol=0)
 
 
-def test_fk_home_is_the_seed_flange_position():
+def test_fk_home_is_the_mover6_report_flange_position():
     """At q = 0 MuJoCo puts the flange at (0.345, 0, 0.4425) m (the Mover6 report's URDF)."""
     arm = ARMS['within_90_deg']
     T_mj, _ = _mujoco_fk(MODELS['within_90_deg'], arm, np.zeros(6))

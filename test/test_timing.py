@@ -167,7 +167,7 @@ def test_random_paths_respect_limits_and_the_lower_bound(rows, v, a):
     assert distance_to_polyline(q, W[keep]).max() <= 1e-2 + 1e-9
 
 
-def test_seed_like_dense_path_is_close_to_the_bound_and_to_the_line():
+def test_report_like_dense_path_is_close_to_the_bound_and_to_the_line():
     # 20 waypoints on a gently curved joint path, like path IK of a straight Cartesian line.
     s = np.linspace(0.0, 1.0, 20)[:, None]
     W = s * np.array([0.0, 0.3, -0.4, 0.0, 0.1, 0.0]) + 0.02 * np.sin(3 * s)
