@@ -72,7 +72,7 @@ def test_synchronised_arrival_is_common(q0, q1, lam):
 def test_trapezoid_matches_seed_eq16_to_19_and_the_joint_class():
     q0 = np.array([0.2, 0.0, 0.1, 0.0, -0.1, 0.0])
     q1 = np.array([-0.1, 0.2, 0.1, 0.3, 0.05, -0.3])
-    law = LawConfig(profile='trapezoidal', t_max=1.0)           # the Mover6 report: t_blend = t_max / 4
+    law = LawConfig(profile='trapezoidal', t_max=1.0)   # the Mover6 report: t_blend = t_max / 4
     plan = plan_motion(law, q0, q1[None], VLIM)
     assert plan.duration == pytest.approx(1.0)
     ts, q, qd = sample_grid(plan, dt=1e-3)
