@@ -45,9 +45,12 @@ def test_the_planner_times_with_the_controllers_default_profile():
     assert PLANNER['profile'].allowed == CONTROLLER['profile'].allowed
 
 
+@pytest.mark.parametrize('example', [report_linear_example, via_joint_example],
+                         ids=['report_linear', 'via_point_joint_move'])
 @pytest.mark.parametrize('profile', PROFILES)
-def test_predicted_duration_is_the_controllers_within_5_percent(profile):
-    plan = report_linear_example()
+def test_predicted_duration_is_the_controllers_within_5_percent(profile, example):
+    """The report's linear example, and the via-point joint move's waypoints: as announced."""
+    plan = example()
     predicted = predicted_duration(profile, np.zeros(6), plan.q, ARM.velocity_limits)
     planned = controller_plan_duration(profile, np.zeros(6), plan.q)
     # The controller announces its duration to 10 ms.
@@ -65,15 +68,6 @@ def test_prediction_holds_from_a_measured_start(profile):
     # for 19 s, is 5.0 % of the longer and must still fail).
     assert abs(predicted - planned) <= max(0.05 * min(predicted, planned), 0.005 + 1e-9), (
         predicted, planned)
-
-
-@pytest.mark.parametrize('profile', PROFILES)
-def test_via_point_joint_move_prediction_is_the_controllers(profile):
-    """The via-point polynomial's waypoints are timed by the controller's law, as announced."""
-    plan = via_joint_example()
-    predicted = predicted_duration(profile, np.zeros(6), plan.q, ARM.velocity_limits)
-    planned = controller_plan_duration(profile, np.zeros(6), plan.q)
-    assert abs(predicted - planned) <= max(0.05 * planned, 0.005 + 1e-9), (predicted, planned)
 
 
 @pytest.mark.parametrize('profile', PROFILES)
