@@ -5,8 +5,9 @@ The controller without ROS: joint states and demands in, one velocity command pe
 with limits, goal tolerance and encoder tick, the measured states, the running ``MotionPlan``
 of the selected velocity law and its reference), the state machine (``state_machine``), which
 decides from what the robot reports, and the safety checks. The node hands /joint_states to the
-robot by name (``on_named_joint_states``; ``on_joint_states`` takes them in chain order) and
-calls ``on_invalid_states``, ``on_demands``, ``request_stop`` and ``reset`` from its callbacks
+robot by name (``on_named_joint_states``, which faults on invalid ones; ``on_joint_states``
+takes them in chain order, ``on_invalid_states`` notes states refused before they reached the
+core) and calls ``on_demands``, ``request_stop`` and ``reset`` from its callbacks
 and ``tick(now)`` from its timer, and publishes what comes back; every tick asks the robot for
 its command (``Robot.command``). Time is always an argument [s], so
 tests drive it with synthetic time and no sleeps.
