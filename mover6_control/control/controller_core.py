@@ -14,7 +14,8 @@ tests drive it with synthetic time and no sleeps.
 
 Safety, per tick: joint states older than ``state_timeout``, or reported incomplete or
 non-finite, give a zero command and the fault state at once; a fresh valid state recovers to
-idle. Entering idle, finishing a stop and entering fault give an explicit zero command (the
+idle. So does a tick that raises, or a law's command that is not finite (never sent: the
+reason goes on the status); ``tick`` itself never raises. Entering idle, finishing a stop and entering fault give an explicit zero command (the
 vendor driver keeps the last command forever). A demand that is empty, non-finite or outside
 the joint limits raises ``InvalidInputError`` and leaves the running motion untouched; a valid
 one while moving replaces the motion, starting from the present reference and its velocity, so
@@ -56,8 +57,8 @@ from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
 from mover6_control.control.robot import Robot
-from mover6_control.control.servo import (initial_state, joint_jog_command, servo_step,
-                                          ServoConfig, TwistCommand)
+from mover6_control.control.servo import (command_age, initial_state, joint_jog_command,
+                                          servo_step, ServoConfig, TwistCommand)
 from mover6_control.control.timed_plan import plan_demand, Timing
 from mover6_control.control.velocity_laws import (dead_zone_command, driver_velocity_limits,
                                                   guard_position_limits, JOG_UNITS, LawConfig,
@@ -248,6 +249,7 @@ class ControllerCore:
         # the node sets it. None: no collision check.
         self.collision_guard = None
         self._servo_vetoed = (None, None, None)   # (servo config, guard, the two combined)
+        self.tick_failures = 0           # ticks in a row that raised (a fault each)
 
     def _derive(self, config):
         """
@@ -544,14 +546,16 @@ class ControllerCore:
 
         Idle, a fresh command starts jogging; jogging, it replaces the previous command. Raises
         ``InvalidInputError`` with the reason (kept in the status as ``jog_refused``) for a bad
-        command or while a motion executes, settles or stops (stop it first), or in fault.
+        command, a stamp from the future (``servo.FUTURE_STAMP_TOLERANCE`` after ``now``), or
+        while a motion executes, settles or stops (stop it first), or in fault. The command
+        goes stale ``servo_command_timeout`` after the earlier of its stamp and ``now``.
         """
-        self._take_jog(now, lambda: TwistCommand(stamp, linear, angular, frame))
+        self._take_jog(now, lambda: TwistCommand(stamp, linear, angular, frame, now))
 
     def on_joint_jog(self, now: float, stamp: float, names: Sequence[str],
                      velocities: Sequence[float]) -> None:
         """Take joint velocities [rad/s] by joint name, stamped ``stamp`` [s]; as ``on_twist``."""
-        self._take_jog(now, lambda: joint_jog_command(self.arm, stamp, names, velocities))
+        self._take_jog(now, lambda: joint_jog_command(self.arm, stamp, names, velocities, now))
 
     def _take_jog(self, now, make):
         try:
@@ -562,7 +566,7 @@ class ControllerCore:
                     raise InvalidInputError(f'jogging refused while {self._state}: '
                                             f'{self._message}{hint}')
                 timeout = self.config.servo.command_timeout
-                if now - command.stamp > timeout:
+                if command_age(command, now) > timeout:
                     raise InvalidInputError(f'jog command older than the timeout {timeout:g} s '
                                             'by its stamp')
         except InvalidInputError as err:
@@ -611,7 +615,34 @@ class ControllerCore:
     # --- the tick -----------------------------------------------------------------------------
 
     def tick(self, now: float) -> TickOutput:
-        """Return the ``TickOutput`` at ``now`` [s]: check the states, run the law."""
+        """
+        Return the ``TickOutput`` at ``now`` [s]: check the states, run the law.
+
+        Never raises: an exception inside the tick, or a command that is not finite (from any
+        law), is a fault (``_tick_fault``): a zero command, the reason on the status, and
+        recovery as from stale states (fresh valid states after it). ``tick_failures`` counts
+        the ticks in a row that raised, so a node can tell a tick that cannot run at all.
+        """
+        try:
+            out = self._tick(now)
+        except Exception as err:  # noqa: B902 - whatever breaks a tick stops the arm
+            self.tick_failures += 1
+            return self._tick_fault(now, f'tick failed: {type(err).__name__}: {err}')
+        self.tick_failures = 0
+        return out
+
+    def _tick_fault(self, now, reason):
+        """Fault at ``now``: drop the motion or jog, a zero command, ``reason`` on the status."""
+        if self._state in sm.MOVING_STATES:
+            self._result = {'result': 'fault', 'reason': reason}
+        self.robot.drop_plan()
+        self._t_fault = now
+        self._set(sm.TICK_FAULT, 'ERROR', reason)
+        zero = np.zeros(self.arm.n_joints)
+        self.robot.commanded = zero
+        return TickOutput(zero, zero.copy(), self._state, True)
+
+    def _tick(self, now):
         self._check_states(now)
         state = self._state
         qd = None
@@ -632,6 +663,9 @@ class ControllerCore:
                 qd = self._whole_ticks(now, qd)
             qd = guard_position_limits(qd, self.robot.q, self.robot.lower, self.robot.upper,
                                        self._dt)
+            if not np.all(np.isfinite(qd)):      # never sent: no driver may receive a NaN
+                return self._tick_fault(now, f'non-finite command {np.asarray(qd).tolist()} '
+                                             f'while {state}: not sent')
         self._n_states_seen = self.robot.n_states
         if self._whole_tick_driver:
             self._travel_log.append((now, self._travel.copy()))

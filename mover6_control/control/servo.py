@@ -15,7 +15,10 @@ commanded twist as far as the arm actually follows it, is held by a small propor
 
 Safety, in MoveIt Servo's terms, every stop with a reason:
 
-- a command older than ``command_timeout`` (by its stamp) decelerates the arm to rest;
+- a command older than ``command_timeout`` decelerates the arm to rest; its age counts from
+  its stamp or from its arrival (``received``, the controller's clock), whichever is earlier,
+  and a stamp more than ``FUTURE_STAMP_TOLERANCE`` after its arrival is refused, so a stamp
+  from the future cannot keep the arm moving;
 - joint speeds are limited by one common factor (the direction is kept), the change of speed
   per tick by ``a_max`` (one common factor as well);
 - the condition number of the normalised Jacobian (scale-free) above
@@ -46,6 +49,9 @@ FRAMES = ('base_link', 'link6')
 MIN_SINGULARITY_SCALE = 0.1
 # [rad] joint step used to tell whether a motion goes towards a singularity or away from it.
 DIRECTION_STEP = 1e-3
+# [s] how far a command's stamp may lie after its arrival by the controller's clock (clocks a
+# few milliseconds apart, a sim clock a step ahead); a stamp further in the future is refused.
+FUTURE_STAMP_TOLERANCE = 0.05
 
 
 @dataclass(frozen=True)
@@ -53,7 +59,7 @@ class ServoConfig:
     """
     The jogging settings (the controller's ``servo_*`` parameters).
 
-    ``command_timeout`` [s]: a command older than this (by its stamp) stops the arm.
+    ``command_timeout`` [s]: a command older than this (``command_age``) stops the arm.
     ``pose_gain`` [1/s]: gain holding the reference line and orientation. ``damping``: damped
     least squares factor on the normalised Jacobian (no unit). ``lower_singularity_threshold``,
     ``hard_stop_singularity_threshold``: condition numbers of the normalised Jacobian where the
@@ -96,16 +102,22 @@ class ServoConfig:
 
 @dataclass(frozen=True, eq=False)
 class TwistCommand:
-    """A flange twist: ``linear`` (3,) [m/s] and ``angular`` (3,) [rad/s] in ``frame``."""
+    """
+    A flange twist: ``linear`` (3,) [m/s] and ``angular`` (3,) [rad/s] in ``frame``.
+
+    ``stamp`` [s] is the sender's time, ``received`` [s] the controller's at arrival (None: the
+    stamp); the command's age counts from the earlier of the two (``command_age``).
+    """
 
     stamp: float
     linear: np.ndarray
     angular: np.ndarray
     frame: str = 'base_link'
+    received: Optional[float] = None
 
     def __post_init__(self):
-        """Check the values and the frame; freeze the arrays."""
-        _check_stamp(self.stamp)
+        """Check the values, the stamp and the frame; freeze the arrays."""
+        _check_stamp(self.stamp, self.received)
         for name in ('linear', 'angular'):
             arr = np.array(getattr(self, name), dtype=float).reshape(-1)
             if arr.shape != (3,) or not np.all(np.isfinite(arr)):
@@ -120,14 +132,15 @@ class TwistCommand:
 
 @dataclass(frozen=True, eq=False)
 class JointJogCommand:
-    """Joint velocities ``velocities`` (n,) [rad/s] in the arm's joint order, stamped [s]."""
+    """Joint velocities ``velocities`` (n,) [rad/s] in the arm's joint order; times as a twist."""
 
     stamp: float
     velocities: np.ndarray
+    received: Optional[float] = None
 
     def __post_init__(self):
-        """Check the values; freeze the array."""
-        _check_stamp(self.stamp)
+        """Check the values and the stamp; freeze the array."""
+        _check_stamp(self.stamp, self.received)
         arr = np.array(self.velocities, dtype=float).reshape(-1)
         if not arr.size or not np.all(np.isfinite(arr)):
             raise InvalidInputError(f'joint jog velocities must be finite, got {arr.tolist()}')
@@ -135,15 +148,32 @@ class JointJogCommand:
         object.__setattr__(self, 'velocities', arr)
 
 
-def _check_stamp(stamp):
+def _check_stamp(stamp, received):
     if not np.isfinite(stamp):
         raise InvalidInputError(f'command stamp must be finite, got {stamp}')
+    if received is None:
+        return
+    if not np.isfinite(received):
+        raise InvalidInputError(f'command arrival time must be finite, got {received}')
+    if stamp - received > FUTURE_STAMP_TOLERANCE:
+        raise InvalidInputError(
+            f'command stamp {stamp:.3f} s is {stamp - received:.3f} s in the future of its '
+            f'arrival at {received:.3f} s (tolerance {FUTURE_STAMP_TOLERANCE:g} s): the clocks '
+            'disagree')
 
 
-def joint_jog_command(arm: ArmModel, stamp: float, names: list,
-                      velocities: list) -> JointJogCommand:
+def command_age(command, now: float) -> float:
+    """Return the age [s] of a command at ``now``: from its stamp or arrival, the earlier."""
+    start = command.stamp if command.received is None else min(command.stamp, command.received)
+    return now - start
+
+
+def joint_jog_command(arm: ArmModel, stamp: float, names: list, velocities: list,
+                      received: Optional[float] = None) -> JointJogCommand:
     """
     Return a ``JointJogCommand`` from joint ``names`` and their ``velocities`` [rad/s].
+
+    ``stamp`` and ``received`` [s] as ``JointJogCommand``'s.
 
     Joints not named stay still; an unknown or repeated name, or as many names as values not,
     raises ``InvalidInputError``.
@@ -158,7 +188,7 @@ def joint_jog_command(arm: ArmModel, stamp: float, names: list,
     qd = np.zeros(arm.n_joints)
     for name, value in zip(names, values):
         qd[arm.joint_index(name)] = value
-    return JointJogCommand(stamp, qd)
+    return JointJogCommand(stamp, qd, received)
 
 
 @dataclass(frozen=True, eq=False)
@@ -287,35 +317,39 @@ def _limit_halt(arm, q, qd, margin):
 
 def _twist_target(arm, config, state, command, q, dt, vlim, reach):
     """
-    Return ``(target qd, fraction, reference, twist in base, reason, halted, scale, condition)``.
+    Return ``(target qd, fraction, reference, twist kept, reason, halted, scale, condition)``.
 
     The target is the speed-limited damped least squares solution for the commanded twist plus
-    the correction towards the reference pose, slowed near a singularity; ``fraction`` (0 to 1)
-    is how much of the commanded speed it keeps after the speed limit and the slow-down.
+    the correction towards the reference pose, slowed near a singularity. ``twist kept`` (6,)
+    in base is the commanded twist times the speed limit's factor, and ``fraction`` (0 to 1) the
+    share of it the singularity slow-down keeps. A twist of any finite size is divided by its
+    largest component (when above 1) before anything else, and the speed limit then applies to
+    the rates of that unit twist (the solve is linear): the same command as for the twist
+    itself, where 1e308 m/s would overflow the solve.
     """
     T, J = pose_and_jacobian(arm, q, reach)
     reference = T.copy() if state.reference is None else state.reference
     R_ref = reference[:3, :3]
+    size = max(1.0, float(np.max(np.abs(command.linear))),
+               float(np.max(np.abs(command.angular))))
+    linear, angular = command.linear / size, command.angular / size
     if command.frame == 'link6':
-        linear, angular = R_ref @ command.linear, R_ref @ command.angular
-    else:
-        linear, angular = command.linear, command.angular
-    twist = np.concatenate([linear, angular])
+        linear, angular = R_ref @ linear, R_ref @ angular
+    twist = np.concatenate([linear, angular])           # the commanded twist / size
     error = np.concatenate([reference[:3, 3] - T[:3, 3], _rotation_vector(R_ref @ T[:3, :3].T)])
-    wanted = twist + config.pose_gain * error
+    wanted = twist + (config.pose_gain / size) * error
     wanted[:3] *= 1.0 / reach
-    qd = damped_rates(J, wanted, config.damping)
-    speed_factor = min(1.0, float(np.min(vlim / np.maximum(np.abs(qd), 1e-300))))
-    qd = qd * speed_factor
+    qd, gain = _speed_limited(damped_rates(J, wanted, config.damping), size, vlim)
+    twist = twist * gain
     cond = condition(J)
     norm = math.sqrt(float(qd @ qd))         # np.linalg.norm's own formula, without its checks
     lower = config.lower_singularity_threshold
     hard = config.hard_stop_singularity_threshold
     if norm == 0.0 or cond < lower:
-        return qd, speed_factor, reference, twist, '', False, 1.0, cond
+        return qd, 1.0, reference, twist, '', False, 1.0, cond
     ahead = condition(normalised_jacobian(arm, q + qd * (DIRECTION_STEP / norm), reach))
     if ahead <= cond:
-        return qd, speed_factor, reference, twist, '', False, 1.0, cond
+        return qd, 1.0, reference, twist, '', False, 1.0, cond
     scale = (hard - cond) / (hard - lower)
     if (scale < MIN_SINGULARITY_SCALE
             or condition(normalised_jacobian(arm, q + qd * scale * dt, reach)) >= hard):
@@ -324,7 +358,18 @@ def _twist_target(arm, config, state, command, q, dt, vlim, reach):
         return np.zeros_like(qd), 0.0, reference, twist, reason, True, 0.0, cond
     reason = (f'slowed to {scale:.0%} near a singularity: condition {cond:.1f} (slows from '
               f'{lower:g}, halts at {hard:g})')
-    return qd * scale, speed_factor * scale, reference, twist, reason, False, scale, cond
+    return qd * scale, scale, reference, twist, reason, False, scale, cond
+
+
+def _speed_limited(rates, size, vlim):
+    """
+    Return ``(rates * gain, gain)``: ``gain`` is ``size``, or less to keep within ``vlim`` (n,).
+
+    ``rates`` (n,) are a command's joint rates divided by ``size`` (>= 1), so neither they nor
+    the result overflow for any finite command; one common factor keeps the direction.
+    """
+    gain = min(size, float(np.min(vlim / np.maximum(np.abs(rates), 1e-300))))
+    return rates * gain, gain
 
 
 def servo_step(arm: ArmModel, config: ServoConfig, state: ServoState, command, q: np.ndarray,
@@ -346,10 +391,10 @@ def servo_step(arm: ArmModel, config: ServoConfig, state: ServoState, command, q
     reason, halted, stale, scale, cond = '', False, False, 1.0, float('nan')
     if command is None:
         target, reason, halted, stale = np.zeros(arm.n_joints), 'no command yet', True, True
-    elif now - command.stamp > config.command_timeout:
+    elif command_age(command, now) > config.command_timeout:
         target, halted, stale = np.zeros(arm.n_joints), True, True
-        reason = (f'commands stale: the latest is {now - command.stamp:.3f} s old (timeout '
-                  f'{config.command_timeout:g} s)')
+        reason = (f'commands stale: the latest is {command_age(command, now):.3f} s old '
+                  f'(timeout {config.command_timeout:g} s)')
     elif isinstance(command, TwistCommand):
         if not (np.any(command.linear) or np.any(command.angular)):
             target, reason, halted = np.zeros(arm.n_joints), 'zero twist commanded', True
@@ -360,7 +405,8 @@ def servo_step(arm: ArmModel, config: ServoConfig, state: ServoState, command, q
         if command.velocities.shape != (arm.n_joints,):
             raise InvalidInputError(f'joint jog must have {arm.n_joints} velocities, got '
                                     f'{command.velocities.size}')
-        target = command.velocities / max(1.0, float(np.max(np.abs(command.velocities) / vlim)))
+        size = max(1.0, float(np.max(np.abs(command.velocities))))
+        target = _speed_limited(command.velocities / size, size, vlim)[0]
     else:
         raise InvalidInputError(f'unknown servo command {command!r}')
     if not halted:
@@ -388,11 +434,12 @@ def servo_step(arm: ArmModel, config: ServoConfig, state: ServoState, command, q
 
 def _advance(reference, twist, progress, dt):
     """
-    Return the reference pose moved by ``progress`` (0 to 1) of the commanded ``twist`` in ``dt``.
+    Return the reference pose moved by ``progress`` (0 to 1) of the ``twist`` in ``dt``.
 
-    ``progress`` is the share of the commanded motion this tick's command makes (after the
-    speed, singularity and acceleration limits, not counting the correction), so a slowed or
-    accelerating arm does not fall behind its reference, nor an arm ahead of it hold it back.
+    ``twist`` is the commanded twist as the speed limit keeps it, ``progress`` the share of it
+    this tick's command makes (after the singularity and acceleration limits, not counting the
+    correction), so a slowed or accelerating arm does not fall behind its reference, nor an arm
+    ahead of it hold it back.
     """
     out = reference.copy()
     out[:3, 3] += twist[:3] * progress * dt

@@ -12,6 +12,7 @@ The controller's states and the table of transitions between them, with a pure s
     idle --jog--> jogging --jog_done--> idle     (control.servo: a twist or joint jog)
     jogging --demand--> executing (from the jog's velocity) | --stop--> stopping
     jogging --states_invalid--> fault
+    idle | executing | settling | stopping | jogging --tick_fault--> fault
 
 Any (state, event) pair not in ``TRANSITIONS`` leaves the state unchanged: that is deliberate
 (for example a stop request while idle, or a stale-state event while already in fault).
@@ -40,8 +41,9 @@ AT_REST = 'at_rest'                    # the stopping ramp has ended
 RESET = 'reset'                        # reset requested
 JOG = 'jog'                            # a fresh twist or joint jog command arrived while idle
 JOG_DONE = 'jog_done'                  # the jog commands went stale and the arm is at rest
+TICK_FAULT = 'tick_fault'              # the tick raised, or a law made a non-finite command
 EVENTS = (STATES_VALID, STATES_INVALID, DEMAND, REFERENCE_DONE, SETTLED, SETTLE_TIMEOUT, STOP,
-          PATH_ERROR, AT_REST, RESET, JOG, JOG_DONE)
+          PATH_ERROR, AT_REST, RESET, JOG, JOG_DONE, TICK_FAULT)
 
 TRANSITIONS = {
     (WAITING_FOR_STATES, STATES_VALID): IDLE,
@@ -72,6 +74,12 @@ TRANSITIONS = {
     (JOGGING, DEMAND): EXECUTING,
     (JOGGING, STOP): STOPPING,
     (JOGGING, STATES_INVALID): FAULT,
+
+    (IDLE, TICK_FAULT): FAULT,
+    (EXECUTING, TICK_FAULT): FAULT,
+    (SETTLING, TICK_FAULT): FAULT,
+    (STOPPING, TICK_FAULT): FAULT,
+    (JOGGING, TICK_FAULT): FAULT,
 }
 
 # States in which the arm may be commanded to move; in the others the command is zero.

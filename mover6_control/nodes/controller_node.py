@@ -42,6 +42,13 @@ warning, so a stalled tick thread shows in the controller and not only as a stal
 driver. To see what held it up, set the environment variable ``MOVER6_TICK_WATCHDOG`` to a time
 [s]: a tick later than that dumps the stack of every thread to stderr (``faulthandler``, which
 needs no interpreter lock for it; wall time, so a paused sim clock trips it too).
+
+The tick never dies: an exception inside it is a fault (zero command, the reason on the
+status, cleared by fresh joint states as any fault); when ``MAX_TICK_FAILURES`` ticks in a row
+raise, or the tick thread ends by an exception, the node gives up (``fatal``) and its process
+exits with 1 after the last zero command, so the launcher sees it. A jog command whose stamp
+lies in the future of its arrival is refused, and every jog command goes stale
+``servo_command_timeout`` after the earlier of its stamp and its arrival (``control.servo``).
 """
 
 import faulthandler
@@ -49,6 +56,7 @@ import os
 import queue
 import sys
 import threading
+import traceback
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -80,6 +88,9 @@ WATCHDOG_ENV = 'MOVER6_TICK_WATCHDOG'
 # Longest wait [s] at shutdown for the readers of /JointJog to acknowledge the last zero command.
 ZERO_ACK_TIMEOUT = 1.0
 STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Ticks in a row that raised (each a fault with a zero command) after which the tick cannot run
+# at all: the node gives up and its process exits with 1, so the launcher sees it.
+MAX_TICK_FAILURES = 10
 
 
 def config_from_parameters(get):
@@ -142,8 +153,10 @@ class ControllerNode(Node):
         self.max_tick_gap = 0.0          # [s] longest time between two ticks so far
         self.running = True
         self.destroyed = False
+        self.fatal = None                # why the tick cannot run: the process exits with 1
+        self.tick_errors = 0             # ticks in a row that raised outside the core
         self.pending_logged = False      # 'applies to the next motion' said, not yet applied
-        self.tick_thread = threading.Thread(target=self.tick_loop, daemon=True)
+        self.tick_thread = threading.Thread(target=self.run_ticks, daemon=True)
         self.demands = queue.SimpleQueue()   # /joint_demands messages not yet taken; None: end
         self.demand_thread = threading.Thread(target=self.demand_loop, daemon=True)
         # Goal ids (the planner's, or an action goal's) of the demands: echoed in the status.
@@ -353,9 +366,55 @@ class ControllerNode(Node):
             if (now - deadline).nanoseconds > step.nanoseconds:
                 deadline = now                  # fell behind by a whole period: no burst
             if self.running:
-                self.on_tick()
+                self.run_tick()
         if watchdog > 0.0:
             faulthandler.cancel_dump_traceback_later()
+
+    def run_ticks(self):
+        """Run ``tick_loop`` (the tick thread); if it ends by an exception the node gives up."""
+        try:
+            self.tick_loop()
+        except Exception as err:  # noqa: B902 - a dead tick thread must not go unnoticed
+            self.give_up(f'the tick thread died: {type(err).__name__}: {err}',
+                         traceback.format_exc())
+
+    def run_tick(self):
+        """
+        Run ``on_tick``; a tick that raised is a fault, ``MAX_TICK_FAILURES`` in a row fatal.
+
+        The core turns an exception in its tick into a fault itself (zero command, the reason
+        on the status) and counts them; one here (publishing, the status) sends a zero command.
+        """
+        try:
+            self.on_tick()
+        except Exception as err:  # noqa: B902 - the tick goes on, the arm held
+            self.tick_errors += 1
+            self.get_logger().error(f'tick failed: {type(err).__name__}: {err}',
+                                    throttle_duration_sec=1.0)
+            try:
+                self.send_zero()
+            except Exception:  # noqa: B902 - giving up below if this keeps happening
+                pass
+        else:
+            self.tick_errors = 0
+        failures = self.core.tick_failures
+        if failures >= MAX_TICK_FAILURES:
+            with self.lock:
+                last = self.core.status().message
+            self.give_up(f'{failures} ticks in a row failed ({last})')
+        elif self.tick_errors >= MAX_TICK_FAILURES:
+            self.give_up(f'{self.tick_errors} ticks in a row failed to publish')
+
+    def give_up(self, reason, details=''):
+        """Stop ticking for good: log ``reason``, send a zero command, let the process exit 1."""
+        self.fatal = reason
+        self.running = False
+        self.get_logger().fatal(f'{reason}; the controller stops' + (f'\n{details}' if details
+                                                                      else ''))
+        try:
+            self.send_zero()
+        except Exception:  # noqa: B902 - destroy_node sends one more
+            pass
 
     def set_tick_priority(self, priority):
         """

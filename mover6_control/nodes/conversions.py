@@ -285,27 +285,34 @@ def twist_command_from_msg(msg, now):
     Return ``(stamp, linear, angular, frame)`` of a TwistStamped jog command.
 
     A zero stamp (``ros2 topic pub`` leaves it so) counts as received at ``now`` [s]; an empty
-    ``frame_id`` is ``base_link``. Raises on non-finite values.
+    ``frame_id`` is ``base_link``. Raises on non-finite values and a malformed stamp.
     """
     linear = [msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z]
     angular = [msg.twist.angular.x, msg.twist.angular.y, msg.twist.angular.z]
     if not all(math.isfinite(v) for v in linear + angular):
         raise InvalidInputError(f'twist has non-finite values: {linear} {angular}')
-    stamp = stamp_to_seconds(msg.header.stamp)
-    return (now if stamp == 0.0 else stamp), linear, angular, msg.header.frame_id or 'base_link'
+    return _jog_stamp(msg.header.stamp, now), linear, angular, msg.header.frame_id or 'base_link'
 
 
 def joint_jog_command_from_msg(msg, now):
     """
     Return ``(stamp, names, velocities)`` of a JointJog jog command (velocities only).
 
-    A zero stamp counts as received at ``now`` [s]; displacements are refused (not supported).
+    A zero stamp counts as received at ``now`` [s]; displacements are refused (not supported),
+    and so is a malformed stamp.
     """
     if len(msg.displacements):
         raise InvalidInputError('JointJog displacements are not supported: send velocities')
     names, velocities = joint_jog_from_msg(msg)
-    stamp = stamp_to_seconds(msg.header.stamp)
-    return (now if stamp == 0.0 else stamp), names, velocities
+    return _jog_stamp(msg.header.stamp, now), names, velocities
+
+
+def _jog_stamp(stamp, now):
+    """Return a jog command's stamp [s] (``now`` for a zero one); raise for ``nanosec`` >= 1e9."""
+    if stamp.nanosec >= 1_000_000_000:
+        raise InvalidInputError(f'malformed stamp: nanosec {stamp.nanosec} is not below 1e9')
+    seconds = stamp_to_seconds(stamp)
+    return now if seconds == 0.0 else seconds
 
 
 # --- status --------------------------------------------------------------------------------

@@ -68,7 +68,9 @@ def run_node(make_node, args=None):
     Init rclpy, make the node with ``make_node()``, spin it until a stop; destroy it, shut down.
 
     Returns normally (exit code 0) on SIGINT, SIGTERM (once or repeatedly) and external
-    shutdown; errors while making or running the node propagate.
+    shutdown; errors while making or running the node propagate. A node that sets ``fatal``
+    (why it cannot go on, e.g. a tick thread that cannot run) is torn down the same way, then
+    ``SystemExit`` with that reason ends the process with exit code 1, so a launcher sees it.
     """
     stop = StopSignals()
     node = None
@@ -78,7 +80,7 @@ def run_node(make_node, args=None):
             node = make_node()
             executor = SingleThreadedExecutor()
             executor.add_node(node)
-            while not stop.received and rclpy.ok():
+            while not stop.received and rclpy.ok() and not getattr(node, 'fatal', None):
                 executor.spin_once(timeout_sec=SPIN_SLICE)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -87,3 +89,6 @@ def run_node(make_node, args=None):
             node.destroy_node()
         rclpy.try_shutdown()
         stop.ignore_from_now()
+    fatal = getattr(node, 'fatal', None)
+    if fatal:
+        raise SystemExit(f'fatal: {fatal}')
