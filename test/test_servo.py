@@ -4,7 +4,8 @@ from dataclasses import replace
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mover6_control.control.servo import (arm_reach, condition, damped_rates, initial_state,
+from mover6_control.control.servo import (arm_reach, command_age, condition, damped_rates,
+                                          FUTURE_STAMP_TOLERANCE, initial_state,
                                           joint_jog_command, JointJogCommand,
                                           normalised_jacobian, pose_and_jacobian, servo_step,
                                           ServoConfig, TwistCommand)
@@ -252,3 +253,86 @@ def test_late_and_skipped_ticks_do_not_leave_the_reference_behind():
         state, q, now = out.state, q + out.qd * step, now + step
     along, off, rot = line_errors(T0, fk(ARM, q), np.array([1.0, 0.0, 0.0]))
     assert 0.038 < along < 0.041 and off < 2e-4 and rot < 1e-3     # was 35.5 mm
+
+
+HUGE_TWISTS = [([1e308, 0.0, 0.0], [0.0, 0.0, 0.0]),
+               ([1e300, 1e308, -1e300], [1e300, 1e307, 1e300]),
+               ([-1.7e308, 1.7e308, 1.7e308], [1.7e308, -1.7e308, 1.7e308])]
+
+
+@pytest.mark.parametrize('frame', ['base_link', 'link6'])
+@pytest.mark.parametrize('q0', [Q_AWAY, np.zeros(6)], ids=['away', 'home'])
+@pytest.mark.parametrize('linear, angular', HUGE_TWISTS)
+def test_a_huge_twist_gives_the_command_of_the_largest_twist_the_joints_can_follow(
+        linear, angular, q0, frame):
+    """1e308 m/s (NaN rates and a raise at home before): finite, in the limits, as 1e3 would."""
+    config = ServoConfig(a_max=100.0)         # at full speed in a tick or two
+
+    def jog(size):
+        return run(q0, lambda t: TwistCommand(t, np.array(linear) * size,
+                                              np.array(angular) * size, frame), 0.3, config)
+
+    q, outs = jog(1.0)
+    assert np.all(np.isfinite(q))
+    for out in outs:
+        assert np.all(np.isfinite(out.qd)) and np.all(np.isfinite(out.state.reference))
+        assert np.all(np.abs(out.qd) <= ARM.velocity_limits * (1.0 + 1e-12))
+    if not outs[-1].halted and outs[-1].scale == 1.0:     # not held at a singularity: flat out
+        assert np.max(np.abs(outs[-1].qd) / ARM.velocity_limits) == pytest.approx(1.0)
+    # The same direction as a twist merely far too fast (the speed limit takes both down).
+    q_fast, outs_fast = jog(1e3 / max(np.max(np.abs(linear)), np.max(np.abs(angular))))
+    np.testing.assert_allclose(outs[0].qd, outs_fast[0].qd, rtol=1e-6, atol=1e-12)
+
+
+def test_a_huge_joint_jog_moves_at_the_speed_limit():
+    """1e308 rad/s on joint 2 (a zero command before: inf in the speed factor) is its limit."""
+    config = ServoConfig(a_max=1e6)
+    out = servo_step(ARM, config, initial_state(ARM), JointJogCommand(0.0, [0, 1e308, 0, 0, 0, 0]),
+                     Q_AWAY, 0.0, DT, ARM.velocity_limits)
+    np.testing.assert_allclose(out.qd, [0, ARM.velocity_limits[1], 0, 0, 0, 0])
+
+
+def test_a_future_stamp_is_refused_and_age_counts_from_arrival():
+    """A stamp 1 s after its arrival is refused; one within the tolerance ages from arrival."""
+    with pytest.raises(InvalidInputError, match='in the future'):
+        TwistCommand(11.0, [0.02, 0, 0], [0, 0, 0], received=10.0)
+    with pytest.raises(InvalidInputError, match='in the future'):
+        joint_jog_command(ARM, 3610.0, ['joint1'], [0.1], received=10.0)
+    early = 0.9 * FUTURE_STAMP_TOLERANCE
+    command = JointJogCommand(10.0 + early, [0.3, 0, 0, 0, 0, 0], received=10.0)
+    assert command_age(command, 10.0 + early) == pytest.approx(early)
+    old = TwistCommand(9.5, [0.02, 0, 0], [0, 0, 0], received=10.0)      # late: by its stamp
+    assert command_age(old, 10.0) == pytest.approx(0.5)
+    state = initial_state(ARM, [0.3, 0, 0, 0, 0, 0])
+    for now, stale in ((10.09, False), (10.0 + CONFIG.command_timeout + 0.005, True)):
+        out = servo_step(ARM, CONFIG, state, command, Q_AWAY, now, DT, ARM.velocity_limits)
+        assert out.stale == stale, now
+
+
+FINITE = st.floats(allow_nan=False, allow_infinity=False)
+SPECIAL = st.sampled_from([0.0, 5e-324, -5e-324, 2.2e-308, 1e-300, 1e308, -1e308, 1.7976e308,
+                           -1.7976e308, 1e-3, -0.02])
+COMPONENT = st.one_of(FINITE, SPECIAL)
+CONFIGURATION = st.tuples(*[st.floats(float(lo), float(hi)) for lo, hi in zip(ARM.lower,
+                                                                             ARM.upper)])
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(COMPONENT, min_size=6, max_size=6), CONFIGURATION,
+       st.sampled_from(['base_link', 'link6', 'joints']),
+       st.lists(st.floats(-1.0, 1.0), min_size=6, max_size=6))
+def test_any_finite_command_gives_a_finite_command_within_the_limits(values, q, frame, qd0):
+    """Any finite twist or joint jog (1e308, denormals), any q in the limits, any speed before."""
+    q = np.array(q)
+    vlim = ARM.velocity_limits
+    state = initial_state(ARM, np.array(qd0) * vlim)
+    for k in range(3):
+        now = k * DT
+        command = (JointJogCommand(now, values) if frame == 'joints'
+                   else TwistCommand(now, values[:3], values[3:], frame))
+        out = servo_step(ARM, CONFIG, state, command, q, now, DT, vlim)
+        assert np.all(np.isfinite(out.qd)), out.qd
+        assert np.all(np.abs(out.qd) <= vlim * (1.0 + 1e-12)), out.qd
+        assert np.all(np.abs(out.qd - state.qd) <= CONFIG.a_max * DT * (1.0 + 1e-9)), out.qd
+        assert out.state.reference is None or np.all(np.isfinite(out.state.reference))
+        state, q = out.state, np.clip(q + out.qd * DT, ARM.lower, ARM.upper)
