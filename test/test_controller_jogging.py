@@ -1,5 +1,8 @@
 """Jogging in the controller core: the state machine shared with motions, reasons on status."""
 
+from dataclasses import replace
+
+from mover6_control.control import controller_core
 from mover6_control.control import state_machine as sm
 from mover6_control.control.collision_guard import CollisionGuard
 from mover6_control.control.controller_core import (config_changes, ControllerConfig,
@@ -172,3 +175,108 @@ def test_a_jog_towards_the_table_halts_before_it_and_a_jog_away_moves():
     for _ in range(100):
         sim.tick(up)
     assert fk(core.arm, sim.q)[2, 3] > z_halt + 0.02
+
+
+@pytest.mark.parametrize('q0', [Q_AWAY, np.zeros(6)], ids=['away', 'home'])
+def test_a_huge_twist_jogs_within_the_limits_and_the_tick_goes_on(q0):
+    """1e308 m/s: NaN commands for ever (away) or a tick that raised (home) before."""
+    core, sim = make()
+    sim.q = np.array(q0, dtype=float)
+    sim.tick()
+
+    def huge(core, t):
+        core.on_twist(t, t, [1e300, 1e308, -1e300], [1e300, 1e307, 1e300], 'base_link')
+
+    for _ in range(100):
+        out = sim.tick(huge)
+        assert out.state == sm.JOGGING, core.status().message
+        assert np.all(np.isfinite(out.qd)) and np.all(np.isfinite(out.jog))
+        assert np.all(np.abs(out.qd) <= core.arm.velocity_limits * (1.0 + 1e-12))
+    assert np.any(sim.log[-1][2])                           # it does move
+    while sim.tick().state == sm.JOGGING:
+        assert sim.t < 5.0
+    assert core.status().values['result'] == 'jog_stopped'
+
+
+class RaisingGuard:
+    """A collision guard whose veto raises: an exception inside a tick (test double)."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def __call__(self, plan):
+        pass
+
+    def veto(self, q, q_ahead):
+        self.calls += 1
+        raise RuntimeError('veto broke')
+
+
+def test_an_exception_in_a_tick_is_a_fault_with_the_reason_that_fresh_states_clear():
+    core, sim = make()
+    for _ in range(30):
+        sim.tick(twist_x)
+    core.collision_guard = RaisingGuard()
+    out = sim.tick(twist_x)                                 # raised out of tick() before
+    assert out.state == sm.FAULT and not np.any(out.qd) and not np.any(out.jog)
+    status = core.status()
+    assert status.level == 'ERROR'
+    assert status.message == 'tick failed: RuntimeError: veto broke'
+    assert status.values['result'] == 'fault' and 'veto broke' in status.values['reason']
+    assert core.tick_failures == 1
+    core.collision_guard = None
+    out = sim.tick()                                        # a fresh state: recovered
+    assert out.state == sm.IDLE and core.tick_failures == 0
+    sim.tick(twist_x)
+    assert core.state == sm.JOGGING
+
+
+def test_a_non_finite_command_is_a_fault_and_never_sent(monkeypatch):
+    """Whatever law makes a NaN (the servo did, from a 1e308 twist), zero goes out instead."""
+    core, sim = make()
+    real = controller_core.servo_step
+
+    def nan_step(*args):
+        out = real(*args)
+        return replace(out, qd=np.full_like(out.qd, np.nan))
+
+    for _ in range(10):
+        sim.tick(twist_x)
+    monkeypatch.setattr(controller_core, 'servo_step', nan_step)
+    out = sim.tick(twist_x)
+    assert out.state == sm.FAULT
+    assert np.array_equal(out.qd, np.zeros(6)) and np.array_equal(out.jog, np.zeros(6))
+    assert np.array_equal(core.robot.commanded, np.zeros(6))
+    assert core.status().message.startswith('non-finite command [nan')
+    assert 'while jogging: not sent' in core.status().message
+    monkeypatch.setattr(controller_core, 'servo_step', real)
+    assert sim.tick().state == sm.IDLE
+
+
+def test_a_future_stamp_is_refused_and_the_jog_stops_on_time():
+    """The last command stamped 1 s ahead kept the arm moving 1.31 s; now it stops in time."""
+    core, sim = make()
+    for _ in range(50):
+        sim.tick(lambda c, t: c.on_joint_jog(t, t, ['joint1'], [0.2]))
+    last = sim.t - DT
+    with pytest.raises(InvalidInputError, match='in the future'):
+        core.on_joint_jog(sim.t, sim.t + 1.0, ['joint1'], [0.2])
+    assert 'in the future' in core.status().values['jog_refused']
+    while sim.tick().state == sm.JOGGING:
+        assert sim.t < 5.0
+    stopped = next(t for t, state, qd in sim.log if t > last and not np.any(qd))
+    timeout, a_max = core.config.servo.command_timeout, core.config.servo.a_max
+    assert stopped - last <= timeout + 0.2 / a_max + 2 * DT
+
+
+def test_a_stamp_slightly_ahead_goes_stale_by_its_arrival():
+    """Within the tolerance it is taken, and ages from its arrival, not from its stamp."""
+    core, sim = make()
+    for _ in range(20):
+        sim.tick(lambda c, t: c.on_joint_jog(t, t, ['joint1'], [0.2]))
+    arrival = sim.t
+    sim.tick(lambda c, t: c.on_joint_jog(t, t + 0.04, ['joint1'], [0.2]))
+    while not core.status().values.get('jog_reason', '').startswith('commands stale'):
+        sim.tick()
+        assert sim.t < 1.0
+    assert sim.t - DT <= arrival + core.config.servo.command_timeout + DT

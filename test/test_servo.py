@@ -313,8 +313,8 @@ FINITE = st.floats(allow_nan=False, allow_infinity=False)
 SPECIAL = st.sampled_from([0.0, 5e-324, -5e-324, 2.2e-308, 1e-300, 1e308, -1e308, 1.7976e308,
                            -1.7976e308, 1e-3, -0.02])
 COMPONENT = st.one_of(FINITE, SPECIAL)
-CONFIGURATION = st.tuples(*[st.floats(float(lo), float(hi)) for lo, hi in zip(ARM.lower,
-                                                                             ARM.upper)])
+CONFIGURATION = st.tuples(*[st.floats(float(lo), float(hi))
+                            for lo, hi in zip(ARM.lower, ARM.upper)])
 
 
 @settings(max_examples=60, deadline=None)

@@ -15,8 +15,9 @@ tests drive it with synthetic time and no sleeps.
 Safety, per tick: joint states older than ``state_timeout``, or reported incomplete or
 non-finite, give a zero command and the fault state at once; a fresh valid state recovers to
 idle. So does a tick that raises, or a law's command that is not finite (never sent: the
-reason goes on the status); ``tick`` itself never raises. Entering idle, finishing a stop and entering fault give an explicit zero command (the
-vendor driver keeps the last command forever). A demand that is empty, non-finite or outside
+reason goes on the status); ``tick`` itself never raises. Entering idle, finishing a stop and
+entering fault give an explicit zero command (the vendor driver keeps the last command
+forever). A demand that is empty, non-finite or outside
 the joint limits raises ``InvalidInputError`` and leaves the running motion untouched; a valid
 one while moving replaces the motion, starting from the present reference and its velocity, so
 the command does not jump. No joint is commanded further past a limit.

@@ -409,8 +409,8 @@ class ControllerNode(Node):
         """Stop ticking for good: log ``reason``, send a zero command, let the process exit 1."""
         self.fatal = reason
         self.running = False
-        self.get_logger().fatal(f'{reason}; the controller stops' + (f'\n{details}' if details
-                                                                      else ''))
+        log = f'{reason}; the controller stops'
+        self.get_logger().fatal(f'{log}\n{details}' if details else log)
         try:
             self.send_zero()
         except Exception:  # noqa: B902 - destroy_node sends one more
