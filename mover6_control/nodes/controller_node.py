@@ -81,8 +81,12 @@ WATCHDOG_ENV = 'MOVER6_TICK_WATCHDOG'
 ZERO_ACK_TIMEOUT = 1.0
 STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # Longest wait [s] of a demand that comes before the first joint states (the planner can be
-# quicker at start-up); then it is refused with the reason. Less than the planner's resend window.
+# quicker at start-up), or in a fault that fresh states clear (a stall at start-up: Fast DDS
+# discovery can hold a process for 0.33 s); then it is refused with the reason. Less than the
+# planner's resend window (RESEND_AFTER * (RESENDS + 1) = 3 s).
 DEMAND_STATE_WAIT = 2.0
+# States in which a demand waits (DEMAND_STATE_WAIT) for valid joint states.
+WAIT_FOR_STATES = (WAITING_FOR_STATES, FAULT)
 
 
 def config_from_parameters(get):
@@ -141,7 +145,7 @@ class ControllerNode(Node):
         self.lock = threading.RLock()        # the core's state
         self.status_lock = threading.Lock()  # one status publication at a time (before lock)
         self.last_state = None           # the core's state after the latest tick
-        self.has_states = threading.Event()  # set while the core is past waiting_for_states
+        self.has_states = threading.Event()  # set while the core has valid states
         self.last_tick = None            # node clock [ns] of the latest tick
         self.max_tick_gap = 0.0          # [s] longest time between two ticks so far
         self.running = True
@@ -296,7 +300,7 @@ class ControllerNode(Node):
         try:
             Q = conversions.demands_from_msg(msg, len(self.joint_names))
             profile = conversions.demand_profile_from_msg(msg)   # this demand's law only
-            if self.core.state == WAITING_FOR_STATES:   # before the first states: a moment
+            if self.core.state in WAIT_FOR_STATES:   # no valid states yet: wait a moment
                 self.has_states.wait(DEMAND_STATE_WAIT)
                 now = self.now()
             for attempt in range(DEMAND_ATTEMPTS):
@@ -413,10 +417,10 @@ class ControllerNode(Node):
             fault_change = None
             if (out.state == FAULT) != (self.last_state == FAULT):
                 fault_change = self.core.status().message
-            if out.state == WAITING_FOR_STATES:
-                if self.last_state != WAITING_FOR_STATES:
+            if out.state in WAIT_FOR_STATES:
+                if self.last_state not in WAIT_FOR_STATES:
                     self.has_states.clear()
-            elif self.last_state in (None, WAITING_FOR_STATES):
+            elif self.last_state is None or self.last_state in WAIT_FOR_STATES:
                 self.has_states.set()
             self.last_state = out.state
             applied = self.pending_logged and self.core.pending_config is None
