@@ -193,6 +193,9 @@ PLANNER = _table(
     P('frame_id', 'str', 'base_link', '', 'the only frame goals are accepted in'),
     P('state_timeout', 'float', 1.0, 's',
       '/joint_states older than this are too old to plan from', 0.01, 60.0),
+    P('state_wait_timeout', 'float', 5.0, 's',
+      'a goal that comes before fresh /joint_states waits this long for them before it is '
+      'refused (0: refused at once)', 0.0, 60.0),
     P('match_timeout', 'float', 3.0, 's',
       'longest wait for /joint_demands readers to be matched before publishing a plan',
       0.0, 60.0),

@@ -3,6 +3,11 @@ Test-wide settings and the process harness of the end-to-end tests.
 
 DDS discovery stays on loopback, and each test run gets its own ROS domain (./run.sh test picks
 one; a bare pytest run picks one here), so parallel runs on one machine never see each other.
+
+Property tests (hypothesis) draw the same examples on every run, here as in CI, so a failure is
+reproducible and a user meets the failures CI meets. Random exploration on request:
+``MOVER6_HYPOTHESIS_RANDOM=1`` draws new examples from a seed, printed in the test header;
+``MOVER6_HYPOTHESIS_SEED=<seed>`` with it draws those examples again.
 """
 
 import os
@@ -14,11 +19,31 @@ os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(1, 100)))
 os.environ.setdefault('MPLBACKEND', 'Agg')
 os.environ.setdefault('PYTHONDONTWRITEBYTECODE', '1')
 
+from hypothesis import core, settings  # noqa: E402
 
-# Property tests: random examples for developers; in CI the same examples every run, so a
-# failure there is reproducible (hypothesis prints the blob to reproduce it).
-from hypothesis import settings  # noqa: E402
-
+RANDOM_ENV, SEED_ENV = 'MOVER6_HYPOTHESIS_RANDOM', 'MOVER6_HYPOTHESIS_SEED'
 settings.register_profile('ci', derandomize=True, print_blob=True)
-if os.environ.get('CI'):
+settings.register_profile('random', derandomize=False, print_blob=True)
+if os.environ.get(RANDOM_ENV, '') not in ('', '0'):
+    HYPOTHESIS_SEED = int(os.environ.get(SEED_ENV) or random.SystemRandom().randrange(2 ** 32))
+    settings.load_profile('random')
+    # What pytest's --hypothesis-seed option sets: every property test draws from this seed.
+    core.global_force_seed = HYPOTHESIS_SEED
+else:
+    HYPOTHESIS_SEED = None
     settings.load_profile('ci')
+
+
+def pytest_report_header(config):
+    """Say which hypothesis examples this run draws (and how to draw them again)."""
+    if HYPOTHESIS_SEED is None:
+        return (f'hypothesis: the same examples every run (derandomized); {RANDOM_ENV}=1 '
+                'draws random ones')
+    return (f'hypothesis: random examples, seed {HYPOTHESIS_SEED} (again: {RANDOM_ENV}=1 '
+            f'{SEED_ENV}={HYPOTHESIS_SEED})')
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Repeat a random run's seed at the end, where a failure is read."""
+    if HYPOTHESIS_SEED is not None:
+        terminalreporter.write_line(pytest_report_header(None))

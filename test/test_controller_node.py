@@ -462,3 +462,48 @@ def test_continuous_demands_never_stall_the_ticks():
         controller.destroy_node()
         arm.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def test_a_demand_before_the_first_states_waits_for_them():
+    """
+    Issue 21: a demand that comes before the first /joint_states is taken once they come.
+
+    (The planner can be quicker at start-up: the demand was refused, 'cannot take a demand
+    while waiting_for_states'.) The wait is bounded: DEMAND_STATE_WAIT, then it is refused.
+    """
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    namespace = f'{NS}_early'
+    controller = ControllerNode(context=context, namespace=namespace)
+    arm = FakeArm(context, namespace=namespace)
+    arm.publishing = False
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(controller)
+    executor.add_node(arm)
+
+    def spin_until(predicate, timeout=30.0):
+        deadline = time.monotonic() + timeout
+        while not predicate() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.02)
+        return predicate()
+    try:
+        assert spin_until(lambda: arm.demand_pub.get_subscription_count() > 0
+                          and arm.status().get('state') == 'waiting_for_states')
+        arm.demand_pub.publish(conversions.make_demands(GOAL[None], 'early-1'))
+        assert spin_until(lambda: controller.demands.empty(), 10.0)   # taken off the queue
+        spin_until(lambda: 'rejected' in arm.status(), 0.2)
+        assert 'rejected' not in arm.status(), arm.status()
+        arm.publishing = True
+        assert spin_until(lambda: arm.status().get('goal_id') == 'early-1'), arm.status()
+        assert 'rejected' not in arm.status(), arm.status()
+        # A demand when no states come at all is refused after the wait, with the reason.
+        arm.publishing = False
+        assert spin_until(lambda: arm.status().get('state') == 'fault')
+        arm.demand_pub.publish(conversions.make_demands(GOAL[None] / 2, 'early-2'))
+        assert spin_until(lambda: arm.status().get('rejected_goal_id') == 'early-2')
+        assert 'cannot take a demand while fault' in arm.status()['rejected']
+    finally:
+        executor.shutdown()
+        controller.destroy_node()
+        arm.destroy_node()
+        rclpy.try_shutdown(context=context)

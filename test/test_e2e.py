@@ -44,6 +44,9 @@ def client(stack):
     node = GoalClient(name='e2e_client')
     problem = node.wait_ready(timeout=30.0)
     assert problem is None, problem + '\n' + stack.report()
+    # The controller's states are not the planner's: it says itself that it has them (issue 21:
+    # a goal sent before it did was refused).
+    assert node.values(node.planner_status)['state'] == 'ready'
     yield node
     node.destroy_node()
     rclpy.try_shutdown()

@@ -82,8 +82,20 @@ def connected(executor, probe):
     assert spin_until(executor, lambda: len(probe.statuses) >= 1)
 
 
-def send_pose(executor, probe, T, frame='base_link', quat=None):
-    """Publish a /pose_goal and wait for the planner's answer; return the status."""
+ANSWERS = ('planned', 'refused', 'failed')
+
+
+def answer(executor, probe, n, timeout=30.0):
+    """Wait for the planner's answer about a goal (after status ``n``); return that status."""
+    def answers():
+        return [m for m in probe.statuses[n:]
+                if conversions.status_values(m).get('result') in ANSWERS]
+    assert spin_until(executor, lambda: answers(), timeout), 'planner did not answer'
+    return answers()[0]
+
+
+def send_pose(executor, probe, T, frame='base_link', quat=None, pub=None):
+    """Publish a /pose_goal (or on ``pub``) and wait for the planner's answer; return it."""
     n = len(probe.statuses)
     msg = PoseStamped()
     msg.header.frame_id = frame
@@ -91,9 +103,8 @@ def send_pose(executor, probe, T, frame='base_link', quat=None):
     if quat is not None:
         o = msg.pose.orientation
         o.x, o.y, o.z, o.w = quat
-    probe.pose_pub.publish(msg)
-    assert spin_until(executor, lambda: len(probe.statuses) > n), 'planner did not answer'
-    return probe.statuses[-1]
+    (pub or probe.pose_pub).publish(msg)
+    return answer(executor, probe, n)
 
 
 def give_state(executor, planner, probe, q):
@@ -136,13 +147,47 @@ def refused(executor, probe, status, reason):
     assert probe.demands == []
 
 
-def test_goal_before_any_joint_states_is_refused(nodes):
-    """No /joint_states yet: the current pose is unknown, so the goal is refused."""
+def test_goal_before_any_joint_states_is_refused_after_the_wait(nodes):
+    """No /joint_states within state_wait_timeout: the pose is unknown, the goal refused."""
+    executor, planner, probe = nodes
+    planner.set_parameters([Parameter('state_wait_timeout', value=0.5)])
+    connected(executor, probe)
+    assert conversions.status_values(probe.statuses[-1])['state'] == 'waiting_for_states'
+    status = send_pose(executor, probe, GOAL)
+    refused(executor, probe, status, 'no_joint_states')
+    assert 'no valid /joint_states within 0.5 s' in status.message
+    assert conversions.status_values(status)['state'] == 'waiting_for_states'
+
+
+def test_goal_before_any_joint_states_waits_for_them_and_is_planned(nodes):
+    """Issue 21: a goal that comes before the first states waits for them, then is planned."""
     executor, planner, probe = nodes
     connected(executor, probe)
-    status = send_pose(executor, probe, GOAL)
-    refused(executor, probe, status, 'invalid_goal')
-    assert 'no /joint_states' in status.message
+    n = len(probe.statuses)
+    msg = PoseStamped()
+    msg.header.frame_id = 'base_link'
+    msg.pose = conversions.matrix_to_pose(GOAL)
+    probe.pose_pub.publish(msg)
+    # The goal says it waits (and for how long at most), and nothing is planned yet.
+    assert spin_until(executor, lambda: any(
+        conversions.status_values(m).get('result') == 'waiting_for_states'
+        for m in probe.statuses[n:]))
+    waiting = [conversions.status_values(m) for m in probe.statuses[n:]
+               if conversions.status_values(m).get('result') == 'waiting_for_states'][0]
+    assert waiting['wait_timeout'] == '5' and waiting['goal_id'] == '0.000000000-1'
+    assert probe.demands == []
+    probe.publish_state(HOME)
+    status = answer(executor, probe, n)
+    assert status.level == DiagnosticStatus.OK, status.message
+    values = conversions.status_values(status)
+    assert values['result'] == 'planned' and values['state'] == 'ready'
+    assert values['goal_id'] == '0.000000000-1'
+    assert spin_until(executor, lambda: len(probe.demands) >= 1)
+    Q = conversions.demands_from_msg(probe.demands[0])
+    assert np.abs(Q[0] - HOME).max() < 1e-6
+    assert np.linalg.norm(fk(ARM, Q[-1])[:3, 3] - GOAL[:3, 3]) < 1e-3
+    # The planner said it became ready in between.
+    assert 'ready' in [conversions.status_values(m).get('state') for m in probe.statuses[n:]]
 
 
 def test_unreachable_goal_is_refused_with_closest_pose(nodes):
@@ -205,10 +250,11 @@ def test_path_goal_spline_and_arc(nodes):
         msg = PoseArray()
         msg.header.frame_id = 'base_link'
         msg.poses = [conversions.matrix_to_pose(T) for T in (via, goal)]
+        count = len(probe.demands)
         probe.path_pub.publish(msg)
-        assert spin_until(executor, lambda: len(probe.statuses) > n)
-        status = probe.statuses[-1]
+        status = answer(executor, probe, n)
         assert status.level == DiagnosticStatus.OK, f'{shape}: {status.message}'
+        assert spin_until(executor, lambda: len(probe.demands) > count)
         Q = conversions.demands_from_msg(probe.demands[-1])
         assert np.linalg.norm(fk(ARM, Q[-1])[:3, 3] - goal[:3, 3]) < 1e-3
 
@@ -293,7 +339,14 @@ def test_unacknowledged_demand_is_sent_again_then_no_more(nodes):
     for msg in probe.demands:
         assert conversions.demand_id_from_msg(msg) == goal_id
         assert list(msg.data) == list(probe.demands[0].data)
-    # Then it gives up: nothing more within twice the resend period.
+    # Then it gives up, and says so: the goal failed, nothing more within twice the period.
+    assert spin_until(executor, lambda: conversions.status_values(
+        probe.statuses[-1]).get('result') == 'failed', 10.0)
+    status = probe.statuses[-1]
+    values = conversions.status_values(status)
+    assert values['goal_id'] == goal_id and values['reason'] == 'not_acknowledged'
+    assert status.level == DiagnosticStatus.ERROR
+    assert 'no controller acknowledged' in status.message
     assert not spin_until(executor, lambda: len(probe.demands) > 1 + RESENDS,
                           2.0 * RESEND_AFTER + 0.5)
 
@@ -323,8 +376,7 @@ def send_path_to(executor, probe, topic, poses, frame='base_link'):
     msg.header.frame_id = frame
     msg.poses = [conversions.matrix_to_pose(T) for T in poses]
     pub.publish(msg)
-    assert spin_until(executor, lambda: len(probe.statuses) > n), 'planner did not answer'
-    return probe.statuses[-1]
+    return answer(executor, probe, n)
 
 
 def test_path_goal_joint_plans_the_via_point_polynomial(nodes):
@@ -390,3 +442,165 @@ def test_goal_into_the_table_is_refused_for_a_collision_and_the_switch_applies_l
     planner.set_parameters([Parameter('collision_check', value=False)])
     status = send_pose(executor, probe, T)
     assert status.level == DiagnosticStatus.OK, status.message
+
+
+def table_goal(z=-0.05):
+    """Return the issue's table goal: the flange pointing down, ``z`` [m] below the table top."""
+    T = fk(ARM, HOME)
+    T[:3, :3] = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]) @ T[:3, :3]
+    T[:3, 3] = (0.25, 0.0, z)
+    return T
+
+
+def goal_topics(planner):
+    """Return {topic: message type} of every goal the planner takes: its subscriptions."""
+    return {sub.topic_name: sub.msg_type for sub in planner.subscriptions
+            if sub.msg_type in (PoseStamped, PoseArray)}
+
+
+def test_every_goal_topic_refuses_the_table_goal_for_a_collision(nodes):
+    """Issue 24 (4): each goal topic the planner subscribes checks the goal for collisions."""
+    executor, planner, probe = nodes
+    topics = goal_topics(planner)
+    # The shapes of both kinds, /path_goal/joint among them (it skipped the check).
+    assert {'/pose_goal', '/path_goal', '/pose_goal/joint', '/path_goal/joint'} <= set(topics)
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    via = pose_from_xyzabc(0.33, -0.02, 0.38, 0.0, np.pi / 2, 0.0)
+    T = table_goal()
+    for topic, msg_type in sorted(topics.items()):
+        if msg_type is PoseStamped:
+            pub = probe.create_publisher(PoseStamped, topic, 10)
+            assert spin_until(executor, lambda: pub.get_subscription_count() > 0)
+            status = send_pose(executor, probe, T, pub=pub)
+        else:
+            status = send_path_to(executor, probe, topic, (via, T))
+        values = conversions.status_values(status)
+        assert status.level == DiagnosticStatus.ERROR, f'{topic}: {status.message}'
+        assert values['reason'] == 'collision', f'{topic}: {status.message}'
+        assert 'link6 tool is 150 mm into the table margin' in status.message, topic
+    spin_until(executor, lambda: len(probe.demands) > 0, timeout=0.5)
+    assert probe.demands == []
+
+
+def pose_array(poses, frame='base_link'):
+    """Return a PoseArray of ``poses`` (k, 4, 4)."""
+    msg = PoseArray()
+    msg.header.frame_id = frame
+    msg.poses = [conversions.matrix_to_pose(T) for T in poses]
+    return msg
+
+
+def test_huge_path_goals_are_refused_for_their_count_first(nodes):
+    """
+    Issue 24 (6): 10,000-pose arc and parabolic goals are refused for their via count.
+
+    Before any pose is converted or solved: one bad quaternion among them is never reached
+    (it was, after half a minute of reachability checks of the via poses).
+    """
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    via = pose_from_xyzabc(0.33, -0.02, 0.38, 0.0, np.pi / 2, 0.0)
+    goal = pose_from_xyzabc(0.28, 0.10, 0.36, 0.0, np.pi / 2, 0.0)
+    msg = pose_array([via] * 9999 + [goal])
+    msg.poses[5000].orientation.w = 0.0     # not a unit quaternion: converting would refuse it
+    msg.poses[5000].orientation.y = 0.0
+    for shape in ('arc', 'parabolic', 'joint'):
+        pub = probe.create_publisher(PoseArray, f'path_goal/{shape}', 10)
+        assert spin_until(executor, lambda: pub.get_subscription_count() > 0)
+        n = len(probe.statuses)
+        pub.publish(msg)
+        status = answer(executor, probe, n)
+        assert status.level == DiagnosticStatus.ERROR, status.message
+        assert f'{shape} needs exactly one via pose, got 9999' in status.message
+    status = send_path_to(executor, probe, 'path_goal/spline', [via] * 200 + [goal])
+    assert 'at most 100 via poses, got 200' in status.message
+    spin_until(executor, lambda: len(probe.demands) > 0, timeout=0.5)
+    assert probe.demands == []
+
+
+def call_stop(executor, probe):
+    """Call the planner's ~/stop service; return its response."""
+    from std_srvs.srv import Trigger
+    client = probe.create_client(Trigger, 'planner/stop')
+    assert spin_until(executor, client.service_is_ready)
+    future = client.call_async(Trigger.Request())
+    assert spin_until(executor, future.done), 'the planner did not answer ~/stop'
+    return future.result()
+
+
+def test_planner_answers_goals_and_stop_while_a_goal_is_pending(nodes):
+    """
+    A goal waiting in the planning thread holds up neither other answers nor ~/stop.
+
+    The waiting goal (no states yet) is dropped by the stop: refused 'stopped', and no demand
+    goes out for it when the states come.
+    """
+    executor, planner, probe = nodes
+    planner.set_parameters([Parameter('state_wait_timeout', value=60.0)])
+    connected(executor, probe)
+    n = len(probe.statuses)
+    msg = PoseStamped()
+    msg.header.frame_id = 'base_link'
+    msg.pose = conversions.matrix_to_pose(GOAL)
+    probe.pose_pub.publish(msg)
+    assert spin_until(executor, lambda: any(
+        conversions.status_values(m).get('result') == 'waiting_for_states'
+        for m in probe.statuses[n:]))
+    # A malformed goal meanwhile: refused at once, while the first one still waits.
+    status = send_path_to(executor, probe, 'path_goal/arc', [GOAL] * 10000)
+    assert 'arc needs exactly one via pose' in status.message
+    assert conversions.status_values(status)['goal_seq'] == '2'
+    assert not [m for m in probe.statuses[n:]
+                if conversions.status_values(m).get('goal_seq') == '1'
+                and conversions.status_values(m).get('result') in ANSWERS]
+    response = call_stop(executor, probe)
+    assert response.success and 'dropped' in response.message
+
+    def first_goal_answers():
+        return [m for m in probe.statuses[n:]
+                if conversions.status_values(m).get('goal_seq') == '1'
+                and conversions.status_values(m).get('result') in ANSWERS]
+    assert spin_until(executor, first_goal_answers)
+    status = first_goal_answers()[0]
+    assert conversions.status_values(status)['reason'] == 'stopped', status.message
+    give_state(executor, planner, probe, HOME)
+    spin_until(executor, lambda: len(probe.demands) > 0, timeout=1.0)
+    assert probe.demands == []
+    # A goal after the stop is planned as usual (fresh states: those above are a second old).
+    give_state(executor, planner, probe, HOME)
+    status = send_pose(executor, probe, GOAL)
+    assert status.level == DiagnosticStatus.OK, status.message
+
+
+def test_a_demand_the_controller_refuses_ends_the_goal_on_the_planners_status(nodes):
+    """
+    Issue 21: the controller refuses the demand: the planner says so, with the reason.
+
+    It said 'planned' and nothing more; and it sends that demand no more.
+    """
+    executor, planner, probe = nodes
+    qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    controller_status = probe.create_publisher(DiagnosticStatus, 'controller/status', qos)
+    connected(executor, probe)
+    assert spin_until(executor, lambda: controller_status.get_subscription_count() > 0)
+    give_state(executor, planner, probe, HOME)
+    n = len(probe.statuses)
+    status = send_pose(executor, probe, GOAL)
+    assert conversions.status_values(status)['result'] == 'planned'
+    goal_id = conversions.status_values(status)['goal_id']
+    assert spin_until(executor, lambda: len(probe.demands) == 1)
+    reason = 'cannot take a demand while waiting_for_states: waiting for /joint_states'
+    controller_status.publish(conversions.make_status(
+        'controller', 'WARN', f'rejected demand: {reason}',
+        {'state': 'waiting_for_states', 'goal_id': '', 'rejected': reason,
+         'rejected_goal_id': goal_id}))
+    assert spin_until(executor, lambda: conversions.status_values(
+        probe.statuses[-1]).get('reason') == 'controller_refused')
+    status = probe.statuses[-1]
+    values = conversions.status_values(status)
+    assert status.level == DiagnosticStatus.ERROR and values['result'] == 'refused'
+    assert values['goal_id'] == goal_id and reason in status.message
+    assert len(probe.statuses) > n
+    assert not spin_until(executor, lambda: len(probe.demands) > 1, 2.0 * RESEND_AFTER + 0.5)

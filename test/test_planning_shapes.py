@@ -11,7 +11,7 @@ branch of the first waypoint that this turn reaches.
 from hypothesis import assume, given, HealthCheck, settings
 from hypothesis import strategies as st
 from mover6_control.collision.checker import CollisionSettings
-from mover6_control.errors import UnreachableError
+from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.kinematics.arm import LIMIT_SETS, mover6
 from mover6_control.kinematics.forward import condition_number, fk, jacobian, jacobian_batch
 from mover6_control.kinematics.ik_closed_form import ik_closed_form_batch
@@ -276,3 +276,20 @@ def test_readme_parabolic_from_home_hardware_limits():
     plan = plan_pose_goal(arm, HOME, goal, 'parabolic', PlannerSettings(peak_height=0.04))
     assert plan.q[:, 3].max() <= 1e-9     # q4 turns negative and stays there
     assert all(arm.within_limits(q) for q in plan.q)
+
+
+@pytest.mark.parametrize('shape', ('arc', 'parabolic', 'spline'))
+def test_a_path_goal_is_refused_for_its_via_count_before_any_via_is_solved(shape):
+    """
+    Issue 24 (6): the cheap check first: the count, before each via pose's reachability.
+
+    The first via pose is out of reach: it was refused for that after checking it (and all the
+    others: 10,000 vias took half a minute), now for the count, before any is solved.
+    """
+    far = pose_from_xyzabc(1.0, 0.0, 0.4, 0.0, np.pi / 2, 0.0)
+    near = pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0)
+    vias = np.stack([far] + [near] * (2 if shape != 'spline' else 200))
+    words = ('at most 100 via poses, got 201' if shape == 'spline'
+             else f'{shape} needs exactly one via pose, got 3')
+    with pytest.raises(InvalidInputError, match=words):
+        plan_path_goal(ARM, HOME, vias, near, shape, SETTINGS)

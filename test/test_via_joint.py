@@ -89,3 +89,15 @@ def test_a_polynomial_that_overshoots_out_of_the_limits_is_refused():
     with pytest.raises(UnreachableError) as err:
         sample_curve(ARM, q_start, q_via, q_goal, PlannerSettings())
     assert err.value.reason == 'joint_limits'
+
+
+def test_a_goal_in_the_table_is_refused_for_the_collision():
+    """Issue 24 (4): the via joint move is checked for collisions as every other goal."""
+    T_table = fk(ARM, HOME)
+    down = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])   # flange down
+    T_table[:3, :3] = down @ T_table[:3, :3]
+    T_table[:3, 3] = (0.25, 0.0, -0.05)
+    with pytest.raises(UnreachableError) as err:
+        plan_via_path_goal(ARM, HOME, T_VIA[None], T_table)
+    assert err.value.reason == 'collision'
+    assert 'link6 tool is 150 mm into the table margin' in str(err.value)

@@ -64,7 +64,7 @@ from geometry_msgs.msg import TwistStamped
 from mover6_control.control.collision_guard import CollisionGuard
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
 from mover6_control.control.servo import ServoConfig
-from mover6_control.control.state_machine import FAULT
+from mover6_control.control.state_machine import FAULT, WAITING_FOR_STATES
 from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.kinematics.arm import LIMIT_SETS, mover6
@@ -91,6 +91,13 @@ STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # Ticks in a row that raised (each a fault with a zero command) after which the tick cannot run
 # at all: the node gives up and its process exits with 1, so the launcher sees it.
 MAX_TICK_FAILURES = 10
+# Longest wait [s] of a demand that comes before the first joint states (the planner can be
+# quicker at start-up), or in a fault that fresh states clear (a stall at start-up: Fast DDS
+# discovery can hold a process for 0.33 s); then it is refused with the reason. Less than the
+# planner's resend window (RESEND_AFTER * (RESENDS + 1) = 3 s).
+DEMAND_STATE_WAIT = 2.0
+# States in which a demand waits (DEMAND_STATE_WAIT) for valid joint states.
+WAIT_FOR_STATES = (WAITING_FOR_STATES, FAULT)
 
 
 def config_from_parameters(get):
@@ -149,6 +156,7 @@ class ControllerNode(Node):
         self.lock = threading.RLock()        # the core's state
         self.status_lock = threading.Lock()  # one status publication at a time (before lock)
         self.last_state = None           # the core's state after the latest tick
+        self.has_states = threading.Event()  # set while the core has valid states
         self.last_tick = None            # node clock [ns] of the latest tick
         self.max_tick_gap = 0.0          # [s] longest time between two ticks so far
         self.running = True
@@ -305,6 +313,9 @@ class ControllerNode(Node):
         try:
             Q = conversions.demands_from_msg(msg, len(self.joint_names))
             profile = conversions.demand_profile_from_msg(msg)   # this demand's law only
+            if self.core.state in WAIT_FOR_STATES:   # no valid states yet: wait a moment
+                self.has_states.wait(DEMAND_STATE_WAIT)
+                now = self.now()
             for attempt in range(DEMAND_ATTEMPTS):
                 with self.lock:
                     snapshot = self.core.snapshot()
@@ -443,6 +454,7 @@ class ControllerNode(Node):
         self.destroyed = True
         self.running = False
         self.demands.put(None)
+        self.has_states.set()       # a demand waiting for states stops waiting
         self.trajectory_server.destroy()
         for thread in (self.tick_thread, self.demand_thread):
             if thread.is_alive() and thread is not threading.current_thread():
@@ -464,6 +476,11 @@ class ControllerNode(Node):
             fault_change = None
             if (out.state == FAULT) != (self.last_state == FAULT):
                 fault_change = self.core.status().message
+            if out.state in WAIT_FOR_STATES:
+                if self.last_state not in WAIT_FOR_STATES:
+                    self.has_states.clear()
+            elif self.last_state is None or self.last_state in WAIT_FOR_STATES:
+                self.has_states.set()
             self.last_state = out.state
             applied = self.pending_logged and self.core.pending_config is None
             if applied:

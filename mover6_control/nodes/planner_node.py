@@ -20,9 +20,24 @@ the planner's goal counter, ``<sec>.<nanosec>-<seq>`` (``ros2 topic echo`` shows
 status about a goal carries it (``goal_id``, ``goal_stamp``, ``goal_seq``) and so do the
 demands planned for it (``layout.dim[0].label`` = ``waypoints goal <goal_id>``), which the
 controller echoes in its status next to its ``motion_id``.
+
+Every status says whether the planner is ready (value ``state``): ``waiting_for_states`` until
+the first valid /joint_states (and again while a goal finds them older than ``state_timeout``),
+``ready`` from then on. A goal that comes before that waits up to ``state_wait_timeout`` for
+fresh states (status ``result`` ``waiting_for_states``), and only then is refused. Goals are
+planned one after another in a planning thread, so the node goes on reading states, answering
+its ~/stop service (std_srvs/Trigger: drop every goal received so far that is still waiting or
+being planned, and stop sending their demands again) and the controller's status while a goal is
+planned. Each goal ends with one of these results on the status: ``planned`` (the demand went
+out), ``refused`` (reason: why the goal cannot be planned, or ``controller_refused`` with the
+controller's reason, or ``stopped``), or ``failed`` (``not_acknowledged``: no controller named
+the goal after ``RESENDS`` more sends).
 """
 
 import dataclasses
+import queue
+import threading
+import time
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
@@ -33,7 +48,8 @@ from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.parameters import PLANNER
-from mover6_control.planning.planner_core import (PATH_MOTIONS, plan_path_goal, plan_pose_goal,
+from mover6_control.planning.planner_core import (check_path_shape, PATH_MOTIONS,
+                                                  plan_path_goal, plan_pose_goal,
                                                   PlannerSettings, POSE_MOTIONS)
 from mover6_control.planning.via_joint import plan_via_path_goal
 import numpy as np
@@ -41,37 +57,61 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
+from std_srvs.srv import Trigger
 
 STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# The controller's status is read with a deeper queue: each status may name a goal it took.
+CONTROLLER_STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # [s] a demand no controller acknowledged (by goal id in its status) is sent again after this,
-# at most RESENDS more times.
+# at most RESENDS more times; then the goal fails (not_acknowledged). The controller waits for
+# its first states at most controller_node.DEMAND_STATE_WAIT (2 s) before it answers: less than
+# RESEND_AFTER * (RESENDS + 1).
 RESEND_AFTER = 1.0
 RESENDS = 2
+WAITING, READY = 'waiting_for_states', 'ready'
+# [s] how often a waiting planning thread looks again (states, stop, shutdown).
+POLL = 0.02
+
+
+@dataclasses.dataclass
+class Unconfirmed:
+    """A demand sent that no controller has named yet."""
+
+    goal: dict
+    motion: str
+    msg: Float32MultiArray
+    sent: float        # [s] monotonic time of the last send
+    count: int         # times sent
+    first: float       # [s] monotonic time of the first send
 
 
 class PlannerNode(Node):
     """Plan pose and path goals into joint waypoints, refuse what cannot be reached."""
 
     def __init__(self, **kwargs):
-        """Declare the parameters, build the arm, start the topics."""
+        """Declare the parameters, build the arm, start the topics and the planning thread."""
         super().__init__('planner', **kwargs)
         params.declare(self, PLANNER)     # refuses invalid values, at start and later
         limit_set = self.get_parameter('limit_set').value
         self.arm = mover6(limit_set)
         self.q = None
         self.q_time = None
+        self.state = WAITING
+        self.states_came = threading.Event()   # set by every valid /joint_states
         self.goal_seq = 0
-        self.goal = {'goal_id': '', 'goal_stamp': '', 'goal_seq': 0}   # the latest goal
-        self.pending = None      # a plan waiting for /joint_demands readers to be matched
-        self.unconfirmed = None  # (goal_id, message, last sent, times sent): not yet acknowledged
+        self.stopped_seq = 0         # goals up to this seq were dropped by ~/stop
+        self.lock = threading.Lock()           # unconfirmed, state
+        self.status_lock = threading.Lock()    # one status publication at a time
+        self.unconfirmed = {}        # goal_id -> Unconfirmed
         self.controller_values = {}
         self._checker = None     # the collision checker of the latest settings
-        self.create_timer(0.02, self.publish_pending)
+        self.running = True
+        self.jobs = queue.SimpleQueue()   # goals not yet planned; None: the node closes
         self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'planner/status', STATUS_QOS)
         self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
         self.create_subscription(DiagnosticStatus, 'controller/status', self.on_controller_status,
-                                 STATUS_QOS)
+                                 CONTROLLER_STATUS_QOS)
         self.create_subscription(PoseStamped, 'pose_goal', self.on_pose_goal, 10)
         self.create_subscription(PoseArray, 'path_goal', self.on_path_goal, 10)
         for shape in POSE_MOTIONS:
@@ -81,12 +121,16 @@ class PlannerNode(Node):
             self.create_subscription(PoseArray, f'path_goal/{shape}',
                                      lambda msg, shape=shape: self.on_path_goal(msg, shape), 10)
         self.create_subscription(PoseArray, 'path_goal/joint', self.on_via_joint_goal, 10)
-        self.publish_status('OK', 'waiting for goals', {'result': 'ready'})
+        self.create_service(Trigger, '~/stop', self.on_stop)
+        self.publish_status('WARN', 'waiting for /joint_states', {})
+        self.worker = threading.Thread(target=self.plan_loop, daemon=True)
+        self.worker.start()
         self.get_logger().info(
-            f'planner ready: motion={self.get_parameter("motion").value}, '
-            f'limit_set={limit_set}, frame={self.get_parameter("frame_id").value}')
+            f'planner: motion={self.get_parameter("motion").value}, '
+            f'limit_set={limit_set}, frame={self.get_parameter("frame_id").value}; '
+            'waiting for /joint_states')
 
-    # --- inputs ----------------------------------------------------------------------------
+    # --- inputs (executor thread) ----------------------------------------------------------
 
     def on_joint_states(self, msg):
         """Keep the latest valid joint positions; drop malformed states with a warning."""
@@ -95,34 +139,105 @@ class PlannerNode(Node):
         except Mover6Error as err:
             self.get_logger().warn(f'dropped /joint_states: {err}', throttle_duration_sec=2.0)
             return
-        self.q = q
         self.q_time = self.get_clock().now()
+        self.q = q
+        self.states_came.set()
+        if self.state != READY:
+            self.set_state(READY)
 
     def on_pose_goal(self, msg, motion=None):
         """Plan a pose goal with ``motion``, by default the shape of the ``motion`` parameter."""
         motion = motion or self.get_parameter('motion').value
-        self.handle_goal(msg.header, motion, lambda q, settings: plan_pose_goal(
-            self.arm, q, conversions.pose_stamped_to_matrix(msg, self.frame_id()), motion,
-            settings, self.checker(settings)))
+
+        def prepare():
+            T = conversions.pose_stamped_to_matrix(msg, self.frame_id())
+            return lambda q, settings: plan_pose_goal(self.arm, q, T, motion, settings,
+                                                      self.checker(settings))
+        self.submit(msg.header, motion, prepare)
 
     def on_path_goal(self, msg, motion=None):
         """Plan a path goal (via poses then the goal) with ``motion`` (or ``path_motion``)."""
         motion = motion or self.get_parameter('path_motion').value
-
-        def plan(q, settings):
-            poses = conversions.pose_array_to_matrices(msg, self.frame_id())
-            return plan_path_goal(self.arm, q, poses[:-1], poses[-1], motion, settings,
-                                  self.checker(settings))
-        self.handle_goal(msg.header, motion, plan)
+        self.submit(msg.header, motion, lambda: self.path_planner(
+            msg, motion, lambda q, vias, goal, settings: plan_path_goal(
+                self.arm, q, vias, goal, motion, settings, self.checker(settings))))
 
     def on_via_joint_goal(self, msg):
         """Plan a joint move through one via pose (PoseArray [via, goal]): ``via_joint``."""
-        def plan(q, settings):
-            poses = conversions.pose_array_to_matrices(msg, self.frame_id())
-            return plan_via_path_goal(self.arm, q, poses[:-1], poses[-1], settings)
-        self.handle_goal(msg.header, 'joint', plan)
+        self.submit(msg.header, 'joint', lambda: self.path_planner(
+            msg, 'joint', lambda q, vias, goal, settings: plan_via_path_goal(
+                self.arm, q, vias, goal, settings, self.checker(settings))))
 
-    # --- planning --------------------------------------------------------------------------
+    def path_planner(self, msg, motion, plan):
+        """
+        Check a PoseArray goal of shape ``motion``; return its plan function ``f(q, settings)``.
+
+        The cheap checks come first: the via count of the shape (``check_path_shape``) before a
+        single pose is converted, then every pose's form; reachability only once planned.
+        """
+        if msg.poses:
+            check_path_shape(motion, len(msg.poses) - 1)
+        poses = conversions.pose_array_to_matrices(msg, self.frame_id())
+        return lambda q, settings: plan(q, poses[:-1], poses[-1], settings)
+
+    def on_controller_status(self, msg):
+        """
+        Note the controller's status: it names the goal it took, or refused and why.
+
+        A refusal there is the goal's end: the planner's status says so (``controller_refused``
+        with the controller's reason), in place of 'planned'.
+        """
+        values = conversions.status_values(msg)
+        self.controller_values = values
+        with self.lock:
+            taken = self.unconfirmed.pop(values.get('goal_id') or None, None)
+            refused = self.unconfirmed.pop(values.get('rejected_goal_id') or None, None)
+        if taken is not None:
+            self.get_logger().info(f'goal {taken.goal["goal_id"]}: the controller took it '
+                                   f'(motion {values.get("motion_id", "?")})')
+        if refused is not None:
+            self.refuse(refused.motion, 'the controller refused the demand: '
+                        + values.get('rejected', ''), 'controller_refused', {}, refused.goal)
+
+    def on_stop(self, request, response):
+        """Drop every goal received so far that waits or is being planned; send none again."""
+        with self.lock:
+            self.stopped_seq = self.goal_seq
+            dropped = list(self.unconfirmed.values())
+            self.unconfirmed.clear()
+        response.success = True
+        response.message = (f'goals up to {self.stopped_seq} dropped: none of them is planned '
+                            "or sent from now on (the controller's ~/stop stops the arm)")
+        self.get_logger().info(f'stop: {response.message}')
+        for entry in dropped:
+            self.refuse(entry.motion, 'stopped before any controller named it', 'stopped', {},
+                        entry.goal)
+        return response
+
+    def submit(self, header, motion, prepare):
+        """
+        Give a goal its id, check its form, and queue it for the planning thread.
+
+        ``prepare()`` checks the message (cheap: no kinematics) and returns its plan function
+        ``f(q, settings)``; a malformed goal is refused here at once, even while another one is
+        being planned.
+        """
+        with self.lock:
+            self.goal_seq += 1
+            seq = self.goal_seq
+        stamp = f'{header.stamp.sec}.{header.stamp.nanosec:09d}'
+        goal = {'goal_id': f'{stamp}-{seq}', 'goal_stamp': stamp, 'goal_seq': seq}
+        try:
+            profile = conversions.goal_profile_from_header(header)
+            if profile:
+                goal['profile'] = profile      # forwarded with the demand
+            plan_fn = prepare()
+        except (Mover6Error, ValueError) as err:
+            self.refuse(motion, str(err), 'invalid_goal', {}, goal)
+            return
+        self.jobs.put((goal, motion, plan_fn, time.monotonic()))
+
+    # --- planning (planning thread) --------------------------------------------------------
 
     def frame_id(self):
         """Return the frame goals must be given in."""
@@ -149,39 +264,92 @@ class PlannerNode(Node):
 
     def current_q(self):
         """Return the latest joint positions, or raise when there are none or they are old."""
-        if self.q is None:
+        q, q_time = self.q, self.q_time
+        if q is None:
             raise Mover6Error('no /joint_states received yet: the current pose is unknown')
-        age = (self.get_clock().now() - self.q_time).nanoseconds * 1e-9
+        age = (self.get_clock().now() - q_time).nanoseconds * 1e-9
         timeout = self.get_parameter('state_timeout').value
         if age > timeout:
             raise Mover6Error(f'/joint_states are {age:.2f} s old (limit {timeout:.2f} s): '
                               'the current pose is uncertain')
-        return self.q.copy()
+        return q.copy()
 
-    def handle_goal(self, header, motion, plan_fn):
-        """Plan, then publish the waypoints and OK, or nothing and ERROR with the reason."""
-        self.goal_seq += 1
-        stamp = f'{header.stamp.sec}.{header.stamp.nanosec:09d}'
-        self.goal = {'goal_id': f'{stamp}-{self.goal_seq}', 'goal_stamp': stamp,
-                     'goal_seq': self.goal_seq}
+    def plan_loop(self):
+        """Plan the queued goals in order; send demands again until acknowledged."""
+        while self.running:
+            try:
+                job = self.jobs.get(timeout=self.resend_due())
+            except queue.Empty:
+                job = ()
+            if job is None or not self.running:
+                return
+            if job:
+                try:
+                    self.plan_goal(*job)
+                except Exception as err:  # noqa: B902 - no goal ends without a status
+                    self.refuse(job[1], f'{type(err).__name__}: {err}', 'internal_error', {},
+                                job[0])
+            self.confirm_delivery()
+
+    def stopped(self, goal):
+        """Return True when ~/stop dropped ``goal``."""
+        return goal['goal_seq'] <= self.stopped_seq
+
+    def plan_goal(self, goal, motion, plan_fn, received):
+        """Plan one goal, then send its demand and say planned, or say why not."""
+        if self.stopped(goal):
+            self.refuse(motion, 'stopped before it was planned', 'stopped', {}, goal)
+            return
         try:
-            profile = conversions.goal_profile_from_header(header)
-            if profile:
-                self.goal['profile'] = profile      # forwarded with the demand
-            q_now = self.current_q()
+            q_now = self.wait_for_states(goal, motion, received)
+            if q_now is None:
+                return
             plan = plan_fn(q_now, self.settings())
             # One timing model: the controller's law times the waypoints from the same start.
             plan = dataclasses.replace(plan, predicted_duration=predicted_duration(
-                profile or self.get_parameter('profile').value, q_now, plan.q,
+                goal.get('profile') or self.get_parameter('profile').value, q_now, plan.q,
                 self.arm.velocity_limits))
         except UnreachableError as err:
-            self.refuse(motion, str(err), err.reason, err.details)
+            self.refuse(motion, str(err), err.reason, err.details, goal)
             return
         except (Mover6Error, ValueError) as err:
-            self.refuse(motion, str(err), 'invalid_goal', {})
+            self.refuse(motion, str(err), 'invalid_goal', {}, goal)
             return
-        self.pending = (dict(self.goal), motion, plan, self.get_clock().now())
-        self.publish_pending()
+        self.deliver(goal, motion, plan)
+
+    def wait_for_states(self, goal, motion, received):
+        """
+        Return the current joint positions, waiting up to ``state_wait_timeout`` for them.
+
+        Returns None when the goal ended meanwhile (refused: no states in time, or stopped).
+        """
+        wait = self.get_parameter('state_wait_timeout').value
+        said = False
+        while True:
+            self.states_came.clear()
+            try:
+                return self.current_q()
+            except Mover6Error as err:
+                problem = err
+            if self.state != WAITING:
+                self.set_state(WAITING)
+            left = received + wait - time.monotonic()
+            if self.stopped(goal) or not self.running:
+                self.refuse(motion, 'stopped while waiting for /joint_states', 'stopped', {},
+                            goal)
+                return None
+            if left <= 0.0:
+                self.refuse(motion, f'no valid /joint_states within {wait:g} s: {problem}',
+                            'no_joint_states', {}, goal)
+                return None
+            if not said:
+                said = True
+                self.get_logger().info(f'goal {goal["goal_id"]}: waiting up to {left:.1f} s '
+                                       f'for /joint_states ({problem})')
+                self.publish_status('WARN', f'goal waits for /joint_states: {problem}',
+                                    {'result': WAITING, 'motion': motion,
+                                     'wait_timeout': f'{wait:g}'}, goal)
+            self.states_came.wait(min(left, POLL * 5))
 
     def subscribers_matched(self):
         """
@@ -193,55 +361,28 @@ class PlannerNode(Node):
         known = len(self.get_subscriptions_info_by_topic(self.demands_pub.topic_name))
         return self.demands_pub.get_subscription_count(), known
 
-    def on_controller_status(self, msg):
-        """Note the controller's status: it names the goal it took (or refused)."""
-        self.controller_values = conversions.status_values(msg)
-
-    def confirm_delivery(self):
-        """
-        Send a demand again while no controller has acknowledged its goal (up to RESENDS times).
-
-        The graph can show a freshly started controller's reader before the planner's writer
-        has matched it; a demand published then is lost (volatile durability). The controller
-        names in its status the goal it took or refused, and ignores a goal id it already had,
-        so sending again is safe.
-        """
-        if self.unconfirmed is None:
+    def deliver(self, goal, motion, plan):
+        """Publish the plan once every known reader of /joint_demands is matched; say planned."""
+        since = time.monotonic()
+        while True:
+            matched, known = self.subscribers_matched()
+            waited = time.monotonic() - since
+            if matched >= max(known, 1) or waited >= self.get_parameter('match_timeout').value:
+                break
+            if self.stopped(goal) or not self.running:
+                break
+            time.sleep(POLL)
+        if self.stopped(goal) or not self.running:
+            self.refuse(motion, 'stopped before its demand was sent', 'stopped', {}, goal)
             return
-        goal_id, msg, sent, count = self.unconfirmed
-        v = self.controller_values
-        if goal_id in (v.get('goal_id'), v.get('rejected_goal_id')):
-            self.unconfirmed = None
-            return
-        now = self.get_clock().now()
-        if (now - sent).nanoseconds * 1e-9 < RESEND_AFTER:
-            return
-        if count > RESENDS:
-            self.unconfirmed = None
-            self.get_logger().warning(f'goal {goal_id}: no controller acknowledged the demand')
-            return
-        self.get_logger().info(f'goal {goal_id}: not acknowledged yet, sending the demand again')
-        self.demands_pub.publish(msg)
-        self.unconfirmed = (goal_id, msg, now, count + 1)
-
-    def publish_pending(self):
-        """Publish the pending plan once every known reader of /joint_demands is matched."""
-        self.confirm_delivery()
-        if self.pending is None:
-            return
-        goal, motion, plan, since = self.pending
-        matched, known = self.subscribers_matched()
-        waited = (self.get_clock().now() - since).nanoseconds * 1e-9
-        if matched < max(known, 1) and waited < self.get_parameter('match_timeout').value:
-            return   # the timer calls again
-        self.pending = None
         if matched == 0:
             self.refuse(motion, 'nobody subscribes to /joint_demands: is the controller running?',
                         'no_controller', {}, goal)
             return
         msg = conversions.make_demands(plan.q, goal['goal_id'], goal.get('profile', ''))
-        self.demands_pub.publish(msg)
-        self.unconfirmed = (goal['goal_id'], msg, self.get_clock().now(), 1)
+        now = time.monotonic()
+        with self.lock:
+            self.unconfirmed[goal['goal_id']] = Unconfirmed(goal, motion, msg, now, 1, now)
         values = {'result': 'planned', 'motion': motion, 'waypoints': plan.n_waypoints,
                   'path_length': f'{plan.path_length:.6f}',
                   'predicted_duration': f'{plan.predicted_duration:.3f}',
@@ -250,9 +391,66 @@ class PlannerNode(Node):
         text = (f'planned {motion} move: {plan.n_waypoints} waypoints, '
                 f'{plan.path_length * 1e3:.1f} mm, about {plan.predicted_duration:.2f} s')
         self.get_logger().info(f'goal {goal["goal_id"]}: {text}')
+        # The status first: a controller's refusal of the demand then comes after it.
         self.publish_status('OK', text, values, goal)
+        self.demands_pub.publish(msg)
 
-    def refuse(self, motion, text, reason, details, goal=None):
+    def resend_due(self):
+        """Return the time [s] until the next demand is due again (None: none waits)."""
+        with self.lock:
+            if not self.unconfirmed:
+                return None
+            due = min(u.sent for u in self.unconfirmed.values()) + RESEND_AFTER
+        return max(due - time.monotonic(), POLL)
+
+    def confirm_delivery(self):
+        """
+        Send a demand again while no controller has acknowledged its goal (up to RESENDS times).
+
+        The graph can show a freshly started controller's reader before the planner's writer
+        has matched it; a demand published then is lost (volatile durability). The controller
+        names in its status the goal it took or refused (``on_controller_status``), and ignores
+        a goal id it already had, so sending again is safe. After the last send the goal fails
+        (``not_acknowledged``) on the status.
+        """
+        now = time.monotonic()
+        resend, failed = [], []
+        with self.lock:
+            for goal_id, entry in list(self.unconfirmed.items()):
+                if now - entry.sent < RESEND_AFTER:
+                    continue
+                if entry.count > RESENDS:
+                    failed.append(self.unconfirmed.pop(goal_id))
+                    continue
+                entry.sent, entry.count = now, entry.count + 1
+                resend.append(entry)
+        for entry in resend:
+            self.get_logger().info(f'goal {entry.goal["goal_id"]}: not acknowledged yet, '
+                                   'sending the demand again')
+            self.demands_pub.publish(entry.msg)
+        for entry in failed:
+            text = (f'no controller acknowledged the demand (sent {entry.count} times in '
+                    f'{now - entry.first:.1f} s): is the controller running?')
+            self.get_logger().error(f'goal {entry.goal["goal_id"]} failed: {text}')
+            self.publish_status('ERROR', f'goal failed (not_acknowledged): {text}',
+                                {'result': 'failed', 'motion': entry.motion,
+                                 'reason': 'not_acknowledged'}, entry.goal)
+
+    # --- status ----------------------------------------------------------------------------
+
+    def set_state(self, state):
+        """Say on the status that the planner is ready, or waiting for /joint_states."""
+        with self.lock:
+            if self.state == state:
+                return
+            self.state = state
+        if state == READY:
+            self.get_logger().info('planner ready: /joint_states received')
+            self.publish_status('OK', 'ready: waiting for goals', {})
+        else:
+            self.publish_status('WARN', 'waiting for /joint_states', {})
+
+    def refuse(self, motion, text, reason, details, goal):
         """Report a refused goal on /planner/status and in the log; publish no demands."""
         values = {'result': 'refused', 'motion': motion, 'reason': reason}
         for key in ('waypoint', 'position_error', 'orientation_error', 'fraction', 'shapes',
@@ -264,14 +462,25 @@ class PlannerNode(Node):
             T = np.asarray(closest)
             values['closest_pose_xyzabc'] = ' '.join(
                 f'{v:.4f}' for v in list(T[:3, 3]) + list(matrix_to_euler_zyx(T[:3, :3])))
-        goal = goal or self.goal
         self.get_logger().error(f'goal {goal["goal_id"]} refused ({reason}): {text}')
         self.publish_status('ERROR', f'goal refused ({reason}): {text}', values, goal)
 
     def publish_status(self, level, text, values, goal=None):
-        """Publish /planner/status with the id of the goal it is about added to the values."""
-        values = dict(values, **(goal or self.goal))
-        self.status_pub.publish(conversions.make_status('planner', level, text, values))
+        """Publish /planner/status: ``state``, then the goal it is about (if any), then values."""
+        merged = {'state': self.state}
+        merged.update(goal or {})
+        merged.update(values)
+        with self.status_lock:
+            self.status_pub.publish(conversions.make_status('planner', level, text, merged))
+
+    def destroy_node(self):
+        """End the planning thread (a goal being planned finishes first), then the node."""
+        self.running = False
+        self.jobs.put(None)
+        self.states_came.set()
+        if self.worker.is_alive() and self.worker is not threading.current_thread():
+            self.worker.join(timeout=5.0)
+        super().destroy_node()
 
 
 def main(args=None):

@@ -26,6 +26,11 @@ if TYPE_CHECKING:
 
 POSE_MOTIONS = ('linear', 'parabolic', 'joint')
 PATH_MOTIONS = ('spline', 'arc', 'parabolic')
+# Path shapes that take exactly one via pose ('joint': /path_goal/joint, ``planning.via_joint``).
+ONE_VIA_SHAPES = ('arc', 'parabolic', 'joint')
+# Most via poses a path goal may have. Each is checked on its own (IK, reachability: milliseconds
+# each) before the path is solved through them all: 10,000 held the planner for half a minute.
+MAX_VIA_POSES = 100
 
 
 @dataclass(frozen=True)
@@ -86,6 +91,22 @@ class JointPlan:
     def n_waypoints(self) -> int:
         """Return the number of waypoints."""
         return int(self.q.shape[0])
+
+
+def check_path_shape(motion: str, n_vias: int) -> None:
+    """
+    Raise ``InvalidInputError`` when a path goal of shape ``motion`` cannot have ``n_vias`` vias.
+
+    The cheap check of a path goal, made before any of its poses is converted or solved: the
+    shape is known ('joint' included), the shapes of one via pose get exactly one, and no path
+    has more than ``MAX_VIA_POSES``.
+    """
+    if motion not in PATH_MOTIONS + ('joint',):
+        raise InvalidInputError(f'unknown path motion "{motion}", expected one of {PATH_MOTIONS}')
+    if motion in ONE_VIA_SHAPES and n_vias != 1:
+        raise InvalidInputError(f'{motion} needs exactly one via pose, got {n_vias}')
+    if n_vias > MAX_VIA_POSES:
+        raise InvalidInputError(f'a path goal has at most {MAX_VIA_POSES} via poses, got {n_vias}')
 
 
 def polyline_length(points: np.ndarray) -> float:
@@ -279,8 +300,8 @@ def check_goal_collision(arm: ArmModel, T_goal: np.ndarray, q_current: np.ndarra
                  'depth': first.depth, 'closest_q': first.q})
 
 
-def _check_plan(arm, plan, settings, checker):
-    """Return ``plan`` when its swept motion is free, else raise its collision."""
+def check_plan_collision(plan: JointPlan, checker: CollisionChecker | None) -> JointPlan:
+    """Return ``plan`` when its swept motion is free (or ``checker`` is None), else raise."""
     if checker is None:
         return plan
     err = collision_refusal(checker, plan.q)
@@ -373,15 +394,14 @@ def plan_pose_goal(arm: ArmModel, q_current: np.ndarray, T_goal: np.ndarray,
     checker = checker or make_checker(arm, settings)
     check_goal_collision(arm, T_goal, q_current, checker)
     if motion == 'joint':
-        return _check_plan(arm, plan_joint_move(arm, q_current, T_goal, settings), settings,
-                           checker)
+        return check_plan_collision(plan_joint_move(arm, q_current, T_goal, settings), checker)
     if motion == 'linear':
         path = paths.linear_curve(T_start, T_goal, **settings.sampling())
     else:
         path = paths.parabolic_curve(T_start, T_goal, settings.peak_height,
                                      **settings.sampling())
     q, poses = _solve(arm, path, q_current, settings)
-    return _check_plan(arm, _finish(arm, motion, q, poses, T_goal, settings), settings, checker)
+    return check_plan_collision(_finish(arm, motion, q, poses, T_goal, settings), checker)
 
 
 def plan_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
@@ -395,15 +415,17 @@ def plan_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
     Mover6 report's eq. 12; its position is used).
 
     Raises ``UnreachableError`` or ``InvalidInputError`` as ``plan_pose_goal`` does, and
-    checks for collisions as it does.
+    checks for collisions as it does. The cheap checks come first (``check_path_shape``: the
+    via count), then each pose's form, then each pose's reachability.
     """
-    q_current = arm.check_q(q_current, 'current joint positions')
-    T_goal = validate_transform(T_goal, 'goal pose')
-    T_vias = np.asarray(T_vias, dtype=float).reshape(-1, 4, 4)
-    for i, T in enumerate(T_vias):
-        validate_transform(T, f'via pose {i}')
     if motion not in PATH_MOTIONS:
         raise InvalidInputError(f'unknown path motion "{motion}", expected one of {PATH_MOTIONS}')
+    T_vias = np.asarray(T_vias, dtype=float).reshape(-1, 4, 4)
+    check_path_shape(motion, len(T_vias))     # cheap checks first: count, then each pose's form
+    q_current = arm.check_q(q_current, 'current joint positions')
+    T_goal = validate_transform(T_goal, 'goal pose')
+    for i, T in enumerate(T_vias):
+        validate_transform(T, f'via pose {i}')
     for i, T in enumerate(T_vias):
         check_goal(arm, T, q_current, settings, what=f'via pose {i}')
     check_goal(arm, T_goal, q_current, settings)
@@ -411,8 +433,6 @@ def plan_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
     check_goal_collision(arm, T_goal, q_current, checker)
     T_start = fk(arm, q_current)
     if motion in ('arc', 'parabolic'):
-        if len(T_vias) != 1:
-            raise InvalidInputError(f'{motion} needs exactly one via pose, got {len(T_vias)}')
         if motion == 'arc':
             path = paths.arc_curve(T_start, T_vias[0], T_goal, **settings.sampling())
         else:
@@ -424,4 +444,4 @@ def plan_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
         else:
             path = paths.spline_curve(T_start, T_vias, T_goal, **settings.sampling())
     q, poses = _solve(arm, path, q_current, settings)
-    return _check_plan(arm, _finish(arm, motion, q, poses, T_goal, settings), settings, checker)
+    return check_plan_collision(_finish(arm, motion, q, poses, T_goal, settings), checker)

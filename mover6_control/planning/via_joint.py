@@ -26,15 +26,18 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from mover6_control.errors import InvalidInputError, UnreachableError
+from mover6_control.errors import UnreachableError
 from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.rotations import pose_error, validate_transform
 from mover6_control.motion.time_laws import via_point_polynomial
-from mover6_control.planning.planner_core import (check_goal, closest_solution, JointPlan,
+from mover6_control.planning.planner_core import (check_goal, check_goal_collision,
+                                                  check_path_shape, check_plan_collision,
+                                                  closest_solution, JointPlan, make_checker,
                                                   PlannerSettings, polyline_length, travel_time)
 import numpy as np
 
 if TYPE_CHECKING:
+    from mover6_control.collision.checker import CollisionChecker
     from mover6_control.kinematics.arm import ArmModel
 
 TAU_VIA = 0.5          # the report's example: the via point at half the move's time
@@ -105,8 +108,8 @@ def sample_curve(arm: ArmModel, q_start: np.ndarray, q_via: np.ndarray, q_goal: 
 
 
 def plan_via_joint_move(arm: ArmModel, q_current: np.ndarray, T_via: np.ndarray,
-                        T_goal: np.ndarray,
-                        settings: PlannerSettings = PlannerSettings()) -> JointPlan:
+                        T_goal: np.ndarray, settings: PlannerSettings = PlannerSettings(),
+                        checker: CollisionChecker | None = None) -> JointPlan:
     """
     Plan a joint-space move from ``q_current`` through the via pose ``T_via`` to ``T_goal``.
 
@@ -114,13 +117,17 @@ def plan_via_joint_move(arm: ArmModel, q_current: np.ndarray, T_via: np.ndarray,
     the via's; the curve is the via-point polynomial (module docstring), sampled by
     ``sample_curve``. Refusals as a joint move's (``check_goal`` with a singular pose accepted,
     then joint limits / out of reach), and ``joint_limits`` when the curve leaves the limits.
-    Raises ``InvalidInputError`` on malformed input.
+    The collision check is a pose goal's (``plan_pose_goal``): the goal first, then the whole
+    swept curve (``checker``, else one made from ``settings.collision``). Raises
+    ``InvalidInputError`` on malformed input.
     """
     q_current = arm.check_q(q_current, 'current joint positions')
     T_via = validate_transform(T_via, 'via pose 0')
     T_goal = validate_transform(T_goal, 'goal pose')
     check_goal(arm, T_via, q_current, settings, what='via pose 0', singular_ok=True)
     check_goal(arm, T_goal, q_current, settings, singular_ok=True)
+    checker = checker or make_checker(arm, settings)
+    check_goal_collision(arm, T_goal, q_current, checker)
     q_via = closest_solution(arm, T_via, q_current, 'via pose 0')
     q_goal = closest_solution(arm, T_goal, q_via, 'goal')
     if np.abs(q_goal - q_current).max() < 1e-9 and np.abs(q_via - q_current).max() < 1e-9:
@@ -133,17 +140,20 @@ def plan_via_joint_move(arm: ArmModel, q_current: np.ndarray, T_via: np.ndarray,
         raise UnreachableError(   # IK is exact: this guards the arm model, not the goal
             f'the last waypoint misses the goal by {pos_err * 1e3:.2f} mm and {rot_err:.4f} rad',
             reason='out_of_reach', details={'waypoint': len(q) - 1})
-    return JointPlan(motion='joint', q=q, poses=poses,
-                     path_length=polyline_length(poses[:, :3, 3]),
-                     predicted_duration=travel_time(arm, q, settings.velocity_scale),
-                     final_position_error=pos_err, final_orientation_error=rot_err)
+    return check_plan_collision(JointPlan(
+        motion='joint', q=q, poses=poses, path_length=polyline_length(poses[:, :3, 3]),
+        predicted_duration=travel_time(arm, q, settings.velocity_scale),
+        final_position_error=pos_err, final_orientation_error=rot_err), checker)
 
 
 def plan_via_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
-                       T_goal: np.ndarray,
-                       settings: PlannerSettings = PlannerSettings()) -> JointPlan:
-    """Plan a ``/path_goal/joint`` goal: exactly one via pose (k = 1, (k, 4, 4)), then the goal."""
+                       T_goal: np.ndarray, settings: PlannerSettings = PlannerSettings(),
+                       checker: CollisionChecker | None = None) -> JointPlan:
+    """
+    Plan a ``/path_goal/joint`` goal: exactly one via pose (k = 1, (k, 4, 4)), then the goal.
+
+    Checked as every path goal is (``check_path_shape`` first), collisions included.
+    """
     T_vias = np.asarray(T_vias, dtype=float).reshape(-1, 4, 4)
-    if len(T_vias) != 1:
-        raise InvalidInputError(f'joint needs exactly one via pose, got {len(T_vias)}')
-    return plan_via_joint_move(arm, q_current, T_vias[0], T_goal, settings)
+    check_path_shape('joint', len(T_vias))
+    return plan_via_joint_move(arm, q_current, T_vias[0], T_goal, settings, checker)

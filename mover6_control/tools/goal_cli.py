@@ -16,7 +16,7 @@ the home orientation. With ``--absolute`` A B C are base-frame ZYX angles, R = R
     goal path --shape joint --via 0.32 0.0 0.38 0 0 0 0.30 0.08 0.34 0 0 0
     goal pose 0.30 0.05 0.36 0 0 0 --profile quintic  # this goal timed by the 3-4-5 law
     goal joints 0.2 0.1 0.3 0 0.4 0                   # straight to /joint_demands
-    goal stop                                         # the controller's ~/stop service
+    goal stop                                         # the planner's and controller's ~/stop
     goal jog                                          # keyboard jogging (tools/teleop.py)
 
 The RESULT line gives the pose reached, in the goal's own convention. ``--motion`` and
@@ -64,6 +64,11 @@ from std_srvs.srv import Trigger
 STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 EXIT_ARRIVED, EXIT_FAILED, EXIT_REFUSED, EXIT_NO_NODES = 0, 1, 2, 3
 FINAL_RESULTS = ('arrived', 'fault', 'aborted', 'stopped')
+# [s] longest wait for the planner's ~/stop service (no planner: the controller is stopped).
+PLANNER_STOP_WAIT = 2.0
+# [s] longest wait for the planner's answer about a goal (more when it says the goal waits for
+# joint states: by as much as it says).
+PLANNER_ANSWER_WAIT = 15.0
 # [s] longest wait, after arrival, for the controller to finish settling (its settle_time is 1 s).
 SETTLE_WAIT = 5.0
 # Within this [rad] of gimbal lock (B = +-pi/2) a reached pose is printed with B = +-pi/2 and the
@@ -146,6 +151,7 @@ class GoalClient(Node):
         self.shape_pubs = {}         # topic -> publisher of the goal topics of one shape
         self.planner_params = AsyncParameterClient(self, planner_node)
         self.stop_client = self.create_client(Trigger, f'{controller_node}/stop')
+        self.planner_stop_client = self.create_client(Trigger, f'{planner_node}/stop')
 
     # --- subscriptions ---------------------------------------------------------------------
 
@@ -198,6 +204,9 @@ class GoalClient(Node):
         """
         Wait for joint states, the controller's status and (optionally) the planner's.
 
+        The planner must say it is ready (status value ``state``: it has received joint
+        states), as the controller must have left ``waiting_for_states``.
+
         The controller must then stay ready (idle or moving, not waiting for states and not in
         fault) for ``steady`` [s]: nodes that have just started can stall briefly, and a demand
         that reaches a controller in fault is rejected.
@@ -212,6 +221,8 @@ class GoalClient(Node):
         if need_planner:
             checks += [('/planner/status (is the planner running?)',
                         lambda: self.planner_status is not None),
+                       ('the planner to receive /joint_states',
+                        lambda: self.values(self.planner_status).get('state') == 'ready'),
                        ('a subscriber on /pose_goal',
                         lambda: self.pose_pub.get_subscription_count() > 0),
                        ('the planner and the controller on /joint_demands',
@@ -255,6 +266,21 @@ class GoalClient(Node):
         return None
 
     def stop(self, timeout=10.0):
+        """
+        Call the planner's ~/stop, then the controller's; return (success, message, was it there).
+
+        The planner's first, so that no goal it is still planning goes out after the stop; a
+        planner that is not running is no error (the controller's stop is what stops the arm).
+        """
+        planner_note = ''
+        if self.planner_stop_client.wait_for_service(timeout_sec=PLANNER_STOP_WAIT):
+            future = self.planner_stop_client.call_async(Trigger.Request())
+            if self.spin_until(future.done, timeout):
+                planner_note = f'; planner: {future.result().message}'
+        ok, text, available = self.stop_controller(timeout)
+        return ok, text + planner_note, available
+
+    def stop_controller(self, timeout=10.0):
         """Call the controller's ~/stop service; return (success, its message, was it there)."""
         if not self.stop_client.wait_for_service(timeout_sec=timeout):
             return False, ('the controller stop service is not available (is the controller '
@@ -291,9 +317,23 @@ class GoalClient(Node):
         demands = None
         if planned:
             mine = f'{stamp.sec}.{stamp.nanosec:09d}'
-            if not self.spin_until(
-                    lambda: self.values(self.planner_status).get('goal_stamp') == mine, 15.0):
-                return Outcome(EXIT_FAILED, 'the planner did not answer within 15 s')
+
+            def about_mine(results=None):
+                v = self.values(self.planner_status)
+                return v.get('goal_stamp') == mine and (results is None
+                                                        or v.get('result') in results)
+            # A goal that came before the planner's joint states waits for them (and says so,
+            # with how long it may wait): then planned or refused.
+            answered, waiting = ('planned', 'refused', 'failed'), ('waiting_for_states',)
+            if not self.spin_until(lambda: about_mine(answered) or about_mine(waiting),
+                                   PLANNER_ANSWER_WAIT):
+                return Outcome(EXIT_FAILED, 'the planner did not answer within '
+                               f'{PLANNER_ANSWER_WAIT:.0f} s')
+            if not about_mine(answered):
+                wait = float(self.values(self.planner_status).get('wait_timeout', 0.0))
+                if not self.spin_until(lambda: about_mine(answered), wait + PLANNER_ANSWER_WAIT):
+                    return Outcome(EXIT_FAILED, 'the planner did not plan the goal within '
+                                   f'{wait + PLANNER_ANSWER_WAIT:.0f} s')
             status = self.planner_status
             self.goal_id = self.values(status).get('goal_id')
             if status.level != DiagnosticStatus.OK:
@@ -304,9 +344,16 @@ class GoalClient(Node):
         def mine_now():
             return self.values(self.controller_status).get('goal_id') == self.goal_id
 
+        def planner_ended():
+            # After 'planned' the planner reports the controller's refusal of the demand, or
+            # that no controller acknowledged it.
+            v = self.values(self.planner_status)
+            return (planned and v.get('goal_id') == self.goal_id
+                    and v.get('result') in ('refused', 'failed'))
+
         def motion_done():
             v = self.values(self.controller_status)
-            return self.rejection is not None or (
+            return self.rejection is not None or planner_ended() or (
                 mine_now() and v.get('result') in FINAL_RESULTS)
 
         last_print = [0.0]
@@ -329,6 +376,10 @@ class GoalClient(Node):
             return Outcome(EXIT_FAILED, f'the motion did not finish within {timeout:.0f} s')
         if self.rejection is not None:
             return Outcome(EXIT_REFUSED, f'the controller refused the demand: {self.rejection}')
+        if planner_ended():
+            status = self.planner_status
+            code = EXIT_REFUSED if self.values(status).get('result') == 'refused' else EXIT_FAILED
+            return Outcome(code, status.message, **self.values(status))
         # 'arrived' comes once inside the goal tolerance; the controller then keeps settling
         # into its fine tolerance before it holds: report the pose it holds.
         self.spin_until(lambda: self.values(self.controller_status).get('state') != 'settling',
@@ -479,7 +530,8 @@ def build_parser():
     joints.add_argument('numbers', type=float, nargs='+', metavar='Q',
                         help='6 joint angles [rad] per waypoint')
     sub.add_parser('stop', parents=[common],
-                   help='decelerate and hold (the controller ~/stop service)')
+                   help='drop the goals the planner still plans, decelerate and hold (the '
+                        "planner's and the controller's ~/stop services)")
     # Listed for --help; main() hands 'goal jog ...' to the teleop before parsing.
     sub.add_parser('jog', help='drive the tool live from the keyboard (the teleop; its own '
                                'keys and options: goal jog --help)')
