@@ -94,11 +94,11 @@ class Probe:
         self.results = []
 
     def state(self):
-        """Return the controller's latest state ('' before its first status)."""
+        """Return the controller's latest state, '' before its first status."""
         return self.controller[-1].get('state', '') if self.controller else ''
 
     def spin_until(self, predicate, timeout):
-        """Spin until ``predicate()``; return it."""
+        """Spin the probe until ``predicate()`` holds or ``timeout`` [s] passed; return it."""
         deadline = time.monotonic() + timeout
         while not predicate() and time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=0.05)

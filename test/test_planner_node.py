@@ -314,6 +314,47 @@ def test_acknowledged_demand_is_sent_once(nodes):
     assert not spin_until(executor, lambda: len(probe.demands) > 1, 2.0 * RESEND_AFTER + 0.5)
 
 
+def test_delivery_timer_runs_only_while_a_demand_waits_for_its_acknowledgement(nodes):
+    """Idle, the planner's delivery timer stands still; a goal starts it until acknowledged."""
+    executor, planner, probe = nodes
+    qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    controller_status = probe.create_publisher(DiagnosticStatus, 'controller/status', qos)
+    connected(executor, probe)
+    assert spin_until(executor, lambda: controller_status.get_subscription_count() > 0)
+    give_state(executor, planner, probe, HOME)
+    assert spin_until(executor, planner.delivery_timer.is_canceled)
+    for n, target in enumerate((GOAL, pose_from_xyzabc(0.30, -0.08, 0.32, 0.0, np.pi / 2, 0.0))):
+        status = send_pose(executor, probe, target)
+        assert status.level == DiagnosticStatus.OK, status.message
+        assert not planner.delivery_timer.is_canceled()     # resends until acknowledged
+        assert spin_until(executor, lambda: len(probe.demands) == n + 1)
+        controller_status.publish(conversions.make_status(
+            'controller', 'OK', 'motion accepted',
+            {'state': 'executing', 'goal_id': conversions.status_values(status)['goal_id']}))
+        assert spin_until(executor, planner.delivery_timer.is_canceled)
+    assert len(probe.demands) == 2
+
+
+def test_malformed_latest_joint_states_refuse_the_goal_until_good_ones_come(nodes):
+    """
+    The latest /joint_states is what a goal plans from: malformed, the goal is refused.
+
+    The planner keeps the latest message unconverted (100 a second only need keeping) and
+    converts it when a goal comes; a malformed one leaves the pose unknown.
+    """
+    executor, planner, probe = nodes
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    bad = conversions.make_joint_state(ARM.joint_names[:5], HOME[:5], np.zeros(5))
+    assert spin_until(executor, lambda: (probe.state_pub.publish(bad), planner.q is None)[1])
+    status = send_pose(executor, probe, GOAL)
+    refused(executor, probe, status, 'invalid_goal')
+    assert 'malformed' in status.message and 'joint6' in status.message, status.message
+    give_state(executor, planner, probe, HOME)
+    status = send_pose(executor, probe, GOAL)
+    assert status.level == DiagnosticStatus.OK, status.message
+
+
 def send_path_to(executor, probe, topic, poses, frame='base_link'):
     """Publish a PoseArray on ``topic`` and wait for the planner's answer; return the status."""
     pub = probe.create_publisher(PoseArray, topic, 10)

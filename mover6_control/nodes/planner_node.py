@@ -39,6 +39,7 @@ from mover6_control.planning.via_joint import plan_via_path_goal
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 
@@ -58,18 +59,20 @@ class PlannerNode(Node):
         params.declare(self, PLANNER)     # refuses invalid values, at start and later
         limit_set = self.get_parameter('limit_set').value
         self.arm = mover6(limit_set)
-        self.q = None
-        self.q_time = None
+        self.states = None       # (serialized /joint_states, node clock at arrival): the latest
+        self._converted = None   # (serialized message, its positions): the latest converted
         self.goal_seq = 0
         self.goal = {'goal_id': '', 'goal_stamp': '', 'goal_seq': 0}   # the latest goal
         self.pending = None      # a plan waiting for /joint_demands readers to be matched
         self.unconfirmed = None  # (goal_id, message, last sent, times sent): not yet acknowledged
         self.controller_values = {}
         self._checker = None     # the collision checker of the latest settings
-        self.create_timer(0.02, self.publish_pending)
+        # Runs only while a plan waits for its readers or its acknowledgement (publish_pending).
+        self.delivery_timer = self.create_timer(0.02, self.publish_pending)
         self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'planner/status', STATUS_QOS)
-        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
+        # Raw: 100 messages a second only need keeping; one is converted when a goal needs it.
+        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 1, raw=True)
         self.create_subscription(DiagnosticStatus, 'controller/status', self.on_controller_status,
                                  STATUS_QOS)
         self.create_subscription(PoseStamped, 'pose_goal', self.on_pose_goal, 10)
@@ -88,15 +91,34 @@ class PlannerNode(Node):
 
     # --- inputs ----------------------------------------------------------------------------
 
-    def on_joint_states(self, msg):
-        """Keep the latest valid joint positions; drop malformed states with a warning."""
+    def on_joint_states(self, raw):
+        """
+        Keep the latest /joint_states as it came (serialized) with its arrival time.
+
+        Nothing else per message: deserialising and mapping 100 messages a second to keep one
+        cost more CPU than the rest of the idle planner. ``positions`` converts on demand.
+        """
+        self.states = (raw, self.get_clock().now())
+
+    def positions(self, raw):
+        """Return the joint positions [rad] of a serialized JointState; raise when malformed."""
+        if self._converted is None or self._converted[0] is not raw:
+            msg = deserialize_message(raw, JointState)
+            try:
+                q, _ = conversions.joint_state_from_msg(msg, self.arm.joint_names)
+            except Mover6Error as err:
+                raise Mover6Error(f'the latest /joint_states is malformed ({err}): '
+                                  'the current pose is unknown') from err
+            self._converted = (raw, q)
+        return self._converted[1]
+
+    @property
+    def q(self):
+        """Return the latest joint positions (6,) [rad], or None (none yet, or malformed)."""
         try:
-            q, _ = conversions.joint_state_from_msg(msg, self.arm.joint_names)
-        except Mover6Error as err:
-            self.get_logger().warn(f'dropped /joint_states: {err}', throttle_duration_sec=2.0)
-            return
-        self.q = q
-        self.q_time = self.get_clock().now()
+            return None if self.states is None else self.positions(self.states[0])
+        except Mover6Error:
+            return None
 
     def on_pose_goal(self, msg, motion=None):
         """Plan a pose goal with ``motion``, by default the shape of the ``motion`` parameter."""
@@ -149,14 +171,15 @@ class PlannerNode(Node):
 
     def current_q(self):
         """Return the latest joint positions, or raise when there are none or they are old."""
-        if self.q is None:
+        if self.states is None:
             raise Mover6Error('no /joint_states received yet: the current pose is unknown')
-        age = (self.get_clock().now() - self.q_time).nanoseconds * 1e-9
+        raw, arrival = self.states
+        age = (self.get_clock().now() - arrival).nanoseconds * 1e-9
         timeout = self.get_parameter('state_timeout').value
         if age > timeout:
             raise Mover6Error(f'/joint_states are {age:.2f} s old (limit {timeout:.2f} s): '
                               'the current pose is uncertain')
-        return self.q.copy()
+        return self.positions(raw).copy()
 
     def handle_goal(self, header, motion, plan_fn):
         """Plan, then publish the waypoints and OK, or nothing and ERROR with the reason."""
@@ -181,6 +204,7 @@ class PlannerNode(Node):
             self.refuse(motion, str(err), 'invalid_goal', {})
             return
         self.pending = (dict(self.goal), motion, plan, self.get_clock().now())
+        self.delivery_timer.reset()
         self.publish_pending()
 
     def subscribers_matched(self):
@@ -225,9 +249,16 @@ class PlannerNode(Node):
         self.unconfirmed = (goal_id, msg, now, count + 1)
 
     def publish_pending(self):
-        """Publish the pending plan once every known reader of /joint_demands is matched."""
+        """
+        Publish the pending plan once every known reader of /joint_demands is matched.
+
+        The timer that calls it stops while there is nothing to deliver or confirm (no 50 calls
+        a second for nothing); a new plan restarts it.
+        """
         self.confirm_delivery()
         if self.pending is None:
+            if self.unconfirmed is None:
+                self.delivery_timer.cancel()
             return
         goal, motion, plan, since = self.pending
         matched, known = self.subscribers_matched()
