@@ -26,6 +26,7 @@ read at start; ``real_time_factor`` and ``publish_rate`` also apply live when se
 set``), the others are read-only.
 """
 
+import math
 import os
 import threading
 import time
@@ -79,7 +80,10 @@ class SimBridgeNode(Node):
         self.publish_clock = bool(p['publish_clock'])
 
         self.lock = threading.Lock()
+        self.step_lock = threading.Lock()    # pacing and stepping: physics thread or a callback
         self.stop_event = threading.Event()
+        self._wake = threading.Event()       # a command or a stop: the physics thread looks now
+        self._anchor = None                  # (wall, sim) time the pace counts from
         self.paused = False
         self.rejected = 0                # bad /JointJog messages
         self.last_rejection = ''
@@ -120,6 +124,7 @@ class SimBridgeNode(Node):
         /joint_states comes at most one new period of sim time after the change (vendor_driver
         publishes at the driver's cycle, whatever ``publish_rate`` says).
         """
+        self._wake.set()                 # the next wake-up is computed anew
         for parameter in parameters:
             if parameter.name == 'real_time_factor':
                 self.rtf = float(parameter.value)
@@ -162,9 +167,12 @@ class SimBridgeNode(Node):
         arrival = time.monotonic()
         try:
             names, velocities = conversions.joint_jog_from_msg(msg)
-            with self.lock:
-                warnings = self.sim.set_command(names, velocities, self.sim.time)
-                self._pending = (self.sim.command_count, arrival)
+            with self.step_lock:
+                self._catch_up()         # the steps due before it came: the command before
+                with self.lock:
+                    warnings = self.sim.set_command(names, velocities, self.sim.time)
+                    self._pending = (self.sim.command_count, arrival)
+            self._wake.set()             # its first step when due, not at the next publication
         except InvalidInputError as exc:
             self.rejected += 1
             self.last_rejection = str(exc)
@@ -201,9 +209,12 @@ class SimBridgeNode(Node):
 
     def on_pause(self, request, response):
         """Pause (data true) or resume (data false) the physics."""
-        with self.lock:
-            self.paused = bool(request.data)
-            t = self.sim.time
+        with self.step_lock:
+            self._catch_up()             # pause at the present time
+            with self.lock:
+                self.paused = bool(request.data)
+                t = self.sim.time
+        self._wake.set()
         response.success = True
         response.message = f'{"paused" if self.paused else "running"} at t = {t:.4f} s'
         self.get_logger().info(response.message)
@@ -216,25 +227,28 @@ class SimBridgeNode(Node):
             response.message = 'not paused: ~/pause first'
             return response
         n = max(1, int(round(self.publish_period / self.dt)))
-        for _ in range(n):
-            self._one_step(publish_states=self.vendor)   # vendor: its one reading of the cycle
-        if not self.vendor:                              # the state at the end of the period
-            with self.lock:
-                reading = self.sim.state()
-                self._next_publish = reading.time + self.publish_period
-            self._publish_state(reading)
+        with self.step_lock:
+            for _ in range(n):
+                self._one_step(publish_states=self.vendor)  # vendor: its one reading of the cycle
+            if not self.vendor:                             # the state at the end of the period
+                with self.lock:
+                    reading = self.sim.state()
+                    self._next_publish = reading.time + self.publish_period
+                self._publish_state(reading)
         response.success = True
         response.message = f'stepped {n} x {self.dt} s to t = {self.sim.time:.4f} s'
         return response
 
     def _reset(self, q):
         """Reset the simulator (raises on a bad ``q``) and publish the new state at once."""
-        with self.lock:
-            self.sim.reset(q)
-            self._pending = None
-            reading = self.sim.state()
+        with self.step_lock:
+            self._catch_up()             # reset at the present time
+            with self.lock:
+                self.sim.reset(q)
+                self._pending = None
+                reading = self.sim.state()
+            self._publish_state(reading)
         self.get_logger().info(f'reset to {np.round(reading.q, 4).tolist()}')
-        self._publish_state(reading)
 
     # --- the physics thread ------------------------------------------------------------------
 
@@ -247,36 +261,67 @@ class SimBridgeNode(Node):
             self.get_logger().fatal(f'physics thread stopped: {self.failure}')
 
     def _loop(self):
-        """Step, publish and pace until stopped; re-anchor after a pause or an overrun."""
-        anchor = None
+        """
+        Step, publish and pace until stopped; re-anchor after a pause or an overrun.
+
+        The thread wakes when a step is due that matters outside: the one a /joint_states
+        publication comes after, or the first step of a new command (its callback wakes the
+        thread); the steps between run in the same round, at most one publication period late
+        in wall time but each with the command it had before (a command's callback first runs
+        the steps due before it came). Waking for every 2 ms step cost more CPU than the steps.
+        With ``publish_clock`` (a /clock after every step: sim-time nodes wait on it) and in
+        vendor_driver mode every step is a wake-up, as before.
+        """
         last_view = 0.0
         while not self.stop_event.is_set():
+            self._wake.clear()
             if self.paused:
-                anchor = None
-                self.stop_event.wait(0.005)
+                with self.step_lock:
+                    self._anchor = None
+                self._wake.wait(0.005)
                 continue
+            with self.step_lock:
+                self._catch_up()
+                due = self._next_wake()
             now = time.monotonic()
-            rtf = self.rtf               # read once per round: it may be set live
-            if self._reanchor:
-                self._reanchor, anchor = False, None
-            if anchor is None:
-                anchor = (now, self.sim.time)
-            n = steps_due(self.sim.time - anchor[1], now - anchor[0], rtf, self.dt, MAX_BATCH)
-            for _ in range(n):
-                self._one_step()
-            if rtf > 0.0 and n == MAX_BATCH:
-                self.overruns += 1
-                anchor = None
             if self.viewer is not None and now - last_view > VIEWER_PERIOD:
                 last_view = now
                 self._sync_viewer()
-            if rtf > 0.0 and anchor is not None and not self._reanchor:
-                due = anchor[0] + (self.sim.time + self.dt - anchor[1]) / rtf
-                delay = due - time.monotonic()
-                if delay > 0.0:
-                    self.stop_event.wait(delay)
-            else:
+            if due is None:
                 time.sleep(0)            # let the callbacks in
+            elif due > now:
+                self._wake.wait(due - now)
+
+    def _catch_up(self):
+        """Run the physics steps due by now at the pace in force (hold ``step_lock``)."""
+        if self.paused:
+            self._anchor = None
+            return
+        now = time.monotonic()
+        rtf = self.rtf                   # read once per round: it may be set live
+        if self._reanchor:
+            self._reanchor, self._anchor = False, None
+        if self._anchor is None:
+            self._anchor = (now, self.sim.time)
+        n = steps_due(self.sim.time - self._anchor[1], now - self._anchor[0], rtf, self.dt,
+                      MAX_BATCH)
+        for _ in range(n):
+            self._one_step()
+        if rtf > 0.0 and n == MAX_BATCH:
+            self.overruns += 1
+            self._anchor = None
+
+    def _next_wake(self):
+        """Return the wall time [s] the next step that matters is due; None: now (step_lock)."""
+        rtf, anchor = self.rtf, self._anchor
+        if not rtf > 0.0 or anchor is None or self._reanchor:
+            return None
+        steps = 1
+        if self._pending is None and not (self.vendor or self.publish_clock):
+            with self.lock:
+                ahead = self._next_publish - self.sim.time
+            steps = max(1, math.ceil(ahead / self.dt - 1e-6))
+        return anchor[0] + (self.sim.time + steps * self.dt - anchor[1]) / rtf
 
     def _one_step(self, publish_states=True):
         """Advance one physics step; publish /clock and, when due, /joint_states."""
@@ -359,6 +404,7 @@ class SimBridgeNode(Node):
     def destroy_node(self):
         """Stop the physics thread and the viewer, then destroy the node."""
         self.stop_event.set()
+        self._wake.set()
         if self.thread.is_alive():
             self.thread.join(timeout=5.0)
         if self.viewer is not None:

@@ -367,6 +367,28 @@ def test_acknowledged_demand_is_sent_once(nodes):
     assert not spin_until(executor, lambda: len(probe.demands) > 1, 2.0 * RESEND_AFTER + 0.5)
 
 
+def test_malformed_latest_joint_states_refuse_the_goal_until_good_ones_come(nodes):
+    """
+    The latest /joint_states is what a goal plans from: malformed, the goal is refused.
+
+    The planner keeps the latest message unconverted (100 a second only need keeping) and
+    converts it when a goal comes; a malformed one leaves the pose unknown: the goal waits for
+    valid states (state_wait_timeout), then is refused with what was wrong.
+    """
+    executor, planner, probe = nodes
+    planner.set_parameters([Parameter('state_wait_timeout', value=0.5)])
+    connected(executor, probe)
+    give_state(executor, planner, probe, HOME)
+    bad = conversions.make_joint_state(ARM.joint_names[:5], HOME[:5], np.zeros(5))
+    assert spin_until(executor, lambda: (probe.state_pub.publish(bad), planner.q is None)[1])
+    status = send_pose(executor, probe, GOAL)
+    refused(executor, probe, status, 'no_joint_states')
+    assert 'malformed' in status.message and 'joint6' in status.message, status.message
+    give_state(executor, planner, probe, HOME)
+    status = send_pose(executor, probe, GOAL)
+    assert status.level == DiagnosticStatus.OK, status.message
+
+
 def send_path_to(executor, probe, topic, poses, frame='base_link'):
     """Publish a PoseArray on ``topic`` and wait for the planner's answer; return the status."""
     pub = probe.create_publisher(PoseArray, topic, 10)

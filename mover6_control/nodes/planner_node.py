@@ -55,6 +55,7 @@ from mover6_control.planning.via_joint import plan_via_path_goal
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
@@ -94,10 +95,10 @@ class PlannerNode(Node):
         params.declare(self, PLANNER)     # refuses invalid values, at start and later
         limit_set = self.get_parameter('limit_set').value
         self.arm = mover6(limit_set)
-        self.q = None
-        self.q_time = None
         self.state = WAITING
-        self.states_came = threading.Event()   # set by every valid /joint_states
+        self.states_came = threading.Event()   # set by every /joint_states
+        self.states = None       # (serialized /joint_states, node clock at arrival): the latest
+        self._converted = None   # (serialized message, its positions): the latest converted
         self.goal_seq = 0
         self.stopped_seq = 0         # goals up to this seq were dropped by ~/stop
         self.lock = threading.Lock()           # unconfirmed, state
@@ -109,7 +110,8 @@ class PlannerNode(Node):
         self.jobs = queue.SimpleQueue()   # goals not yet planned; None: the node closes
         self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'planner/status', STATUS_QOS)
-        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
+        # Raw: 100 messages a second only need keeping; one is converted when a goal needs it.
+        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 1, raw=True)
         self.create_subscription(DiagnosticStatus, 'controller/status', self.on_controller_status,
                                  CONTROLLER_STATUS_QOS)
         self.create_subscription(PoseStamped, 'pose_goal', self.on_pose_goal, 10)
@@ -132,18 +134,39 @@ class PlannerNode(Node):
 
     # --- inputs (executor thread) ----------------------------------------------------------
 
-    def on_joint_states(self, msg):
-        """Keep the latest valid joint positions; drop malformed states with a warning."""
-        try:
-            q, _ = conversions.joint_state_from_msg(msg, self.arm.joint_names)
-        except Mover6Error as err:
-            self.get_logger().warn(f'dropped /joint_states: {err}', throttle_duration_sec=2.0)
-            return
-        self.q_time = self.get_clock().now()
-        self.q = q
-        self.states_came.set()
-        if self.state != READY:
+    def on_joint_states(self, raw):
+        """
+        Keep the latest /joint_states as it came (serialized) with its arrival time.
+
+        Nothing else per message: deserialising and mapping 100 messages a second to keep one
+        cost more CPU than the rest of the idle planner. ``positions`` converts on demand; only
+        while the planner is not ready is each message converted, to say ready on the first
+        valid one.
+        """
+        self.states = (raw, self.get_clock().now())
+        if self.state != READY and self.q is not None:
             self.set_state(READY)
+        self.states_came.set()
+
+    def positions(self, raw):
+        """Return the joint positions [rad] of a serialized JointState; raise when malformed."""
+        if self._converted is None or self._converted[0] is not raw:
+            msg = deserialize_message(raw, JointState)
+            try:
+                q, _ = conversions.joint_state_from_msg(msg, self.arm.joint_names)
+            except Mover6Error as err:
+                raise Mover6Error(f'the latest /joint_states is malformed ({err}): '
+                                  'the current pose is unknown') from err
+            self._converted = (raw, q)
+        return self._converted[1]
+
+    @property
+    def q(self):
+        """Return the latest joint positions (6,) [rad], or None (none yet, or malformed)."""
+        try:
+            return None if self.states is None else self.positions(self.states[0])
+        except Mover6Error:
+            return None
 
     def on_pose_goal(self, msg, motion=None):
         """Plan a pose goal with ``motion``, by default the shape of the ``motion`` parameter."""
@@ -264,15 +287,15 @@ class PlannerNode(Node):
 
     def current_q(self):
         """Return the latest joint positions, or raise when there are none or they are old."""
-        q, q_time = self.q, self.q_time
-        if q is None:
+        if self.states is None:
             raise Mover6Error('no /joint_states received yet: the current pose is unknown')
-        age = (self.get_clock().now() - q_time).nanoseconds * 1e-9
+        raw, arrival = self.states
+        age = (self.get_clock().now() - arrival).nanoseconds * 1e-9
         timeout = self.get_parameter('state_timeout').value
         if age > timeout:
             raise Mover6Error(f'/joint_states are {age:.2f} s old (limit {timeout:.2f} s): '
                               'the current pose is uncertain')
-        return q.copy()
+        return self.positions(raw).copy()
 
     def plan_loop(self):
         """Plan the queued goals in order; send demands again until acknowledged."""

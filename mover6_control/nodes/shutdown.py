@@ -18,7 +18,8 @@ the context still valid, and the process exits 0.
 import signal
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.signals import SignalHandlerOptions
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -78,7 +79,7 @@ def run_node(make_node, args=None):
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         if not stop.received:
             node = make_node()
-            executor = SingleThreadedExecutor()
+            executor = EventsExecutor()
             executor.add_node(node)
             while not stop.received and rclpy.ok() and not getattr(node, 'fatal', None):
                 executor.spin_once(timeout_sec=SPIN_SLICE)
