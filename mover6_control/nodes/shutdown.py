@@ -16,7 +16,9 @@ the context still valid, and the process exits 0.
 """
 
 import signal
+import sys
 
+from mover6_control.nodes import local_dds
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
@@ -68,20 +70,26 @@ def run_node(make_node, args=None):
     Init rclpy, make the node with ``make_node()``, spin it until a stop; destroy it, shut down.
 
     Returns normally (exit code 0) on SIGINT, SIGTERM (once or repeatedly) and external
-    shutdown; errors while making or running the node propagate.
+    shutdown; errors while making or running the node propagate. A node asked for the local DDS
+    configuration (``MOVER6_DDS=local``) that did not get it is not made: the reason is printed
+    and the process exits with code 1 (``local_dds``).
     """
     stop = StopSignals()
     node = None
     try:
+        local_dds.check_environment()
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         if not stop.received:
-            node = make_node()
+            node = local_dds.make_checked_node(make_node)
             executor = SingleThreadedExecutor()
             executor.add_node(node)
             while not stop.received and rclpy.ok():
                 executor.spin_once(timeout_sec=SPIN_SLICE)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except local_dds.LocalDdsError as err:
+        print(f'[FATAL] {err}', file=sys.stderr, flush=True)
+        raise SystemExit(1)
     finally:
         if node is not None:
             node.destroy_node()
