@@ -268,7 +268,8 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False):
         threads = dds_threads(controller.pid)
         if offcpu:
             perf_log = open(os.path.join(variant_dir, 'perf.log'), 'w')
-            perf = offcpu_tool.start_recording(controller.pid, perf_path, log=perf_log)
+            perf = offcpu_tool.start_recording(controller.pid, perf_path, prefix='',
+                                                 log=perf_log)
         t0, wall_t0 = time.monotonic(), time.time()
         waiting_for = None    # the motion id of the demand sent last, until it ends
         sent_at = t0
