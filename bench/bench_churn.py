@@ -20,9 +20,10 @@ as ``ros2 topic echo`` does), waits for one message and exits. Figures:
 - motions sent, arrived, and ended otherwise (aborted, fault, stopped).
 
 The variants run one after the other in the same run (``--repeat N``: N times, alternately),
-each with a fresh stack; the environment applies to the controller and the bridge: ``default``
+each with a fresh stack; the environment applies to the controller and the bridge: ``localhost``
 (Fast DDS as rmw_fastrtps sets it up), ``async`` (``RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``)
-and ``rt_prio_50`` (``tick_priority:=50``: the tick thread at SCHED_FIFO 50 where allowed). The
+and ``rt_prio_50`` (``tick_priority:=50``: the tick thread at SCHED_FIFO 50 where allowed);
+``localhost`` and ``local`` (the default rows) compare the DDS configurations (``VARIANTS``). The
 machine is shared: the load average is printed and stored. Halts are counted from the bridge's
 log between the first motion and the end of the last (the controller stops before the bridge,
 so the bridge halts once more at teardown: reported apart).
@@ -57,7 +58,7 @@ own stack comes from ``MOVER6_TICK_WATCHDOG``):
   locator (``SHMLocator::is_shm_and_from_this_host``, the host id inside the locator), and the
   controller still opened a joining process's port. Left: a Fast DDS with issue 6535 fixed, or
   discovery range ``SYSTEM_DEFAULT`` with an XML profile that keeps UDP on the loopback interface
-  and drops shared memory (not measured here: every process must run with ``LOCALHOST``);
+  and drops shared memory: the package's local configuration (issue 22), the ``local`` rows;
 - the shorter gaps (20-150 ms, ``ticks_over_30ms``) are the process waiting for a CPU on a
   loaded machine (two cores, load 4-11 during these runs; the watchdog then finds the tick
   thread anywhere in its Python code). ``rt_prio_50`` narrows them (period error p50 and p99)
@@ -67,7 +68,8 @@ own stack comes from ``MOVER6_TICK_WATCHDOG``):
   write): in one run the tick that logged a 72 ms gap began a 360 ms gap itself, its log line
   stamped 350 ms after the tick started.
 
-Run: ``./run.sh bench churn`` or ``./run.sh exec python -m bench.bench_churn [--quick]
+Rows other than ``localhost`` start DDS with another configuration: run the benchmark inside a
+private network namespace on a shared machine. Run: ``./run.sh bench churn`` or ``./run.sh exec python -m bench.bench_churn [--quick]
 [--variant NAME] [--repeat N] [--offcpu]`` (``--quick``: 16 churn processes instead of 40).
 Writes
 bench/results/churn.json.
