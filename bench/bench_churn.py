@@ -69,8 +69,10 @@ own stack comes from ``MOVER6_TICK_WATCHDOG``):
   stamped 350 ms after the tick started.
 
 Rows other than ``localhost`` start DDS with another configuration: run the benchmark inside a
-private network namespace on a shared machine. Run: ``./run.sh bench churn`` or ``./run.sh exec python -m bench.bench_churn [--quick]
-[--variant NAME] [--repeat N] [--offcpu]`` (``--quick``: 16 churn processes instead of 40).
+private network namespace on a shared machine. Run: ``./run.sh bench churn`` or
+``./run.sh exec python -m bench.bench_churn [--quick]
+[--churn N] [--variant NAME] [--repeat N] [--offcpu]`` (``--quick``: 16 churn processes instead of
+40).
 Writes
 bench/results/churn.json.
 """
@@ -271,7 +273,7 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False):
         if offcpu:
             perf_log = open(os.path.join(variant_dir, 'perf.log'), 'w')
             perf = offcpu_tool.start_recording(controller.pid, perf_path, prefix='',
-                                                 log=perf_log)
+                                               log=perf_log)
         t0, wall_t0 = time.monotonic(), time.time()
         waiting_for = None    # the motion id of the demand sent last, until it ends
         sent_at = t0
