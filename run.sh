@@ -16,6 +16,7 @@ mover6_control: the one entry point.
 
   ./run.sh demo            start the three nodes headless, run the showcase, print the results
   ./run.sh test            colcon build + colcon test (pytest summary on the console)
+                           (inside a private network namespace when the machine allows one)
   ./run.sh launch [args]   the three nodes in the foreground until Ctrl-C (scripts/launch.sh)
   ./run.sh goal ...        the goal CLI (./run.sh goal --help)
   ./run.sh bench [--quick] the benchmarks: tables on the console, JSON in bench/results/
@@ -30,11 +31,11 @@ Re-running is quick and changes nothing. It works from any directory.
 
 Environment: PYTHON  the interpreter that makes the venv (default python3)
              MOVER6_VENV, MOVER6_WS  the venv and the colcon workspace (default .venv, .colcon)
+DDS: this machine only (UDP on 127.0.0.1, config/fastdds_local.xml) unless you set your own
+             (ROS_AUTOMATIC_DISCOVERY_RANGE, FASTRTPS_DEFAULT_PROFILES_FILE, ...): README, "DDS".
 EOF
 }
 
-# DDS discovery stays on this machine unless the user says otherwise (a robot network).
-export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
 export PYTHONDONTWRITEBYTECODE=1
 export MPLBACKEND=Agg
 # Offscreen MuJoCo rendering (demo animation, render tests) through EGL when there is no display.
@@ -222,6 +223,35 @@ ensure() {
     activate
     colcon_build
     activate
+    local_dds
+}
+
+local_dds() {
+    # DDS stays on this machine unless the user chose their own setup (a robot network): the
+    # package's Fast DDS profile, UDP on 127.0.0.1 only, no shared memory (README, "DDS").
+    local exports
+    exports=$(python -m mover6_control.nodes.local_dds env) || {
+        log 'cannot set up DDS (python -m mover6_control.nodes.local_dds env failed)'
+        exit 1
+    }
+    eval "$exports"
+}
+
+private_netns() {
+    # private_netns: UNSHARE gets the command that makes a private network namespace here
+    # (unshare -n as root, a user namespace otherwise), or the function fails: none allowed.
+    local un
+    for un in 'unshare -n' 'unshare -rn'; do
+        [ "$un" = 'unshare -n' ] && [ "$(id -u)" != 0 ] && continue
+        # shellcheck disable=SC2086
+        if $un true 2>/dev/null; then read -ra UNSHARE <<<"$un"; return 0; fi
+    done
+    return 1
+}
+
+only_loopback() {
+    # True when this network namespace has no interface but lo.
+    [ "$(ip -o link show 2>/dev/null | awk -F': ' '{print $2}' | tr '\n' ' ')" = 'lo ' ]
 }
 
 pick_domain_id() {
@@ -243,8 +273,29 @@ case "$cmd" in
         exec "$@"
         ;;
     test)
-        ensure
+        # Inside a private network namespace (only loopback) when the machine allows one: then
+        # nothing a test sends can reach another process or machine, and the tests run the
+        # package's local DDS configuration (test/test_local_dds.py checks that they did).
+        if [ "${MOVER6_TEST_NETWORK:-}" = netns ]; then
+            only_loopback || { log 'MOVER6_TEST_NETWORK=netns, but interfaces other than lo exist'; exit 1; }
+            ip link set lo up
+            unset ROS_AUTOMATIC_DISCOVERY_RANGE FASTRTPS_DEFAULT_PROFILES_FILE \
+                FASTDDS_DEFAULT_PROFILES_FILE FASTDDS_BUILTIN_TRANSPORTS ROS_LOCALHOST_ONLY \
+                ROS_STATIC_PEERS MOVER6_DDS
+            ensure
+        else
+            # Without one, as before: discovery on loopback (LOCALHOST) unless the user chose.
+            export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
+            ensure
+            if private_netns; then
+                log "tests inside a private network namespace (${UNSHARE[*]}): only loopback"
+                MOVER6_TEST_NETWORK=netns exec "${UNSHARE[@]}" "$ROOT/run.sh" test "$@"
+            fi
+            log 'this machine allows no private network namespace: tests on the host network'
+            export MOVER6_TEST_NETWORK=host
+        fi
         pick_domain_id
+        log "tests in ROS_DOMAIN_ID=$ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE=$ROS_AUTOMATIC_DISCOVERY_RANGE${MOVER6_DDS:+, MOVER6_DDS=$MOVER6_DDS}"
         log "tests in ROS_DOMAIN_ID=$ROS_DOMAIN_ID"
         # No stale results: a run that wrote none must fail, not pass on the last one's.
         rm -rf "$WS/build/mover6_control/test_results" "$WS/build/mover6_control/pytest.xml"

@@ -24,9 +24,20 @@ def available():
 
 
 def main(argv):
-    """Run the benchmarks named in ``argv`` (all by default); return the exit code."""
-    flags = [a for a in argv if a.startswith('-')]
-    names = [a for a in argv if not a.startswith('-')] or available()
+    """
+    Run the benchmarks named in ``argv`` (all by default); return the exit code.
+
+    Options go to every benchmark; a word right after an option that is no benchmark's name is
+    that option's value (``churn --repeat 3``).
+    """
+    names, flags = [], []
+    for i, arg in enumerate(argv):
+        if arg.startswith('-') or (i > 0 and argv[i - 1].startswith('-')
+                                   and arg not in available()):
+            flags.append(arg)
+        else:
+            names.append(arg)
+    names = names or available()
     unknown = sorted(set(names) - set(available()))
     if unknown:
         print(f'unknown benchmarks {unknown}; available: {available()}', file=sys.stderr)

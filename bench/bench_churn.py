@@ -20,9 +20,10 @@ as ``ros2 topic echo`` does), waits for one message and exits. Figures:
 - motions sent, arrived, and ended otherwise (aborted, fault, stopped).
 
 The variants run one after the other in the same run (``--repeat N``: N times, alternately),
-each with a fresh stack; the environment applies to the controller and the bridge: ``default``
+each with a fresh stack; the environment applies to the controller and the bridge: ``localhost``
 (Fast DDS as rmw_fastrtps sets it up), ``async`` (``RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``)
-and ``rt_prio_50`` (``tick_priority:=50``: the tick thread at SCHED_FIFO 50 where allowed). The
+and ``rt_prio_50`` (``tick_priority:=50``: the tick thread at SCHED_FIFO 50 where allowed);
+``localhost`` and ``local`` (the default rows) compare the DDS configurations (``VARIANTS``). The
 machine is shared: the load average is printed and stored. Halts are counted from the bridge's
 log between the first motion and the end of the last (the controller stops before the bridge,
 so the bridge halts once more at teardown: reported apart).
@@ -57,7 +58,7 @@ own stack comes from ``MOVER6_TICK_WATCHDOG``):
   locator (``SHMLocator::is_shm_and_from_this_host``, the host id inside the locator), and the
   controller still opened a joining process's port. Left: a Fast DDS with issue 6535 fixed, or
   discovery range ``SYSTEM_DEFAULT`` with an XML profile that keeps UDP on the loopback interface
-  and drops shared memory (not measured here: every process must run with ``LOCALHOST``);
+  and drops shared memory: the package's local configuration (issue 22), the ``local`` rows;
 - the shorter gaps (20-150 ms, ``ticks_over_30ms``) are the process waiting for a CPU on a
   loaded machine (two cores, load 4-11 during these runs; the watchdog then finds the tick
   thread anywhere in its Python code). ``rt_prio_50`` narrows them (period error p50 and p99)
@@ -67,8 +68,11 @@ own stack comes from ``MOVER6_TICK_WATCHDOG``):
   write): in one run the tick that logged a 72 ms gap began a 360 ms gap itself, its log line
   stamped 350 ms after the tick started.
 
-Run: ``./run.sh bench churn`` or ``./run.sh exec python -m bench.bench_churn [--quick]
-[--variant NAME] [--repeat N] [--offcpu]`` (``--quick``: 16 churn processes instead of 40).
+Rows other than ``localhost`` start DDS with another configuration: run the benchmark inside a
+private network namespace on a shared machine. Run: ``./run.sh bench churn`` or
+``./run.sh exec python -m bench.bench_churn [--quick]
+[--churn N] [--variant NAME] [--repeat N] [--offcpu]`` (``--quick``: 16 churn processes instead of
+40).
 Writes
 bench/results/churn.json.
 """
@@ -97,13 +101,19 @@ CHURN_TIMEOUT = 30.0         # [s] a churn process that saw no status by then is
 MOTIONS = np.array([[0.5, -0.4, 0.3, 0.4, -0.3, 0.6], [-0.4, 0.3, -0.3, -0.4, 0.4, -0.5]])
 HALT_LINE = '/JointJog command stale: joints halted'
 LOG_STAMP = re.compile(r'^\[\w+\] \[(\d+\.\d+)\]')   # a ROS log line: [LEVEL] [wall time]
-# The candidates measured side by side (environment of the controller and bridge processes,
-# parameters of the controller): Fast DDS as rmw_fastrtps sets it up; asynchronous publication
-# (writes handed to Fast DDS's own thread); the tick thread at real-time priority. None removes
-# the 333 ms stalls (see the module doc); they stay so that a fix can be measured against them.
-VARIANTS = (('default', {}, {}),
-            ('async', {'RMW_FASTRTPS_PUBLICATION_MODE': 'ASYNCHRONOUS'}, {}),
-            ('rt_prio_50', {}, {'tick_priority': 50}))
+# The rows measured side by side: (name, DDS configuration, environment, controller parameters).
+# Every process of a row, the churn processes and this benchmark's own included, runs in the
+# row's DDS configuration: ``localhost`` is ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST as before
+# issue 22 (rmw_fastrtps adds shared memory), ``local`` the package's local configuration
+# (``mover6_control.nodes.local_dds``: UDP on 127.0.0.1 only, no shared memory). ``async`` and
+# ``rt_prio_50`` were tried against the 333 ms stall under LOCALHOST and removed none of it
+# (module doc); they stay so that they can be measured again.
+VARIANTS = (('localhost', 'localhost', {}, {}),
+            ('local', 'local', {}, {}),
+            ('local_rt50', 'local', {}, {'tick_priority': 50}),
+            ('async', 'localhost', {'RMW_FASTRTPS_PUBLICATION_MODE': 'ASYNCHRONOUS'}, {}),
+            ('rt_prio_50', 'localhost', {}, {'tick_priority': 50}))
+DEFAULT_VARIANTS = ('localhost', 'local')
 STALL = 0.2                  # [s] a tick gap this long is a stall (the driver halts at 0.2 s)
 
 
@@ -262,7 +272,8 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False):
         threads = dds_threads(controller.pid)
         if offcpu:
             perf_log = open(os.path.join(variant_dir, 'perf.log'), 'w')
-            perf = offcpu_tool.start_recording(controller.pid, perf_path, log=perf_log)
+            perf = offcpu_tool.start_recording(controller.pid, perf_path, prefix='',
+                                               log=perf_log)
         t0, wall_t0 = time.monotonic(), time.time()
         waiting_for = None    # the motion id of the demand sent last, until it ends
         sent_at = t0
@@ -350,33 +361,69 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False):
             'motion_results': results, 'log_dir': variant_dir}
 
 
+def dds_environment(dds, environ):
+    """Return ``environ`` with DDS configuration ``dds`` (``localhost`` or ``local``) only."""
+    from mover6_control.nodes import local_dds
+    env = {k: v for k, v in environ.items() if k not in local_dds.USER_DDS_ENV}
+    if dds == 'local':
+        env.update(local_dds.local_environment())
+    else:
+        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    return env
+
+
+def run_row(name, total, log_dir, offcpu):
+    """Run row ``name`` in a process of its own in the row's DDS configuration; return it."""
+    _, dds, _, _ = next(v for v in VARIANTS if v[0] == name)
+    out = os.path.join(log_dir, f'{name}.json')
+    cmd = [sys.executable, '-m', 'bench.bench_churn', '--row', name, str(total), log_dir, out]
+    if offcpu:
+        cmd.append('--offcpu')
+    subprocess.run(cmd, env=dds_environment(dds, os.environ), cwd=ROOT, check=True)
+    with open(out) as f:
+        row = json.load(f)
+    row['dds'] = dds
+    return row
+
+
+def row_main(name, total, log_dir, out, offcpu):
+    """Run row ``name`` in this process (its DDS configuration set by ``run_row``)."""
+    _, _, env_extra, params = next(v for v in VARIANTS if v[0] == name)
+    row = run_variant(name, env_extra, params, int(total), log_dir, offcpu)
+    with open(out, 'w') as f:
+        json.dump(row, f)
+    return 0
+
+
 def main(argv=None):
-    """Run both variants; print the table and write bench/results/churn.json."""
+    """Run the variants; print the table and write bench/results/churn.json."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--quick', action='store_true',
                         help=f'{CHURN_QUICK} churn processes instead of {CHURN}')
+    parser.add_argument('--churn', type=int, help='this many churn processes')
     parser.add_argument('--variant', action='append', choices=[v[0] for v in VARIANTS],
-                        help='run only this variant (may repeat)')
+                        help=f'run only this variant (may repeat; default: '
+                        f'{" ".join(DEFAULT_VARIANTS)})')
     parser.add_argument('--repeat', type=int, default=1,
                         help='run the variants this many times, alternately')
     parser.add_argument('--offcpu', action='store_true',
                         help="record where the controller's DDS threads wait (perf; see "
                         'bench/offcpu.py)')
     args = parser.parse_args(argv)
-    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.setdefault('ROS_DOMAIN_ID', '33')
-    total = CHURN_QUICK if args.quick else CHURN
+    total = args.churn or (CHURN_QUICK if args.quick else CHURN)
     log_dir = tempfile.mkdtemp(prefix='bench_churn_')
     load = os.getloadavg()
     results = {'quick': args.quick, 'repeat': args.repeat, 'rate_hz': RATE, 'cpus': os.cpu_count(),
                'load_average_at_start': list(load), 'variants': []}
     print(f'load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} CPUs '
           '(other processes on the machine disturb every figure below); logs in ' + log_dir)
-    runs = [(rep, v) for rep in range(args.repeat) for v in VARIANTS
-            if not args.variant or v[0] in args.variant]
-    for repetition, (name, env_extra, params) in runs:
-        row = run_variant(name, env_extra, params, total,
-                          os.path.join(log_dir, f'run{repetition + 1}'), args.offcpu)
+    chosen = args.variant or DEFAULT_VARIANTS
+    runs = [(rep, v[0]) for rep in range(args.repeat) for v in VARIANTS if v[0] in chosen]
+    for repetition, name in runs:
+        row_dir = os.path.join(log_dir, f'run{repetition + 1}')
+        os.makedirs(row_dir, exist_ok=True)
+        row = run_row(name, total, row_dir, args.offcpu)
         row['repetition'] = repetition + 1
         row['load_average_after'] = list(os.getloadavg())
         results['variants'].append(row)
@@ -386,12 +433,13 @@ def main(argv=None):
           f'during motions; controller at {RATE:g} Hz. Goal: largest gap < 30 ms, no halt, '
           'no aborted motion')
     stall_key = f'ticks_over_{STALL * 1e3:.0f}ms'
-    print(f'{"variant":>10} {"ticks":>6} {"max gap [ms]":>13} {"err p50 [ms]":>13} '
+    print(f'{"variant":>10} {"run":>3} {"ticks":>6} {"max gap [ms]":>13} {"err p50 [ms]":>13} '
           f'{"err p99 [ms]":>13} {">30 ms":>7} {f">{STALL * 1e3:.0f} ms":>7} '
           f'{"jog rx max gap [ms]":>20} {"halts":>6} '
           f'{"motions ok/sent":>16} {"load 1 min":>11}')
     for row in results['variants']:
-        print(f'{row["variant"]:>10} {row["ticks"]:6d} {row["max_tick_gap_ms"]:13.1f} '
+        print(f'{row["variant"]:>10} {row["repetition"]:3d} {row["ticks"]:6d} '
+              f'{row["max_tick_gap_ms"]:13.1f} '
               f'{row["period_error_p50_ms"]:13.3f} {row["period_error_p99_ms"]:13.3f} '
               f'{row["ticks_over_30ms"]:7d} {row[stall_key]:7d} '
               f'{row["jointjog_received_max_gap_ms"]:20.1f} '
@@ -404,5 +452,7 @@ def main(argv=None):
 if __name__ == '__main__':
     if sys.argv[1:2] == ['--echo']:
         sys.exit(echo_main(sys.argv[2]))
+    elif sys.argv[1:2] == ['--row']:
+        sys.exit(row_main(*sys.argv[2:6], offcpu='--offcpu' in sys.argv[6:]))
     else:
         main()

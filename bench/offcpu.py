@@ -46,13 +46,22 @@ def thread_ids(pid, prefix):
 
 
 def start_recording(pid, out_path, prefix='dds.', log=None):
-    """Start ``perf record`` on the threads of ``pid`` named ``prefix``*; return the Popen."""
-    tids = thread_ids(pid, prefix)
-    if not tids:
-        raise RuntimeError(f'no thread of {pid} is named {prefix}*')
+    """
+    Start ``perf record`` on the threads of ``pid`` named ``prefix``*; return the Popen.
+
+    ``prefix`` '': every thread of the process (the Python threads too), threads started later
+    included.
+    """
+    if prefix:
+        tids = thread_ids(pid, prefix)
+        if not tids:
+            raise RuntimeError(f'no thread of {pid} is named {prefix}*')
+        target = ['-t', ','.join(tids)]
+    else:
+        target = ['-p', str(pid)]
     return subprocess.Popen(
         ['perf', 'record', '-q', '-e', 'sched:sched_switch', '--call-graph', 'dwarf,16384',
-         '-t', ','.join(tids), '-o', out_path],
+         *target, '-o', out_path],
         stdout=log or subprocess.DEVNULL, stderr=subprocess.STDOUT)
 
 

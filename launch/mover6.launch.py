@@ -23,11 +23,11 @@ from ament_index_python.packages import get_package_prefix, PackageNotFoundError
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction, SetEnvironmentVariable
 from launch.conditions import IfCondition
-from launch.substitutions import (EnvironmentVariable, LaunchConfiguration, PathJoinSubstitution,
-                                  PythonExpression)
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution, PythonExpression
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
+from mover6_control.nodes import local_dds
 
 PACKAGE = 'mover6_control'
 
@@ -53,6 +53,14 @@ def robot_state_publisher(context):
         description = ParameterValue(f.read(), value_type=str)    # a string, not YAML
     return [Node(package='robot_state_publisher', executable='robot_state_publisher',
                  output='screen', parameters=[{'robot_description': description}])]
+
+
+def local_dds_environment(context):
+    """Set the local DDS configuration, unless the user set DDS variables of their own."""
+    if local_dds.user_chose_dds(os.environ):
+        return []
+    return [SetEnvironmentVariable(name, value)
+            for name, value in local_dds.local_environment().items()]
 
 
 def generate_launch_description():
@@ -89,9 +97,9 @@ def generate_launch_description():
         DeclareLaunchArgument(
             'planner_params', default_value=config_file('planner.yaml'),
             description='parameter file of the planner'),
-        # DDS discovery stays on this machine unless the user chose otherwise (robot network).
-        SetEnvironmentVariable('ROS_AUTOMATIC_DISCOVERY_RANGE', EnvironmentVariable(
-            'ROS_AUTOMATIC_DISCOVERY_RANGE', default_value='LOCALHOST')),
+        # DDS stays on this machine (the package's Fast DDS profile: UDP on 127.0.0.1, no shared
+        # memory) unless the user chose their own DDS setup (a robot network); README, "DDS".
+        OpaqueFunction(function=local_dds_environment),
         Node(
             package=PACKAGE, executable='sim_bridge', name='sim_bridge', output='screen',
             condition=IfCondition(sim),

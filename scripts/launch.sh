@@ -19,9 +19,6 @@
 # Needs an environment where the package is built and sourced (./run.sh launch does that).
 set -uo pipefail
 
-# DDS discovery stays on this machine unless the user chose otherwise (robot network).
-export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
-
 # The choices, and the defaults (the shipped parameter files' values).
 PROFILES='continuous synchronised trapezoidal jerk_limited cubic quintic septic sharp_trapezoid cubic_spline quintic_spline bspline multi_trapezoid'
 JOG_UNITS='rad_per_s fraction_of_max'
@@ -65,6 +62,10 @@ prefix=$(python3 -c 'from ament_index_python.packages import get_package_prefix 
     echo 'launch.sh: package mover6_control not found: build and source it (./run.sh launch)' >&2
     exit 1
 }
+# DDS stays on this machine (UDP on 127.0.0.1, no shared memory: the package's Fast DDS profile)
+# unless the user chose their own DDS setup (robot network); README, "DDS".
+dds=$(python3 -m mover6_control.nodes.local_dds env) || exit 1
+eval "$dds"
 bin="$prefix/lib/mover6_control"
 share="$prefix/share/mover6_control/config"
 [ -n "$log_dir" ] && mkdir -p "$log_dir"

@@ -165,5 +165,6 @@ def test_robot_state_publisher_only_when_installed(tree):
     assert "get_package_prefix('robot_state_publisher')" in source
     assert 'except PackageNotFoundError' in source
     assert "'mover6.urdf'" in source
-    assert [ast.unparse(keyword(c, 'function')) for c in calls(tree, 'OpaqueFunction')] \
-        == ['robot_state_publisher']
+    # The other OpaqueFunction sets the local DDS configuration (local_dds), as launch.sh does.
+    assert sorted(ast.unparse(keyword(c, 'function')) for c in calls(tree, 'OpaqueFunction')) \
+        == ['local_dds_environment', 'robot_state_publisher']

@@ -16,7 +16,9 @@ the context still valid, and the process exits 0.
 """
 
 import signal
+import sys
 
+from mover6_control.nodes import local_dds
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental.events_executor import EventsExecutor
@@ -72,19 +74,25 @@ def run_node(make_node, args=None):
     shutdown; errors while making or running the node propagate. A node that sets ``fatal``
     (why it cannot go on, e.g. a tick thread that cannot run) is torn down the same way, then
     ``SystemExit`` with that reason ends the process with exit code 1, so a launcher sees it.
+    A node asked for the local DDS configuration (``MOVER6_DDS=local``) that did not get it is
+    not made: the reason is printed and the process exits with code 1 (``local_dds``).
     """
     stop = StopSignals()
     node = None
     try:
+        local_dds.check_environment()
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         if not stop.received:
-            node = make_node()
+            node = local_dds.make_checked_node(make_node)
             executor = EventsExecutor()
             executor.add_node(node)
             while not stop.received and rclpy.ok() and not getattr(node, 'fatal', None):
                 executor.spin_once(timeout_sec=SPIN_SLICE)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except local_dds.LocalDdsError as err:
+        print(f'[FATAL] {err}', file=sys.stderr, flush=True)
+        raise SystemExit(1)
     finally:
         if node is not None:
             node.destroy_node()

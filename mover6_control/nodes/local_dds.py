@@ -1,0 +1,220 @@
+"""
+The package's "this machine only" DDS configuration, and the check that a node really got it.
+
+Under ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` rmw_fastrtps (Jazzy) always adds Fast DDS's
+shared-memory transport, whose port health check holds a participant's send lock for ~1/3 s each
+time a process joins the graph (eProsima/Fast-DDS issue 6535): every publish of the node, the
+controller's tick included, stops that long. The local configuration instead is
+``ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT`` with the shipped Fast DDS profile
+``config/fastdds_local.xml``: UDPv4 on 127.0.0.1 only, unicast discovery to 127.0.0.1, no
+multicast, no shared memory. ``MOVER6_DDS=local`` says a node was asked for it; ./run.sh,
+scripts/launch.sh and the launch file set the three variables when the user has set no DDS
+variable of their own (``python -m mover6_control.nodes.local_dds env`` prints them).
+
+A node asked for the local configuration that did not get it refuses to start with the reason
+(``shutdown.run_node`` calls ``check_environment`` before rclpy starts and makes the node with
+``make_checked_node``): a profile file that Fast DDS did not load, or did not apply,
+would otherwise fall back silently to multicast discovery on every interface.
+"""
+
+import filecmp
+import os
+import socket
+import struct
+import sys
+
+from mover6_control.resources import CONFIG_DIR
+
+MODE_ENV = 'MOVER6_DDS'
+LOCAL = 'local'
+PROFILE = os.path.join(CONFIG_DIR, 'fastdds_local.xml')
+PROFILE_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'     # the name Fast DDS 2.x reads
+RANGE_ENV = 'ROS_AUTOMATIC_DISCOVERY_RANGE'
+# Variables with which a user chooses their own DDS setup (a robot network): when any is set,
+# the launchers leave DDS as the user set it.
+USER_DDS_ENV = (RANGE_ENV, PROFILE_ENV, 'FASTDDS_DEFAULT_PROFILES_FILE',
+                'FASTDDS_BUILTIN_TRANSPORTS', 'ROS_LOCALHOST_ONLY', 'ROS_STATIC_PEERS',
+                'RMW_IMPLEMENTATION', MODE_ENV)
+# Set, these would change what the profile says (transports, peers, middleware).
+CONFLICTING_ENV = ('FASTDDS_BUILTIN_TRANSPORTS', 'ROS_STATIC_PEERS',
+                   'FASTDDS_DEFAULT_PROFILES_FILE')
+LOOPBACK = '127.0.0.1'
+
+
+class LocalDdsError(RuntimeError):
+    """The node was asked for the local DDS configuration and did not get it."""
+
+
+def local_environment(profile: str = PROFILE) -> dict:
+    """Return the environment variables of the local configuration."""
+    return {MODE_ENV: LOCAL, RANGE_ENV: 'SYSTEM_DEFAULT', PROFILE_ENV: profile}
+
+
+def user_chose_dds(environ) -> bool:
+    """Return True when ``environ`` sets any DDS variable of the user's own (not empty)."""
+    return any(environ.get(name) for name in USER_DDS_ENV)
+
+
+def requested(environ=None) -> bool:
+    """Return True when the environment asks for the local configuration (``MOVER6_DDS``)."""
+    environ = os.environ if environ is None else environ
+    mode = environ.get(MODE_ENV, '')
+    if mode not in ('', LOCAL):
+        raise LocalDdsError(f"{MODE_ENV}='{mode}': the only value is '{LOCAL}' (or unset: the "
+                            'DDS setup of the environment as it is)')
+    return mode == LOCAL
+
+
+def check_environment(environ=None) -> None:
+    """
+    Raise ``LocalDdsError`` when the local configuration was asked for and is not selected.
+
+    The message gives every reason; nothing happens when it was not asked for.
+    """
+    environ = os.environ if environ is None else environ
+    if not requested(environ):
+        return
+    problems = []
+    if environ.get(RANGE_ENV) != 'SYSTEM_DEFAULT':
+        problems.append(f"{RANGE_ENV} is '{environ.get(RANGE_ENV, '')}', not SYSTEM_DEFAULT "
+                        '(LOCALHOST adds shared memory, the stall of Fast DDS issue 6535)')
+    profile = environ.get(PROFILE_ENV, '')
+    if not profile:
+        problems.append(f'{PROFILE_ENV} is not set (Fast DDS would use its defaults: multicast '
+                        'on every interface)')
+    elif not os.path.isfile(profile):
+        problems.append(f'{PROFILE_ENV}={profile} is no file')
+    elif not os.path.isfile(PROFILE):
+        problems.append(f'the package has no profile {PROFILE} (install incomplete)')
+    elif not filecmp.cmp(profile, PROFILE, shallow=False):
+        problems.append(f'{PROFILE_ENV}={profile} is not the shipped profile {PROFILE}')
+    for name in CONFLICTING_ENV:
+        if environ.get(name):
+            problems.append(f'{name} is set ({environ[name]}): it overrides the profile')
+    if environ.get('ROS_LOCALHOST_ONLY', '0') not in ('', '0'):
+        problems.append('ROS_LOCALHOST_ONLY is set: it selects LOCALHOST (shared memory)')
+    if environ.get('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp') != 'rmw_fastrtps_cpp':
+        problems.append(f"RMW_IMPLEMENTATION is '{environ['RMW_IMPLEMENTATION']}': the profile "
+                        'is for rmw_fastrtps_cpp')
+    if problems:
+        raise LocalDdsError(_refusal(problems))
+
+
+def _hex_ipv4(text):
+    return socket.inet_ntoa(struct.pack('<I', int(text, 16)))
+
+
+def socket_inodes(pid) -> set:
+    """Return the inodes of the sockets process ``pid`` has open."""
+    inodes = set()
+    fd_dir = f'/proc/{pid}/fd'
+    for fd in os.listdir(fd_dir):
+        try:
+            target = os.readlink(os.path.join(fd_dir, fd))
+        except OSError:              # closed meanwhile
+            continue
+        if target.startswith('socket:['):
+            inodes.add(target[len('socket:['):-1])
+    return inodes
+
+
+def ip_sockets(pid) -> list:
+    """
+    Return ``(protocol, local address, local port, inode)`` of every IP socket of ``pid``.
+
+    From ``/proc/<pid>/net/{udp,udp6,tcp,tcp6}`` (the process's network namespace), matched by
+    inode with the sockets in ``/proc/<pid>/fd``; IPv6 addresses as their hex text.
+    """
+    inodes = socket_inodes(pid)
+    found = []
+    for proto in ('udp', 'udp6', 'tcp', 'tcp6'):
+        try:
+            with open(f'/proc/{pid}/net/{proto}') as f:
+                lines = f.readlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            cols = line.split()
+            if cols[9] in inodes:
+                address, port = cols[1].split(':')
+                if len(address) == 8:
+                    address = _hex_ipv4(address)
+                found.append((proto, address, int(port, 16), cols[9]))
+    return found
+
+
+def multicast_groups() -> list:
+    """
+    Return ``(interface, group)`` of the IPv4 multicast groups joined in this network namespace.
+
+    From ``/proc/net/igmp``; 224.0.0.1 (all systems) is left out: the kernel joins it on every
+    interface itself.
+    """
+    groups, interface = [], None
+    with open('/proc/net/igmp') as f:
+        for line in f.readlines()[1:]:
+            cols = line.split()
+            if not line[0].isspace():
+                interface = cols[1]
+            elif cols:
+                group = _hex_ipv4(cols[0])
+                if group != '224.0.0.1':
+                    groups.append((interface, group))
+    return groups
+
+
+def not_loopback(sockets) -> list:
+    """Return the sockets of ``ip_sockets`` not bound to 127.0.0.1."""
+    return [s for s in sockets if s[1] != LOOPBACK]
+
+
+def make_checked_node(make_node):
+    """
+    Return ``make_node()``; asked for the local configuration, check the participant first.
+
+    The participant of the process's context starts with its first node: a hidden probe node
+    starts it, the sockets it opened (those that were not open before) must all be bound to
+    127.0.0.1, else ``LocalDdsError``; only then is the node made (so it sends nothing in a
+    wrong configuration), and the probe goes (the participant stays with the node).
+    """
+    if not requested():
+        return make_node()
+    import rclpy
+    before = {s[3] for s in ip_sockets(os.getpid())}
+    probe = rclpy.create_node(f'_mover6_dds_check_{os.getpid()}')
+    try:
+        opened = [s for s in ip_sockets(os.getpid()) if s[3] not in before]
+        if not opened:
+            raise LocalDdsError(_refusal(['its DDS participant opened no UDP socket']))
+        wrong = not_loopback(opened)
+        if wrong:
+            raise LocalDdsError(_refusal(
+                [f'its DDS participant has sockets not bound to {LOOPBACK}: '
+                 f'{[s[:3] for s in wrong]} (Fast DDS did not apply the profile: it would '
+                 'discover by multicast on every interface)']))
+        return make_node()
+    finally:
+        probe.destroy_node()
+
+
+def _refusal(problems):
+    return (f'{MODE_ENV}={LOCAL} asks for the local DDS configuration (DDS on 127.0.0.1 only, '
+            'no shared memory), but ' + '; '.join(problems) + '. Not starting. Unset '
+            f'{MODE_ENV} to use the DDS setup of the environment as it is.')
+
+
+def main(argv=None) -> int:
+    """``env``: print the shell exports of the local configuration unless the user chose DDS."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv != ['env']:
+        print('usage: python -m mover6_control.nodes.local_dds env', file=sys.stderr)
+        return 2
+    if user_chose_dds(os.environ):
+        return 0
+    for name, value in local_environment().items():
+        print(f"export {name}='{value}'")
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,39 @@
+"""
+The controller's tick while processes join the graph (issue 22): no stall, no halt, no abort.
+
+A short run of bench/bench_churn.py in the run's DDS configuration: 12 processes join the graph
+(each echoes /controller/status once, as ``ros2 topic echo`` does) while motions run. Under
+LOCALHOST (shared memory) every joining process can hold each publish of the controller for
+~1/3 s (Fast DDS issue 6535): the tick stalls past the bridge's 0.2 s command timeout, the
+bridge halts the joints and the motion aborts. The limits are generous (a stall is a gap of
+0.2 s, the bridge's timeout); the figures themselves are for ``./run.sh bench churn``.
+Only inside a private network namespace (./run.sh test): the churn processes run in the same
+configuration as the nodes.
+"""
+
+import os
+import socket
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+from bench import bench_churn  # noqa: E402, I100
+import pytest  # noqa: E402
+
+pytestmark = [pytest.mark.e2e, pytest.mark.skipif(
+    [name for _, name in socket.if_nameindex()] != ['lo'],
+    reason='runs the test configuration for every process: only inside a private network '
+    'namespace (./run.sh test makes one)')]
+CHURN = 12
+
+
+def test_joining_processes_stall_neither_tick_nor_motion(tmp_path):
+    """No tick gap of 0.2 s or more, no halt at the bridge, every motion arrived."""
+    row = bench_churn.run_variant('test', {}, {}, CHURN, str(tmp_path))
+    figures = {k: row[k] for k in ('max_tick_gap_ms', 'ticks_over_200ms', 'bridge_halts',
+                                   'motion_results', 'churn_saw_status', 'log_dir')}
+    assert row['churn_saw_status'] == CHURN, figures
+    assert row['ticks_over_200ms'] == 0, figures
+    assert row['bridge_halts'] == 0, figures
+    assert row['motions_sent'] >= 2, figures
+    assert row['motions_arrived'] == row['motions_sent'], figures
