@@ -36,6 +36,12 @@ DDS: this machine only (UDP on 127.0.0.1, config/fastdds_local.xml) unless you s
 EOF
 }
 
+# A DDS setup of the user's own (a robot network) is left as it is (README, "DDS").
+USER_DDS=''
+for v in ROS_AUTOMATIC_DISCOVERY_RANGE FASTRTPS_DEFAULT_PROFILES_FILE FASTDDS_DEFAULT_PROFILES_FILE \
+         FASTDDS_BUILTIN_TRANSPORTS ROS_LOCALHOST_ONLY ROS_STATIC_PEERS RMW_IMPLEMENTATION MOVER6_DDS; do
+    [ -n "${!v:-}" ] && USER_DDS="$USER_DDS $v"
+done
 export PYTHONDONTWRITEBYTECODE=1
 export MPLBACKEND=Agg
 # Offscreen MuJoCo rendering (demo animation, render tests) through EGL when there is no display.
@@ -249,6 +255,21 @@ private_netns() {
     return 1
 }
 
+in_private_netns() {
+    # in_private_netns demo|bench ARGS: run ./run.sh again inside a private network namespace
+    # (only loopback: nothing the nodes send can leave the machine; the package's stall-free
+    # local DDS configuration applies there) when the machine allows one, the user chose no DDS
+    # setup of their own and did not ask for the host network (MOVER6_NETNS=0). Returns when it
+    # does not; the caller then runs on the host network (LOCALHOST).
+    [ "${MOVER6_NETNS:-1}" = 0 ] && return 0
+    [ -n "$USER_DDS" ] && return 0
+    only_loopback && return 0
+    private_netns || return 0
+    log "$1 inside a private network namespace (${UNSHARE[*]}): only loopback (MOVER6_NETNS=0: host)"
+    unset ROS_AUTOMATIC_DISCOVERY_RANGE MOVER6_DDS FASTRTPS_DEFAULT_PROFILES_FILE
+    exec "${UNSHARE[@]}" bash -c 'ip link set lo up && exec "$0" "$@"' "$ROOT/run.sh" "$@"
+}
+
 only_loopback() {
     # True when this network namespace has no interface but lo.
     [ "$(ip -o link show 2>/dev/null | awk -F': ' '{print $2}' | tr '\n' ' ')" = 'lo ' ]
@@ -311,6 +332,7 @@ case "$cmd" in
         ;;
     demo)
         ensure
+        in_private_netns demo "$@"
         pick_domain_id
         exec python -m mover6_control.tools.demo "$@"
         ;;
@@ -324,6 +346,7 @@ case "$cmd" in
         ;;
     bench)
         ensure
+        in_private_netns bench "$@"
         pick_domain_id
         cd "$ROOT"          # python -m bench finds the bench package in the current directory
         exec python -m bench "$@"

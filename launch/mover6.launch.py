@@ -56,11 +56,9 @@ def robot_state_publisher(context):
 
 
 def local_dds_environment(context):
-    """Set the local DDS configuration, unless the user set DDS variables of their own."""
-    if local_dds.user_chose_dds(os.environ):
-        return []
+    """Set DDS to stay on this machine, unless the user set DDS variables of their own."""
     return [SetEnvironmentVariable(name, value)
-            for name, value in local_dds.local_environment().items()]
+            for name, value in local_dds.default_environment(os.environ).items()]
 
 
 def generate_launch_description():

@@ -178,6 +178,30 @@ def test_the_launchers_keep_a_users_dds_setup():
     bare = {k: v for k, v in os.environ.items() if k not in local_dds.USER_DDS_ENV}
     out = subprocess.run([sys.executable, '-m', 'mover6_control.nodes.local_dds', 'env'],
                          env=bare, capture_output=True, text=True, timeout=30).stdout
-    assert "export MOVER6_DDS='local'" in out
-    assert "export ROS_AUTOMATIC_DISCOVERY_RANGE='SYSTEM_DEFAULT'" in out
+    if in_private_netns():
+        # Only lo here: the local configuration.
+        assert "export MOVER6_DDS='local'" in out
+        assert "export ROS_AUTOMATIC_DISCOVERY_RANGE='SYSTEM_DEFAULT'" in out
+        assert f"export FASTRTPS_DEFAULT_PROFILES_FILE='{local_dds.PROFILE}'" in out
+    else:
+        # A host with other interfaces: discovery on loopback as ROS knows it.
+        assert out == "export ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'\n", out
+    # MOVER6_DDS=local alone asks for the local configuration anywhere.
+    out = subprocess.run([sys.executable, '-m', 'mover6_control.nodes.local_dds', 'env'],
+                         env=dict(bare, MOVER6_DDS='local'), capture_output=True, text=True,
+                         timeout=30).stdout
+    assert "export ROS_AUTOMATIC_DISCOVERY_RANGE='SYSTEM_DEFAULT'" in out, out
     assert f"export FASTRTPS_DEFAULT_PROFILES_FILE='{local_dds.PROFILE}'" in out
+
+
+def test_the_default_is_local_only_in_a_private_namespace(tmp_path, monkeypatch):
+    """Without a DDS choice: the profile where only lo exists, LOCALHOST on a wider host."""
+    for names, expected in ((['lo'], local_dds.local_environment()),
+                            (['eth0', 'lo'], {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'})):
+        net = tmp_path / '-'.join(names)
+        for name in names:
+            (net / name).mkdir(parents=True)
+        monkeypatch.setattr(local_dds, 'only_loopback',
+                            lambda net=net: local_dds.only_loopback(str(net)))
+        assert local_dds.default_environment({}) == expected, names
+    assert local_dds.default_environment({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET'}) == {}

@@ -203,15 +203,46 @@ def _refusal(problems):
             f'{MODE_ENV} to use the DDS setup of the environment as it is.')
 
 
+def only_loopback(net_dir: str = '/sys/class/net') -> bool:
+    """Return True when this network namespace has no interface but ``lo`` (a private one)."""
+    try:
+        return sorted(os.listdir(net_dir)) == ['lo']
+    except OSError:
+        return False
+
+
+def default_environment(environ) -> dict:
+    """
+    Return the DDS variables the launchers set in ``environ``: none when the user chose DDS.
+
+    ``MOVER6_DDS=local`` alone asks for the local configuration anywhere. Without any DDS
+    variable of the user's: the local configuration inside a private network namespace (only
+    ``lo``: nothing sent can leave the machine); on a host with other interfaces, discovery on
+    loopback as ROS knows it (``LOCALHOST``), the rule of the machines this package is tested
+    on; ``MOVER6_DDS=local`` then opts into the stall-free profile (README, "DDS").
+    """
+    chosen = [name for name in USER_DDS_ENV if environ.get(name)]
+    if chosen == [MODE_ENV] and requested(environ):
+        return local_environment()
+    if chosen:
+        return {}
+    if only_loopback():
+        return local_environment()
+    return {RANGE_ENV: 'LOCALHOST'}
+
+
 def main(argv=None) -> int:
-    """``env``: print the shell exports of the local configuration unless the user chose DDS."""
+    """``env``: print the shell exports of ``default_environment`` (none: the user chose)."""
     argv = sys.argv[1:] if argv is None else argv
     if argv != ['env']:
         print('usage: python -m mover6_control.nodes.local_dds env', file=sys.stderr)
         return 2
-    if user_chose_dds(os.environ):
-        return 0
-    for name, value in local_environment().items():
+    try:
+        exports = default_environment(os.environ)
+    except LocalDdsError as err:
+        print(err, file=sys.stderr)
+        return 1
+    for name, value in exports.items():
         print(f"export {name}='{value}'")
     return 0
 
