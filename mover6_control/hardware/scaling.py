@@ -49,12 +49,12 @@ class JointScale:
 
     @property
     def ticks_per_rad(self) -> float:
-        """Encoder ticks per joint radian, signed like the gear [ticks/rad]."""
+        """Return the encoder ticks per joint radian, signed like the gear [ticks/rad]."""
         return self.gear * self.ticks_per_rev / (2.0 * math.pi)
 
     @property
     def tick(self) -> float:
-        """One encoder tick as a joint angle [rad] (positive)."""
+        """Return one encoder tick as a joint angle [rad] (positive)."""
         return 1.0 / abs(self.ticks_per_rad)
 
     def to_ticks(self, q: float) -> int:
