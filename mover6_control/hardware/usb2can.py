@@ -162,7 +162,10 @@ class Usb2CanBus(can.BusABC):
         deadline = None if timeout is None else time.monotonic() + timeout
         while not self._pending:
             try:
-                chunk = self._serial.read(max(1, self._serial.in_waiting))
+                waiting = self._serial.in_waiting
+                if not waiting and deadline is not None and time.monotonic() >= deadline:
+                    return None, False       # a poll (timeout 0) returns at once
+                chunk = self._serial.read(max(1, waiting))
             except (serial.SerialException, OSError) as err:
                 raise can.CanOperationError(f'USB2CAN read failed: {err}') from err
             if chunk:
