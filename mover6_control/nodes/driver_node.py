@@ -47,8 +47,8 @@ LEVELS = {'fault': 'ERROR', 'error': 'ERROR', 'disconnected': 'WARN', 'connected
 class DriverNode(Node):
     """Drive the arm over CAN; see the module docstring."""
 
-    def __init__(self):
-        super().__init__('driver')
+    def __init__(self, **kwargs):
+        super().__init__('driver', **kwargs)
         declare(self, DRIVER)
         self.add_post_set_parameters_callback(self.on_parameters_set)
         p = {name: self.get_parameter(name).value for name in DRIVER}
@@ -69,9 +69,9 @@ class DriverNode(Node):
         self._diag_now = False
         self._wake = threading.Condition()
         self._closing = False
-        self.pub_states = self.create_publisher(JointState, '/joint_states', 10)
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.create_subscription(JointJog, '/JointJog', self.on_jog, 10)
+        self.pub_states = self.create_publisher(JointState, 'joint_states', 10)
+        self.pub_diag = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
+        self.create_subscription(JointJog, 'JointJog', self.on_jog, 10)
         group = ReentrantCallbackGroup()
         for kind in ('reset', 'enable', 'disable', 'reference', 'set_zero'):
             self.create_service(Trigger, f'~/{kind}', self._service(kind), callback_group=group)
