@@ -338,7 +338,7 @@ DRIVER = _table(
     P('enable_on_start', 'bool', False, '',
       'reset and enable the motors once every module answers; set at start', read_only=True),
     P('limit_set', 'str', 'hardware', '',
-      "set-points are clamped to these joint limits, always within the hardware ones: "
+      'set-points are clamped to these joint limits, always within the hardware ones: '
       "hardware (the vendor's, the default: an arm parked outside [-pi/2, pi/2] is not pulled "
       'in at enable) or within_90_deg; set at start', allowed=LIMIT_SETS, read_only=True),
     P('joints_file', 'str', '', '',

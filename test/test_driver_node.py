@@ -42,7 +42,7 @@ class Operator(Node):
         self.create_subscription(JointState, 'joint_states', self.states.append, 10)
         self.create_subscription(DiagnosticArray, 'diagnostics', self.diagnostics.append, 10)
         self.triggers = {k: self.create_client(Trigger, f'driver/{k}')
-                        for k in ('reset', 'enable', 'disable', 'reference', 'set_zero')}
+                         for k in ('reset', 'enable', 'disable', 'reference', 'set_zero')}
 
     def call(self, kind, timeout=60.0):
         client = self.triggers[kind]

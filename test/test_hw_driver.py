@@ -28,9 +28,9 @@ class Modules:
 
     def __init__(self, bus, positions=None):
         self.bus = bus
-        self.flags = {n: 0x1C for n in range(1, 7)}
+        self.flags = dict.fromkeys(range(1, 7), 0x1C)
         self.wire = {n: (positions or {}).get(n, 0) + JOINTS[n - 1].offset for n in range(1, 7)}
-        self.inputs = {n: 0 for n in range(1, 7)}
+        self.inputs = dict.fromkeys(range(1, 7), 0)
         self.silent = set()
         self.frozen = set()
         self.log = []            # (joint, Command)
@@ -162,7 +162,7 @@ def test_command_timeout_holds_within_one_cycle(rig):
     r.driver.set_velocity([0.3] * 6)
     t0 = r.t
     r.run(10)
-    sent_after = [sp for sp in r.modules.setpoints(3)[-10:]]
+    sent_after = r.modules.setpoints(3)[-10:]
     moving = [i for i in range(1, 10) if sent_after[i] != sent_after[i - 1]]
     # Commands are fresh for 0.2 s = 4 cycles; at the 5th cycle after t0 the set-point holds.
     assert moving and max(moving) <= 4

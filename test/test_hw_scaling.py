@@ -11,8 +11,8 @@ import math
 from hypothesis import given, strategies as st
 from mover6_control.errors import InvalidInputError
 from mover6_control.hardware.scaling import joints_from_dict, JOINTS_YAML, load_joints
-from mover6_control.kinematics.arm import (MOVER6_GEAR_RATIOS, MOVER6_TICKS_PER_MOTOR_TURN,
-                                           mover6)
+from mover6_control.kinematics.arm import (mover6, MOVER6_GEAR_RATIOS,
+                                           MOVER6_TICKS_PER_MOTOR_TURN)
 import numpy as np
 import pytest
 import yaml

@@ -217,7 +217,7 @@ class ArmDriver:
             self._command = (clipped, self.clock() if now is None else now)
 
     def set_outputs(self, joint: int, bits: int) -> None:
-        """Set the digital outputs (0..255) that module ``joint`` (1..6) gets with its set-point."""
+        """Set the digital outputs (0..255) sent to module ``joint`` (1..6) with its set-points."""
         p.command_id(joint)
         if isinstance(bits, bool) or not isinstance(bits, int) or not 0 <= bits <= 0xFF:
             raise InvalidInputError(f'digital outputs must be an int in 0..255, got {bits!r}')
@@ -230,7 +230,8 @@ class ArmDriver:
         Queue ``kind`` (reset, enable, disable, reference, set_zero) for ``joints`` (default all).
 
         Referencing and set zero are refused while the arm moves; referencing needs its joint
-        enabled, set zero its joints disabled. The control thread sends the frames at its next cycle.
+        enabled, set zero its joints disabled. The control thread sends the frames at its next
+        cycle.
         """
         if kind not in p.COMMAND_FRAMES:
             raise InvalidInputError(f'request must be one of {sorted(p.COMMAND_FRAMES)}, '
