@@ -18,7 +18,9 @@ from mover6_control.resources import CONFIG_DIR
 ROOT = os.path.dirname(CONFIG_DIR)
 MODULES = {'sim_bridge': 'sim_bridge.bridge_node',
            'controller': 'mover6_control.nodes.controller_node',
-           'planner': 'mover6_control.nodes.planner_node'}
+           'planner': 'mover6_control.nodes.planner_node',
+           'driver': 'mover6_control.nodes.driver_node',
+           'can_sim': 'sim_bridge.can_sim'}
 
 
 def node_command(name):
@@ -137,3 +139,73 @@ def wait_until(predicate, timeout, spin=None, period=0.05):
         else:
             time.sleep(period)
     return bool(predicate())
+
+
+class CanSimProcess:
+    """
+    The CAN-level Mover6 (``can_sim``) in its own process on a pty linked at ``link``.
+
+    ``args`` are added to its command line; its output goes to ``log_dir``/can_sim.log.
+    ``control(line)`` talks to its control socket. Use as a context manager.
+    """
+
+    def __init__(self, log_dir, link, args=()):
+        self.link = str(link)
+        self.control_path = self.link + '.control'
+        self.name = 'can_sim'
+        self.log_path = os.path.join(str(log_dir), 'can_sim.log')
+        self.log = open(self.log_path, 'w')
+        cmd = node_command('can_sim') + ['--link', self.link] + list(args)
+        self.proc = subprocess.Popen(cmd, stdout=self.log, stderr=subprocess.STDOUT, cwd=ROOT,
+                                     env=dict(os.environ, PYTHONUNBUFFERED='1'))
+
+    @property
+    def pid(self):
+        """Return the process id."""
+        return self.proc.pid
+
+    def alive(self):
+        """Return True while the process runs."""
+        return self.proc.poll() is None
+
+    def wait_ready(self, timeout=30.0):
+        """Wait until the link and the control socket exist; return True if they do."""
+        return wait_until(lambda: not self.alive() or (
+            os.path.exists(self.link) and os.path.exists(self.control_path)), timeout) \
+            and self.alive()
+
+    def control(self, line):
+        """Send one control command; return its JSON answer as a dict."""
+        from sim_bridge.can_sim import control
+        return control(self.control_path, line)
+
+    def stop(self, timeout=10.0):
+        """Stop the process by its pid: SIGINT, then SIGKILL after ``timeout`` [s]."""
+        if self.alive():
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5.0)
+        self.log.close()
+        return self.proc.returncode
+
+    def tail(self, lines=30):
+        """Return the last lines of its output."""
+        try:
+            with open(self.log_path) as f:
+                return ''.join(f.readlines()[-lines:])
+        except OSError:
+            return ''
+
+    def __enter__(self):
+        """Return self once it is ready (or raise with its output)."""
+        if not self.wait_ready():
+            self.stop()
+            raise RuntimeError(f'can_sim did not come up:\n{self.tail()}')
+        return self
+
+    def __exit__(self, *exc):
+        """Stop it."""
+        self.stop()

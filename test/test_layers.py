@@ -23,6 +23,7 @@ LAYER_OF = {
     'mover6_control.motion': 'motion',
     'mover6_control.control': 'control',
     'mover6_control.planning': 'planning',
+    'mover6_control.hardware': 'hardware',
     'mover6_control.nodes': 'nodes',
     'mover6_control.tools': 'tools',
     'sim_bridge': 'sim',
@@ -37,11 +38,12 @@ MAY_IMPORT = {
     'motion': {'base', 'kinematics'},
     'control': {'base', 'kinematics', 'motion', 'collision'},
     'planning': {'base', 'kinematics', 'motion', 'collision'},
-    'sim': {'base', 'kinematics', 'collision'},
-    'nodes': {'base', 'kinematics', 'motion', 'control', 'planning', 'collision'},
+    'hardware': {'base'},
+    'sim': {'base', 'kinematics', 'collision', 'hardware'},
+    'nodes': {'base', 'kinematics', 'motion', 'control', 'planning', 'collision', 'hardware'},
     'sim_node': {'base', 'kinematics', 'sim', 'nodes'},
     'tools': {'base', 'kinematics', 'motion', 'control', 'planning', 'nodes', 'sim',
-              'collision'},
+              'collision', 'hardware'},
 }
 
 
@@ -106,6 +108,8 @@ def test_the_check_can_fail():
     assert layer_of('mover6_control.control.robot') not in MAY_IMPORT['kinematics']
     assert layer_of('sim_bridge.model') not in MAY_IMPORT['planning']
     assert layer_of('mover6_control.kinematics.arm') in MAY_IMPORT['motion']
+    assert layer_of('mover6_control.hardware.driver') not in MAY_IMPORT['control']
+    assert layer_of('mover6_control.control.robot') not in MAY_IMPORT['hardware']
 
 
 @pytest.mark.parametrize('module,path', project_modules(), ids=lambda v: str(v))

@@ -1,0 +1,336 @@
+"""
+The CAN-level Mover6 (``sim_bridge.can_arm``) on a wire: a python-can bus or a serial pty.
+
+``ros2 run mover6_control can_sim --link /tmp/mover6-can`` opens a pseudo-terminal that speaks
+the CPR USB2CAN adapter's serial framing (11-byte frames, ``mover6_control.hardware.usb2can``),
+links its device to ``--link`` and answers there as the arm's six motor modules: a driver opens
+that path exactly as it opens ``/dev/ttyUSB0`` on the real arm. It runs until SIGINT or
+SIGTERM, then removes the link and the control socket. No ROS here.
+
+Control channel, for tests and for trying faults by hand: a unix stream socket (``--control``,
+default the link's path plus ``.control``) taking one command per line and answering each with
+one line of JSON, ``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``:
+
+    status                       the arm: time, q [rad], encoders, each module, wire counters
+    flags JOINT FLAGS [sticky]   raise error flags (e.g. 0x10) on a module; sticky: a reset
+                                 does not clear them
+    silent JOINT on|off          the module stops answering, or answers again
+    corrupt COUNT [JOINT]        flip a byte in each of the next COUNT frames sent (of JOINT's
+                                 module only, if given): the adapter's reader must drop them
+
+(``control()`` below sends one; e.g. ``python3 -m sim_bridge.can_sim --send PATH status``.)
+
+In-process, ``BusServer`` answers on any python-can bus (the unit tests use the ``virtual``
+interface).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import select
+import signal
+import socket
+import sys
+import time
+import tty
+
+import can
+from mover6_control.errors import InvalidInputError
+from mover6_control.hardware import protocol, usb2can
+from mover6_control.hardware.scaling import JOINTS_YAML, load_joints
+from mover6_control.kinematics.arm import LIMIT_SETS, mover6
+import numpy as np
+from sim_bridge.can_arm import CanArm, ModuleTiming
+
+COMMAND_IDS = tuple(protocol.command_id(j) for j in protocol.JOINTS)
+
+
+def build_arm(limit_set: str = 'hardware', joints_file: str = JOINTS_YAML,
+              home_q=None, timing: ModuleTiming | None = None) -> CanArm:
+    """Return the CAN-level Mover6 counting with the joint file the driver reads."""
+    _, joints = load_joints(joints_file)
+    return CanArm(mover6(limit_set), joints, timing,
+                  None if home_q is None else np.asarray(home_q, dtype=float))
+
+
+class BusServer:
+    """Answer as the arm on a python-can ``bus``; ``poll`` once per loop pass."""
+
+    def __init__(self, arm: CanArm, bus: can.BusABC, clock=time.monotonic) -> None:
+        """Serve ``arm`` on ``bus``; ``clock`` gives the time [s]."""
+        self.arm, self.bus, self.clock = arm, bus, clock
+
+    def poll(self, timeout: float) -> None:
+        """Take what arrives within ``timeout`` [s], answer it, run the arm to now."""
+        msg = self.bus.recv(timeout)
+        while msg is not None:
+            if not (msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id):
+                for can_id, data in self.arm.receive(msg.arbitration_id,
+                                                     bytes(msg.data[:msg.dlc]), self.clock()):
+                    self.bus.send(can.Message(arbitration_id=can_id, data=data,
+                                              is_extended_id=False))
+            msg = self.bus.recv(0.0)
+        self.arm.advance(self.clock())
+
+    def serve(self, stop) -> None:
+        """Poll until ``stop.is_set()`` (a ``threading.Event``)."""
+        while not stop.is_set():
+            self.poll(self.arm.sim.config.physics_dt)
+
+
+class PtyLink:
+    """A pseudo-terminal in raw mode whose device is linked at ``link``; we hold the master."""
+
+    def __init__(self, link: str) -> None:
+        """Open the pty and make the link (an old link there is replaced, a file is not)."""
+        if os.path.lexists(link) and not os.path.islink(link):
+            raise InvalidInputError(f'{link} exists and is no symbolic link: not replacing it')
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)            # no echo, no line discipline: bytes as they are
+        os.set_blocking(self.master, False)
+        self.device = os.ttyname(self.slave)
+        self.link = link
+        if os.path.lexists(link):
+            os.unlink(link)
+        os.symlink(self.device, link)
+        self.written = 0
+        self.overruns = 0                 # frames lost because nobody reads the port
+
+    def read(self) -> bytes:
+        """Return what the port has (b'' if nothing)."""
+        try:
+            return os.read(self.master, 4096)
+        except (BlockingIOError, OSError):
+            return b''
+
+    def write(self, frame: bytes) -> None:
+        """Write one frame; drop it if the port's buffer is full (nobody reads)."""
+        try:
+            os.write(self.master, frame)
+            self.written += 1
+        except (BlockingIOError, OSError):
+            self.overruns += 1
+
+    def close(self) -> None:
+        """Remove the link and close the pty."""
+        if os.path.islink(self.link) and os.readlink(self.link) == self.device:
+            os.unlink(self.link)
+        os.close(self.master)
+        os.close(self.slave)
+
+
+class Corruptor:
+    """Flip one byte in each of the next ``count`` serial frames (of one joint, or any)."""
+
+    def __init__(self) -> None:
+        """Corrupt nothing yet."""
+        self.pending = 0
+        self.joint = None
+        self.done = 0
+
+    def arm(self, count: int, joint: int | None) -> None:
+        """Corrupt the next ``count`` frames (of ``joint``'s replies, if given)."""
+        self.pending, self.joint = count, joint
+
+    def apply(self, can_id: int, frame: bytes) -> bytes:
+        """Return ``frame``, corrupted if it is one of those asked for."""
+        if self.pending <= 0 or (self.joint is not None and
+                                 can_id != protocol.reply_id(self.joint)):
+            return frame
+        self.pending -= 1
+        self.done += 1
+        out = bytearray(frame)
+        out[2 + self.done % 8] ^= 0x5A      # a data byte: position, flags, ... never valid
+        return bytes(out)
+
+
+def _parse_int(text, name):
+    """Return ``text`` as an int (decimal or 0x..), or raise InvalidInputError."""
+    try:
+        return int(text, 0)
+    except ValueError:
+        raise InvalidInputError(f'{name} must be an integer, got {text!r}') from None
+
+
+class SerialArm:
+    """The arm behind a pty speaking the USB2CAN framing, plus the control channel."""
+
+    def __init__(self, arm: CanArm, link: str, control_path: str) -> None:
+        """Open the pty and the control socket."""
+        self.arm = arm
+        self.decoder = usb2can.SerialFrameDecoder(accept_ids=COMMAND_IDS)
+        self.corruptor = Corruptor()
+        self.pty = PtyLink(link)
+        self.control_path = control_path
+        if os.path.lexists(control_path):
+            os.unlink(control_path)
+        self.listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self.listener.bind(control_path)
+        self.listener.listen(4)
+        self.clients = {}                 # socket -> bytes received so far
+        self.running = True
+
+    def close(self) -> None:
+        """Close everything and remove the link and the socket."""
+        for client in list(self.clients):
+            client.close()
+        self.listener.close()
+        if os.path.exists(self.control_path):
+            os.unlink(self.control_path)
+        self.pty.close()
+
+    def run(self) -> None:
+        """Serve until ``running`` is cleared (by a signal)."""
+        dt = self.arm.sim.config.physics_dt
+        while self.running:
+            fds = [self.pty.master, self.listener] + list(self.clients)
+            try:
+                ready, _, _ = select.select(fds, [], [], dt)
+            except InterruptedError:
+                continue
+            now = time.monotonic()
+            if self.pty.master in ready:
+                self.on_serial(self.pty.read(), now)
+            if self.listener in ready:
+                client, _ = self.listener.accept()
+                self.clients[client] = b''
+            for client in [c for c in self.clients if c in ready]:
+                self.on_client(client)
+            self.arm.advance(time.monotonic())
+
+    def on_serial(self, chunk: bytes, now: float) -> None:
+        """Answer every frame in ``chunk``."""
+        for can_id, data in self.decoder.feed(chunk, now):
+            for reply_id, reply in self.arm.receive(can_id, data, now):
+                frame = usb2can.encode_serial_frame(reply_id, reply)
+                self.pty.write(self.corruptor.apply(reply_id, frame))
+
+    def on_client(self, client) -> None:
+        """Read from a control client; answer each complete line."""
+        try:
+            data = client.recv(4096)
+        except OSError:
+            data = b''
+        if not data:
+            client.close()
+            del self.clients[client]
+            return
+        buffer = self.clients[client] + data
+        *lines, rest = buffer.split(b'\n')
+        self.clients[client] = rest
+        for line in lines:
+            try:
+                answer = {'ok': True, **self.command(line.decode().split())}
+            except (InvalidInputError, UnicodeDecodeError) as err:
+                answer = {'ok': False, 'error': str(err)}
+            try:
+                client.sendall((json.dumps(answer) + '\n').encode())
+            except OSError:
+                pass
+
+    def command(self, words: list[str]) -> dict:
+        """Carry out one control command; return what to answer."""
+        now = time.monotonic()
+        if words == ['status']:
+            return {**self.arm.status(), 'pty': self.pty.device,
+                    'frames_out': self.pty.written, 'overruns': self.pty.overruns,
+                    'corrupted': self.corruptor.done, 'corrupt_pending': self.corruptor.pending,
+                    'serial_dropped': self.decoder.dropped}
+        if len(words) in (3, 4) and words[0] == 'flags' and words[3:] in ([], ['sticky']):
+            joint = _parse_int(words[1], 'JOINT')
+            self.arm.inject_flags(joint, _parse_int(words[2], 'FLAGS'), now, words[3:] != [])
+            return {}
+        if len(words) == 3 and words[0] == 'silent' and words[2] in ('on', 'off'):
+            self.arm.set_silent(_parse_int(words[1], 'JOINT'), words[2] == 'on')
+            return {}
+        if len(words) in (2, 3) and words[0] == 'corrupt':
+            count = _parse_int(words[1], 'COUNT')
+            joint = _parse_int(words[2], 'JOINT') if len(words) == 3 else None
+            if count < 0 or (joint is not None and joint not in protocol.JOINTS):
+                raise InvalidInputError(f'corrupt COUNT [JOINT]: COUNT >= 0, JOINT in 1..6; '
+                                        f'got {words[1:]}')
+            self.corruptor.arm(count, joint)
+            return {}
+        raise InvalidInputError(
+            f'unknown command {" ".join(words)!r}: status | flags JOINT FLAGS [sticky] | '
+            f'silent JOINT on|off | corrupt COUNT [JOINT]')
+
+
+def control(path: str, line: str, timeout: float = 5.0) -> dict:
+    """Send one command to the control socket at ``path``; return its answer."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+        sock.settimeout(timeout)
+        sock.connect(path)
+        sock.sendall(line.strip().encode() + b'\n')
+        answer = b''
+        while not answer.endswith(b'\n'):
+            chunk = sock.recv(65536)
+            if not chunk:
+                break
+            answer += chunk
+    return json.loads(answer.decode())
+
+
+def parse_args(argv):
+    """Return the command line's options."""
+    parser = argparse.ArgumentParser(
+        prog='can_sim', description='The Mover6 at CAN level on a pseudo-terminal speaking the '
+        'CPR USB2CAN framing (see the module docstring of sim_bridge.can_sim).')
+    parser.add_argument('--link', help='make the pty reachable at this path (required)')
+    parser.add_argument('--control', help='control socket path (default: LINK.control)')
+    parser.add_argument('--limit-set', default='hardware', choices=LIMIT_SETS,
+                        help='joint limits of the simulated arm (default: hardware)')
+    parser.add_argument('--joints-file', default=JOINTS_YAML,
+                        help="joint configuration YAML (default: the package's "
+                        'config/mover6_joints.yaml, as the driver)')
+    parser.add_argument('--home', type=float, nargs=6, metavar='Q',
+                        help='joint positions at power-up [rad] (default: zeros)')
+    parser.add_argument('--watchdog-timeout', type=float, default=ModuleTiming.watchdog_timeout,
+                        help='[s] without a set-point before 0x08 (default: %(default)s)')
+    parser.add_argument('--lag-limit', type=float, default=ModuleTiming.lag_limit,
+                        help='[rad] position lag before 0x10 (default: %(default)s)')
+    parser.add_argument('--send', nargs='+', metavar=('PATH', 'WORD'),
+                        help='send one control command to a running can_sim and print the '
+                        'answer, e.g. --send /tmp/mover6-can.control status')
+    args = parser.parse_args(argv)
+    if args.send is None and not args.link:
+        parser.error('--link is required')
+    return args
+
+
+def main(argv=None) -> int:
+    """Run the simulated arm on a pty until SIGINT or SIGTERM; or send one control command."""
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    if args.send is not None:
+        if len(args.send) < 2:
+            print('can_sim: --send PATH COMMAND...', file=sys.stderr)
+            return 2
+        answer = control(args.send[0], ' '.join(args.send[1:]))
+        print(json.dumps(answer))
+        return 0 if answer.get('ok') else 1
+    try:
+        timing = ModuleTiming(watchdog_timeout=args.watchdog_timeout, lag_limit=args.lag_limit)
+        arm = build_arm(args.limit_set, args.joints_file, args.home, timing)
+        server = SerialArm(arm, args.link, args.control or args.link + '.control')
+    except (InvalidInputError, OSError) as err:
+        print(f'can_sim: {err}', file=sys.stderr)
+        return 2
+
+    def stop(*_):
+        server.running = False
+
+    signal.signal(signal.SIGINT, stop)
+    signal.signal(signal.SIGTERM, stop)
+    print(f'can_sim: ready on {args.link} ({server.pty.device}), control {server.control_path}',
+          flush=True)
+    try:
+        server.run()
+    finally:
+        server.close()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,341 @@
+"""
+The arm driver against python-can's ``virtual`` bus and a minimal stand-in for the six modules.
+
+``Modules`` below is a test double used only in this unit test of ``ArmDriver``: it answers each
+set-point with a reply as the protocol says (flags 0x1C after power-up, 0x04 after reset, 0x00
+after enable; referencing and set zero taking effect on the second frame), and follows a
+set-point at once when enabled. The cycle runs on synthetic time (``step(t)``), except in the one
+test of the control thread.
+"""
+
+import itertools
+import threading
+import time
+
+import can
+from mover6_control.errors import InvalidInputError
+from mover6_control.hardware import protocol as p
+from mover6_control.hardware.driver import ArmDriver
+from mover6_control.hardware.scaling import load_joints
+import pytest
+
+_, JOINTS = load_joints()
+CHANNELS = itertools.count()
+
+
+class Modules:
+    """Six module stand-ins on the other end of a virtual bus (test double)."""
+
+    def __init__(self, bus, positions=None):
+        self.bus = bus
+        self.flags = dict.fromkeys(range(1, 7), 0x1C)
+        self.wire = {n: (positions or {}).get(n, 0) + JOINTS[n - 1].offset for n in range(1, 7)}
+        self.inputs = dict.fromkeys(range(1, 7), 0)
+        self.silent = set()
+        self.frozen = set()
+        self.log = []            # (joint, Command)
+        self.repeats = {}
+        self.stamp = 0
+
+    def serve(self):
+        while True:
+            msg = self.bus.recv(timeout=0.0)
+            if msg is None:
+                return
+            joint, is_reply = p.joint_of_id(msg.arbitration_id)
+            assert not is_reply
+            cmd = p.decode_command(bytes(msg.data))
+            self.log.append((joint, cmd))
+            self._apply(joint, cmd)
+
+    def _apply(self, n, cmd):
+        # Referencing and set zero take effect on the second frame of their kind.
+        second = cmd.kind != 'setpoint' and self.repeats.get(n) == cmd.kind
+        if cmd.kind != 'setpoint':
+            self.repeats[n] = None if second else cmd.kind
+        if cmd.kind == 'reset':
+            self.flags[n] = 0x04
+        elif cmd.kind == 'disable':
+            self.flags[n] |= 0x04
+        elif cmd.kind == 'enable' and self.flags[n] == 0x04:
+            self.flags[n] = 0x00
+        elif cmd.kind == 'reference' and second:
+            self.inputs[n] |= p.REFERENCED
+        elif cmd.kind == 'set_zero' and second:
+            self.wire[n] = JOINTS[n - 1].offset
+        elif cmd.kind == 'setpoint':
+            if self.flags[n] == 0 and n not in self.frozen:
+                self.wire[n] = cmd.position
+            if n not in self.silent:
+                self.stamp = (self.stamp + 1) & 0xFF
+                self.bus.send(can.Message(arbitration_id=p.reply_id(n), is_extended_id=False,
+                                          data=p.encode_reply(self.flags[n], self.wire[n],
+                                                              self.stamp, self.inputs[n])))
+
+    def setpoints(self, n):
+        return [c.position for j, c in self.log if j == n and c.kind == 'setpoint']
+
+
+class Rig:
+    """A driver, its modules and a synthetic clock."""
+
+    def __init__(self, positions=None, **kwargs):
+        channel = f'driver_test_{next(CHANNELS)}'
+        self.t = 100.0
+        self.modules = Modules(can.Bus(interface='virtual', channel=channel), positions)
+        self.driver = ArmDriver(can.Bus(interface='virtual', channel=channel), JOINTS,
+                                clock=lambda: self.t, **kwargs)
+
+    def run(self, cycles=1):
+        for _ in range(cycles):
+            self.t += self.driver.cycle
+            report = self.driver.step(self.t)
+            self.modules.serve()
+            self.driver.send_due(self.t + 0.02)
+            self.modules.serve()
+        return report
+
+    def until(self, req, cycles=40):
+        for _ in range(cycles):
+            self.run()
+            if req.ok is not None:
+                return req.wait(0)
+        raise AssertionError(f'{req.kind} got no answer in {cycles} cycles')
+
+    def enable(self):
+        assert self.until(self.driver.request('reset'))[0]
+        ok, reason = self.until(self.driver.request('enable'))
+        assert ok, reason
+
+    def close(self):
+        self.driver.close()
+        self.modules.bus.shutdown()
+
+
+@pytest.fixture
+def rig():
+    made = []
+
+    def make(**kwargs):
+        made.append(Rig(**kwargs))
+        return made[-1]
+    yield make
+    for r in made:
+        r.close()
+
+
+def test_start_disables_first_and_then_sets_the_measured_position(rig):
+    r = rig(positions={1: 12345, 5: -40})
+    report = r.run(3)
+    first = r.modules.log[:6]
+    assert first == [(n, p.Command('disable')) for n in range(1, 7)]
+    assert r.modules.setpoints(1)[1:] == [12345, 12345]
+    assert r.modules.setpoints(5)[1:] == [-40 + 500, -40 + 500]
+    # Power-up flags 0x1C: watchdog and position lag on top of "motor not enabled".
+    assert report.state == 'error' and 'comm_watchdog, position_lag' in report.hold
+    assert report.joints[0].q == pytest.approx(JOINTS[0].to_rad(12345))
+
+
+def test_enable_then_velocities_become_setpoints(rig):
+    r = rig(positions={1: 1000})
+    r.enable()
+    assert r.driver.report.state == 'enabled' and r.driver.report.hold == ''
+    start = r.modules.setpoints(1)[-1]
+    assert start == 1000                                    # no jump at enable
+    for _ in range(4):
+        r.driver.set_velocity([0.1, 0, 0, 0, 0.02, 0])
+        r.run()
+    sp1, sp5 = r.modules.setpoints(1), r.modules.setpoints(5)
+    step = 0.1 * 0.05 * JOINTS[0].ticks_per_rad             # negative gear: ticks go down
+    assert all(abs((b - a) - step) <= 1 for a, b in zip(sp1[-4:], sp1[-3:]))
+    assert sp1[-1] < start
+    # J5 at 0.02 rad/s is 0.16 ticks per cycle: it still moves, by fractional ticks.
+    for _ in range(20):
+        r.driver.set_velocity([0.1, 0, 0, 0, 0.02, 0])
+        r.run()
+    assert r.modules.setpoints(5)[-1] - sp5[-1] >= 2
+
+
+def test_command_timeout_holds_within_one_cycle(rig):
+    r = rig()
+    r.enable()
+    r.driver.set_velocity([0.3] * 6)
+    t0 = r.t
+    r.run(10)
+    sent_after = r.modules.setpoints(3)[-10:]
+    moving = [i for i in range(1, 10) if sent_after[i] != sent_after[i - 1]]
+    # Commands are fresh for 0.2 s = 4 cycles; at the 5th cycle after t0 the set-point holds.
+    assert moving and max(moving) <= 4
+    assert r.t - t0 > 0.2
+    assert all(j.qd == 0.0 or abs(j.qd) < 1e-9 for j in r.run(2).joints)
+
+
+def test_setpoints_never_leave_the_hardware_limits(rig):
+    lo, hi = JOINTS[1].tick_limits('hardware')
+    r = rig(positions={2: lo + 500})
+    r.enable()
+    for _ in range(30):
+        r.driver.set_velocity([0, 0.5, 0, 0, 0, 0])     # J2 gear < 0: towards the lower ticks
+        r.run()
+    sp = r.modules.setpoints(2)
+    assert min(sp) == lo and all(lo <= s <= hi for s in sp)
+
+
+def test_setpoint_stays_within_max_lag_of_the_measured(rig):
+    r = rig(max_lag=0.05)
+    r.enable()
+    r.modules.frozen.add(6)                                # J6's motor does not follow
+    for _ in range(20):
+        r.driver.set_velocity([0, 0, 0, 0, 0, 1.5])
+        r.run()
+    lag_ticks = 0.05 * abs(JOINTS[5].ticks_per_rad)
+    assert all(abs(s - 509) <= lag_ticks + 0.5 for s in r.modules.setpoints(6))
+    assert r.driver.report.joints[5].lag == pytest.approx(0.05, abs=JOINTS[5].tick)
+
+
+def test_an_error_flag_holds_the_arm_and_reset_enable_recover(rig):
+    r = rig()
+    r.enable()
+    r.driver.set_velocity([0.2] * 6)
+    r.run(2)
+    r.modules.flags[3] = 0x10 | 0x04                       # position lag: the module stops
+    report = r.run(2)
+    assert report.state == 'error' and 'position_lag' in report.hold
+    assert report.joints[2].flag_names == ('motor_not_enabled', 'position_lag')
+    held = [r.modules.setpoints(n)[-1] for n in range(1, 7)]
+    r.driver.set_velocity([0.2] * 6)
+    r.run(3)
+    assert [r.modules.setpoints(n)[-1] for n in (1, 2, 4, 5, 6)] == \
+        [held[i] for i in (0, 1, 3, 4, 5)]
+    r.driver.set_velocity([0.0] * 6)
+    r.modules.wire[3] += 777                               # it drifted while in error
+    r.enable()
+    assert r.driver.report.state == 'enabled'
+    assert r.modules.setpoints(3)[-1] == r.modules.wire[3]  # restarts where it is
+
+
+def test_a_silent_module_faults_after_three_cycles(rig):
+    r = rig()
+    r.enable()
+    r.modules.silent.add(4)
+    # The reply already on the bus is read first; then three cycles without one.
+    states = [r.run().joints[3].state for _ in range(5)]
+    assert states == ['enabled'] * 3 + ['fault'] * 2
+    assert 'joint4: module silent for 4 cycles' in r.driver.report.hold
+    r.modules.silent.clear()
+    assert r.run(2).state == 'fault'                        # latched until a reset
+    r.enable()
+    assert r.driver.report.state == 'enabled'
+
+
+def test_enable_times_out_with_the_reason(rig):
+    r = rig()
+    assert r.until(r.driver.request('reset'))[0]
+    r.modules.silent.add(2)
+    ok, reason = r.until(r.driver.request('enable', timeout=0.3))
+    assert not ok and 'joint2' in reason and 'not confirmed within 0.3 s' in reason
+
+
+def test_corrupted_reply_is_counted_never_decoded(rig):
+    r = rig(positions={1: 50})
+    r.run(2)
+    r.modules.bus.send(can.Message(arbitration_id=0x11, is_extended_id=False,
+                                   data=bytes.fromhex('00 7F FF FF FF 00 00')))
+    report = r.run()
+    assert report.frames_bad == 1
+    assert report.joints[0].q == pytest.approx(JOINTS[0].to_rad(50))
+
+
+def test_reference_one_joint_twice_and_refusals(rig):
+    r = rig()
+    ok, reason = r.driver.request('reference', [2]).wait(0)
+    assert not ok and 'enabled first' in reason
+    r.enable()
+    r.driver.set_velocity([0.1] * 6)
+    ok, reason = r.driver.request('reference', [2]).wait(0)
+    assert not ok and 'moving' in reason
+    r.driver.set_velocity([0.0] * 6)
+    r.run(6)
+    n_before = len(r.modules.log)
+    ok, reason = r.until(r.driver.request('reference', [2]))
+    assert ok, reason
+    refs = [j for j, c in r.modules.log[n_before:] if c.kind == 'reference']
+    assert refs == [2, 2]
+    assert r.driver.report.joints[1].state == 'referenced'
+
+
+def test_set_zero_twice_and_the_setpoint_follows(rig):
+    r = rig(positions={1: 5000, 2: -300})
+    r.enable()
+    ok, reason = r.driver.request('set_zero').wait(0)
+    assert not ok and 'disable the motors first' in reason
+    assert r.until(r.driver.request('disable'))[0]
+    n_before = len(r.modules.log)
+    ok, reason = r.until(r.driver.request('set_zero'))
+    assert ok, reason
+    assert [j for j, c in r.modules.log[n_before:] if c.kind == 'set_zero'] == \
+        [1, 2, 3, 4, 5, 6] * 2
+    assert r.modules.setpoints(1)[-1] == 0 and r.modules.setpoints(2)[-1] == 0
+    r.enable()
+    assert r.modules.setpoints(1)[-1] == 0 and r.driver.report.hold == ''
+
+
+def test_bad_velocity_is_refused_and_the_previous_command_stands(rig):
+    r = rig()
+    r.enable()
+    r.driver.set_velocity([0.1] * 6)
+    for bad in ([0.1] * 5, [float('nan')] + [0.0] * 5, [float('inf')] * 6):
+        with pytest.raises(InvalidInputError):
+            r.driver.set_velocity(bad)
+    r.run(2)
+    assert r.driver.report.joints[0].qd == pytest.approx(0.1, rel=0.05)
+
+
+def test_outputs_ride_on_the_setpoint(rig):
+    r = rig()
+    r.driver.set_outputs(4, 0x03)
+    r.run(2)
+    assert [c.digital_out for j, c in r.modules.log if j == 4 and c.kind == 'setpoint'][-1] == 3
+    with pytest.raises(InvalidInputError):
+        r.driver.set_outputs(4, 256)
+
+
+def test_close_disables_every_module():
+    channel = f'driver_test_{next(CHANNELS)}'
+    modules = Modules(can.Bus(interface='virtual', channel=channel))
+    driver = ArmDriver(can.Bus(interface='virtual', channel=channel), JOINTS)
+    driver.step(1.0)
+    modules.serve()
+    modules.log.clear()
+    driver.close()
+    modules.serve()
+    assert modules.log == [(n, p.Command('disable')) for n in range(1, 7)]
+    modules.bus.shutdown()
+
+
+def test_the_control_thread_runs_the_cycle_on_the_real_clock():
+    channel = f'driver_test_{next(CHANNELS)}'
+    modules = Modules(can.Bus(interface='virtual', channel=channel))
+    stop = threading.Event()
+
+    def serve():
+        while not stop.is_set():
+            modules.serve()
+            time.sleep(0.002)
+    server = threading.Thread(target=serve, daemon=True)
+    server.start()
+    driver = ArmDriver(can.Bus(interface='virtual', channel=channel), JOINTS)
+    driver.start()
+    try:
+        assert driver.request('reset').wait(30.0)[0]
+        ok, reason = driver.request('enable').wait(30.0)
+        assert ok, reason
+        deadline = time.monotonic() + 30.0
+        while driver.report.state != 'enabled' and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert driver.report.state == 'enabled'
+    finally:
+        driver.close()
+        stop.set()
+        server.join()
+        modules.bus.shutdown()
