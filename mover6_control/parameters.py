@@ -314,4 +314,57 @@ SIM_BRIDGE = _table(
       read_only=True),
 )
 
-NODES = {'planner': PLANNER, 'controller': CONTROLLER, 'sim_bridge': SIM_BRIDGE}
+# The driver of the real arm (nodes/driver_node.py, hardware/driver.py).
+DRIVER = _table(
+    P('can_interface', 'str', 'cpr_usb2can', '',
+      "CAN adapter: cpr_usb2can (the vendor's USB2CAN serial adapter) or a python-can "
+      'interface name (socketcan, pcan, virtual, ...); set at start', read_only=True),
+    P('can_channel', 'str', '/dev/ttyUSB0', '',
+      'the adapter: a serial device for cpr_usb2can (/dev/ttyUSB0, a pty), a CAN interface '
+      '(can0) or channel otherwise; set at start', read_only=True),
+    P('bitrate', 'int', 500000, 'bit/s',
+      "CAN bit rate (the Mover6's: 500000; the USB2CAN adapter sets its own); set at start",
+      10000, 1000000, read_only=True),
+    P('cycle', 'float', 0.05, 's',
+      'driver cycle: one set-point per module per cycle (the vendor: 50 ms)', 0.005, 0.5),
+    P('command_timeout', 'float', 0.2, 's',
+      'a JointJog older than this stops the arm: the set-points hold', 0.01, 5.0),
+    P('jog_units', 'str', 'rad_per_s', '',
+      'JointJog velocities: rad_per_s (ROS standard) or fraction_of_max (the vendor driver: '
+      "fractions of each joint's maximum speed times speed_override); set at start",
+      allowed=('rad_per_s', 'fraction_of_max'), read_only=True),
+    P('speed_override', 'float', 0.25, '',
+      "fraction_of_max: the vendor driver's speed override", 0.01, 1.0),
+    P('enable_on_start', 'bool', False, '',
+      'reset and enable the motors once every module answers; set at start', read_only=True),
+    P('limit_set', 'str', 'hardware', '',
+      "set-points are clamped to these joint limits, always within the hardware ones: "
+      "hardware (the vendor's, the default: an arm parked outside [-pi/2, pi/2] is not pulled "
+      'in at enable) or within_90_deg; set at start', allowed=LIMIT_SETS, read_only=True),
+    P('joints_file', 'str', '', '',
+      "joint scaling YAML (gears, ticks, offsets, limits); '' = the shipped "
+      'config/mover6_joints.yaml; set at start', read_only=True),
+    P('max_lag', 'float', 0.2, 'rad',
+      'a set-point stays within this of the measured position', 0.001, 1.0),
+    P('silent_cycles', 'int', 3, '',
+      'a module that misses this many replies in a row is a fault (until ~/reset)', 1, 100,
+      read_only=True),
+    P('allow_set_zero', 'bool', False, '',
+      '~/set_zero is refused unless this is true (it redefines every joint zero)'),
+    P('request_timeout', 'float', 2.0, 's',
+      '~/reset, ~/enable, ~/disable, ~/set_zero: answer false when the modules do not confirm '
+      'within this', 0.1, 60.0),
+    P('reference_timeout', 'float', 60.0, 's',
+      '~/reference: time for each joint to report itself referenced', 1.0, 600.0),
+    P('gripper', 'str', 'off', '',
+      "the Mover6's gripper on joint 4's digital outputs: off, open or closed",
+      allowed=('off', 'open', 'closed')),
+    P('digital_outputs', 'int', 0, '',
+      "joint 1's digital outputs 1-4 as bits 0-3", 0, 15),
+    P('diagnostics_rate', 'float', 5.0, 'Hz',
+      '/diagnostics between changes (each change of state or hold is sent at once)',
+      0.1, 50.0),
+)
+
+NODES = {'planner': PLANNER, 'controller': CONTROLLER, 'sim_bridge': SIM_BRIDGE,
+         'driver': DRIVER}

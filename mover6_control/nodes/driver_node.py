@@ -1,0 +1,246 @@
+"""
+The driver node of the real Mover6: /JointJog in, CAN set-points out, /joint_states back.
+
+Subscribes /JointJog (control_msgs/JointJog, velocities by joint name; ``jog_units`` rad_per_s or
+fraction_of_max x ``speed_override``, as the controller's); publishes /joint_states
+(sensor_msgs/JointState: joint1..joint6, position, velocity) every driver cycle once every module
+has answered, and /diagnostics (diagnostic_msgs/DiagnosticArray: one status per joint with its
+state, flags by name, referenced and lag, one for the bus with the arm's state, why it holds, the
+frames dropped and refused), at ``diagnostics_rate`` and at once on every change. Services
+(std_srvs/Trigger, each answering once the modules confirm or with the reason): ~/reset,
+~/enable, ~/disable, ~/reference (joints one at a time, refused while moving), ~/set_zero
+(refused unless ``allow_set_zero``). The gripper and joint 1's digital outputs are parameters.
+
+The work is ``mover6_control.hardware.driver.ArmDriver`` on its own control thread (the cycle);
+the node converts messages and publishes. The control thread never waits on DDS: it hands each
+cycle's report to a publisher thread (a DDS write can block for hundreds of milliseconds, see
+controller_node.py). A refused JointJog changes nothing: the previous command ages out after
+``command_timeout`` and the arm holds.
+"""
+
+import threading
+
+from control_msgs.msg import JointJog
+from diagnostic_msgs.msg import DiagnosticArray
+from mover6_control.errors import InvalidInputError
+from mover6_control.hardware.bus import open_bus
+from mover6_control.hardware.driver import ArmDriver
+from mover6_control.hardware.scaling import JOINTS_YAML, load_joints
+from mover6_control.nodes.conversions import (joint_jog_from_msg, make_joint_state,
+                                              make_status)
+from mover6_control.nodes.params import declare
+from mover6_control.parameters import DRIVER
+import rclpy
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+GRIPPER_BITS = {'off': 0x00, 'open': 0x03, 'closed': 0x02}
+"""Joint 4's outputs: bit 0 'gripper open', bit 1 'gripper enabled' (the vendor's CPRMover6)."""
+GRIPPER_JOINT, OUTPUTS_JOINT = 4, 1
+LEVELS = {'fault': 'ERROR', 'error': 'ERROR', 'disconnected': 'WARN', 'connected': 'WARN',
+          'enabled': 'OK', 'referenced': 'OK'}
+
+
+class DriverNode(Node):
+    """Drive the arm over CAN; see the module docstring."""
+
+    def __init__(self):
+        super().__init__('driver')
+        declare(self, DRIVER)
+        self.add_post_set_parameters_callback(self.on_parameters_set)
+        p = {name: self.get_parameter(name).value for name in DRIVER}
+        self.jog_units = p['jog_units']
+        firmware, joints = load_joints(p['joints_file'] or JOINTS_YAML)
+        self.max_speed = [j.max_speed for j in joints]
+        bus = open_bus(p['can_interface'], p['can_channel'], p['bitrate'])
+        self.driver = ArmDriver(
+            bus, joints, cycle=p['cycle'], command_timeout=p['command_timeout'],
+            max_lag=p['max_lag'], silent_cycles=p['silent_cycles'], limit_set=p['limit_set'],
+            firmware=firmware, on_cycle=self.on_cycle)
+        self.names = self.driver.names
+        self.refused = 0
+        self.last_refusal = ''
+        self._latest = None
+        self._seen = None
+        self._last_diag = None
+        self._diag_now = False
+        self._wake = threading.Condition()
+        self._closing = False
+        self.pub_states = self.create_publisher(JointState, '/joint_states', 10)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.create_subscription(JointJog, '/JointJog', self.on_jog, 10)
+        group = ReentrantCallbackGroup()
+        for kind in ('reset', 'enable', 'disable', 'reference', 'set_zero'):
+            self.create_service(Trigger, f'~/{kind}', self._service(kind), callback_group=group)
+        self._apply_outputs(p['gripper'], p['digital_outputs'])
+        self._publisher = threading.Thread(target=self._publish_loop, name='driver_publish',
+                                           daemon=True)
+        self._publisher.start()
+        self.driver.start()
+        if p['enable_on_start']:
+            threading.Thread(target=self._enable_on_start, daemon=True).start()
+        self.get_logger().info(f'driving the arm on {p["can_interface"]} {p["can_channel"]}, '
+                               f'cycle {p["cycle"]} s, JointJog in {self.jog_units}')
+
+    # --- parameters ---
+
+    def on_parameters_set(self, parameters):
+        """Apply the live parameters to the driver (they were checked before they were set)."""
+        names = {x.name for x in parameters}
+        if 'cycle' in names:
+            self.driver.cycle = self.get_parameter('cycle').value
+        if 'command_timeout' in names:
+            self.driver.command_timeout = self.get_parameter('command_timeout').value
+        if 'max_lag' in names:
+            self.driver.max_lag = self.get_parameter('max_lag').value
+        if names & {'gripper', 'digital_outputs'}:
+            self._apply_outputs(self.get_parameter('gripper').value,
+                                self.get_parameter('digital_outputs').value)
+
+    def _apply_outputs(self, gripper, outputs):
+        self.driver.set_outputs(GRIPPER_JOINT, GRIPPER_BITS[gripper])
+        self.driver.set_outputs(OUTPUTS_JOINT, outputs)
+
+    # --- /JointJog ---
+
+    def on_jog(self, msg):
+        """Command the velocities of a JointJog, or refuse it with the reason on /diagnostics."""
+        try:
+            if len(msg.displacements):
+                raise InvalidInputError('JointJog displacements are not supported: send '
+                                        'velocities')
+            names, values = joint_jog_from_msg(msg)
+            unknown = [n for n in names if n not in self.names]
+            if unknown:
+                raise InvalidInputError(f'JointJog names unknown joints {unknown}; the arm has '
+                                        f'{list(self.names)}')
+            qd = [0.0] * len(self.names)
+            override = self.get_parameter('speed_override').value
+            for name, value in zip(names, values):
+                i = self.names.index(name)
+                qd[i] = float(value) if self.jog_units == 'rad_per_s' else \
+                    float(value) * self.max_speed[i] * override
+            self.driver.set_velocity(qd)
+        except InvalidInputError as err:
+            self.refused += 1
+            self.last_refusal = str(err)
+            self.get_logger().warning(f'JointJog refused: {err}')
+            self._notify()
+
+    # --- services ---
+
+    def _service(self, kind):
+        def callback(request, response):
+            response.success, response.message = self.run_request(kind)
+            return response
+        return callback
+
+    def run_request(self, kind):
+        """Run one request to the modules; return (success, message) for the service."""
+        if kind == 'set_zero' and not self.get_parameter('allow_set_zero').value:
+            return False, 'set_zero refused: set the parameter allow_set_zero to true first'
+        if kind != 'reference':
+            timeout = self.get_parameter('request_timeout').value
+            return self.driver.request(kind, timeout=timeout).wait(timeout + 5.0)
+        timeout = self.get_parameter('reference_timeout').value
+        for n in range(1, len(self.names) + 1):
+            ok, reason = self.driver.request('reference', [n], timeout).wait(timeout + 5.0)
+            if not ok:
+                return False, reason
+        return True, f'reference: joints 1..{len(self.names)} referenced one at a time'
+
+    def _enable_on_start(self):
+        for kind in ('reset', 'enable'):
+            ok, reason = self.run_request(kind)
+            (self.get_logger().info if ok else self.get_logger().error)(
+                f'enable_on_start: {reason}')
+            if not ok:
+                return
+
+    # --- publishing (off the control thread) ---
+
+    def on_cycle(self, report):
+        """Take one cycle's report (control thread: hand it over, never wait on DDS)."""
+        with self._wake:
+            self._latest = report
+            self._wake.notify()
+
+    def _notify(self):
+        with self._wake:
+            self._diag_now = True
+            self._wake.notify()
+
+    def _publish_loop(self):
+        while True:
+            with self._wake:
+                while self._latest is None and not self._diag_now and not self._closing:
+                    self._wake.wait(0.5)
+                if self._closing:
+                    return
+                report, self._latest = self._latest, None
+                force, self._diag_now = self._diag_now, False
+            if report is not None:
+                self._seen = report
+                if all(j.replies for j in report.joints):
+                    self.pub_states.publish(make_joint_state(
+                        self.names, [j.q for j in report.joints],
+                        [j.qd for j in report.joints], stamp=self.get_clock().now().to_msg()))
+            if self._seen is not None:
+                self._maybe_diagnostics(self._seen, force)
+
+    def _maybe_diagnostics(self, report, force=False):
+        key = (report.state, report.hold, tuple(j.state for j in report.joints), self.refused)
+        period = 1.0 / self.get_parameter('diagnostics_rate').value
+        last = self._last_diag
+        if not force and last is not None and last[0] == key and \
+                report.time - last[1] < period:
+            return
+        self._last_diag = (key, report.time)
+        msg = DiagnosticArray()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.status.append(make_status(
+            'driver: bus', LEVELS[report.state], report.hold or f'arm {report.state}', {
+                'state': report.state, 'hold': report.hold, 'cycle_period': report.period,
+                'frames_dropped': report.frames_dropped, 'frames_bad': report.frames_bad,
+                'tx_errors': report.tx_errors, 'bus_error': report.bus_error,
+                'jog_refused': self.refused, 'last_refusal': self.last_refusal}))
+        for j in report.joints:
+            msg.status.append(make_status(
+                f'driver: {j.name}', LEVELS[j.state], j.state, {
+                    'state': j.state, 'flags': f'0x{j.flags:02X}',
+                    'flag_names': ' '.join(j.flag_names), 'referenced': j.referenced,
+                    'position': j.q, 'lag': j.lag, 'silent_cycles': j.silent_cycles}))
+        self.pub_diag.publish(msg)
+
+    def destroy_node(self):
+        """Stop the control thread, disable every module, then destroy the node."""
+        self.driver.close()
+        with self._wake:
+            self._closing = True
+            self._wake.notify()
+        self._publisher.join(timeout=5.0)
+        super().destroy_node()
+
+
+def main(args=None):
+    """Run the driver node until Ctrl-C or shutdown."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = DriverNode()
+        executor = MultiThreadedExecutor(num_threads=4)
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()
