@@ -73,7 +73,7 @@ _MAX_STEPS = 500             # physics steps per advance() before the arm gives 
 class ModuleTiming:
     """The modules' firmware numbers this simulation assumes; units in brackets."""
 
-    watchdog_timeout: float = 0.25     # [s] without a set-point, while enabled
+    watchdog_timeout: float = 0.5      # [s] without a set-point, while enabled (10 cycles)
     lag_limit: float = 0.1             # [rad] reference ahead of position before 0x10
     set_zero_window: float = 0.5       # [s] the second set zero within this
     reference_window: float = 1.0      # [s] the second start referencing within this
