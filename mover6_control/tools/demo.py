@@ -95,6 +95,9 @@ JOINT_TOLERANCE = 0.01     # [rad] the demo's pass mark for the final joint erro
 # The arm behind the stack (scripts/launch.sh --hardware): what each choice starts.
 HARDWARE = {'sim': 'sim_bridge', 'can-sim': 'can_sim (the CAN-level Mover6) with the driver'}
 LIMIT_SET = {'sim': 'within_90_deg', 'can-sim': 'hardware'}
+# Through the 20 Hz driver the controller settles in the vendor's units only (its in-flight
+# compensation is fraction_of_max's; in rad_per_s it overshoots there).
+JOG_UNITS = {'sim': 'rad_per_s', 'can-sim': 'fraction_of_max'}
 
 
 class Recorder:
@@ -134,7 +137,8 @@ class Recorder:
 def start_stack(log_dir, env, hardware='sim'):
     """Start scripts/launch.sh (the arm, controller, planner) in its own process group."""
     cmd = ['bash', os.path.join(ROOT, 'scripts', 'launch.sh'), '--log-dir', log_dir,
-           '--hardware', hardware, '--limit-set', LIMIT_SET[hardware]]
+           '--hardware', hardware, '--limit-set', LIMIT_SET[hardware],
+           '--jog-units', JOG_UNITS[hardware]]
     return subprocess.Popen(cmd, env=env, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
