@@ -1,5 +1,5 @@
 """
-Start the mover6_control nodes: sim_bridge (or none, for the real driver), controller, planner.
+Start the mover6_control nodes: the arm (sim_bridge, or the CAN driver), controller, planner.
 
 The same nodes, parameter files and choices as scripts/launch.sh (test/test_launch_file.py keeps
 the two in step), plus robot_state_publisher with config/mover6.urdf when that package is
@@ -9,6 +9,15 @@ installed:
     ros2 launch mover6_control mover6.launch.py sim:=false jog_units:=fraction_of_max
     ros2 launch mover6_control mover6.launch.py profile:=trapezoidal limit_set:=hardware
     ros2 launch mover6_control mover6.launch.py controller_params:=/path/to/controller.yaml
+    ros2 launch mover6_control mover6.launch.py hardware:=can_sim
+    ros2 launch mover6_control mover6.launch.py hardware:=can can_interface:=socketcan \
+        can_channel:=can0
+
+``hardware``: ``sim`` (default) runs sim_bridge; ``can_sim`` runs the CAN-level Mover6
+(``can_sim``) on a pty and, once it is up, the driver on that pty, enabled at start; ``can``
+runs the driver on ``can_interface`` / ``can_channel`` (default the CPR USB2CAN adapter on
+/dev/ttyUSB0), not enabled: call its ~/reset and ~/enable. With the driver the controller's
+state_timeout is 0.5 s (the driver publishes /joint_states at its 20 Hz cycle).
 
 ``profile``, ``jog_units`` and ``limit_set`` override the parameter files (their defaults are the
 shipped files' values). With ``jog_units:=fraction_of_max`` the simulator runs as the vendor
@@ -18,11 +27,15 @@ the environment variables MOVER6_SIM_ARGS, MOVER6_CONTROLLER_ARGS and MOVER6_PLA
 
 import os
 import shlex
+import shutil
+import tempfile
 
 from ament_index_python.packages import get_package_prefix, PackageNotFoundError
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction, SetEnvironmentVariable
+from launch.actions import (DeclareLaunchArgument, ExecuteProcess, LogInfo, OpaqueFunction,
+                            RegisterEventHandler, SetEnvironmentVariable)
 from launch.conditions import IfCondition
+from launch.event_handlers import OnProcessIO, OnShutdown
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution, PythonExpression
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
@@ -30,6 +43,7 @@ from launch_ros.substitutions import FindPackageShare
 from mover6_control.nodes import local_dds
 
 PACKAGE = 'mover6_control'
+STATE_TIMEOUT = {'sim': '0.25', 'can_sim': '0.5', 'can': '0.5'}   # [s] of the controller
 
 
 def config_file(name):
@@ -61,18 +75,80 @@ def local_dds_environment(context):
             for name, value in local_dds.default_environment(os.environ).items()]
 
 
+def driver(can_interface, can_channel, enable_on_start):
+    """Return the driver node on ``can_interface`` / ``can_channel``."""
+    return Node(
+        package=PACKAGE, executable='driver', name='driver', output='screen',
+        parameters=[LaunchConfiguration('driver_params'),
+                    {'can_interface': can_interface, 'can_channel': can_channel,
+                     'jog_units': LaunchConfiguration('jog_units'),
+                     'limit_set': LaunchConfiguration('limit_set'),
+                     'enable_on_start': enable_on_start}],
+        ros_arguments=extra_ros_args('MOVER6_DRIVER_ARGS'))
+
+
+def hardware_nodes(context):
+    """Start what the ``hardware`` argument asks for besides sim_bridge (see the docstring)."""
+    hardware = LaunchConfiguration('hardware').perform(context)
+    channel = LaunchConfiguration('can_channel').perform(context)
+    if hardware == 'can':
+        return [driver(LaunchConfiguration('can_interface').perform(context),
+                       channel or '/dev/ttyUSB0', False)]
+    if hardware != 'can_sim':
+        return []
+    actions = []
+    link = channel
+    if not link:
+        folder = tempfile.mkdtemp(prefix='mover6-can-')
+        link = os.path.join(folder, 'mover6-can')
+        actions.append(RegisterEventHandler(OnShutdown(
+            on_shutdown=lambda event, context: shutil.rmtree(folder, ignore_errors=True))))
+    can_sim = ExecuteProcess(
+        cmd=[os.path.join(get_package_prefix(PACKAGE), 'lib', PACKAGE, 'can_sim'), '--link',
+             link] + shlex.split(os.environ.get('MOVER6_CAN_SIM_ARGS', '')),
+        name='can_sim', output='screen')
+    started = []
+
+    def on_output(event):
+        """Start the driver once can_sim says it is ready (its link exists then)."""
+        if not started and b'ready' in event.text:
+            started.append(True)
+            return [driver('cpr_usb2can', link, True)]
+        return None
+    return actions + [can_sim, RegisterEventHandler(OnProcessIO(target_action=can_sim,
+                                                                on_stdout=on_output))]
+
+
 def generate_launch_description():
     """Declare the arguments and the nodes."""
     sim = LaunchConfiguration('sim')
     profile = LaunchConfiguration('profile')
     jog_units = LaunchConfiguration('jog_units')
     limit_set = LaunchConfiguration('limit_set')
+    hardware = LaunchConfiguration('hardware')
     sim_mode = PythonExpression(
         ["'vendor_driver' if '", jog_units, "' == 'fraction_of_max' else 'rad_per_s'"])
+    with_sim = PythonExpression(["'", sim, "' == 'true' and '", hardware, "' == 'sim'"])
+    state_timeout = PythonExpression([repr(STATE_TIMEOUT), "['", hardware, "']"])
     return LaunchDescription([
         DeclareLaunchArgument(
             'sim', default_value='true', choices=['true', 'false'],
             description='true: the MuJoCo bridge stands in for the arm; false: a real driver'),
+        DeclareLaunchArgument(
+            'hardware', default_value='sim', choices=['sim', 'can_sim', 'can'],
+            description='sim: the MuJoCo bridge; can_sim: the CAN-level Mover6 on a pty and the '
+                        'driver on it; can: the driver on a real arm (can_interface, '
+                        'can_channel)'),
+        DeclareLaunchArgument(
+            'can_interface', default_value='cpr_usb2can',
+            description='bus of the driver with hardware:=can: cpr_usb2can, socketcan, pcan, ...'),
+        DeclareLaunchArgument(
+            'can_channel', default_value='',
+            description='its channel (/dev/ttyUSB0 by default, can0, ...); with can_sim the '
+                        'link of the pty (default: in a fresh temporary folder)'),
+        DeclareLaunchArgument(
+            'driver_params', default_value=config_file('driver.yaml'),
+            description='parameter file of the driver'),
         DeclareLaunchArgument(
             'profile', default_value='continuous',
             choices=['continuous', 'synchronised', 'trapezoidal', 'jerk_limited', 'cubic',
@@ -100,19 +176,21 @@ def generate_launch_description():
         OpaqueFunction(function=local_dds_environment),
         Node(
             package=PACKAGE, executable='sim_bridge', name='sim_bridge', output='screen',
-            condition=IfCondition(sim),
+            condition=IfCondition(with_sim),
             parameters=[LaunchConfiguration('sim_bridge_params'),
                         {'limit_set': limit_set, 'mode': sim_mode}],
             ros_arguments=extra_ros_args('MOVER6_SIM_ARGS')),
         Node(
             package=PACKAGE, executable='controller', name='controller', output='screen',
             parameters=[LaunchConfiguration('controller_params'),
-                        {'profile': profile, 'jog_units': jog_units, 'limit_set': limit_set}],
+                        {'profile': profile, 'jog_units': jog_units, 'limit_set': limit_set,
+                         'state_timeout': ParameterValue(state_timeout, value_type=float)}],
             ros_arguments=extra_ros_args('MOVER6_CONTROLLER_ARGS')),
         Node(
             package=PACKAGE, executable='planner', name='planner', output='screen',
             parameters=[LaunchConfiguration('planner_params'),
                         {'profile': profile, 'limit_set': limit_set}],
             ros_arguments=extra_ros_args('MOVER6_PLANNER_ARGS')),
+        OpaqueFunction(function=hardware_nodes),
         OpaqueFunction(function=robot_state_publisher),
     ])

@@ -1,9 +1,16 @@
 #!/usr/bin/env bash
-# Start the three mover6_control nodes (sim_bridge, controller, planner) and keep them running
-# until Ctrl-C. Stops all of them on exit, on Ctrl-C / SIGTERM, and as soon as one dies.
+# Start the mover6_control nodes (the arm: sim_bridge or the CAN driver; controller, planner) and
+# keep them running until Ctrl-C. Stops all of them on exit, on Ctrl-C / SIGTERM, and as soon as
+# one dies.
 #
-# Usage: scripts/launch.sh [--no-sim] [--profile P] [--jog-units U] [--limit-set L]
-#                          [--log-dir DIR]
+# Usage: scripts/launch.sh [--hardware H] [--can-interface I] [--can-channel C] [--no-sim]
+#                          [--profile P] [--jog-units U] [--limit-set L] [--log-dir DIR]
+#   --hardware H     what stands for the arm: sim (default: the MuJoCo bridge) | can-sim (the
+#                    CAN-level Mover6 on a pty, can_sim, and the driver on it, enabled at start)
+#                    | can (the driver on a real arm's bus; enable it with its ~/reset, ~/enable)
+#   --can-interface I  driver bus with --hardware can: cpr_usb2can (default) | socketcan | pcan
+#   --can-channel C  its channel: /dev/ttyUSB0 (default), can0, ...; with can-sim the pty's
+#                    link (default: a fresh temporary folder's mover6-can)
 #   --no-sim         do not start the MuJoCo bridge (drive a real arm's driver instead)
 #   --profile P      controller profile (the planner times its prediction with it too):
 #                    continuous (default) | synchronised | trapezoidal | jerk_limited | cubic |
@@ -12,8 +19,10 @@
 #   --jog-units U    rad_per_s (default) | fraction_of_max (vendor driver; the sim acts as it)
 #   --limit-set L    joint limits of every node: within_90_deg (default) | hardware
 #   --log-dir DIR    also write each node's output to DIR/<node>.log
-# Extra ROS arguments per node: MOVER6_SIM_ARGS, MOVER6_CONTROLLER_ARGS, MOVER6_PLANNER_ARGS,
-# e.g. MOVER6_CONTROLLER_ARGS="-p t_max:=2.0". Parameter files: config/<node>.yaml.
+# Extra ROS arguments per node: MOVER6_SIM_ARGS, MOVER6_DRIVER_ARGS, MOVER6_CONTROLLER_ARGS,
+# MOVER6_PLANNER_ARGS, e.g. MOVER6_CONTROLLER_ARGS="-p t_max:=2.0"; MOVER6_CAN_SIM_ARGS for
+# can_sim's command line (e.g. "--home 0 0.3 0 0 0 0"). Parameter files: config/<node>.yaml.
+# With the driver the controller's state_timeout is 0.5 s (the driver publishes at its 20 Hz).
 # launch/mover6.launch.py (ros2 launch) starts the same (test/test_launch_file.py checks).
 #
 # Needs an environment where the package is built and sourced (./run.sh launch does that).
@@ -23,6 +32,10 @@ set -uo pipefail
 PROFILES='continuous synchronised trapezoidal jerk_limited cubic quintic septic sharp_trapezoid cubic_spline quintic_spline bspline multi_trapezoid'
 JOG_UNITS='rad_per_s fraction_of_max'
 LIMIT_SETS='within_90_deg hardware'
+HARDWARE='sim can-sim can'
+hardware=sim
+can_interface=cpr_usb2can
+can_channel=''
 with_sim=1
 profile=continuous
 jog_units=rad_per_s
@@ -43,7 +56,10 @@ while [ $# -gt 0 ]; do
         --jog-units) jog_units=${2:-}; shift ;;
         --limit-set) limit_set=${2:-}; shift ;;
         --log-dir) log_dir=${2:-}; shift ;;
-        -h | --help) sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        --hardware) hardware=${2:-}; shift ;;
+        --can-interface) can_interface=${2:-}; shift ;;
+        --can-channel) can_channel=${2:-}; shift ;;
+        -h | --help) sed -n '2,27p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "launch.sh: unknown argument '$1'" >&2; exit 2 ;;
     esac
     shift
@@ -54,6 +70,20 @@ one_of --profile "$profile" $PROFILES
 one_of --jog-units "$jog_units" $JOG_UNITS
 # shellcheck disable=SC2086
 one_of --limit-set "$limit_set" $LIMIT_SETS
+# shellcheck disable=SC2086
+one_of --hardware "$hardware" $HARDWARE
+if [ "$hardware" != sim ]; then
+    with_sim=0
+    with_driver=1
+    enable_on_start=false
+    [ "$hardware" = can-sim ] && enable_on_start=true
+    [ "$hardware" = can-sim ] && can_interface=cpr_usb2can
+    [ "$hardware" = can ] && [ -z "$can_channel" ] && can_channel=/dev/ttyUSB0
+    state_timeout=0.5
+else
+    with_driver=0
+    state_timeout=0.25
+fi
 # The simulator stands in for the vendor driver when the controller speaks its units.
 sim_mode=rad_per_s
 [ "$jog_units" = fraction_of_max ] && sim_mode=vendor_driver
@@ -72,6 +102,32 @@ share="$prefix/share/mover6_control/config"
 
 pids=()
 names=()
+tmp_dir=''
+start_can_sim() {
+    # The CAN-level Mover6 on a pty linked at $can_channel; wait until the link is there.
+    if [ -z "$can_channel" ]; then
+        tmp_dir=$(mktemp -d "${TMPDIR:-/tmp}/mover6-can-XXXXXX") || exit 1
+        can_channel="$tmp_dir/mover6-can"
+    fi
+    local args=(--link "$can_channel")
+    # shellcheck disable=SC2206
+    args+=(${MOVER6_CAN_SIM_ARGS:-})
+    if [ -n "$log_dir" ]; then
+        "$bin/can_sim" "${args[@]}" > >(tee "$log_dir/can_sim.log") 2>&1 &
+    else
+        "$bin/can_sim" "${args[@]}" &
+    fi
+    pids+=($!)
+    names+=(can_sim)
+    echo "launch.sh: started can_sim (pid $!) on $can_channel" >&2
+    for _ in $(seq 600); do
+        [ -e "$can_channel" ] && return 0
+        kill -0 "${pids[-1]}" 2>/dev/null || break
+        sleep 0.1
+    done
+    echo "launch.sh: can_sim did not open $can_channel" >&2
+    exit 1
+}
 start() {
     # start NAME EXECUTABLE [ros args...]
     local name=$1 exe=$2
@@ -103,6 +159,7 @@ stop_all() {
     done
     for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null; done
     wait 2>/dev/null
+    [ -n "$tmp_dir" ] && rm -rf "$tmp_dir"
     echo 'launch.sh: all nodes stopped' >&2
 }
 trap 'stop_all; exit 130' INT
@@ -112,10 +169,16 @@ trap 'stop_all' EXIT
 # shellcheck disable=SC2086
 [ "$with_sim" = 1 ] && start sim_bridge sim_bridge \
     -p "limit_set:=$limit_set" -p "mode:=$sim_mode" ${MOVER6_SIM_ARGS:-}
+[ "$hardware" = can-sim ] && start_can_sim
+# shellcheck disable=SC2086
+[ "$with_driver" = 1 ] && start driver driver \
+    -p "can_interface:=$can_interface" -p "can_channel:=$can_channel" \
+    -p "jog_units:=$jog_units" -p "limit_set:=$limit_set" \
+    -p "enable_on_start:=$enable_on_start" ${MOVER6_DRIVER_ARGS:-}
 # shellcheck disable=SC2086
 start controller controller \
     -p "profile:=$profile" -p "jog_units:=$jog_units" -p "limit_set:=$limit_set" \
-    ${MOVER6_CONTROLLER_ARGS:-}
+    -p "state_timeout:=$state_timeout" ${MOVER6_CONTROLLER_ARGS:-}
 # shellcheck disable=SC2086
 start planner planner -p "limit_set:=$limit_set" -p "profile:=$profile" ${MOVER6_PLANNER_ARGS:-}
 

@@ -73,7 +73,7 @@ _MAX_STEPS = 500             # physics steps per advance() before the arm gives 
 class ModuleTiming:
     """The modules' firmware numbers this simulation assumes; units in brackets."""
 
-    watchdog_timeout: float = 0.25     # [s] without a set-point, while enabled
+    watchdog_timeout: float = 0.5      # [s] without a set-point, while enabled (10 cycles)
     lag_limit: float = 0.1             # [rad] reference ahead of position before 0x10
     set_zero_window: float = 0.5       # [s] the second set zero within this
     reference_window: float = 1.0      # [s] the second start referencing within this
@@ -114,6 +114,7 @@ class MotorModule:
         self.setpoints = 0             # set-points taken
         self.replies = 0               # replies sent
         self.last_setpoint = None      # the last set-point [wire ticks], or None
+        self.setpoint_changed = None   # when a set-point last differed from the one before [s]
         self._setpoint_time = None     # when it came [s]
         self._interval = 0.05          # [s] between the last two set-points
         self._ref_from = 0.0           # the reference ramps from this [wire ticks] ...
@@ -187,6 +188,8 @@ class MotorModule:
         if self._setpoint_time is not None:
             self._interval = min(max(now - self._setpoint_time, _MIN_INTERVAL), _MAX_INTERVAL)
         self._setpoint_time = now
+        if command.position != self.last_setpoint:
+            self.setpoint_changed = now
         self.last_setpoint = command.position
         if self.enabled and self._referencing_until is None:
             self._ref_from = self.reference(now)
@@ -222,20 +225,21 @@ class MotorModule:
     # --- time ----------------------------------------------------------------------------
 
     def supervise(self, now: float, encoder: int, lag_ticks: float) -> None:
-        """Run the watchdog, the lag check and referencing at ``now`` [s]."""
+        """Run the lag check and referencing at ``now`` [s]."""
         position = encoder + self.bias
         if self._referencing_until is not None and now >= self._referencing_until:
             self._referencing_until = None
             self.referenced = True
-        if not self.enabled:
-            return
-        if self._setpoint_time is None or now - self._setpoint_time > \
-                self.timing.watchdog_timeout:
-            self.flags |= WATCHDOG
-            self._stop(position, now)
-        elif abs(self.reference(now) - position) > lag_ticks:
+        if self.enabled and abs(self.reference(now) - position) > lag_ticks:
             self.flags |= POSITION_LAG
             self._stop(position, now)
+
+    def watchdog(self, now: float, encoder: int) -> None:
+        """Trip the communication watchdog if no set-point came for its timeout at ``now``."""
+        if self.enabled and (self._setpoint_time is None or now - self._setpoint_time >
+                             self.timing.watchdog_timeout):
+            self.flags |= WATCHDOG
+            self._stop(encoder + self.bias, now)
 
     def inject(self, flags: int, encoder: int, now: float, sticky: bool = False) -> None:
         """Raise error ``flags`` (0..255) at ``now`` [s]; any error stops the motor."""
@@ -248,7 +252,8 @@ class MotorModule:
         """Return the module's state as plain values."""
         return {'flags': self.flags, 'enabled': self.enabled, 'referenced': self.referenced,
                 'silent': self.silent, 'setpoint': self.last_setpoint, 'bias': self.bias,
-                'setpoints': self.setpoints, 'replies': self.replies, 'ignored': self.ignored,
+                'setpoints': self.setpoints, 'setpoint_changed': self.setpoint_changed,
+                'replies': self.replies, 'ignored': self.ignored,
                 'digital_out': self.digital_out}
 
 
@@ -310,7 +315,7 @@ class CanArm:
 
     def receive(self, can_id: int, data: bytes, now: float) -> list[tuple[int, bytes]]:
         """Take one frame at ``now`` [s]; return the replies as (CAN ID, payload)."""
-        self.advance(now)
+        self._run_physics(now)
         self.frames_in += 1
         try:
             joint, is_reply = protocol.joint_of_id(can_id)
@@ -330,7 +335,22 @@ class CanArm:
     # --- physics -------------------------------------------------------------------------
 
     def advance(self, now: float) -> int:
-        """Run the physics and the modules up to ``now`` [s]; return the physics steps run."""
+        """
+        Run the physics and the modules up to ``now`` [s]; return the physics steps run.
+
+        The communication watchdog is checked at ``now`` only, after the physics: a caller that
+        was itself held up (a loaded machine) first takes every frame that arrived meanwhile
+        (``receive`` with the time it reads them), so a late simulator never trips the watchdog
+        of a driver that sent in time.
+        """
+        n = self._run_physics(now)
+        encoders = self.encoders()
+        for i, module in enumerate(self.modules):
+            module.watchdog(now, int(encoders[i]))
+        return n
+
+    def _run_physics(self, now):
+        """Step the physics up to ``now`` [s], supervising lag at every step; return the steps."""
         if self._t0 is None:
             self._t0 = now
         dt = self.sim.config.physics_dt
@@ -359,7 +379,7 @@ class CanArm:
         self.sim.step(1)
 
     def _supervise(self, t):
-        """Run every module's watchdog, lag check and referencing at ``t`` [s]."""
+        """Run every module's lag check and referencing at ``t`` [s]."""
         encoders = self.encoders()
         for i, module in enumerate(self.modules):
             module.supervise(t, int(encoders[i]), self._lag_ticks[i])

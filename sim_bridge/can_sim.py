@@ -190,15 +190,18 @@ class SerialArm:
                 ready, _, _ = select.select(fds, [], [], dt)
             except InterruptedError:
                 continue
-            now = time.monotonic()
-            if self.pty.master in ready:
-                self.on_serial(self.pty.read(), now)
             if self.listener in ready:
                 client, _ = self.listener.accept()
                 self.clients[client] = b''
             for client in [c for c in self.clients if c in ready]:
                 self.on_client(client)
-            self.arm.advance(time.monotonic())
+            # Always drain the port before the watchdog looks (advance): frames that came while
+            # this process was held up are taken as arriving now, not as missing.
+            now = time.monotonic()
+            chunk = self.pty.read()
+            if chunk:
+                self.on_serial(chunk, now)
+            self.arm.advance(now)
 
     def on_serial(self, chunk: bytes, now: float) -> None:
         """Answer every frame in ``chunk``."""

@@ -92,10 +92,10 @@ class Stack:
     """The three nodes as processes; use as a context manager."""
 
     def __init__(self, log_dir, sim=None, controller=None, planner=None,
-                 names=('sim_bridge', 'controller', 'planner')):
+                 names=('sim_bridge', 'controller', 'planner'), driver=None):
         self.log_dir = str(log_dir)
         self.params = {'sim_bridge': sim or {}, 'controller': controller or {},
-                       'planner': planner or {}}
+                       'planner': planner or {}, 'driver': driver or {}}
         self.names = names
         self.nodes = {}
 

@@ -175,6 +175,15 @@ def test_watchdog_trips_when_set_points_stop(arm):
     assert [r.error_flags for r in setpoints(arm, arm.positions(), 0.43)] == [0] * 6
 
 
+def test_a_late_simulator_does_not_trip_the_watchdog(arm):
+    """Set-points read late (the simulator held up 0.4 s) count as arriving when read."""
+    enable(arm, 0.0)
+    replies = setpoints(arm, arm.positions(), 0.4)        # first frame taken after the stall
+    assert [r.error_flags for r in replies] == [0] * 6
+    arm.advance(0.4)
+    assert [m.flags for m in arm.modules] == [0] * 6
+
+
 def test_a_disabled_module_has_no_watchdog(arm):
     setpoints(arm, arm.positions(), 0.0)
     command_all(arm, protocol.RESET_ERRORS, 0.0)

@@ -21,7 +21,7 @@ import yaml
 ROOT = os.path.dirname(CONFIG_DIR)
 LAUNCH_FILE = os.path.join(ROOT, 'launch', 'mover6.launch.py')
 LAUNCH_SH = os.path.join(ROOT, 'scripts', 'launch.sh')
-NODES = ('sim_bridge', 'controller', 'planner')
+NODES = ('sim_bridge', 'driver', 'controller', 'planner')
 CHOICES = {'profile': PROFILES, 'jog_units': JOG_UNITS, 'limit_set': LIMIT_SETS}
 # launch.sh's option and choice variable for each launch argument.
 SH_NAMES = {'profile': ('--profile', 'PROFILES'), 'jog_units': ('--jog-units', 'JOG_UNITS'),
@@ -135,6 +135,8 @@ def test_same_choices_and_defaults(tree, name):
     default = ast.literal_eval(keyword(call, 'default_value'))
     assert default == sh_variable(name)
     for node in NODES:
+        if (node, name) == ('driver', 'limit_set'):
+            continue      # alone it clamps to the vendor's limits; the stack passes its own
         values = yaml.safe_load(read(os.path.join(CONFIG_DIR, f'{node}.yaml')))
         value = values[node]['ros__parameters'].get(name)
         assert value in (None, default), f'{node}.yaml has {name}: {value}, default {default}'
@@ -150,11 +152,35 @@ def test_same_sim_choice(tree):
     for exe, call in launch_nodes(tree).items():
         condition = keyword(call, 'condition')
         if exe == 'sim_bridge':
-            assert ast.unparse(condition) == 'IfCondition(sim)'
+            assert ast.unparse(condition) == 'IfCondition(with_sim)'
         else:
             assert condition is None, exe
     guarded = re.findall(r'^\[ "\$with_sim" = 1 \] && start (\w+)', read(LAUNCH_SH), re.MULTILINE)
     assert guarded == ['sim_bridge']
+    guarded = re.findall(r'^\[ "\$with_driver" = 1 \] && start (\w+)', read(LAUNCH_SH),
+                         re.MULTILINE)
+    assert guarded == ['driver']
+
+
+def test_same_hardware_choice(tree):
+    """hardware:=sim|can_sim|can is launch.sh's --hardware sim|can-sim|can, default sim."""
+    call = launch_arguments(tree)['hardware']
+    choices = ast.literal_eval(keyword(call, 'choices'))
+    assert [c.replace('_', '-') for c in choices] == sh_variable('HARDWARE').split()
+    assert ast.literal_eval(keyword(call, 'default_value')) == sh_variable('hardware') == 'sim'
+    assert ast.literal_eval(keyword(launch_arguments(tree)['can_interface'], 'default_value')) \
+        == sh_variable('can_interface') == 'cpr_usb2can'
+    for option in ('--hardware)', '--can-interface)', '--can-channel)'):
+        assert option in read(LAUNCH_SH)
+    # The controller's state timeout: the shipped file's on the simulator, 0.5 s on the driver.
+    timeouts = next(ast.literal_eval(n.value) for n in tree.body if isinstance(n, ast.Assign)
+                    and ast.unparse(n.targets[0]) == 'STATE_TIMEOUT')
+    controller = yaml.safe_load(read(os.path.join(CONFIG_DIR, 'controller.yaml')))
+    shipped = controller['controller']['ros__parameters']['state_timeout']
+    assert float(timeouts['sim']) == shipped
+    assert timeouts['can_sim'] == timeouts['can'] == '0.5'
+    in_sh = re.findall(r'^    state_timeout=(.*)$', read(LAUNCH_SH), re.MULTILINE)
+    assert sorted(float(v) for v in in_sh) == sorted((shipped, 0.5))
 
 
 def test_robot_state_publisher_only_when_installed(tree):
@@ -165,6 +191,7 @@ def test_robot_state_publisher_only_when_installed(tree):
     assert "get_package_prefix('robot_state_publisher')" in source
     assert 'except PackageNotFoundError' in source
     assert "'mover6.urdf'" in source
-    # The other OpaqueFunction sets the local DDS configuration (local_dds), as launch.sh does.
+    # The other OpaqueFunctions: the local DDS configuration (local_dds), as launch.sh sets it,
+    # and the nodes of the ``hardware`` argument.
     assert sorted(ast.unparse(keyword(c, 'function')) for c in calls(tree, 'OpaqueFunction')) \
-        == ['local_dds_environment', 'robot_state_publisher']
+        == ['hardware_nodes', 'local_dds_environment', 'robot_state_publisher']

@@ -1,0 +1,154 @@
+"""
+The package's arm driver against the CAN-level Mover6, in one process over a ``virtual`` bus.
+
+Both are the real classes (``hardware.driver.ArmDriver``, ``sim_bridge.can_arm.CanArm`` with
+the MuJoCo arm behind it); time is synthetic and shared: each driver cycle at ``t`` is followed
+by the modules answering what arrived by then, so every run is the same.
+"""
+
+import itertools
+
+import can
+from mover6_control.hardware.driver import ArmDriver
+from mover6_control.hardware.scaling import load_joints
+import numpy as np
+import pytest
+from sim_bridge.can_sim import build_arm, BusServer
+
+CYCLE = 0.05
+CHANNELS = itertools.count()
+_, JOINTS = load_joints()
+TICK = np.array([j.tick for j in JOINTS])
+
+
+class Rig:
+    """The driver and the arm on one virtual bus, stepped together on synthetic time."""
+
+    def __init__(self):
+        channel = f'can_driver_test_{next(CHANNELS)}'
+        self.t = 0.0
+        self.arm = build_arm()
+        self.arm_bus = can.Bus(interface='virtual', channel=channel)
+        self.driver_bus = can.Bus(interface='virtual', channel=channel)
+        self.server = BusServer(self.arm, self.arm_bus, clock=lambda: self.t)
+        self.driver = ArmDriver(self.driver_bus, JOINTS, clock=lambda: self.t)
+
+    def run(self, duration, velocity=None):
+        """Run driver cycles for ``duration`` [s], commanding ``velocity`` (6,) each cycle."""
+        report = None
+        for _ in range(int(round(duration / CYCLE))):
+            if velocity is not None:
+                self.driver.set_velocity(velocity, self.t)
+            report = self.driver.step(self.t)
+            for _ in range(5):                        # the modules answer, physics runs
+                self.t += CYCLE / 5
+                self.server.poll(0.0)
+        return report
+
+    def request(self, kind, joints=None):
+        """Make a request and run until it is answered; return (ok, reason)."""
+        req = self.driver.request(kind, joints)
+        for _ in range(100):
+            if req.ok is not None:
+                return req.ok, req.reason
+            self.run(CYCLE)
+        return req.wait(0.0)
+
+    def close(self):
+        """Shut both buses."""
+        self.driver_bus.shutdown()
+        self.arm_bus.shutdown()
+
+
+@pytest.fixture
+def rig():
+    """Return a powered-up rig, not enabled."""
+    r = Rig()
+    yield r
+    r.close()
+
+
+def enabled(rig):
+    """Reset and enable; return the report."""
+    ok, reason = rig.request('reset')
+    assert ok, reason
+    ok, reason = rig.request('enable')
+    assert ok, reason
+    return rig.run(2 * CYCLE)
+
+
+def test_start_up_sequence(rig):
+    report = rig.run(3 * CYCLE)
+    assert report.state == 'error' and report.hold                       # 0x1C at power-up
+    assert [j.flags for j in report.joints] == [0x1C] * 6
+    ok, reason = rig.request('reset')
+    assert ok, reason
+    assert rig.run(CYCLE).state == 'connected'
+    ok, reason = rig.request('enable')
+    assert ok, reason
+    report = rig.run(CYCLE)
+    assert report.state == 'enabled' and report.hold == ''
+    assert [j.flags for j in report.joints] == [0] * 6
+
+
+def test_a_velocity_moves_the_arm_and_it_stops_on_timeout(rig):
+    enabled(rig)
+    v = np.array([0.2, -0.1, 0.1, 0.3, 0.4, -0.5])
+    report = rig.run(1.0, v)
+    q_moving = rig.arm.sim.q.copy()
+    np.testing.assert_allclose(q_moving, v * 1.0, atol=0.06)
+    report = rig.run(1.0)                     # no more commands: the driver's timeout holds it
+    assert report.state == 'enabled' and all(j.flags == 0 for j in report.joints)
+    q_rest = rig.arm.sim.q.copy()
+    assert np.all(np.abs(q_rest - q_moving) <= np.abs(v) * 0.25 + 0.02)   # timeout + a cycle
+    rig.run(0.5)
+    report = rig.run(CYCLE)
+    # At rest: the driver's reading is the arm's, within one tick of each joint.
+    measured = np.array([j.q for j in report.joints])
+    assert np.all(np.abs(measured - rig.arm.sim.q) <= TICK), (measured - rig.arm.sim.q) / TICK
+
+
+def test_an_injected_position_lag_holds_the_arm_until_reset_and_enable(rig):
+    enabled(rig)
+    rig.arm.inject_flags(2, 0x10, rig.t)
+    report = rig.run(2 * CYCLE, [0.3] * 6)
+    assert report.state == 'error' and report.hold
+    assert 'position_lag' in report.joints[1].flag_names
+    q = rig.arm.sim.q.copy()
+    rig.run(0.5, [0.3] * 6)
+    assert np.all(np.abs(rig.arm.sim.q - q) <= TICK)             # the arm holds, to a tick
+    enabled(rig)
+    rig.run(0.5, [0.3] * 6)
+    assert np.all(rig.arm.sim.q - q > 0.05)                          # and moves again
+
+
+def test_a_silent_module_faults_the_arm_until_reset(rig):
+    enabled(rig)
+    rig.arm.set_silent(5, True)
+    report = rig.run(5 * CYCLE, [0.2] * 6)
+    assert report.state == 'fault' and report.joints[4].state == 'fault'
+    q = rig.arm.sim.q.copy()
+    rig.run(0.5, [0.2] * 6)
+    assert np.all(np.abs(rig.arm.sim.q - q) <= TICK)
+    rig.arm.set_silent(5, False)
+    enabled(rig)
+    assert rig.run(CYCLE).state == 'enabled'
+
+
+def test_modules_trip_their_watchdog_when_the_driver_stops(rig):
+    enabled(rig)
+    for _ in range(int(0.5 / 0.01)):                 # the driver stops cycling
+        rig.t += 0.01
+        rig.server.poll(0.0)
+    assert [m.flags for m in rig.arm.modules] == [0x0C] * 6
+    report = rig.run(2 * CYCLE)
+    assert report.state == 'error' and 'comm_watchdog' in report.joints[0].flag_names
+
+
+def test_referencing_one_joint(rig):
+    enabled(rig)
+    ok, reason = rig.request('reference', [3])
+    assert ok, reason
+    report = rig.run(CYCLE)
+    assert [j.referenced for j in report.joints] == [False, False, True, False, False, False]
+    assert report.joints[2].state == 'referenced'
