@@ -32,17 +32,16 @@ from mover6_control.errors import Mover6Error, UnreachableError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 from mover6_control.nodes import conversions, params, shutdown
+from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.parameters import PLANNER
 from mover6_control.planning.planner_core import (PATH_MOTIONS, plan_path_goal, plan_pose_goal,
                                                   PlannerSettings, POSE_MOTIONS)
 from mover6_control.planning.via_joint import plan_via_path_goal
 import numpy as np
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 
-STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # [s] a demand no controller acknowledged (by goal id in its status) is sent again after this,
 # at most RESENDS more times.
 RESEND_AFTER = 1.0
