@@ -35,6 +35,7 @@ import tty
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
+from mover6_control.control.servo import FRAMES
 from mover6_control.control.status import StatusKey
 from mover6_control.nodes import conversions
 from mover6_control.nodes.qos import STATUS_QOS
@@ -49,7 +50,6 @@ ANGULAR_KEYS = {'u': (0, 1.0), 'j': (0, -1.0), 'i': (1, 1.0), 'k': (1, -1.0),
                 'o': (2, 1.0), 'l': (2, -1.0)}
 JOINT_KEYS = {'w': 1.0, 's': -1.0}
 QUIT_KEYS = ('x', 'q', '\x03', '\x04')
-FRAMES = ('base_link', 'link6')
 # Speed steps: fractions of the top speeds below.
 SPEED_STEPS = (0.1, 0.25, 0.5, 1.0)
 MAX_LINEAR = 0.08       # [m/s]
