@@ -212,7 +212,7 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False):
     from control_msgs.msg import JointJog
     from diagnostic_msgs.msg import DiagnosticStatus
     from mover6_control.nodes import conversions
-    from mover6_control.nodes.controller_node import STATUS_QOS
+    from mover6_control.nodes.qos import STATUS_QOS
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from ros_testing import NodeProcess

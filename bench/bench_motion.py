@@ -17,7 +17,7 @@ Run: ``python -m bench.bench_motion [--quick]``. Prints tables and writes
    every 1 ms) and the continuous duration against a lower bound on any trajectory. Plots (PNG,
    next to the JSON): the time laws, the continuous joint trajectories against the joint limits,
    the desired against the realised tool path.
-3. Plan time: the continuous timing (``timing.time_parameterize``, as the controller's
+3. Plan time: the continuous timing (``time_optimal.time_parameterize``, as the controller's
    ``continuous`` profile calls it) through 20, 100 and 1000 random in-limit waypoints, the median
    of several runs, with the durations (a faster timing must not change them).
 """
@@ -29,7 +29,7 @@ import time
 from bench.output import RESULTS, write_json
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk, fk_batch
-from mover6_control.motion import metrics, paths, time_laws, timing, trajectories
+from mover6_control.motion import metrics, paths, time_laws, time_optimal, trajectories
 from mover6_control.tools import plots
 import numpy as np
 
@@ -92,8 +92,9 @@ def bench_speed(arm, quick):
     Q = _waypoints(arm, 100)
     v = arm.velocity_limits
     builders = {
-        'continuous (TOPP)': lambda: timing.time_parameterize(Q, v, A_MAX),
-        'continuous, jerk-limited': lambda: timing.time_parameterize(Q, v, A_MAX, j_max=J_MAX),
+        'continuous (TOPP)': lambda: time_optimal.time_parameterize(Q, v, A_MAX),
+        'continuous, jerk-limited': lambda: time_optimal.time_parameterize(Q, v, A_MAX,
+                                                                           j_max=J_MAX),
         'cubic spline': lambda: trajectories.cubic_trajectory(Q, v_max=v, a_max=A_MAX),
         'quintic spline': lambda: trajectories.quintic_trajectory(Q, v_max=v, a_max=A_MAX),
         'B-spline': lambda: trajectories.bspline_trajectory(Q, v_max=v, a_max=A_MAX),
@@ -119,7 +120,7 @@ def bench_speed(arm, quick):
         rows.append({'kind': name, 'duration_s': traj.duration, 'build_ms': 1e3 * t_build,
                      'sample_batch_us': 1e6 * t_batch / t.size, 'sample_tick_us': 1e6 * t_tick,
                      'samples': int(t.size)})
-    bound = timing.time_optimal_bound(Q, v, A_MAX)
+    bound = time_optimal.time_optimal_bound(Q, v, A_MAX)
     return rows, bound
 
 
@@ -129,7 +130,7 @@ def bench_plan_time(arm, quick):
     rows = []
     for m, repeats in ((20, 15), (100, 15), (1000, 3)):
         Q = _waypoints(arm, m, seed=m)
-        traj, t_plan, t_min = _plan_times(lambda: timing.time_parameterize(Q, v, A_MAX),
+        traj, t_plan, t_min = _plan_times(lambda: time_optimal.time_parameterize(Q, v, A_MAX),
                                           1 if quick else repeats)
         rows.append({'waypoints': m, 'plan_ms': 1e3 * t_plan, 'plan_ms_min': 1e3 * t_min,
                      'duration_s': traj.duration, 'repeats': 1 if quick else repeats})
@@ -156,12 +157,12 @@ def bench_report_linear(arm):
     schemes['report scheme, t_max = 1 s per waypoint'] = report_fixed
     schemes['report scheme, shortest t_max'] = trajectories.stop_at_each(
         Q, time_laws.trapezoidal, v, A_MAX)
-    cont, t_build = _timed(lambda: timing.time_parameterize(Q, v, A_MAX), 3)
+    cont, t_build = _timed(lambda: time_optimal.time_parameterize(Q, v, A_MAX), 3)
     schemes['continuous (TOPP on blended path)'] = cont
-    schemes['continuous, jerk-limited (j_max 5)'] = timing.time_parameterize(
+    schemes['continuous, jerk-limited (j_max 5)'] = time_optimal.time_parameterize(
         Q, v, A_MAX, j_max=J_MAX)
-    bound = timing.time_optimal_bound(Q, v, A_MAX)
-    fine = timing.time_parameterize(Q, v, A_MAX, n_grid=20000)
+    bound = time_optimal.time_optimal_bound(Q, v, A_MAX)
+    fine = time_optimal.time_parameterize(Q, v, A_MAX, n_grid=20000)
     t = metrics.sample_times(cont.duration, 1e-3)
     q, qd, qdd = cont.sample(t)
     figures = [
@@ -190,10 +191,10 @@ def bench_report_linear(arm):
     sweep = []
     for a_max in (0.5, 1.0, 2.0, 5.0):
         report_t = trajectories.stop_at_each(Q, time_laws.trapezoidal, v, a_max).duration
-        cont_t = timing.time_parameterize(Q, v, a_max).duration
+        cont_t = time_optimal.time_parameterize(Q, v, a_max).duration
         sweep.append({'a_max': a_max, 'report_shortest_s': report_t, 'continuous_s': cont_t,
                       'speedup': report_t / cont_t,
-                      'bound_s': timing.time_optimal_bound(Q, v, a_max)})
+                      'bound_s': time_optimal.time_optimal_bound(Q, v, a_max)})
     return {
         'figures': figures, 'a_max_sweep': sweep,
         'ik': ik_used, 'a_max': A_MAX, 'velocity_limits': v.tolist(), 'rows': rows,

@@ -221,7 +221,8 @@ def test_the_controller_refuses_a_colliding_demand_with_the_reason():
 
 def test_plan_samples_cover_the_whole_motion_within_the_step():
     """The law's reference is sampled from start to end, no joint step above the limit."""
-    from mover6_control.control.velocity_laws import LawConfig, plan_motion
+    from mover6_control.control.planners import plan_motion
+    from mover6_control.control.profiles import LawConfig
     W = np.array([[0.5, 0.2, -0.3, 0.4, 0.6, -0.8], [0.0, 0.1, 0.0, 0.0, 0.0, 0.0]])
     plan = plan_motion(LawConfig(), HOME, W, ARM.velocity_limits, np.zeros(6))
     Q = plan_samples(plan, 0.01)

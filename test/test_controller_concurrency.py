@@ -20,8 +20,8 @@ import threading
 
 from mover6_control.control import state_machine as sm
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.profiles import LawConfig
 from mover6_control.control.robot import Robot
-from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 import numpy as np

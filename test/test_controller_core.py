@@ -6,14 +6,15 @@ from hypothesis import given, settings
 import hypothesis.strategies as st
 from mover6_control.control import state_machine as sm
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
-from mover6_control.control.velocity_laws import LawConfig
+from mover6_control.control.profiles import LawConfig
+from mover6_control.control.status import Cause
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 import numpy as np
 import pytest
 
 DT = 0.01
-HAS_TIMING = importlib.util.find_spec('mover6_control.motion.timing') is not None
+HAS_TIMING = importlib.util.find_spec('mover6_control.motion.time_optimal') is not None
 PROFILES = ['synchronised', 'trapezoidal', 'jerk_limited'] + (
     ['continuous'] if HAS_TIMING else [])
 GOAL = np.array([0.4, -0.3, 0.2, 0.3, -0.2, 0.5])
@@ -237,6 +238,7 @@ def test_arm_that_does_not_move_aborts_and_stops():
     assert not np.any(out.qd)
     status = core.status()
     assert status.values['result'] == 'aborted' and 'path tolerance' in status.values['reason']
+    assert status.values['cause'] == Cause.PATH_TOLERANCE    # what a reader decides on
     assert any(state == sm.STOPPING for _, state, _ in sim.log)
 
 
@@ -249,6 +251,7 @@ def test_settle_timeout_reports_aborted():
     sim.run_until(lambda o: o.state == sm.IDLE)
     status = core.status()
     assert status.level == 'WARN' and status.values['result'] == 'aborted'
+    assert status.values['cause'] == Cause.GOAL_TOLERANCE == 'goal_tolerance'
 
 
 def test_never_commands_further_past_a_limit():

@@ -7,8 +7,8 @@ from mover6_control.control import state_machine as sm
 from mover6_control.control.collision_guard import CollisionGuard
 from mover6_control.control.controller_core import (config_changes, ControllerConfig,
                                                     ControllerCore)
+from mover6_control.control.profiles import LawConfig
 from mover6_control.control.servo import ServoConfig
-from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk, jacobian

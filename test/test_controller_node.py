@@ -6,7 +6,7 @@ import time
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
-from mover6_control.control.velocity_laws import PROFILES
+from mover6_control.control.profiles import PROFILES
 from mover6_control.nodes import conversions, local_dds
 from mover6_control.nodes.controller_node import ControllerNode
 import numpy as np

@@ -12,7 +12,7 @@ import time
 
 from control_msgs.msg import JointJog
 from geometry_msgs.msg import PoseStamped
-from mover6_control.control.velocity_laws import PROFILES
+from mover6_control.control.profiles import PROFILES
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.rotations import pose_from_xyzabc

@@ -6,8 +6,9 @@ joint names in reversed order and follows feedback and results.
 """
 
 from control_msgs.action import FollowJointTrajectory
+from mover6_control.control.planners import plan_motion
+from mover6_control.control.profiles import LawConfig
 from mover6_control.control.timed_plan import timed_plan, Timing
-from mover6_control.control.velocity_laws import LawConfig, plan_motion
 from mover6_control.kinematics.arm import mover6
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np

@@ -2,9 +2,12 @@
 
 from hypothesis import given, settings
 import hypothesis.strategies as st
+from mover6_control.control.commands import common_scale
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.joint import Joint
+from mover6_control.control.planners import plan_motion
+from mover6_control.control.profiles import LawConfig
 from mover6_control.control.robot import Robot
-from mover6_control.control.velocity_laws import common_scale, LawConfig, plan_motion
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 import numpy as np
@@ -23,23 +26,31 @@ def test_from_arm_keeps_names_and_limits():
     np.testing.assert_allclose(robot.q, np.zeros(6))
 
 
+def report_plan(q0, q1, **law):
+    """Return the controller's plan from q0 to q1 (one waypoint), limits too wide to stretch."""
+    q0 = np.asarray(q0, dtype=float)
+    return plan_motion(LawConfig(**law), q0, np.asarray(q1, dtype=float)[None],
+                       np.full(q0.shape, 10.0))
+
+
 def test_measurement_and_demand_remember_the_start():
-    robot = Robot.from_arm(mover6()).with_measurement([0.1, 0.2, 0.3, 0.4, 0.5, 0.6],
-                                                      [1, 2, 3, 4, 5, 6])
-    robot = robot.with_demand([0.0, -0.2, 0.3, 1.0, 0.5, 0.0])
+    robot = Robot.from_arm(mover6())
+    robot.measure(0.0, robot.joint_names, [0.1, 0.2, 0.3, 0.4, 0.5, 0.6], [1, 2, 3, 4, 5, 6])
+    robot.give(report_plan(robot.q, [0.0, -0.2, 0.3, 1.0, 0.5, 0.0], profile='synchronised'),
+               0.0)
     np.testing.assert_allclose(robot.q_initial, [0.1, 0.2, 0.3, 0.4, 0.5, 0.6])
     np.testing.assert_allclose(robot.qd, [1, 2, 3, 4, 5, 6])
     assert [j.direction for j in robot.joints] == [-1.0, -1.0, 0.0, 1.0, 0.0, -1.0]
 
 
 def test_demand_outside_limits_names_the_joint():
-    robot = Robot.from_arm(mover6())
+    core = ControllerCore(mover6())          # the check every demand passes
     with pytest.raises(InvalidInputError, match='joint3'):
-        robot.with_demand([0, 0, 2.0, 0, 0, 0])
+        core.check_demand([0, 0, 2.0, 0, 0, 0])
     with pytest.raises(InvalidInputError, match='non-finite'):
-        robot.with_demand([0, 0, np.nan, 0, 0, 0])
+        core.check_demand([0, 0, np.nan, 0, 0, 0])
     with pytest.raises(InvalidInputError, match='shape'):
-        robot.with_demand([0, 0, 0])
+        core.check_demand([[0, 0, 0]])
 
 
 def test_joint_rejects_bad_values():
@@ -54,9 +65,10 @@ def test_joint_rejects_bad_values():
 def test_synchronised_mover6_report_numbers():
     # the Mover6 report: lambda = 2 rad/s; joint 2 travels furthest (0.8 rad) so t_max = 0.4 s (eq.
     # 1).
-    robot = Robot.from_arm(mover6()).with_demand([0.4, -0.8, 0.2, 0.0, 0.1, 0.0])
-    assert robot.max_time(2.0) == pytest.approx(0.4)
-    np.testing.assert_allclose(robot.synchronised_velocities(2.0),
+    plan = report_plan(np.zeros(6), [0.4, -0.8, 0.2, 0.0, 0.1, 0.0], profile='synchronised',
+                       lambda_max=2.0)
+    assert plan.duration == pytest.approx(0.4)
+    np.testing.assert_allclose(plan.sample(0.2)[1],
                                [1.0, -2.0, 0.5, 0.0, 0.25, 0.0])     # eq. 2
 
 
@@ -64,9 +76,9 @@ def test_synchronised_mover6_report_numbers():
 @given(st.lists(angle, min_size=6, max_size=6), st.lists(angle, min_size=6, max_size=6),
        st.floats(0.1, 3.0))
 def test_synchronised_all_arrive_together(q0, q1, lam):
-    robot = Robot.from_arm(mover6()).with_measurement(q0).with_demand(q1)
-    t_max = robot.max_time(lam)
-    v = robot.synchronised_velocities(lam)
+    plan = report_plan(q0, q1, profile='synchronised', lambda_max=lam)
+    t_max = plan.duration
+    v = plan.sample(0.5 * t_max)[1]
     assert np.max(np.abs(v)) == pytest.approx(lam if t_max > 0 else 0.0)
     np.testing.assert_allclose(np.asarray(q0) + v * t_max, q1, atol=1e-12)
 
@@ -74,30 +86,32 @@ def test_synchronised_all_arrive_together(q0, q1, lam):
 def test_trapezoid_mover6_report_defaults_eq16_to_19():
     # the Mover6 report: t_max = 1 s, t_blend = t_max / 4; a move of 0.3 rad gives V_max = 0.4
     # rad/s.
-    joint = Joint('joint1', -1.571, 1.571, 1.0, q=0.2).with_demand(-0.1)
+    plan = report_plan([0.2], [-0.1], profile='trapezoidal', t_max=1.0)   # t_blend default
     t_max, t_blend = 1.0, 0.25
     v_max = 0.3 / (t_max - t_blend)                                        # eq. 16
-    assert joint.trapezoidal_velocity(0.5, t_max) == pytest.approx(-v_max)  # plateau, eq. 18
-    assert joint.trapezoidal_velocity(0.125, t_max) == pytest.approx(-v_max / 2)
-    assert joint.trapezoidal_velocity(0.875, t_max) == pytest.approx(-v_max / 2)
-    assert joint.trapezoidal_velocity(1.0, t_max) == 0.0
-    assert joint.trapezoidal_velocity(-0.1, t_max) == 0.0
+
+    def velocity(t):
+        return float(plan.sample(t)[1][0])
+    assert velocity(0.5) == pytest.approx(-v_max)                          # plateau, eq. 18
+    assert velocity(0.125) == pytest.approx(-v_max / 2)
+    assert velocity(0.875) == pytest.approx(-v_max / 2)
+    assert velocity(1.0) == 0.0
+    assert velocity(-0.1) == 0.0
     dt = 1e-4
     ts = np.arange(0.0, t_max, dt) + dt / 2
-    s = sum(joint.trapezoidal_velocity(t, t_max, t_blend) for t in ts) * dt   # eq. 19
+    s = sum(velocity(t) for t in ts) * dt                                  # eq. 19
     assert s == pytest.approx(-0.3, abs=1e-7)
 
 
 def test_trapezoid_rejects_a_blend_too_long():
-    joint = Joint('joint1', -1.0, 1.0, 1.0).with_demand(0.5)
     with pytest.raises(InvalidInputError, match='t_blend'):
-        joint.trapezoidal_velocity(0.1, 1.0, 0.5)
+        LawConfig(profile='trapezoidal', t_max=1.0, t_blend=0.5)
 
 
 def test_robot_trapezoid_is_per_joint():
-    robot = Robot.from_arm(mover6()).with_demand([0.3, -0.6, 0, 0, 0, 0.15])
-    np.testing.assert_allclose(robot.trapezoidal_velocities(0.5, 1.0),
-                               [0.4, -0.8, 0, 0, 0, 0.2])
+    plan = report_plan(np.zeros(6), [0.3, -0.6, 0, 0, 0, 0.15], profile='trapezoidal',
+                       t_max=1.0)
+    np.testing.assert_allclose(plan.sample(0.5)[1], [0.4, -0.8, 0, 0, 0, 0.2])
 
 
 def test_measure_maps_by_name_in_any_order():
@@ -186,7 +200,7 @@ def test_robot_follows_the_plan_it_is_given_and_commands_through_the_law():
     t = robot.follow(10.1)
     assert t == pytest.approx(0.1)
     qd = robot.command(0.0, arm.velocity_limits)
-    np.testing.assert_allclose(qd, robot.synchronised_velocities(0.1))
+    np.testing.assert_allclose(qd, goal / (np.max(np.abs(goal)) / 0.1))   # eq. 1-2
     np.testing.assert_allclose(robot.error, robot.reference[0])   # measured at 0
     robot.hold(goal)
     np.testing.assert_allclose(robot.command(2.0, arm.velocity_limits),

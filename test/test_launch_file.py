@@ -12,7 +12,8 @@ import ast
 import os
 import re
 
-from mover6_control.control.velocity_laws import JOG_UNITS, PROFILES
+from mover6_control.control.commands import JOG_UNITS
+from mover6_control.control.profiles import PROFILES
 from mover6_control.kinematics.arm import LIMIT_SETS
 from mover6_control.resources import CONFIG_DIR
 import pytest

@@ -2,7 +2,8 @@
 
 from geometry_msgs.msg import PoseStamped
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
-from mover6_control.control.velocity_laws import LawConfig, plan_motion
+from mover6_control.control.planners import plan_motion
+from mover6_control.control.profiles import LawConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes import conversions

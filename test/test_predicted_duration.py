@@ -3,7 +3,8 @@
 import re
 
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
-from mover6_control.control.velocity_laws import LawConfig, predicted_duration, PROFILES
+from mover6_control.control.planners import predicted_duration
+from mover6_control.control.profiles import LawConfig, PROFILES
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.motion.paths import goal_relative_to_start

@@ -8,7 +8,7 @@ the command is zero once the controller is idle again.
 """
 
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
-from mover6_control.control.velocity_laws import LawConfig
+from mover6_control.control.profiles import LawConfig
 from mover6_control.kinematics.arm import mover6, MOVER6_TICK_SIZE
 import numpy as np
 import pytest

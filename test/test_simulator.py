@@ -4,7 +4,7 @@ import math
 
 from hypothesis import given, settings, strategies as st
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
-from mover6_control.control.velocity_laws import LawConfig
+from mover6_control.control.profiles import LawConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6, MOVER6_TICK_SIZE
 import mujoco

@@ -1,8 +1,9 @@
 """The timed plan of FollowJointTrajectory goals: each point at its time_from_start."""
 
+from mover6_control.control.planners import plan_motion
+from mover6_control.control.profiles import LawConfig
 from mover6_control.control.timed_plan import (hermite_coefficients, peak, plan_demand,
                                                START_TOLERANCE, timed_plan, Timing, TimingError)
-from mover6_control.control.velocity_laws import LawConfig, plan_motion
 from mover6_control.errors import InvalidInputError
 import numpy as np
 import pytest

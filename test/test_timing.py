@@ -3,7 +3,7 @@
 from hypothesis import example, given, settings
 import hypothesis.strategies as st
 from mover6_control.errors import InvalidInputError
-from mover6_control.motion import timing
+from mover6_control.motion import blended_path, time_optimal
 from mover6_control.motion.metrics import max_deviation_from_polyline
 import numpy as np
 import pytest
@@ -30,7 +30,7 @@ def distance_to_polyline(q, W):
 
 
 def test_blended_path_is_tangent_continuous_and_close_to_the_corners():
-    path = timing.blended_path(Q, max_deviation=0.02)
+    path = blended_path.blended_path(Q, max_deviation=0.02)
     assert path.kinds == ('line', 'arc', 'line', 'arc', 'line')
     s = path.starts[1:-1]
     before = path.evaluate(s, np.arange(len(s)))
@@ -50,7 +50,7 @@ def test_blended_path_is_tangent_continuous_and_close_to_the_corners():
 
 
 def test_quintic_blends_are_curvature_continuous_and_within_the_deviation():
-    path = timing.blended_path(Q, max_deviation=0.002, blend='quintic')
+    path = blended_path.blended_path(Q, max_deviation=0.002, blend='quintic')
     assert path.kinds == ('line', 'quintic', 'line', 'quintic', 'line')
     s = path.starts[1:-1]
     before = path.evaluate(s, np.arange(len(s)))
@@ -76,8 +76,8 @@ def test_quintic_blends_are_curvature_continuous_and_within_the_deviation():
 
 def test_jerk_limited_timing_keeps_every_limit_and_the_path():
     J = np.full(6, 5.0)
-    traj = timing.time_parameterize(Q, V, A, j_max=J)
-    free = timing.time_parameterize(Q, V, A)
+    traj = time_optimal.time_parameterize(Q, V, A, j_max=J)
+    free = time_optimal.time_parameterize(Q, V, A)
     assert traj.duration > free.duration
     t, q, qd, qdd = dense(traj, 5e-4)
     assert np.all(np.abs(qd) <= V) and np.all(np.abs(qdd) <= A)
@@ -92,7 +92,7 @@ def test_jerk_limited_timing_keeps_every_limit_and_the_path():
 
 
 def test_continuous_trajectory_runs_through_waypoints_within_limits():
-    traj = timing.time_parameterize(Q, V, A, max_deviation=0.01)
+    traj = time_optimal.time_parameterize(Q, V, A, max_deviation=0.01)
     t, q, qd, qdd = dense(traj)
     assert np.allclose(q[0], Q[0]) and np.allclose(q[-1], Q[-1], atol=1e-12)
     assert np.allclose(qd[0], 0.0) and np.allclose(traj.sample(traj.duration)[1], 0.0)
@@ -110,35 +110,35 @@ def test_continuous_trajectory_runs_through_waypoints_within_limits():
 
 def test_straight_line_matches_the_bang_bang_time():
     W = np.linspace([0.0, 0.0], [1.0, 0.5], 7)                 # collinear waypoints
-    traj = timing.time_parameterize(W, [0.5, 0.5], [1.0, 1.0])
+    traj = time_optimal.time_parameterize(W, [0.5, 0.5], [1.0, 1.0])
     exact = 1.0 / 0.5 + 0.5 / 1.0                             # joint 1 limits it
-    assert timing.time_optimal_bound(W, [0.5, 0.5], [1.0, 1.0]) == pytest.approx(exact)
+    assert time_optimal.time_optimal_bound(W, [0.5, 0.5], [1.0, 1.0]) == pytest.approx(exact)
     assert exact <= traj.duration <= exact * 1.002            # 0.1 % limit margin + grid
 
 
 def test_start_velocity_along_the_path_is_kept():
     W = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 0.0]])
     qd0 = np.array([0.2, 0.2])
-    traj = timing.time_parameterize(W, [0.5, 0.5], [1.0, 1.0], qd_start=qd0)
+    traj = time_optimal.time_parameterize(W, [0.5, 0.5], [1.0, 1.0], qd_start=qd0)
     assert np.allclose(traj.sample(0.0)[1], qd0, atol=1e-9)
-    sideways = timing.time_parameterize(W, [0.5, 0.5], [1.0, 1.0], qd_start=[0.2, -0.2])
+    sideways = time_optimal.time_parameterize(W, [0.5, 0.5], [1.0, 1.0], qd_start=[0.2, -0.2])
     assert np.allclose(sideways.sample(0.0)[1], 0.0)          # across the path: dropped
 
 
 def test_reversal_stops_at_the_turning_point():
     W = np.array([[0.0], [1.0], [0.5]])
-    traj = timing.time_parameterize(W, [0.5], [1.0])
+    traj = time_optimal.time_parameterize(W, [0.5], [1.0])
     t, q, qd, _ = dense(traj)
     k = np.argmax(q[:, 0])
     assert q[k, 0] == pytest.approx(1.0, abs=1e-6)
     assert abs(qd[k, 0]) < 2e-3
-    assert traj.duration >= timing.time_optimal_bound(W, [0.5], [1.0])
+    assert traj.duration >= time_optimal.time_optimal_bound(W, [0.5], [1.0])
 
 
 def test_repeated_waypoints_are_skipped():
     W = np.vstack([Q[:2], Q[1:2], Q[2:]])
-    a = timing.time_parameterize(W, V, A)
-    b = timing.time_parameterize(Q, V, A)
+    a = time_optimal.time_parameterize(W, V, A)
+    b = time_optimal.time_parameterize(Q, V, A)
     assert a.duration == pytest.approx(b.duration)
 
 
@@ -154,13 +154,13 @@ def test_random_paths_respect_limits_and_the_lower_bound(rows, v, a):
     keep = np.concatenate([[True], np.linalg.norm(np.diff(W, axis=0), axis=1) > 1e-12])
     if keep.sum() < 2:
         with pytest.raises(InvalidInputError):
-            timing.time_parameterize(W, v, a)
+            time_optimal.time_parameterize(W, v, a)
         return
     # The bound is for motions through the waypoints exactly: compare with corners cut by at
     # most 1e-6 rad, far less than the 0.1 % margin on the limits can gain.
-    exact = timing.time_parameterize(W, v, a, max_deviation=1e-6)
-    assert exact.duration >= timing.time_optimal_bound(W, v, a)
-    traj = timing.time_parameterize(W, v, a)
+    exact = time_optimal.time_parameterize(W, v, a, max_deviation=1e-6)
+    assert exact.duration >= time_optimal.time_optimal_bound(W, v, a)
+    traj = time_optimal.time_parameterize(W, v, a)
     t, q, qd, qdd = dense(traj, max(traj.duration / 4000, 1e-4))
     assert np.all(np.abs(qd) <= v) and np.all(np.abs(qdd) <= a)
     assert np.allclose(q[-1], W[-1], atol=1e-9)
@@ -171,8 +171,8 @@ def test_report_like_dense_path_is_close_to_the_bound_and_to_the_line():
     # 20 waypoints on a gently curved joint path, like path IK of a straight Cartesian line.
     s = np.linspace(0.0, 1.0, 20)[:, None]
     W = s * np.array([0.0, 0.3, -0.4, 0.0, 0.1, 0.0]) + 0.02 * np.sin(3 * s)
-    traj = timing.time_parameterize(W, V, A)
-    assert traj.duration <= 1.01 * timing.time_optimal_bound(W, V, A)
+    traj = time_optimal.time_parameterize(W, V, A)
+    assert traj.duration <= 1.01 * time_optimal.time_optimal_bound(W, V, A)
     q = dense(traj)[1]
     # Each corner arc uses at most half of a segment (ell <= L / 2) and strays ell tan(alpha / 4)
     # from the corner: here far inside max_deviation.
@@ -189,27 +189,27 @@ def test_report_like_dense_path_is_close_to_the_bound_and_to_the_line():
 
 def test_time_optimal_bound_values():
     # 1 joint, distance 1, v = 0.5, a = 1: cruise reached: 1 / 0.5 + 0.5 / 1 = 2.5 s.
-    assert timing.time_optimal_bound([[0.0], [1.0]], 0.5, 1.0) == pytest.approx(2.5)
+    assert time_optimal.time_optimal_bound([[0.0], [1.0]], 0.5, 1.0) == pytest.approx(2.5)
     # distance 0.1 < v^2 / a: triangle 2 sqrt(0.1 / 1).
-    assert timing.time_optimal_bound([[0.0], [0.1]], 0.5, 1.0) == pytest.approx(
+    assert time_optimal.time_optimal_bound([[0.0], [0.1]], 0.5, 1.0) == pytest.approx(
         2 * np.sqrt(0.1))
     # Back and forth: total variation 2 counts.
-    assert timing.time_optimal_bound([[0.0], [1.0], [0.0]], 0.5, 1.0) == pytest.approx(4.5)
+    assert time_optimal.time_optimal_bound([[0.0], [1.0], [0.0]], 0.5, 1.0) == pytest.approx(4.5)
 
 
 @pytest.mark.parametrize('call', [
-    lambda: timing.time_parameterize(Q[:1], V, A),
-    lambda: timing.time_parameterize(np.vstack([Q[:1], Q[:1]]), V, A),
-    lambda: timing.time_parameterize(np.where(Q == 0.5, np.inf, Q), V, A),
-    lambda: timing.time_parameterize(Q, np.zeros(6), A),
-    lambda: timing.time_parameterize(Q, V, -A),
-    lambda: timing.time_parameterize(Q, V[:3], A),
-    lambda: timing.time_parameterize(Q, V, A, j_max=0.0),
-    lambda: timing.time_parameterize(Q, V, A, j_max=5.0, qd_start=np.full(6, 0.1)),
-    lambda: timing.blended_path(Q, blend='spline'),
-    lambda: timing.time_parameterize(Q, V, A, max_deviation=0.0),
-    lambda: timing.time_parameterize(Q, V, A, qd_start=[np.nan] * 6),
-    lambda: timing.time_optimal_bound(Q, V, 0.0),
+    lambda: time_optimal.time_parameterize(Q[:1], V, A),
+    lambda: time_optimal.time_parameterize(np.vstack([Q[:1], Q[:1]]), V, A),
+    lambda: time_optimal.time_parameterize(np.where(Q == 0.5, np.inf, Q), V, A),
+    lambda: time_optimal.time_parameterize(Q, np.zeros(6), A),
+    lambda: time_optimal.time_parameterize(Q, V, -A),
+    lambda: time_optimal.time_parameterize(Q, V[:3], A),
+    lambda: time_optimal.time_parameterize(Q, V, A, j_max=0.0),
+    lambda: time_optimal.time_parameterize(Q, V, A, j_max=5.0, qd_start=np.full(6, 0.1)),
+    lambda: blended_path.blended_path(Q, blend='spline'),
+    lambda: time_optimal.time_parameterize(Q, V, A, max_deviation=0.0),
+    lambda: time_optimal.time_parameterize(Q, V, A, qd_start=[np.nan] * 6),
+    lambda: time_optimal.time_optimal_bound(Q, V, 0.0),
 ])
 def test_bad_input_raises(call):
     with pytest.raises(InvalidInputError):

@@ -8,7 +8,7 @@ them to 1e-9 relative (it is the same grid, the same constraints and the same ar
 practice they are bit for bit the same).
 """
 
-from mover6_control.motion import timing
+from mover6_control.motion import time_optimal
 import numpy as np
 import pytest
 
@@ -62,7 +62,7 @@ def case(seed):
 @pytest.mark.parametrize('seed, duration, middle', REFERENCE)
 def test_durations_match_the_implementation_before_the_speed_up(seed, duration, middle):
     Q, v, a, kwargs = case(seed)
-    traj = timing.time_parameterize(Q, v, a, **kwargs)
+    traj = time_optimal.time_parameterize(Q, v, a, **kwargs)
     times = np.asarray(traj.waypoint_times)
     assert traj.duration == pytest.approx(duration, rel=1e-9, abs=0.0)
     assert times[times.size // 2] == pytest.approx(middle, rel=1e-9, abs=0.0)
@@ -71,7 +71,7 @@ def test_durations_match_the_implementation_before_the_speed_up(seed, duration, 
 @pytest.mark.parametrize('seed', [5, 6, 7, 16])
 def test_long_paths_keep_the_limits_between_grid_points(seed):
     Q, v, a, kwargs = case(seed)
-    traj = timing.time_parameterize(Q, v, a, **kwargs)
+    traj = time_optimal.time_parameterize(Q, v, a, **kwargs)
     t = np.linspace(0.0, traj.duration, 200001)
     _, qd, qdd = traj.sample(t)
     assert np.all(np.abs(qd) <= v) and np.all(np.abs(qdd) <= a)

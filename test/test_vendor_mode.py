@@ -9,10 +9,10 @@ wrist moves never arrive.
 
 from hypothesis import given, settings
 import hypothesis.strategies as st
+from mover6_control.control.commands import (dead_zone_command, min_jog_speed, TICK_MARGIN,
+                                             tick_pulse_command, to_jog_units)
 from mover6_control.control.controller_core import ControllerConfig, ControllerCore
-from mover6_control.control.velocity_laws import (dead_zone_command, LawConfig, min_jog_speed,
-                                                  TICK_MARGIN, tick_pulse_command,
-                                                  to_jog_units)
+from mover6_control.control.profiles import LawConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 import numpy as np

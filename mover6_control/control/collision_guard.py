@@ -14,7 +14,7 @@ from __future__ import annotations
 import re
 
 from mover6_control.collision.checker import CollisionChecker, CollisionSettings, densify
-from mover6_control.control.velocity_laws import MotionPlan
+from mover6_control.control.motion_plan import MotionPlan
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
 import numpy as np

@@ -60,6 +60,7 @@ from mover6_control.control import state_machine as sm
 from mover6_control.control.robot import Robot
 from mover6_control.control.servo import (command_age, initial_state, joint_jog_command,
                                           servo_step, ServoConfig, TwistCommand)
+from mover6_control.control.status import Cause, MotionResult, StatusKey as K
 from mover6_control.control.timed_plan import plan_demand, Timing
 from mover6_control.control.velocity_laws import (dead_zone_command, driver_velocity_limits,
                                                   guard_position_limits, JOG_UNITS, LawConfig,
@@ -528,7 +529,8 @@ class ControllerCore:
         ref = self.robot.reference
         q_ref, qd_ref = ref if ref is not None else (self.robot.q, self.robot.commanded)
         self.robot.give(plan_stop(q_ref, qd_ref, self.config.law.a_max), now)
-        self._result = {'result': 'stopped', 'reason': 'stop requested'}
+        self._result = {K.RESULT: MotionResult.STOPPED, K.CAUSE: Cause.STOP_REQUESTED,
+                        K.REASON: 'stop requested'}
         self._set(sm.STOP, 'OK', f'stopping motion {self._motion_id} on request')
         return True, f'stopping within {self.robot.plan.duration:.2f} s'
 
@@ -608,7 +610,8 @@ class ControllerCore:
         if kind != self._jog_kind:
             self._jog_kind, self._changed = kind, True
         if out.stale and out.at_rest:
-            self._result = {'result': 'jog_stopped', 'reason': out.reason}
+            self._result = {K.RESULT: MotionResult.JOG_STOPPED, K.CAUSE: Cause.JOG_ENDED,
+                            K.REASON: out.reason}
             self._set(sm.JOG_DONE, 'OK', f'jog ended, at rest: {out.reason}; idle')
             return None
         return out.qd
@@ -731,7 +734,8 @@ class ControllerCore:
         if reason is not None:
             if self._state != sm.FAULT and sm.accepts(self._state, sm.STATES_INVALID):
                 if self._state in sm.MOVING_STATES:
-                    self._result = {'result': 'fault', 'reason': reason}
+                    self._result = {K.RESULT: MotionResult.FAULT, K.CAUSE: Cause.STATES_INVALID,
+                                    K.REASON: reason}
                 self.robot.drop_plan()
                 self._t_fault = now
                 self._set(sm.STATES_INVALID, 'ERROR', reason)
@@ -750,7 +754,8 @@ class ControllerCore:
             self.robot.give(plan_stop(q_ref, qd_ref, self.config.law.a_max), now)
             reason = (f'tracking error {worst:.3f} rad above path tolerance '
                       f'{self.config.path_tolerance} rad')
-            self._result = {'result': 'aborted', 'reason': reason}
+            self._result = {K.RESULT: MotionResult.ABORTED, K.CAUSE: Cause.PATH_TOLERANCE,
+                            K.REASON: reason}
             self._set(sm.PATH_ERROR, 'WARN', f'aborting motion {self._motion_id}: {reason}')
             return self._tick_stopping(now)
         if t >= self.robot.plan.duration:
@@ -775,15 +780,16 @@ class ControllerCore:
         if self._arrived_at is None:
             if np.all(self._within(self.robot.goal_tolerances)):
                 self._arrived_at = now
-                self._result = {'result': 'arrived', 'final_joint_error': f'{worst:.6f}'}
+                self._result = {K.RESULT: MotionResult.ARRIVED,
+                                K.FINAL_JOINT_ERROR: f'{worst:.6f}'}
                 self._message = (f'motion {self._motion_id} arrived (max joint error '
                                  f'{worst:.4f} rad); settling')
                 self._changed = True
             elif now - self._t_settle > self.config.settle_timeout:
                 reason = (f'not within goal tolerance after {self.config.settle_timeout} s '
                           f'(max joint error {worst:.4f} rad)')
-                self._result = {'result': 'aborted', 'reason': reason,
-                                'final_joint_error': f'{worst:.6f}'}
+                self._result = {K.RESULT: MotionResult.ABORTED, K.CAUSE: Cause.GOAL_TOLERANCE,
+                                K.REASON: reason, K.FINAL_JOINT_ERROR: f'{worst:.6f}'}
                 self._set(sm.SETTLE_TIMEOUT, 'WARN', f'motion {self._motion_id}: {reason}')
                 return None
         if self._arrived_at is not None:
@@ -854,8 +860,8 @@ class ControllerCore:
         qd_ref = self.robot.reference[1]
         if t >= self.robot.plan.duration:
             self.robot.drop_plan()
-            result = self._result.get('result', 'stopped')
-            self._set(sm.AT_REST, 'OK' if result == 'stopped' else 'WARN',
+            result = self._result.get(K.RESULT, MotionResult.STOPPED)
+            self._set(sm.AT_REST, 'OK' if result == MotionResult.STOPPED else 'WARN',
                       f'motion {self._motion_id} {result}: at rest, holding')
             return None
         return qd_ref.copy()

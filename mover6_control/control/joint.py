@@ -6,7 +6,8 @@ the move and a velocity, and computes the sign of the move and the trapezoidal v
 16-18). This keeps the same facts plus what the controller needs of a joint: its limits
 (position, velocity, acceleration), its goal tolerance and, for the vendor driver, its encoder
 tick; and fixes the report's sign at zero distance (a division by zero there: here a joint at
-its demand has direction 0). The trapezoid itself is the one of ``motion.time_laws``.
+its demand has direction 0). The report's trapezoidal velocity is the controller's trapezoidal
+profile (``motion_plan.trapezoid_segment``, the law of ``motion.time_laws``), not a copy here.
 ``control.robot.Robot`` holds the joints of the arm the controller drives and hands out
 ``Joint`` values of its present state.
 """
@@ -18,7 +19,6 @@ import math
 from typing import Optional
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.motion.time_laws import trapezoidal
 from mover6_control.validation import as_positive
 
 
@@ -102,20 +102,3 @@ class Joint:
         """Return the sign of the move still to go: -1, 0 or +1 (the Mover6 report's ``Sign``)."""
         d = self.distance_to_go
         return 0.0 if d == 0.0 else math.copysign(1.0, d)
-
-    def trapezoidal_velocity(self, t: float, t_max: float,
-                             t_blend: Optional[float] = None) -> float:
-        """
-        Return the trapezoidal velocity [rad/s] at ``t`` [s] after the start (Mover6 report 16-18).
-
-        ``V_max = |demand - q_initial| / (t_max - t_blend)`` (eq. 16); the velocity ramps up
-        over ``t_blend`` (default ``t_max / 4``), holds ``V_max`` and ramps down to zero at
-        ``t_max`` (eq. 18), so its integral is ``demand - q_initial`` (eq. 19): the profile of
-        ``time_laws.trapezoidal``. The sign is that of ``demand - q_initial`` (the planned move):
-        unlike the report's ``Sign()`` of the remaining distance, it does not flip when the joint
-        overshoots; correcting that is the closed loop's job.
-        """
-        law = trapezoidal(t_max, t_blend)
-        if t < 0.0 or t >= t_max:
-            return 0.0
-        return float((self.demand - self.q_initial) * law.evaluate(t / t_max, 1) / t_max)

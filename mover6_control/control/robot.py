@@ -10,19 +10,20 @@ last measured of them, the demand it was given and the reference it follows:
   different lengths or a non-finite value make the states invalid with that reason
   (``invalid_reason``);
 - ``give(plan, now)`` hands it a demand: the ``MotionPlan`` of the selected velocity law
-  (``velocity_laws.plan_motion``), which it then holds and follows; ``demand`` is the plan's
+  (``planners.plan_motion``), which it then holds and follows; ``demand`` is the plan's
   goal and ``q_initial`` where the arm was when it was given;
-- ``command(now, gain, velocity_limits)`` asks the law for this tick's command: the plan's
-  reference at ``now`` plus the closed-loop correction on the measured position
-  (``velocity_laws.closed_loop_command``); ``hold(goal)`` follows a fixed goal instead.
+- ``follow(now)`` takes the plan's reference at ``now``; ``command(gain, velocity_limits)``
+  then gives this tick's command: that reference plus the closed-loop correction on the
+  measured position (``commands.closed_loop_command``); ``hold(goal)`` follows a fixed goal
+  instead.
 
 The controller core (``controller_core``) owns one; the state machine (``state_machine``)
 decides what it may do. The values are numpy arrays inside (one entry per joint, chain order);
 ``joints`` and ``joint(name)`` build ``Joint`` values of the present state on demand.
 
-The Mover6 report eq. 1-2 (``max_time``, ``synchronised_velocities``): the joint with the
-furthest to go sets the time ``t_max = max |demand - q| / lambda_max``; every joint then moves
-at ``(demand - q) / t_max`` so all arrive together. Eq. 16-18: ``trapezoidal_velocities``.
+The Mover6 report's velocity laws (eq. 1-2, synchronised; eq. 16-18, trapezoidal) are the
+controller's profiles, planned once for every use (``motion_plan.synchronised_segment``,
+``motion_plan.trapezoid_segment``): the robot follows their plans and holds no copy of them.
 """
 
 from __future__ import annotations
@@ -30,8 +31,9 @@ from __future__ import annotations
 import math
 from typing import Optional, Sequence, TYPE_CHECKING
 
+from mover6_control.control.commands import closed_loop_command
 from mover6_control.control.joint import Joint
-from mover6_control.control.velocity_laws import closed_loop_command, MotionPlan
+from mover6_control.control.motion_plan import MotionPlan
 from mover6_control.errors import InvalidInputError
 from mover6_control.validation import as_positive
 import numpy as np
@@ -173,73 +175,6 @@ class Robot:
                  else as_positive(encoder_ticks, 'encoder_ticks', self.n_joints))
         self._goal_tolerance, self._acceleration_limit, self._tick = tol, acc, ticks
 
-    # --- the Mover6 report's value methods ----------------------------------------------------
-
-    def _check(self, values, name):
-        values = np.asarray(values, dtype=float)
-        if values.shape != (self.n_joints,):
-            raise InvalidInputError(
-                f'{name} must have shape ({self.n_joints},), got {values.shape}')
-        if not np.all(np.isfinite(values)):
-            raise InvalidInputError(f'{name} has non-finite values: {values.tolist()}')
-        return values
-
-    def _copy(self) -> Robot:
-        return Robot(self.name, self.joints)
-
-    def with_measurement(self, q: Sequence[float],
-                         qd: Optional[Sequence[float]] = None) -> Robot:
-        """Return a copy with measured positions (n,) [rad] and velocities (n,) [rad/s]."""
-        q = self._check(q, 'q')
-        qd = np.zeros(self.n_joints) if qd is None else self._check(qd, 'qd')
-        robot = self._copy()
-        robot._q, robot._qd = q.copy(), qd.copy()
-        return robot
-
-    def with_demand(self, demand: Sequence[float]) -> Robot:
-        """
-        Return a copy sent to ``demand`` (n,) [rad], with the present positions as the start.
-
-        Raises ``InvalidInputError`` naming every joint whose demand is outside its limits.
-        """
-        robot = self._copy()
-        robot._set_demand(demand)
-        return robot
-
-    def _set_demand(self, demand):
-        demand = self._check(demand, 'demand')
-        bad = [f'{j.name}={d:.4f} outside [{j.lower:.4f}, {j.upper:.4f}]'
-               for j, d in zip(self.joints, demand) if not j.within_limits(d)]
-        if bad:
-            raise InvalidInputError('demand outside joint limits: ' + ', '.join(bad))
-        self._demand, self._q_initial = demand.copy(), self._q.copy()
-
-    def max_time(self, lambda_max: float) -> float:
-        """
-        Return ``t_max`` [s] (Mover6 report eq. 1) for the furthest joint at ``lambda_max``.
-
-        ``t_max = max_m |demand_m - q_m| / lambda_max``; 0 when every joint is at its demand.
-        """
-        lambda_max = as_positive(lambda_max, 'lambda_max')
-        return float(np.max(np.abs(self._demand - self._q)) / lambda_max)
-
-    def synchronised_velocities(self, lambda_max: float) -> np.ndarray:
-        """
-        Return the joint speeds (n,) [rad/s] of the Mover6 report eq. 2: ``(demand - q) / t_max``.
-
-        The furthest joint moves at ``lambda_max``; all joints arrive together. Zero when every
-        joint is already at its demand.
-        """
-        t_max = self.max_time(lambda_max)
-        if t_max == 0.0:
-            return np.zeros(self.n_joints)
-        return (self._demand - self._q) / t_max
-
-    def trapezoidal_velocities(self, t: float, t_max: float,
-                               t_blend: Optional[float] = None) -> np.ndarray:
-        """Return every joint's trapezoidal velocity (n,) [rad/s] at ``t`` [s] (eq. 16-18)."""
-        return np.array([j.trapezoidal_velocity(t, t_max, t_blend) for j in self.joints])
-
     # --- the controller's model: measurement ---------------------------------------------------
 
     def measure(self, now: float, names: Sequence[str], positions: Sequence[float],
@@ -356,7 +291,7 @@ class Robot:
         Return the velocities (n,) [rad/s] to command now, from the law's reference.
 
         ``qd_ref + gain (q_ref - q)`` within ``velocity_limits`` (n,) [rad/s], one common factor
-        (``velocity_laws.closed_loop_command``); ``q`` defaults to the measured position (the
+        (``commands.closed_loop_command``); ``q`` defaults to the measured position (the
         vendor driver passes where the arm will be once what is in flight has landed).
         """
         q_ref, qd_ref = self.reference

@@ -20,14 +20,17 @@ Any (state, event) pair not in ``TRANSITIONS`` leaves the state unchanged: that 
 
 from __future__ import annotations
 
-WAITING_FOR_STATES = 'waiting_for_states'
-IDLE = 'idle'
-EXECUTING = 'executing'
-SETTLING = 'settling'
-STOPPING = 'stopping'
-FAULT = 'fault'
-JOGGING = 'jogging'
-STATES = (WAITING_FOR_STATES, IDLE, EXECUTING, SETTLING, STOPPING, FAULT, JOGGING)
+from mover6_control.control.status import State
+
+# The states (``status.State``: their names are the status schema's), short for the table.
+WAITING_FOR_STATES = State.WAITING_FOR_STATES
+IDLE = State.IDLE
+EXECUTING = State.EXECUTING
+SETTLING = State.SETTLING
+STOPPING = State.STOPPING
+FAULT = State.FAULT
+JOGGING = State.JOGGING
+STATES = tuple(str(state) for state in State)     # plain text, as the wire has it
 
 STATES_VALID = 'states_valid'          # fresh, complete, finite joint states arrived
 STATES_INVALID = 'states_invalid'      # joint states stale, incomplete or non-finite

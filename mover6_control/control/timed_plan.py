@@ -31,7 +31,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional, Sequence
 
-from mover6_control.control.velocity_laws import LawConfig, MotionPlan, plan_motion
+from mover6_control.control.motion_plan import MotionPlan
+from mover6_control.control.planners import plan_motion
+from mover6_control.control.profiles import LawConfig
+from mover6_control.control.status import TIMING_AS_GIVEN
 from mover6_control.errors import InvalidInputError
 from mover6_control.validation import as_positive
 import numpy as np
@@ -258,14 +261,15 @@ def plan_demand(law: LawConfig, q_start: Sequence[float], waypoints: np.ndarray,
     Return ``(plan, note)``: the timed plan when ``timing`` can be followed, else the law's.
 
     ``note`` is '' for an untimed demand (``timing`` None or all times zero: ``plan_motion``),
-    'as given' when the timing is followed (``timed_plan``), and 'time-optimal through the
-    points: <reason>' when it is not (``plan_motion`` through the same points).
+    ``status.TIMING_AS_GIVEN`` ('as given') when the timing is followed (``timed_plan``), and
+    'time-optimal through the points: <reason>' when it is not (``plan_motion`` through the
+    same points).
     """
     if timing is None or not timing.timed:
         return plan_motion(law, q_start, waypoints, velocity_limits, qd_start), ''
     try:
         return timed_plan(q_start, waypoints, timing, velocity_limits, law.a_max, qd_start,
-                          lower, upper), 'as given'
+                          lower, upper), TIMING_AS_GIVEN
     except TimingError as err:
         return (plan_motion(law, q_start, waypoints, velocity_limits, qd_start),
                 f'time-optimal through the points: {err}')

@@ -16,7 +16,7 @@ polynomial of degree 6 through ``s(tau_via) = S``.
 
 This module is the one home of the Mover6 report's trapezoid: ``trapezoid_times`` checks
 ``0 < t_blend < t_max / 2`` (default ``t_max / 4``) and ``TrapezoidalTimeLaw`` is the profile.
-The controller's trapezoidal law (``control.velocity_laws.trapezoid_segment``), ``Joint`` and
+The controller's trapezoidal law (``control.motion_plan.trapezoid_segment``), ``Joint`` and
 ``Robot`` (``control.joint``, ``control.robot``) and the joint trajectories all play it.
 """
 

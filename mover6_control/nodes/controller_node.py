@@ -69,12 +69,12 @@ from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.kinematics.arm import LIMIT_SETS, mover6
 from mover6_control.nodes import conversions, params, shutdown
+from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from mover6_control.parameters import CONTROLLER
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
@@ -87,7 +87,6 @@ DEMAND_ATTEMPTS = 3
 WATCHDOG_ENV = 'MOVER6_TICK_WATCHDOG'
 # Longest wait [s] at shutdown for the readers of /JointJog to acknowledge the last zero command.
 ZERO_ACK_TIMEOUT = 1.0
-STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # Ticks in a row that raised (each a fault with a zero command) after which the tick cannot run
 # at all: the node gives up and its process exits with 1, so the launcher sees it.
 MAX_TICK_FAILURES = 10

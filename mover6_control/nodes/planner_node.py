@@ -47,6 +47,7 @@ from mover6_control.errors import Mover6Error, UnreachableError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 from mover6_control.nodes import conversions, params, shutdown
+from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.parameters import PLANNER
 from mover6_control.planning.planner_core import (check_path_shape, PATH_MOTIONS,
                                                   plan_path_goal, plan_pose_goal,
@@ -60,7 +61,6 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
 
-STATUS_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # The controller's status is read with a deeper queue: each status may name a goal it took.
 CONTROLLER_STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # [s] a demand no controller acknowledged (by goal id in its status) is sent again after this,

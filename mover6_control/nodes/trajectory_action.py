@@ -34,6 +34,8 @@ running goal: it is aborted with INVALID_GOAL (as joint_trajectory_controller) a
 """
 
 from control_msgs.action import FollowJointTrajectory
+from mover6_control.control.status import (Cause, FINAL_RESULTS, MotionResult, State, StatusKey,
+                                           TIMING_AS_GIVEN)
 from mover6_control.control.timed_plan import Timing
 from mover6_control.errors import InvalidInputError
 from mover6_control.nodes import conversions
@@ -47,7 +49,8 @@ Result = FollowJointTrajectory.Result
 FEEDBACK_PERIOD = 0.1    # [s]
 # Longest wait [s] for the demand thread to accept or refuse a goal's demand.
 ACCEPT_TIMEOUT = 10.0
-FINAL_RESULTS = ('arrived', 'aborted', 'stopped', 'fault')
+# A motion's result counts once the controller has left these states.
+ENDED_AFTER = (State.EXECUTING, State.SETTLING, State.STOPPING)
 
 
 def map_goal(trajectory, joint_names):
@@ -111,6 +114,19 @@ def map_timing(trajectory, joint_names):
         return Timing(times, columns.get('velocities'), columns.get('accelerations'))
     except InvalidInputError as err:
         raise ValueError(Result.INVALID_GOAL, str(err))
+
+
+def ended_code(values):
+    """
+    Return the error code of a goal whose motion ended other than arrived, from its status.
+
+    Decided by the controller's ``cause`` (``status.Cause``), never by the words of its reason:
+    not settled within the goal tolerance is GOAL_TOLERANCE_VIOLATED; the path tolerance left,
+    stale states or a stop is PATH_TOLERANCE_VIOLATED.
+    """
+    if values.get(StatusKey.CAUSE) == Cause.GOAL_TOLERANCE:
+        return Result.GOAL_TOLERANCE_VIOLATED
+    return Result.PATH_TOLERANCE_VIOLATED
 
 
 def tolerances(entries, joint_names, default):
@@ -205,18 +221,19 @@ class FollowJointTrajectoryServer:
                 status = node.core.status()
                 plan = node.core.plan
             values = status.values
-            if int(values['motion_id']) != motion_id:
-                other = node.motion_goals.get(int(values['motion_id']), '') or '/joint_demands'
+            if int(values[StatusKey.MOTION_ID]) != motion_id:
+                other = (node.motion_goals.get(int(values[StatusKey.MOTION_ID]), '')
+                         or '/joint_demands')
                 # As joint_trajectory_controller: INVALID_GOAL, aborted, with the reason.
                 return self.finish(handle, Result.INVALID_GOAL,
                                    f'goal {goal_id} preempted by {other} '
-                                   f'(motion {values["motion_id"]})')
+                                   f'(motion {values[StatusKey.MOTION_ID]})')
             desired, actual = self.reference(plan, motion_id), node.last_q
             if actual is not None and desired is not None:
                 error = [d - a for d, a in zip(desired[0], actual)]
                 handle.publish_feedback(self.feedback(desired, actual, error))
                 bad = violations(error, path_tol, names)
-                if bad and stopping is None and values['state'] == 'executing':
+                if bad and stopping is None and values[StatusKey.STATE] == State.EXECUTING:
                     stopping = (Result.PATH_TOLERANCE_VIOLATED, f'path tolerance: {bad}',
                                 'abort')
                     with node.lock:
@@ -226,12 +243,11 @@ class FollowJointTrajectoryServer:
                             'cancel')
                 with node.lock:
                     node.core.request_stop(node.now())
-            result = values.get('result')
-            if result in FINAL_RESULTS and values['state'] not in ('executing', 'settling',
-                                                                   'stopping'):
+            result = values.get(StatusKey.RESULT)
+            if result in FINAL_RESULTS and values[StatusKey.STATE] not in ENDED_AFTER:
                 if stopping is not None:
                     return self.finish(handle, *stopping)
-                if result == 'arrived':
+                if result == MotionResult.ARRIVED:
                     q_goal = [float(v) for v in rows[-1]]
                     q = node.last_q
                     bad = violations([g - a for g, a in zip(q_goal, q)], goal_tol, names)
@@ -241,10 +257,9 @@ class FollowJointTrajectoryServer:
                     return self.finish(handle, Result.SUCCESSFUL,
                                        f'goal {goal_id} reached (motion {motion_id}){note}',
                                        'succeed')
-                code = (Result.GOAL_TOLERANCE_VIOLATED if 'goal tolerance' in
-                        values.get('reason', '') else Result.PATH_TOLERANCE_VIOLATED)
-                return self.finish(handle, code, f'motion {motion_id} {result}: '
-                                                 f'{values.get("reason", status.message)}')
+                reason = values.get(StatusKey.REASON, status.message)
+                return self.finish(handle, ended_code(values),
+                                   f'motion {motion_id} {result}: {reason}')
             await self.sleep(FEEDBACK_PERIOD)
         return self.finish(handle, Result.PATH_TOLERANCE_VIOLATED, 'the controller closed')
 
@@ -258,8 +273,9 @@ class FollowJointTrajectoryServer:
             return ''
         with self.node.lock:
             values = self.node.core.status().values
-        note = values.get('timing', '') if int(values['motion_id']) == motion_id else ''
-        if note == 'as given':
+        note = (values.get(StatusKey.TIMING, '') if int(values[StatusKey.MOTION_ID]) == motion_id
+                else '')
+        if note == TIMING_AS_GIVEN:
             self.node.get_logger().info(f'follow_joint_trajectory: goal {goal_id}: '
                                         f'time_from_start followed ({timing.times[-1]:.3f} s)')
             return ''

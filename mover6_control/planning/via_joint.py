@@ -17,7 +17,7 @@ One timing model: the planner sends the polynomial's curve, densely sampled (``s
 the via configuration one of the rows), as the demand's waypoints, and the controller times them
 with its law (``profile``, or the demand's own; ``continuous`` goes through them without
 stopping), as it times every other shape; the planner announces that same timing
-(``velocity_laws.predicted_duration``). The alternative, a controller law that plays the
+(``planners.predicted_duration``). The alternative, a controller law that plays the
 polynomial's own clock from a [via, goal] demand, would be a second timing model: a law valid
 for two-row demands only, and a duration the planner would have to predict apart.
 """

@@ -24,14 +24,15 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticStatus
+from mover6_control.control.status import MotionResult
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk_batch
+from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.resources import CONFIG_DIR
 from mover6_control.tools.goal_cli import (EXIT_REFUSED, format_numbers, format_outcome,
                                            GoalClient, poses_from_numbers)
 import numpy as np
 import rclpy
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 
 # The folder that holds config/ and scripts/: the repository, or share/mover6_control installed
@@ -42,7 +43,7 @@ ROOT = os.path.dirname(CONFIG_DIR)
 class Step:
     """One showcase step: a goal and what must become of it ('arrived' or a refusal reason)."""
 
-    def __init__(self, name, title, kind, params, poses, expect='arrived'):
+    def __init__(self, name, title, kind, params, poses, expect=MotionResult.ARRIVED):
         self.name = name          # file names and the metrics table
         self.title = title        # what the console says
         self.kind = kind          # 'pose' or 'path'
@@ -108,9 +109,8 @@ class Recorder:
         self.t, self.q, self.qd = [], [], []
         self.contacts = None     # the latest /sim_bridge/contacts values
         node.create_subscription(JointState, 'joint_states', self.on_msg, 100)
-        node.create_subscription(
-            DiagnosticStatus, 'sim_bridge/contacts', self.on_contacts,
-            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        node.create_subscription(DiagnosticStatus, 'sim_bridge/contacts', self.on_contacts,
+                                 STATUS_QOS)
 
     def on_contacts(self, msg):
         """Keep the simulator's latest contact report."""
@@ -254,10 +254,11 @@ def render_animation(report_dir, rows, arm):
 def passed(rows, steps):
     """Return True when every move arrived within tolerance and each refusal had its reason."""
     for row, step in zip(rows, steps):
-        if step.expect != 'arrived':
+        if step.expect != MotionResult.ARRIVED:
             if row['result'] != 'refused' or row.get('reason') != step.expect:
                 return False
-        elif row['result'] != 'arrived' or row.get('final_joint_error', 1.0) > JOINT_TOLERANCE:
+        elif (row['result'] != MotionResult.ARRIVED
+              or row.get('final_joint_error', 1.0) > JOINT_TOLERANCE):
             return False
     return len(rows) == len(steps)
 
@@ -269,7 +270,7 @@ def write_profile_comparison(report_dir, arm):
     Offline, on the Mover6 report's linear example: 20 waypoints from home to (0.445, 0, 0.4425)
     with the home orientation, planned as the planner does, timed by every controller profile.
     """
-    from mover6_control.control.velocity_laws import PROFILE_FAMILIES
+    from mover6_control.control.profiles import PROFILE_FAMILIES
     from mover6_control.kinematics.forward import fk
     from mover6_control.planning.planner_core import plan_pose_goal
     from mover6_control.tools import plots

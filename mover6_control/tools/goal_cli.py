@@ -40,7 +40,8 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
-from mover6_control.control.velocity_laws import PROFILES
+from mover6_control.control.profiles import PROFILES
+from mover6_control.control.status import FINAL_RESULTS, MotionResult, State, StatusKey
 from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
@@ -48,27 +49,25 @@ from mover6_control.kinematics.rotations import (euler_zyx_near, make_transform,
                                                  pose_from_xyzabc, quaternion_to_matrix)
 from mover6_control.motion.paths import goal_relative_to_start
 from mover6_control.nodes import conversions
+from mover6_control.nodes.qos import STATUS_READER_QOS
 import numpy as np
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
 
-# Transient local to get the last status at once; depth 10 so that a status (such as the
-# controller's 'rejected' report) is not overwritten by the next one before it is read.
-STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 EXIT_ARRIVED, EXIT_FAILED, EXIT_REFUSED, EXIT_NO_NODES = 0, 1, 2, 3
-FINAL_RESULTS = ('arrived', 'fault', 'aborted', 'stopped')
 # [s] longest wait for the planner's ~/stop service (no planner: the controller is stopped).
 PLANNER_STOP_WAIT = 2.0
 # [s] longest wait for the planner's answer about a goal (more when it says the goal waits for
 # joint states: by as much as it says).
 PLANNER_ANSWER_WAIT = 15.0
+# The controller is not ready in these states: a demand would be refused.
+NOT_READY = (None, State.WAITING_FOR_STATES, State.FAULT)
 # [s] longest wait, after arrival, for the controller to finish settling (its settle_time is 1 s).
 SETTLE_WAIT = 5.0
 # Within this [rad] of gimbal lock (B = +-pi/2) a reached pose is printed with B = +-pi/2 and the
@@ -143,9 +142,12 @@ class GoalClient(Node):
         self.pose_pub = self.create_publisher(PoseStamped, 'pose_goal', 10)
         self.path_pub = self.create_publisher(PoseArray, 'path_goal', 10)
         self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
-        self.create_subscription(DiagnosticStatus, 'planner/status', self.on_planner, STATUS_QOS)
+        # Depth 10: a status (such as the controller's 'rejected' report) is not overwritten by
+        # the next one before it is read.
+        self.create_subscription(DiagnosticStatus, 'planner/status', self.on_planner,
+                                 STATUS_READER_QOS)
         self.create_subscription(DiagnosticStatus, 'controller/status', self.on_controller,
-                                 STATUS_QOS)
+                                 STATUS_READER_QOS)
         self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
         self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
         self.shape_pubs = {}         # topic -> publisher of the goal topics of one shape
@@ -163,8 +165,8 @@ class GoalClient(Node):
         """Keep the controller's latest status, and note when it rejected a demand."""
         self.controller_status = msg
         values = self.values(msg)
-        rejected = values.get('rejected')
-        if rejected and self.goal_id is not None and values.get('rejected_goal_id') in (
+        rejected = values.get(StatusKey.REJECTED)
+        if rejected and self.goal_id is not None and values.get(StatusKey.REJECTED_GOAL_ID) in (
                 self.goal_id, ''):
             self.rejection = rejected
 
@@ -216,8 +218,8 @@ class GoalClient(Node):
                   ('/controller/status (is the controller running?)',
                    lambda: self.controller_status is not None),
                   ('the controller to receive /joint_states',
-                   lambda: self.values(self.controller_status).get('state')
-                   not in (None, 'waiting_for_states'))]
+                   lambda: self.values(self.controller_status).get(StatusKey.STATE)
+                   not in (None, State.WAITING_FOR_STATES))]
         if need_planner:
             checks += [('/planner/status (is the planner running?)',
                         lambda: self.planner_status is not None),
@@ -234,12 +236,11 @@ class GoalClient(Node):
         ready_since = [time.monotonic()]
 
         def steady_ready():
-            if self.values(self.controller_status).get('state') in (
-                    None, 'waiting_for_states', 'fault'):
+            if self.values(self.controller_status).get(StatusKey.STATE) in NOT_READY:
                 ready_since[0] = time.monotonic()
             return time.monotonic() - ready_since[0] >= steady
         if not self.spin_until(steady_ready, max(deadline - time.monotonic(), steady)):
-            state = self.values(self.controller_status).get('state')
+            state = self.values(self.controller_status).get(StatusKey.STATE)
             return f'the controller did not stay ready for {steady:.1f} s (state {state})'
         return None
 
@@ -335,14 +336,14 @@ class GoalClient(Node):
                     return Outcome(EXIT_FAILED, 'the planner did not plan the goal within '
                                    f'{wait + PLANNER_ANSWER_WAIT:.0f} s')
             status = self.planner_status
-            self.goal_id = self.values(status).get('goal_id')
+            self.goal_id = self.values(status).get(StatusKey.GOAL_ID)
             if status.level != DiagnosticStatus.OK:
                 return Outcome(EXIT_REFUSED, status.message, **self.values(status))
             self.spin_until(lambda: self.last_demands is not None, 5.0)
             demands = self.last_demands
 
         def mine_now():
-            return self.values(self.controller_status).get('goal_id') == self.goal_id
+            return self.values(self.controller_status).get(StatusKey.GOAL_ID) == self.goal_id
 
         def planner_ended():
             # After 'planned' the planner reports the controller's refusal of the demand, or
@@ -354,7 +355,7 @@ class GoalClient(Node):
         def motion_done():
             v = self.values(self.controller_status)
             return self.rejection is not None or planner_ended() or (
-                mine_now() and v.get('result') in FINAL_RESULTS)
+                mine_now() and v.get(StatusKey.RESULT) in FINAL_RESULTS)
 
         last_print = [0.0]
 
@@ -365,8 +366,8 @@ class GoalClient(Node):
             if not mine_now():
                 return   # the status still describes another motion
             last_print[0] = time.monotonic()
-            text = (f'{v.get("state", "?")}: waypoint {v.get("waypoint", "?")} of '
-                    f'{v.get("waypoints", "?")}')
+            text = (f'{v.get(StatusKey.STATE, "?")}: waypoint {v.get(StatusKey.WAYPOINT, "?")} '
+                    f'of {v.get(StatusKey.WAYPOINTS, "?")}')
             if T_goal is not None and self.q is not None:
                 left = np.linalg.norm(fk(self.arm, self.q)[:3, 3] - T_goal[:3, 3])
                 text += f', {left * 1e3:.1f} mm to go'
@@ -382,13 +383,13 @@ class GoalClient(Node):
             return Outcome(code, status.message, **self.values(status))
         # 'arrived' comes once inside the goal tolerance; the controller then keeps settling
         # into its fine tolerance before it holds: report the pose it holds.
-        self.spin_until(lambda: self.values(self.controller_status).get('state') != 'settling',
-                        SETTLE_WAIT)
+        self.spin_until(lambda: self.values(self.controller_status).get(StatusKey.STATE)
+                        != State.SETTLING, SETTLE_WAIT)
         v = self.values(self.controller_status)
         # Let one fresh /joint_states arrive after the end so the figures are of the final pose.
         stamp = [self.q]
         self.spin_until(lambda: self.q is not stamp[0], 2.0)
-        figures = {'duration': time.monotonic() - t0, 'result': v.get('result')}
+        figures = {'duration': time.monotonic() - t0, 'result': v.get(StatusKey.RESULT)}
         if demands is None and self.last_demands is not None:
             demands = self.last_demands
         if demands is not None and self.q is not None:
@@ -398,7 +399,7 @@ class GoalClient(Node):
         if T_goal is not None and self.q is not None:
             figures['final_position_error'], figures['final_orientation_error'] = pose_error(
                 figures['reached_pose'], T_goal)
-        if v.get('result') != 'arrived':
+        if v.get(StatusKey.RESULT) != MotionResult.ARRIVED:
             return Outcome(EXIT_FAILED, self.controller_status.message, **figures)
         return Outcome(EXIT_ARRIVED, 'arrived', **figures)
 

@@ -9,7 +9,8 @@ import os
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from mover6_control.control.velocity_laws import LawConfig, plan_motion
+from mover6_control.control.planners import plan_motion
+from mover6_control.control.profiles import LawConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.forward import fk_batch
 from mover6_control.motion.metrics import max_deviation_from_polyline

@@ -35,11 +35,13 @@ import tty
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
+from mover6_control.control.servo import FRAMES
+from mover6_control.control.status import StatusKey
 from mover6_control.nodes import conversions
+from mover6_control.nodes.qos import STATUS_QOS
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.signals import SignalHandlerOptions
 
 LINEAR_KEYS = {'w': (0, 1.0), 's': (0, -1.0), 'a': (1, 1.0), 'd': (1, -1.0),
@@ -48,7 +50,6 @@ ANGULAR_KEYS = {'u': (0, 1.0), 'j': (0, -1.0), 'i': (1, 1.0), 'k': (1, -1.0),
                 'o': (2, 1.0), 'l': (2, -1.0)}
 JOINT_KEYS = {'w': 1.0, 's': -1.0}
 QUIT_KEYS = ('x', 'q', '\x03', '\x04')
-FRAMES = ('base_link', 'link6')
 # Speed steps: fractions of the top speeds below.
 SPEED_STEPS = (0.1, 0.25, 0.5, 1.0)
 MAX_LINEAR = 0.08       # [m/s]
@@ -223,9 +224,9 @@ class TeleopNode(Node):
         super().__init__('teleop', **kwargs)
         self.twist_pub = self.create_publisher(TwistStamped, 'controller/delta_twist_cmds', 10)
         self.joint_pub = self.create_publisher(JointJog, 'controller/delta_joint_cmds', 10)
-        qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.status = None
-        self.create_subscription(DiagnosticStatus, 'controller/status', self.on_status, qos)
+        self.create_subscription(DiagnosticStatus, 'controller/status', self.on_status,
+                                 STATUS_QOS)
         self.executor_ = SingleThreadedExecutor(context=self.context)
         self.executor_.add_node(self)
 
@@ -258,7 +259,7 @@ class TeleopNode(Node):
         """Return the controller's state and message, or that none was heard."""
         if self.status is None:
             return 'controller: not heard yet'
-        state = conversions.status_values(self.status).get('state', '?')
+        state = conversions.status_values(self.status).get(StatusKey.STATE, '?')
         message = self.status.message
         return state if message in ('', state) else f'{state}: {message}'
 

@@ -1,18 +1,14 @@
 """
 Continuous execution: time-optimal timing of a whole joint path, through every waypoint.
 
-The geometric path is the polyline through the joint waypoints with every corner rounded by a
-circular arc whose distance from the corner is at most ``max_deviation`` [rad] (Kunz and
-Stilman, "Time-optimal trajectory generation for path following with bounded acceleration and
-velocity", RSS 2012). The path is tangent-continuous, so the arm can run through the corners
-without stopping; between the arcs it is exactly the polyline.
-
-The timing along the path is TOPP-RA's (Pham and Pham, IEEE T-RO 2018): on a grid of path
-positions ``s`` [rad of joint-space arc length], with ``x = sdot^2`` and ``u = sddot``
-constant per grid interval, a backward pass computes the set of controllable ``x`` at each grid
-point, and a greedy forward pass takes the largest admissible ``u``. Joint velocity and
-acceleration limits are enforced at both ends of every grid interval. The result is the
-time-optimal timing of this path up to the grid resolution.
+The path is the ``BlendedPath`` through the waypoints (``motion.blended_path``: corners
+rounded within ``max_deviation``). The timing along it is TOPP-RA's (Pham and Pham, IEEE T-RO
+2018): on a grid of path positions ``s`` [rad of joint-space arc length], with ``x = sdot^2``
+and ``u = sddot`` constant per grid interval, a backward pass computes the set of controllable
+``x`` at each grid point, and a greedy forward pass takes the largest admissible ``u``. Joint
+velocity and acceleration limits are enforced at both ends of every grid interval. The result
+is the time-optimal timing of this path up to the grid resolution (a ``GridTiming``,
+``motion.path_timing``).
 
 ``time_optimal_bound`` gives a lower bound on the duration of ANY trajectory that visits the
 waypoints in order under the same limits, to judge how close to optimal the result is.
@@ -26,35 +22,16 @@ time-optimal.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.motion.trajectories import JointTrajectory, Limit
+from mover6_control.motion.blended_path import blended_path, distinct_waypoints
+from mover6_control.motion.path_timing import (FilteredTiming, GridTiming, PathTrajectory,
+                                               ScaledTiming)
+from mover6_control.motion.trajectories import Limit
 from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 
-# Below this turning angle [rad] a corner is treated as straight: the velocity direction jumps
-# by less than 1e-6 of the speed, well below anything a drive can resolve.
-_STRAIGHT_ANGLE = 1e-6
-# Above this turning angle [rad] the path reverses: the arm stops at the corner instead.
-_REVERSAL_ANGLE = np.pi - 1e-6
-
-
-def _frozen(arr):
-    arr = np.array(arr, dtype=float)
-    arr.setflags(write=False)
-    return arr
-
-
-# Quintic Hermite basis (ascending powers) for p(0), p'(0), p'(1), p(1), with p''(0) = p''(1) = 0.
-_HERMITE5 = _frozen([[1.0, 0.0, 0.0, -10.0, 15.0, -6.0],
-                     [0.0, 1.0, 0.0, -6.0, 8.0, -3.0],
-                     [0.0, 0.0, 0.0, -4.0, 7.0, -3.0],
-                     [0.0, 0.0, 0.0, 10.0, -15.0, 6.0]])
-# _FALLING[k][j] = j! / (j - k)!: the factor of sigma^(j - k) in the k-th derivative of sigma^j.
-_FALLING = tuple(_frozen([np.prod(np.arange(j - k + 1, j + 1)) if j >= k else 0.0
-                          for j in range(6)]) for k in range(4))
 # Largest tangent turn [rad] across one grid interval on a blend arc.
 _MAX_TURN = 0.05
 # Limits are enforced at grid points only; between them a blend arc can exceed them by
@@ -63,382 +40,6 @@ _MAX_TURN = 0.05
 _LIMIT_MARGIN = 1e-3
 # The jerk-limited timing is checked on samples: slow it 1 % more than they ask for.
 _JERK_MARGIN = 1e-2
-# BlendedPath segment kinds, as codes for batch evaluation.
-_KIND_CODE = {'line': 0, 'arc': 1, 'quintic': 2}
-
-
-@dataclass(frozen=True, eq=False)
-class BlendedPath:
-    """
-    A joint path of lines and circular blends, parameterised by arc length ``s`` [rad].
-
-    Segment ``i`` spans ``s`` in ``[starts[i], starts[i + 1]]``. A line is ``p + s u``; an arc
-    is ``c + r (x cos(s / r) + y sin(s / r))``. ``stops`` holds the arc lengths of corners that
-    could not be blended (reversals): the arm must be at rest there.
-    """
-
-    kinds: tuple            # 'line' or 'arc' per segment
-    params: tuple           # per segment: (p, u) for a line, (c, r, x, y) for an arc
-    starts: np.ndarray      # (k + 1,) cumulative arc length at the segment ends [rad]
-    stops: tuple            # arc lengths where the path has a corner and speed must be zero
-    waypoints: np.ndarray   # (m, n) the waypoints actually used (repeats removed)
-    waypoint_s: tuple       # arc length of the path point nearest each waypoint (m,)
-
-    def __post_init__(self):
-        """Stack the lines' and arcs' parameters by segment, for ``evaluate`` in one batch."""
-        k, n = len(self.kinds), self.waypoints.shape[1]
-        code = np.array([_KIND_CODE[kind] for kind in self.kinds], dtype=int)
-        stacks = {name: np.zeros((k, n)) for name in ('p', 'u', 'c', 'x', 'y')}
-        radius = np.ones(k)
-        for i, kind in enumerate(self.kinds):
-            if kind == 'line':
-                stacks['p'][i], stacks['u'][i] = self.params[i]
-            elif kind == 'arc':
-                stacks['c'][i], radius[i], stacks['x'][i], stacks['y'][i] = self.params[i]
-        object.__setattr__(self, '_code', code)
-        object.__setattr__(self, '_stacks', stacks)
-        object.__setattr__(self, '_radius', radius)
-
-    @property
-    def length(self) -> float:
-        """Return the total arc length [rad]."""
-        return float(self.starts[-1])
-
-    @property
-    def n_joints(self) -> int:
-        """Return the number of joints."""
-        return self.waypoints.shape[1]
-
-    def evaluate(self, s: np.ndarray, segment: np.ndarray,
-                 orders: tuple[int, ...] = (0, 1, 2, 3)) -> tuple[np.ndarray, ...]:
-        """
-        Return ``q, q', q'', q'''`` (each (m, n)) at arc lengths ``s`` (m,) on ``segment`` (m,).
-
-        Derivatives are with respect to ``s``; each point is evaluated on the given segment,
-        so a point on a boundary gets that segment's one-sided derivatives. ``orders`` picks
-        which derivatives are computed and returned, in that order. All lines are evaluated in
-        one batch, all arcs in another (parameters gathered by segment).
-        """
-        s = np.asarray(s, dtype=float).reshape(-1)
-        segment = np.asarray(segment, dtype=int).reshape(-1)
-        n = self.n_joints
-        out = {k: np.zeros((s.size, n)) for k in orders}
-        code = self._code[segment]
-        stacks = self._stacks
-        if s.size == 1:         # one point (a control tick): no search by kind
-            points = {int(code[0]): np.zeros(1, dtype=int)}
-        else:
-            points = {kind: np.flatnonzero(code == kind) for kind in range(3)}
-        empty = np.zeros(0, dtype=int)
-        idx = points.get(0, empty)
-        if idx.size:
-            seg = segment[idx]
-            u = stacks['u'][seg]
-            if 0 in out:
-                local = (s[idx] - self.starts[seg])[:, None]
-                out[0][idx] = stacks['p'][seg] + local * u
-            if 1 in out:
-                out[1][idx] = u
-        idx = points.get(1, empty)
-        if idx.size:
-            seg = segment[idx]
-            local = (s[idx] - self.starts[seg])[:, None]
-            x, y = stacks['x'][seg], stacks['y'][seg]
-            r = self._radius[seg][:, None]
-            phi = local / r
-            cos, sin = np.cos(phi), np.sin(phi)
-            if 0 in out or 2 in out:
-                radial = x * cos + y * sin
-                if 0 in out:
-                    out[0][idx] = stacks['c'][seg] + r * radial
-                if 2 in out:
-                    out[2][idx] = -radial / r
-            if 1 in out:
-                out[1][idx] = -x * sin + y * cos
-            if 3 in out:
-                out[3][idx] = (x * sin - y * cos) / r ** 2
-        idx = points.get(2, empty)
-        if idx.size:
-            # Quintic blends (jerk limits only): one batch per segment, points grouped by sort.
-            idx = idx[np.argsort(segment[idx], kind='stable')]
-            for part in np.split(idx, np.flatnonzero(np.diff(segment[idx])) + 1):
-                i = segment[part[0]]
-                coeffs, scale, _ = self.params[i]
-                sigma = (s[part] - self.starts[i])[:, None] / scale
-                for k in orders:
-                    poly = coeffs[k:] * _FALLING[k][k:, None]
-                    powers = sigma ** np.arange(poly.shape[0])
-                    out[k][part] = powers @ poly / scale ** k
-        return tuple(out[k] for k in orders)
-
-    def turn(self, i: int) -> float:
-        """Return how far the tangent turns along segment ``i`` [rad] (0 on a line)."""
-        if self.kinds[i] == 'line':
-            return 0.0
-        if self.kinds[i] == 'quintic':
-            return self.params[i][2]
-        return float((self.starts[i + 1] - self.starts[i]) / self.params[i][1])
-
-    def segment_of(self, s: np.ndarray) -> np.ndarray:
-        """Return the segment index (m,) holding each arc length ``s`` (m,)."""
-        idx = np.searchsorted(self.starts, np.asarray(s, dtype=float), side='right') - 1
-        return np.minimum(np.maximum(idx, 0), len(self.kinds) - 1)
-
-
-def _distinct_waypoints(Q):
-    Q = as_finite_array(Q, (None, None), 'Q')
-    if Q.shape[0] < 2 or Q.shape[1] < 1:
-        raise InvalidInputError(f'Q needs at least two waypoints of >= 1 joint, got {Q.shape}')
-    keep = np.concatenate([[True], np.linalg.norm(np.diff(Q, axis=0), axis=1) > 1e-12])
-    Q = Q[keep]
-    if Q.shape[0] < 2:
-        raise InvalidInputError('all waypoints coincide: there is no path to time')
-    return Q
-
-
-def _quintic_blend(corner, y1, y2, ell):
-    """Return the coefficients (6, n) of the quintic blend cutting ``ell`` off each side."""
-    ends = np.array([corner - ell * y1, 2.0 * ell * y1, 2.0 * ell * y2, corner + ell * y2])
-    return _HERMITE5.T @ ends
-
-
-def _quintic_deviation(alpha):
-    """Return how far a quintic blend with ell = 1 strays: from the polyline, or the corner."""
-    y1, y2 = np.array([1.0, 0.0]), np.array([np.cos(alpha), np.sin(alpha)])
-    sigma = np.linspace(0.0, 1.0, 201)
-    pts = (sigma[:, None] ** np.arange(6)) @ _quintic_blend(np.zeros(2), y1, y2, 1.0)
-    # Distance to the two rays that meet at the corner (origin).
-    d_in = np.linalg.norm(pts - np.maximum(pts @ -y1, 0.0)[:, None] * -y1, axis=1)
-    d_out = np.linalg.norm(pts - np.maximum(pts @ y2, 0.0)[:, None] * y2, axis=1)
-    # Like the arc, pass the corner within the allowance too (its middle is nearest).
-    return max(float(np.max(np.minimum(d_in, d_out))), float(np.min(np.linalg.norm(pts, axis=1))))
-
-
-def blended_path(Q: np.ndarray, max_deviation: float = 1e-2, blend: str = 'arc') -> BlendedPath:
-    """
-    Return the ``BlendedPath`` through waypoints ``Q`` (m, n) [rad].
-
-    Each inner corner is replaced by a blend tangent to both neighbouring lines, using at most
-    half of either line. ``blend='arc'``: a circular arc at most ``max_deviation`` [rad]
-    (joint-space distance) from the corner (Kunz and Stilman); ``blend='quintic'``: a quintic
-    whose curvature is zero where it meets the lines (curvature-continuous, so acceleration
-    can be continuous: for jerk limits), at most ``max_deviation`` from the polyline.
-    Consecutive repeated waypoints are dropped; a full reversal is kept as a corner at which
-    the arm stops.
-    """
-    if blend not in ('arc', 'quintic'):
-        raise InvalidInputError(f"blend must be 'arc' or 'quintic', got {blend!r}")
-    Q = _distinct_waypoints(Q)
-    max_deviation = as_positive(max_deviation, 'max_deviation')
-    diffs = np.diff(Q, axis=0)
-    lengths = np.linalg.norm(diffs, axis=1)
-    units = diffs / lengths[:, None]
-    m = Q.shape[0]
-    cut = np.zeros(m)              # length taken from each side of waypoint i by its blend
-    arcs = [None] * m
-    stop_at = np.zeros(m, dtype=bool)
-    for i in range(1, m - 1):
-        y1, y2 = units[i - 1], units[i]
-        # The turning angle, accurate for small and large angles alike.
-        alpha = 2.0 * float(np.arctan2(np.linalg.norm(y2 - y1), np.linalg.norm(y2 + y1)))
-        if alpha < _STRAIGHT_ANGLE:
-            continue
-        if alpha > _REVERSAL_ANGLE:
-            stop_at[i] = True
-            continue
-        half = 0.5 * alpha
-        if blend == 'quintic':
-            ell = min(0.5 * lengths[i - 1], 0.5 * lengths[i],
-                      max_deviation / _quintic_deviation(alpha))
-            cut[i] = ell
-            arcs[i] = ('quintic', (_quintic_blend(Q[i], y1, y2, ell), 2.0 * ell, alpha),
-                       2.0 * ell)
-            continue
-        # The arc's farthest point from the corner is ell tan(alpha / 4) away.
-        ell = min(0.5 * lengths[i - 1], 0.5 * lengths[i], max_deviation / np.tan(0.5 * half))
-        r = ell / np.tan(half)
-        bis = (y2 - y1) / np.linalg.norm(y2 - y1)
-        c = Q[i] + bis * r / np.cos(half)
-        start = Q[i] - ell * y1
-        x = (start - c) / np.linalg.norm(start - c)
-        cut[i] = ell
-        arcs[i] = ('arc', (c, r, x, y1), alpha * r)
-    kinds, params, seg_len, stops, waypoint_s = [], [], [], [], [0.0]
-    s = 0.0
-    for k in range(m - 1):
-        line_len = lengths[k] - cut[k] - cut[k + 1]
-        if line_len > 1e-12:
-            kinds.append('line')
-            params.append((Q[k] + cut[k] * units[k], units[k]))
-            seg_len.append(line_len)
-            s += line_len
-        if k + 1 < m - 1:
-            if arcs[k + 1] is not None:
-                kind, param, arc_len = arcs[k + 1]
-                kinds.append(kind)
-                params.append(param)
-                seg_len.append(arc_len)
-                waypoint_s.append(s + 0.5 * arc_len)    # the arc's middle: nearest the corner
-                s += arc_len
-            else:
-                waypoint_s.append(s)
-                if stop_at[k + 1]:
-                    stops.append(s)
-    starts = np.concatenate([[0.0], np.cumsum(seg_len)])
-    waypoint_s.append(float(starts[-1]))
-    return BlendedPath(tuple(kinds), tuple(params), starts, tuple(stops), Q, tuple(waypoint_s))
-
-
-@dataclass(frozen=True, eq=False)
-class GridTiming:
-    """
-    TOPP's timing: path acceleration ``u_k`` constant on grid interval k.
-
-    On interval k the path position is ``s_k + sdot_k tau + u_k tau^2 / 2`` for ``tau`` in
-    [0, t_{k+1} - t_k]; before the start it rests at 0, after the end at ``s_grid[-1]``.
-    """
-
-    s_grid: np.ndarray      # (N + 1,) [rad]
-    sd: np.ndarray          # (N + 1,) path speed at the grid points [rad/s]
-    u: np.ndarray           # (N,) path acceleration per interval [rad/s^2]
-    t_grid: np.ndarray      # (N + 1,) [s]
-
-    def __post_init__(self):
-        """Precompute the integral of s at the grid times (for smoothing)."""
-        dt = np.diff(self.t_grid)
-        pieces = self.s_grid[:-1] * dt + self.sd[:-1] * dt ** 2 / 2 + self.u * dt ** 3 / 6
-        object.__setattr__(self, '_cum', np.concatenate([[0.0], np.cumsum(pieces)]))
-
-    @property
-    def duration(self) -> float:
-        """Return the duration [s]."""
-        return float(self.t_grid[-1])
-
-    def profile(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Return ``s, sdot, sddot, sdddot`` (each (m,)) at times ``t`` (m,) [s]."""
-        # np.minimum / np.maximum rather than np.clip: several times faster on the one-element
-        # arrays of a control tick.
-        t = np.asarray(t, dtype=float)
-        k = np.minimum(np.maximum(np.searchsorted(self.t_grid, t, side='right') - 1, 0),
-                       self.u.size - 1)
-        t0 = self.t_grid[k]
-        tau = np.minimum(np.maximum(t - t0, 0.0), self.t_grid[k + 1] - t0)
-        u = self.u[k]
-        s = np.minimum(np.maximum(self.s_grid[k] + self.sd[k] * tau + 0.5 * u * tau ** 2,
-                                  self.s_grid[k]), self.s_grid[k + 1])
-        sd = np.maximum(self.sd[k] + u * tau, 0.0)
-        sdd = u.copy()
-        before, after = t < 0.0, t > self.duration
-        s[before], s[after] = 0.0, self.s_grid[-1]
-        sd[before | after] = 0.0
-        sdd[before | after] = 0.0
-        return s, sd, sdd, np.zeros_like(s)
-
-    def integral(self, t: np.ndarray) -> np.ndarray:
-        """Return the integral of ``s`` from 0 to ``t`` (m,) [rad s]; s holds its end after."""
-        t = np.asarray(t, dtype=float)
-        tc = np.minimum(np.maximum(t, 0.0), self.duration)
-        k = np.minimum(np.searchsorted(self.t_grid, tc, side='right') - 1, self.u.size - 1)
-        tau = tc - self.t_grid[k]
-        part = self.s_grid[k] * tau + self.sd[k] * tau ** 2 / 2 + self.u[k] * tau ** 3 / 6
-        return self._cum[k] + part + self.s_grid[-1] * np.maximum(t - self.duration, 0.0)
-
-    def time_at(self, s: np.ndarray) -> np.ndarray:
-        """Return the first time [s] at which the path position reaches ``s`` (m,)."""
-        s = np.clip(np.asarray(s, dtype=float), 0.0, self.s_grid[-1])
-        k = np.clip(np.searchsorted(self.s_grid, s, side='right') - 1, 0, self.u.size - 1)
-        ds = s - self.s_grid[k]
-        v0, u = self.sd[k], self.u[k]
-        # Solve ds = v0 tau + u tau^2 / 2 for the smallest tau >= 0 (stable form).
-        disc = np.sqrt(np.maximum(v0 ** 2 + 2.0 * u * ds, 0.0))
-        with np.errstate(divide='ignore', invalid='ignore'):
-            tau = np.where(v0 + disc > 0.0, 2.0 * ds / (v0 + disc), 0.0)
-        return self.t_grid[k] + np.minimum(tau, self.t_grid[k + 1] - self.t_grid[k])
-
-
-@dataclass(frozen=True, eq=False)
-class FilteredTiming:
-    """
-    A timing smoothed by a moving average over ``window`` [s]: jerk becomes finite.
-
-    ``s_f(t)`` is the mean of ``s`` over [t - window, t], so ``sdddot_f`` is the difference of
-    ``sddot`` across the window divided by it. ``s_f`` is a re-timing of the same path: the
-    geometry is untouched. The motion lasts ``window`` longer.
-    """
-
-    base: GridTiming
-    window: float           # [s]
-
-    @property
-    def duration(self) -> float:
-        """Return the duration [s]."""
-        return self.base.duration + self.window
-
-    def profile(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Return ``s, sdot, sddot, sdddot`` (each (m,)) at times ``t`` (m,) [s]."""
-        t = np.asarray(t, dtype=float)
-        w = self.window
-        now = self.base.profile(t)
-        then = self.base.profile(t - w)
-        s = (self.base.integral(t) - self.base.integral(t - w)) / w
-        return (np.minimum(np.maximum(s, 0.0), self.base.s_grid[-1]),) + tuple(
-            (a - b) / w for a, b in zip(now[:3], then[:3]))
-
-    def time_at(self, s: np.ndarray) -> np.ndarray:
-        """Return the time [s] at which the smoothed path position reaches ``s`` (m,)."""
-        s = np.atleast_1d(np.asarray(s, dtype=float))
-        t_lo = self.base.time_at(s)               # s_f lags s: s_f(t) = s no earlier ...
-        t_hi = np.minimum(t_lo + self.window, self.duration)   # ... and no later than this
-        for _ in range(60):
-            mid = 0.5 * (t_lo + t_hi)
-            below = self.profile(mid)[0] < s
-            t_lo, t_hi = np.where(below, mid, t_lo), np.where(below, t_hi, mid)
-        return t_hi
-
-
-@dataclass(frozen=True, eq=False)
-class ScaledTiming:
-    """A timing slowed down uniformly by ``factor`` >= 1: rates scale by 1 / factor^k."""
-
-    base: object
-    factor: float
-
-    @property
-    def duration(self) -> float:
-        """Return the duration [s]."""
-        return self.base.duration * self.factor
-
-    def profile(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Return ``s, sdot, sddot, sdddot`` (each (m,)) at times ``t`` (m,) [s]."""
-        out = self.base.profile(np.asarray(t, dtype=float) / self.factor)
-        return tuple(v / self.factor ** k for k, v in enumerate(out))
-
-    def time_at(self, s: np.ndarray) -> np.ndarray:
-        """Return the time [s] at which the path position reaches ``s`` (m,)."""
-        return self.base.time_at(s) * self.factor
-
-
-class PathTrajectory(JointTrajectory):
-    """A ``BlendedPath`` followed with a timing ``s(t)`` (``GridTiming`` or a smoothing of it)."""
-
-    def __init__(self, path: BlendedPath, timing: GridTiming | FilteredTiming | ScaledTiming):
-        super().__init__(timing.duration, path.n_joints)
-        self.path = path
-        self.timing = timing
-
-    def _evaluate(self, t):
-        s, sd, sdd, sddd = self.timing.profile(t)
-        q, dq, ddq, dddq = self.path.evaluate(s, self.path.segment_of(s))
-        sd, sdd, sddd = sd[:, None], sdd[:, None], sddd[:, None]
-        qd = dq * sd
-        qdd = dq * sdd + ddq * sd ** 2
-        qddd = dq * sddd + 3.0 * ddq * sd * sdd + dddq * sd ** 3
-        return q, qd, qdd, qddd
-
-    @property
-    def waypoint_times(self) -> np.ndarray:
-        """Return the time [s] at which the arm passes (closest to) each waypoint (m,)."""
-        return self.timing.time_at(np.asarray(self.path.waypoint_s))
 
 
 def _grid(path, n_grid):
@@ -724,7 +325,7 @@ def _within_limits(path, timing, traj, v, a, seg, samples=6):
     """
     t_grid = timing.t_grid
     frac = np.arange(1, samples + 1) / (samples + 1.0)
-    arcs = np.flatnonzero(path._code[seg] != 0)
+    arcs = np.flatnonzero(path.is_blend(seg))
     t = np.concatenate([t_grid, (t_grid[arcs, None] + (t_grid[arcs + 1] - t_grid[arcs])[:, None]
                                  * frac).ravel()])
     s, sd, sdd, _ = timing.profile(t)
@@ -768,7 +369,7 @@ def _jerk_limited(path, timing, v, a, j):
         t = np.unique(np.clip(np.concatenate([knots, knots - eps, mid, mid + w, t_path]),
                               0.0, smooth.duration))
         traj = PathTrajectory(path, smooth)
-        _, qd, qdd, jerk = traj._evaluate(t)
+        _, qd, qdd, jerk = traj.derivatives(t)
         factor = max(1.0, float(np.max(np.abs(qd) / v)),
                      float(np.sqrt(np.max(np.abs(qdd) / a))),
                      float(np.cbrt(np.max(np.abs(jerk) / j))))
@@ -810,7 +411,7 @@ def time_optimal_bound(Q: np.ndarray, v_max: Limit, a_max: Limit) -> float:
     (2) between consecutive waypoints the slowest joint needs ``|dq_i| / v_i``. Neither
     assumes a particular path shape, so no trajectory through the waypoints can be faster.
     """
-    Q = _distinct_waypoints(Q)
+    Q = distinct_waypoints(Q)
     n = Q.shape[1]
     v = as_positive(v_max, 'v_max', n)
     a = as_positive(a_max, 'a_max', n)
