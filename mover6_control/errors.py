@@ -29,6 +29,12 @@ REASONS = {
     'collision': 'the motion, swept between its waypoints, would put a part of the arm or its '
                  'tool into the table margin, into another part of the arm or into a keep-out '
                  'box',
+    'no_joint_states': "no valid /joint_states came within the planner's state_wait_timeout: "
+                       'the current pose is unknown',
+    'controller_refused': 'the controller refused the planned demand (its reason follows)',
+    'stopped': "the planner's stop service ended the goal before its demand was sent",
+    'internal_error': 'the planner failed on the goal for a reason of its own (a bug): the '
+                      'message names the exception',
 }
 
 

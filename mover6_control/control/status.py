@@ -11,6 +11,8 @@ compares equal to the string a status message carries: a reader compares
 - ``Cause``: why a motion ended other than arrived, the status value ``cause``, next to the
   human ``reason``; a reader decides on the cause, never on the reason's words.
 - ``StatusKey``: the keys of the status values (the controller's and the planner's).
+- ``PlannerState``, ``PlannerResult``: the planner's readiness (``state``) and how a goal
+  ended there (``result`` on /planner/status).
 """
 
 from enum import StrEnum
@@ -84,6 +86,22 @@ class StatusKey(StrEnum):
     GOAL_ID = 'goal_id'              # the controller's (the goal of motion_id) and the planner's
     GOAL_STAMP = 'goal_stamp'        # the planner's: the stamp of the goal it is about
     MAX_TICK_GAP = 'max_tick_gap'
+
+
+class PlannerState(StrEnum):
+    """The planner's readiness (status value ``state`` on /planner/status)."""
+
+    WAITING_FOR_STATES = 'waiting_for_states'
+    READY = 'ready'
+
+
+class PlannerResult(StrEnum):
+    """What became of a goal at the planner (status value ``result`` on /planner/status)."""
+
+    WAITING_FOR_STATES = 'waiting_for_states'   # the goal waits for the first joint states
+    PLANNED = 'planned'                         # its demand went to the controller
+    REFUSED = 'refused'                         # refused, with the ``reason`` code
+    FAILED = 'failed'                           # no controller acknowledged the demand
 
 
 # The timing value of a timed goal whose time_from_start is followed (``timed_plan``).

@@ -21,7 +21,7 @@ purpose:
   a silent module is a latched ``fault`` until ``reset``;
 - ``close`` disables every module before the bus is shut down.
 
-Per joint and for the arm the state is one of ``STATES``: disconnected (no reply yet), connected
+Per joint and for the arm the state is a ``ModuleState``: disconnected (no reply yet), connected
 (replying, motor not enabled), error (a flag other than "motor not enabled"), enabled, referenced
 (enabled and referenced), fault (silent). The arm's state is its worst joint's.
 
@@ -34,6 +34,7 @@ sent (or refused at once, or timed out), with the reason.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 import threading
 import time
 from typing import Callable, Optional, Sequence
@@ -43,10 +44,23 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.hardware import protocol as p
 from mover6_control.hardware.scaling import JointScale
 
-STATES = ('disconnected', 'connected', 'error', 'enabled', 'referenced', 'fault')
+
+class ModuleState(StrEnum):
+    """The state of a joint's motor module, and of the arm (its worst joint's)."""
+
+    DISCONNECTED = 'disconnected'
+    CONNECTED = 'connected'
+    ERROR = 'error'
+    ENABLED = 'enabled'
+    REFERENCED = 'referenced'
+    FAULT = 'fault'
+
+
+S = ModuleState
 # Worst first: the arm takes the first of these that any joint is in.
-_ARM_ORDER = ('fault', 'disconnected', 'error', 'connected', 'enabled', 'referenced')
-MOVING_STATES = ('enabled', 'referenced')
+_ARM_ORDER = (S.FAULT, S.DISCONNECTED, S.ERROR, S.CONNECTED, S.ENABLED, S.REFERENCED)
+# The states in which a module follows its set-points.
+FOLLOWING = (S.ENABLED, S.REFERENCED)
 REPEAT_DELAY = 0.02
 """Delay between the two frames of enable, start referencing and set zero [s]."""
 
@@ -128,15 +142,15 @@ class _Joint:
 
     def state(self) -> str:
         if self.fault:
-            return 'fault'
+            return S.FAULT
         if self.reply is None:
-            return 'disconnected'
+            return S.DISCONNECTED
         flags = self.reply.error_flags
         if flags & ~0x04:
-            return 'error'
+            return S.ERROR
         if flags & 0x04:
-            return 'connected'
-        return 'referenced' if self.reply.referenced else 'enabled'
+            return S.CONNECTED
+        return S.REFERENCED if self.reply.referenced else S.ENABLED
 
 
 class ArmDriver:
@@ -245,11 +259,11 @@ class ArmDriver:
             if kind in ('reference', 'set_zero') and self._moving():
                 req.finish(False, f'{kind} refused: the arm is moving')
             elif kind == 'set_zero' and any(
-                    self._joints[n - 1].state() in MOVING_STATES for n in targets):
+                    self._joints[n - 1].state() in FOLLOWING for n in targets):
                 req.finish(False, 'set_zero refused: disable the motors first (an enabled '
                                   'module would follow a set-point sent before the zero)')
             elif kind == 'reference' and any(
-                    self._joints[n - 1].state() not in MOVING_STATES for n in targets):
+                    self._joints[n - 1].state() not in FOLLOWING for n in targets):
                 req.finish(False, 'reference refused: the joint must be enabled first')
             else:
                 self._requests.append(req)
@@ -328,23 +342,23 @@ class ArmDriver:
             return f'joints {sorted(busy)}: referencing or setting zero'
         for j in self._joints:
             state = j.state()
-            if state == 'fault':
+            if state == S.FAULT:
                 return f'{j.scale.name}: module silent for {j.silent} cycles'
-            if state == 'disconnected':
+            if state == S.DISCONNECTED:
                 return f'{j.scale.name}: no reply from its module yet'
-            if state == 'error':
+            if state == S.ERROR:
                 names = ', '.join(p.flag_names(j.reply.error_flags & ~0x04, self.firmware))
                 return f'{j.scale.name}: error flags {names}'
-            if state == 'connected':
+            if state == S.CONNECTED:
                 return f'{j.scale.name}: motor not enabled'
         return ''
 
     def _integrate(self, j: _Joint, v: float, dt: float, frozen: bool) -> None:
         if j.ticks is None:
             return
-        if j.track or j.setpoint is None or j.state() not in MOVING_STATES:
+        if j.track or j.setpoint is None or j.state() not in FOLLOWING:
             j.setpoint = float(j.ticks)      # never a jump: start from where the joint is
-            j.track = j.state() not in MOVING_STATES
+            j.track = j.state() not in FOLLOWING
             j.velocity = 0.0
             return
         if frozen:

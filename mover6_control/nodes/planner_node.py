@@ -42,6 +42,7 @@ import time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from mover6_control.collision.checker import CollisionChecker
+from mover6_control.control.status import PlannerResult, PlannerState
 from mover6_control.control.velocity_laws import predicted_duration
 from mover6_control.errors import Mover6Error, UnreachableError
 from mover6_control.kinematics.arm import mover6
@@ -69,7 +70,7 @@ CONTROLLER_STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIE
 # RESEND_AFTER * (RESENDS + 1).
 RESEND_AFTER = 1.0
 RESENDS = 2
-WAITING, READY = 'waiting_for_states', 'ready'
+WAITING, READY = PlannerState.WAITING_FOR_STATES, PlannerState.READY
 # [s] how often a waiting planning thread looks again (states, stop, shutdown).
 POLL = 0.02
 
@@ -406,7 +407,7 @@ class PlannerNode(Node):
         now = time.monotonic()
         with self.lock:
             self.unconfirmed[goal['goal_id']] = Unconfirmed(goal, motion, msg, now, 1, now)
-        values = {'result': 'planned', 'motion': motion, 'waypoints': plan.n_waypoints,
+        values = {'result': PlannerResult.PLANNED, 'motion': motion, 'waypoints': plan.n_waypoints,
                   'path_length': f'{plan.path_length:.6f}',
                   'predicted_duration': f'{plan.predicted_duration:.3f}',
                   'position_error': f'{plan.final_position_error:.3e}',
@@ -456,7 +457,7 @@ class PlannerNode(Node):
                     f'{now - entry.first:.1f} s): is the controller running?')
             self.get_logger().error(f'goal {entry.goal["goal_id"]} failed: {text}')
             self.publish_status('ERROR', f'goal failed (not_acknowledged): {text}',
-                                {'result': 'failed', 'motion': entry.motion,
+                                {'result': PlannerResult.FAILED, 'motion': entry.motion,
                                  'reason': 'not_acknowledged'}, entry.goal)
 
     # --- status ----------------------------------------------------------------------------
@@ -475,7 +476,7 @@ class PlannerNode(Node):
 
     def refuse(self, motion, text, reason, details, goal):
         """Report a refused goal on /planner/status and in the log; publish no demands."""
-        values = {'result': 'refused', 'motion': motion, 'reason': reason}
+        values = {'result': PlannerResult.REFUSED, 'motion': motion, 'reason': reason}
         for key in ('waypoint', 'position_error', 'orientation_error', 'fraction', 'shapes',
                     'depth'):
             if key in details:

@@ -94,11 +94,11 @@ CAN_SHOWCASE = (
 ) + SHOWCASE[4:]
 JOINT_TOLERANCE = 0.01     # [rad] the demo's pass mark for the final joint error
 # The arm behind the stack (scripts/launch.sh --hardware): what each choice starts.
-HARDWARE = {'sim': 'sim_bridge', 'can-sim': 'can_sim (the CAN-level Mover6) with the driver'}
+STACKS = {'sim': 'sim_bridge', 'can-sim': 'can_sim (the CAN-level Mover6) with the driver'}
 LIMIT_SET = {'sim': 'within_90_deg', 'can-sim': 'hardware'}
 # Through the 20 Hz driver the controller settles in the vendor's units only (its in-flight
 # compensation is fraction_of_max's; in rad_per_s it overshoots there).
-JOG_UNITS = {'sim': 'rad_per_s', 'can-sim': 'fraction_of_max'}
+STACK_JOG_UNITS = {'sim': 'rad_per_s', 'can-sim': 'fraction_of_max'}
 
 
 class Recorder:
@@ -138,7 +138,7 @@ def start_stack(log_dir, env, hardware='sim'):
     """Start scripts/launch.sh (the arm, controller, planner) in its own process group."""
     cmd = ['bash', os.path.join(ROOT, 'scripts', 'launch.sh'), '--log-dir', log_dir,
            '--hardware', hardware, '--limit-set', LIMIT_SET[hardware],
-           '--jog-units', JOG_UNITS[hardware]]
+           '--jog-units', STACK_JOG_UNITS[hardware]]
     return subprocess.Popen(cmd, env=env, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
@@ -305,7 +305,7 @@ def main(argv=None):
     parser.add_argument('--quick', action='store_true',
                         help="only the Mover6 report's linear example and a refused goal")
     parser.add_argument('--no-render', action='store_true', help='skip the animation')
-    parser.add_argument('--hardware', default='sim', choices=HARDWARE,
+    parser.add_argument('--hardware', default='sim', choices=STACKS,
                         help='the arm: sim (the MuJoCo bridge, default) or can-sim (the '
                         'driver on the CAN-level Mover6, over a pty)')
     args = parser.parse_args(argv)
@@ -320,7 +320,7 @@ def main(argv=None):
         print(text, flush=True)
 
     t_start = time.monotonic()
-    say(f'starting {HARDWARE[args.hardware]}, controller and planner (ROS_DOMAIN_ID='
+    say(f'starting {STACKS[args.hardware]}, controller and planner (ROS_DOMAIN_ID='
         f'{env.get("ROS_DOMAIN_ID", "0")}, logs in {report_dir}/logs)')
     stack = start_stack(os.path.join(report_dir, 'logs'), env, args.hardware)
     rows = []

@@ -41,7 +41,8 @@ import time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from mover6_control.control.profiles import PROFILES
-from mover6_control.control.status import FINAL_RESULTS, MotionResult, State, StatusKey
+from mover6_control.control.status import (FINAL_RESULTS, MotionResult, PlannerResult,
+                                           PlannerState, State, StatusKey)
 from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
@@ -224,7 +225,8 @@ class GoalClient(Node):
             checks += [('/planner/status (is the planner running?)',
                         lambda: self.planner_status is not None),
                        ('the planner to receive /joint_states',
-                        lambda: self.values(self.planner_status).get('state') == 'ready'),
+                        lambda: self.values(self.planner_status).get(StatusKey.STATE)
+                        == PlannerState.READY),
                        ('a subscriber on /pose_goal',
                         lambda: self.pose_pub.get_subscription_count() > 0),
                        ('the planner and the controller on /joint_demands',
@@ -321,11 +323,12 @@ class GoalClient(Node):
 
             def about_mine(results=None):
                 v = self.values(self.planner_status)
-                return v.get('goal_stamp') == mine and (results is None
-                                                        or v.get('result') in results)
+                return v.get(StatusKey.GOAL_STAMP) == mine and (
+                    results is None or v.get(StatusKey.RESULT) in results)
             # A goal that came before the planner's joint states waits for them (and says so,
             # with how long it may wait): then planned or refused.
-            answered, waiting = ('planned', 'refused', 'failed'), ('waiting_for_states',)
+            answered = (PlannerResult.PLANNED, PlannerResult.REFUSED, PlannerResult.FAILED)
+            waiting = (PlannerResult.WAITING_FOR_STATES,)
             if not self.spin_until(lambda: about_mine(answered) or about_mine(waiting),
                                    PLANNER_ANSWER_WAIT):
                 return Outcome(EXIT_FAILED, 'the planner did not answer within '
@@ -349,8 +352,8 @@ class GoalClient(Node):
             # After 'planned' the planner reports the controller's refusal of the demand, or
             # that no controller acknowledged it.
             v = self.values(self.planner_status)
-            return (planned and v.get('goal_id') == self.goal_id
-                    and v.get('result') in ('refused', 'failed'))
+            return (planned and v.get(StatusKey.GOAL_ID) == self.goal_id
+                    and v.get(StatusKey.RESULT) in (PlannerResult.REFUSED, PlannerResult.FAILED))
 
         def motion_done():
             v = self.values(self.controller_status)
@@ -379,7 +382,8 @@ class GoalClient(Node):
             return Outcome(EXIT_REFUSED, f'the controller refused the demand: {self.rejection}')
         if planner_ended():
             status = self.planner_status
-            code = EXIT_REFUSED if self.values(status).get('result') == 'refused' else EXIT_FAILED
+            refused = self.values(status).get(StatusKey.RESULT) == PlannerResult.REFUSED
+            code = EXIT_REFUSED if refused else EXIT_FAILED
             return Outcome(code, status.message, **self.values(status))
         # 'arrived' comes once inside the goal tolerance; the controller then keeps settling
         # into its fine tolerance before it holds: report the pose it holds.
