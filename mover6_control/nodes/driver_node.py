@@ -26,13 +26,13 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.hardware.bus import open_bus
 from mover6_control.hardware.driver import ArmDriver
 from mover6_control.hardware.scaling import JOINTS_YAML, load_joints
+from mover6_control.nodes import shutdown
 from mover6_control.nodes.conversions import (joint_jog_from_msg, make_joint_state,
                                               make_status)
 from mover6_control.nodes.params import declare
 from mover6_control.parameters import DRIVER
-import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -226,20 +226,8 @@ class DriverNode(Node):
 
 
 def main(args=None):
-    """Run the driver node until Ctrl-C or shutdown."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = DriverNode()
-        executor = MultiThreadedExecutor(num_threads=4)
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Run the driver node until Ctrl-C, SIGTERM or shutdown; every module is disabled then."""
+    shutdown.run_node(DriverNode, args, lambda: MultiThreadedExecutor(num_threads=4))
 
 
 if __name__ == '__main__':

@@ -66,9 +66,12 @@ class StopSignals:
         return self.signum is not None
 
 
-def run_node(make_node, args=None):
+def run_node(make_node, args=None, make_executor=EventsExecutor):
     """
     Init rclpy, make the node with ``make_node()``, spin it until a stop; destroy it, shut down.
+
+    ``make_executor()`` gives the executor (a node whose services wait for hardware needs a
+    multi-threaded one).
 
     Returns normally (exit code 0) on SIGINT, SIGTERM (once or repeatedly) and external
     shutdown; errors while making or running the node propagate. A node that sets ``fatal``
@@ -84,7 +87,7 @@ def run_node(make_node, args=None):
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         if not stop.received:
             node = local_dds.make_checked_node(make_node)
-            executor = EventsExecutor()
+            executor = make_executor()
             executor.add_node(node)
             while not stop.received and rclpy.ok() and not getattr(node, 'fatal', None):
                 executor.spin_once(timeout_sec=SPIN_SLICE)
