@@ -29,7 +29,10 @@ class ParameterSpec:
 
     ``type`` is one of ``TYPES``. ``minimum`` and ``maximum`` (inclusive, numbers only; for a
     ``float_list`` they bound every element) or ``allowed`` (strings only) say which values are
-    valid; ``read_only`` parameters are set at start and cannot change while the node runs.
+    valid; a ``float_list`` has exactly ``length`` values, or a multiple of ``multiple_of``
+    (0: any number but none); ``read_only`` parameters are set at start and cannot change while
+    the node runs. What relates one parameter to another (a capsule tool at least as long as
+    wide) is checked by the node's whole configuration (``nodes.params.declare``).
     """
 
     name: str
@@ -41,6 +44,8 @@ class ParameterSpec:
     maximum: float = None
     allowed: tuple = ()
     read_only: bool = False
+    length: int = 0
+    multiple_of: int = 0
 
     def __post_init__(self):
         """Check the spec itself, and that its default is a valid value."""
@@ -52,6 +57,8 @@ class ParameterSpec:
             raise InvalidInputError(f'{self.name}: a range needs a numeric type')
         if self.allowed and self.type != 'str':
             raise InvalidInputError(f'{self.name}: allowed values need type str')
+        if (self.length or self.multiple_of) and self.type != 'float_list':
+            raise InvalidInputError(f'{self.name}: a length needs type float_list')
         if isinstance(self.default, list):
             object.__setattr__(self, 'default', tuple(self.default))
         check_value(self, self.default)
@@ -65,10 +72,15 @@ class ParameterSpec:
         """Return the constraints in words ('' when there are none)."""
         if self.allowed:
             return 'one of: ' + ', '.join(self.allowed)
+        words = []
         if self.has_range:
             each = 'each value ' if self.type == 'float_list' else ''
-            return f'{each}from {self.minimum:g} to {self.maximum:g}'
-        return ''
+            words.append(f'{each}from {self.minimum:g} to {self.maximum:g}')
+        if self.length:
+            words.append(f'exactly {self.length} values')
+        elif self.multiple_of:
+            words.append(f'{self.multiple_of} values per entry')
+        return '; '.join(words)
 
 
 def _type_ok(spec, value):
@@ -85,23 +97,43 @@ def check_value(spec, value):
     Raise ``InvalidInputError`` saying why ``value`` is not valid for ``spec``.
 
     Valid: of the spec's type (a float is not an int and back; a ``float_list`` is a non-empty
-    list of floats), finite, within [minimum, maximum] (every element for a list), and among
-    the allowed values.
+    list of floats, of ``length`` values or a multiple of ``multiple_of``), finite, within
+    [minimum, maximum] (every element for a list), and among the allowed values. The reason
+    quotes a long value by its length and first values only.
     """
     if not _type_ok(spec, value):
         raise InvalidInputError(
-            f'{spec.name} must be of type {spec.type}, got {value!r} ({type(value).__name__})')
+            f'{spec.name} must be of type {spec.type}, got {_short(value)} '
+            f'({type(value).__name__})')
+    if spec.type == 'float_list':
+        n = len(value)
+        if spec.length and n != spec.length:
+            raise InvalidInputError(f'{spec.name} must have exactly {spec.length} values, got '
+                                    f'{n}: {_short(value)}')
+        if spec.multiple_of and n % spec.multiple_of:
+            raise InvalidInputError(f'{spec.name} must have {spec.multiple_of} values per entry '
+                                    f'(a multiple of {spec.multiple_of}), got {n}: '
+                                    f'{_short(value)}')
     numbers = value if spec.type == 'float_list' else (
         [value] if spec.type in ('int', 'float') else [])
     for number in numbers:
         if not math.isfinite(number):
-            raise InvalidInputError(f'{spec.name} must be finite, got {value!r}')
+            raise InvalidInputError(f'{spec.name} must be finite, got {_short(value)}')
         if spec.has_range and not spec.minimum <= number <= spec.maximum:
             raise InvalidInputError(
                 f'{spec.name} must be {spec.constraints()} {spec.unit}'.rstrip()
-                + f', got {value!r}')
+                + f', got {_short(value)}')
     if spec.allowed and value not in spec.allowed:
-        raise InvalidInputError(f'{spec.name} must be {spec.constraints()}, got {value!r}')
+        raise InvalidInputError(f'{spec.name} must be {spec.constraints()}, got {_short(value)}')
+
+
+def _short(value, most=8):
+    """Return ``repr(value)``; a long list as its first ``most`` values and its length."""
+    if isinstance(value, (list, tuple)) and len(value) > most:
+        head = ', '.join(repr(v) for v in value[:most])
+        return f'[{head}, ...] ({len(value)} values)'
+    text = repr(value)
+    return text if len(text) <= 200 else text[:200] + f'... ({len(text)} characters)'
 
 
 def _table(*specs):
@@ -151,14 +183,15 @@ def _collision_specs(who):
           allowed=TOOL_SHAPES),
         P('tool_size', 'float_list', (0.06, 0.06, 0.08), 'm',
           'tool width (flange x), depth (flange y) and length (along the flange z axis, from '
-          'the flange); a capsule is max(width, depth) across (default: a small gripper)',
-          0.001, 1.0),
+          'the flange); a capsule is max(width, depth) across and at least that long (default: '
+          'a small gripper)', 0.001, 1.0, length=3),
         P('table_margin', 'float', 0.02, 'm',
           'clearance every part of the arm and tool keeps above the table (z = 0 of base_link)',
           0.0, 0.5),
         P('keep_out_boxes', 'float_list', (0.0,) * 6, 'm',
-          'keep-out zones in base_link, 6 values per box: x, y, z min then x, y, z max; a box '
-          'without volume is none (default: none)', -5.0, 5.0),
+          'keep-out zones in base_link, 6 values per box: x, y, z min then x, y, z max, no max '
+          'below its min; a box without volume is none (default: none)', -5.0, 5.0,
+          multiple_of=6),
         P('collision_step', 'float', 0.01, 'rad',
           'largest joint step between two checked samples of a motion', 0.0005, 0.5),
     )
@@ -247,7 +280,7 @@ CONTROLLER = _table(
     P('driver_tick_size', 'float_list', MOVER6_TICKS, 'rad',
       "fraction_of_max: one encoder tick per joint (default the Mover6's): commands under one "
       'tick per cycle are lifted to it near the goal; goal tolerance at least one tick',
-      1e-9, 1.0),
+      1e-9, 1.0, length=len(MOVER6_TICKS)),
     P('driver_cycle', 'float', 0.05, 's',
       'fraction_of_max: cycle of the vendor driver (20 Hz)', 0.001, 1.0),
     P('limit_set', 'str', 'within_90_deg', '', LIMIT_SET_TEXT, allowed=LIMIT_SETS,

@@ -51,13 +51,22 @@ MAX_BATCH = 200           # physics steps per loop pass before pacing gives up a
 VIEWER_PERIOD = 1.0 / 30.0
 
 
+def sim_config_from_parameters(get):
+    """Return the ``SimConfig`` of a parameter getter ``get(name)``; raise when invalid."""
+    return SimConfig(mode=get('mode'), command_timeout=float(get('command_timeout')),
+                     speed_override=float(get('speed_override')),
+                     model=ModelOptions(physics_dt=float(get('physics_dt')),
+                                        kv=float(get('kv')), damping=float(get('damping'))))
+
+
 class SimBridgeNode(Node):
     """The simulated arm on ROS 2; see the module docstring."""
 
     def __init__(self, **kwargs):
         """Declare the parameters, build the simulator, start the physics thread."""
         super().__init__('sim_bridge', **kwargs)
-        params.declare(self, SIM_BRIDGE)  # refuses invalid values, at start and later
+        # Refuses invalid values, each and as the simulator's config, at start and later.
+        params.declare(self, SIM_BRIDGE, sim_config_from_parameters)
         self.add_post_set_parameters_callback(self.on_parameters_set)
         self._reanchor = False           # real_time_factor changed: pace from now on
         p = {name: self.get_parameter(name).value for name in SIM_BRIDGE}
@@ -69,10 +78,7 @@ class SimBridgeNode(Node):
         if not (0.0 < rate <= MAX_PUBLISH_RATE):
             raise InvalidInputError(
                 f'publish_rate must be in (0, {MAX_PUBLISH_RATE}] Hz, got {rate}')
-        config = SimConfig(mode=p['mode'], command_timeout=float(p['command_timeout']),
-                           speed_override=float(p['speed_override']),
-                           model=ModelOptions(physics_dt=float(p['physics_dt']),
-                                              kv=float(p['kv']), damping=float(p['damping'])))
+        config = sim_config_from_parameters(p.get)
         self.sim = Simulator(self.arm, config, home_q=list(p['initial_q']))
         self.vendor = config.mode == 'vendor_driver'
         self.dt = config.physics_dt

@@ -151,7 +151,12 @@ def test_descriptions_use_words_a_user_knows():
     (SIM_BRIDGE['initial_q'], [0.0, 4.0], 'each value from'),
     (SIM_BRIDGE['initial_q'], [0, 0], 'type float_list'),
     (SIM_BRIDGE['initial_q'], [], 'type float_list'),
-    (CONTROLLER['driver_tick_size'], [0.001, -0.001], 'each value from'),
+    (CONTROLLER['driver_tick_size'], [0.001] * 5 + [-0.001], 'each value from'),
+    (CONTROLLER['driver_tick_size'], [0.001], 'exactly 6 values'),
+    (CONTROLLER['driver_tick_size'], [0.001] * 1000, 'exactly 6 values, got 1000'),
+    (CONTROLLER['tool_size'], [0.05] * 7, 'exactly 3 values'),
+    (PLANNER['tool_size'], [0.05], 'exactly 3 values'),
+    (PLANNER['keep_out_boxes'], [0.0] * 5, 'a multiple of 6'),
 ])
 def test_check_value_refuses_with_a_reason(spec, value, words):
     """A bad value is refused, and the reason names the parameter and what is allowed."""
@@ -159,6 +164,13 @@ def test_check_value_refuses_with_a_reason(spec, value, words):
         check_value(spec, value)
     assert spec.name in str(err.value)
     assert words in str(err.value)
+
+
+def test_a_refusal_quotes_a_long_value_by_its_length():
+    """A 1,000-value list is refused with its first values and its length, not all of them."""
+    with pytest.raises(InvalidInputError) as err:
+        check_value(CONTROLLER['keep_out_boxes'], [9.0] * 1002)
+    assert '(1002 values)' in str(err.value) and len(str(err.value)) < 300
 
 
 def test_check_value_takes_valid_values():

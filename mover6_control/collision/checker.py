@@ -35,7 +35,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mover6_control.collision.geometry import (build_geometry, collision_mjcf,
-                                               CollisionGeometry, TABLE, ToolVolume)
+                                               CollisionGeometry, keep_out_boxes, TABLE,
+                                               ToolVolume)
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
 import mujoco
@@ -72,6 +73,7 @@ class CollisionSettings:
                                     f'{self.max_joint_step}')
         if not np.isfinite(self.table_margin) or self.table_margin < 0.0:
             raise InvalidInputError(f'table_margin must be >= 0, got {self.table_margin}')
+        keep_out_boxes(self.keep_out)        # raises: not 6 values per box, max below min
         object.__setattr__(self, 'keep_out', tuple(float(v) for v in self.keep_out))
 
 

@@ -109,8 +109,9 @@ def keep_out_boxes(flat) -> tuple:
     """
     Return ``KeepOutBox``es from a flat list, 6 values per box: x, y, z min then x, y, z max.
 
-    A box without volume (any max <= its min, e.g. the all-zero default) is no box and is
-    skipped, so a parameter that must not be empty can say "none".
+    A box without volume (a max equal to its min, e.g. the all-zero default) is no box and is
+    skipped, so a parameter that must not be empty can say "none". A max below its min is
+    refused (min and max swapped would otherwise silently leave the zone unguarded).
     """
     values = np.asarray(list(flat), dtype=float).ravel()
     if values.size % 6:
@@ -120,6 +121,11 @@ def keep_out_boxes(flat) -> tuple:
         raise InvalidInputError('keep-out boxes must be finite')
     boxes = []
     for k, row in enumerate(values.reshape(-1, 6)):
+        inverted = [axis for axis, lo, hi in zip('xyz', row[:3], row[3:]) if hi < lo]
+        if inverted:
+            raise InvalidInputError(
+                f'keep-out box {k}: {", ".join(inverted)} max below its min ({row[:3].tolist()} '
+                f'to {row[3:].tolist()}); give x, y, z min then x, y, z max')
         if np.all(row[3:] > row[:3]):
             boxes.append(KeepOutBox(f'keep-out box {k}', tuple(row[:3]), tuple(row[3:])))
     return tuple(boxes)

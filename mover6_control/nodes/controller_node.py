@@ -72,7 +72,6 @@ from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from mover6_control.parameters import CONTROLLER
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.duration import Duration
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -132,11 +131,10 @@ class ControllerNode(Node):
     def __init__(self, **kwargs):
         """Declare the parameters, build the core, start the topics, services and tick thread."""
         super().__init__('controller', **kwargs)
-        self.check_values = params.declare(self, CONTROLLER)  # refuses invalid values
+        # Refuses invalid values, each and as a whole config (check_config), before a set is
+        # accepted; an accepted set is handed to the core (at once, or after the motion).
+        params.declare(self, CONTROLLER, self.check_config)
         limit_set, config = config_from_parameters(lambda n: self.get_parameter(n).value)
-        # From now on a set applies live: checked as a whole first (nothing changes when the
-        # config it makes is invalid), then handed to the core (at once, or after the motion).
-        self.add_on_set_parameters_callback(self.on_set_parameters)
         self.add_post_set_parameters_callback(self.on_parameters_set)
         self.core = ControllerCore(mover6(limit_set), config)
         self.apply_collision_parameters()
@@ -190,27 +188,26 @@ class ControllerNode(Node):
         """Return the node clock's time [s] (sim time when use_sim_time is set)."""
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def on_set_parameters(self, parameters):
+    def check_config(self, get):
         """
-        Refuse a set whose values, merged with the others in force, make no valid config.
+        Raise saying why the parameters of ``get(name)`` make no valid controller config.
 
-        The table's own check (type, range, allowed values) comes first; then the whole config
-        is built as at start-up and checked against the arm. Nothing changes when refused.
+        ``params.declare`` calls it on the values a set would leave in force, before the set
+        is accepted: the config, the collision check's settings (tool size, keep-out boxes) and,
+        once the core exists, the config against the arm (one driver tick per joint ...).
         """
-        result = self.check_values(parameters)
-        if not result.successful:
-            return result
-        new = {p.name: p.value for p in parameters if p.name in CONTROLLER}
-        try:
-            _, config = config_from_parameters(
-                lambda n: new[n] if n in new else self.get_parameter(n).value)
-            self.core.check_config(config)
-        except (Mover6Error, ValueError, TypeError) as err:
-            return SetParametersResult(successful=False, reason=str(err))
-        return SetParametersResult(successful=True)
+        _, config = config_from_parameters(get)
+        params.collision_settings(get)
+        core = getattr(self, 'core', None)
+        if core is not None:
+            core.check_config(config)
 
     def on_parameters_set(self, parameters):
-        """Apply parameters just set: to the core now, or when the running motion ends."""
+        """
+        Apply parameters just set: to the core now, or when the running motion ends.
+
+        Cannot fail: ``check_config`` built all of it from these values before the set.
+        """
         if not any(p.name in CONTROLLER for p in parameters):
             return
         names = ', '.join(f'{p.name} {p.value}' for p in parameters)

@@ -9,7 +9,7 @@ bridge alike.
 
 from mover6_control.collision.checker import CollisionSettings
 from mover6_control.collision.geometry import ToolVolume
-from mover6_control.errors import InvalidInputError
+from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.parameters import check_value
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
@@ -22,6 +22,8 @@ ROS_TYPES = {
     'str': ParameterType.PARAMETER_STRING,
     'float_list': ParameterType.PARAMETER_DOUBLE_ARRAY,
 }
+# Longest refusal reason [characters] a set-parameters answer carries.
+MAX_REASON = 500
 
 
 def descriptor(spec):
@@ -44,32 +46,59 @@ def ros_value(value):
     return list(value) if isinstance(value, tuple) else value
 
 
-def declare(node, table):
+def declare(node, table, check_config=None):
     """
     Declare every parameter of ``table`` on ``node`` and refuse invalid values from then on.
 
-    The set-parameters check is in place before the declarations, so a bad start value (from a
-    parameter file or ``-p``) stops the node too. Raises ``InvalidInputError`` (a ValueError)
-    saying why.
+    ``check_config(get)``, when given, builds the node's whole configuration from a getter
+    ``get(name)`` and raises when it is invalid (the relations between parameters: a capsule
+    tool at least as long as wide, a stop threshold above its slow-down threshold ...); a set is
+    checked with it on the values it would leave in force, before it is accepted, so a node's
+    after-set callback applies only what this check built successfully. The set-parameters
+    check is in place before the declarations, and the start values are checked as a whole once
+    all are declared, so a bad start value (from a parameter file or ``-p``) stops the node
+    too. Raises ``InvalidInputError`` (a ValueError) saying why.
     """
-    callback = make_set_callback(table)
+    callback = make_set_callback(table, node, check_config)
     node.add_on_set_parameters_callback(callback)
     for spec in table.values():
         try:
             node.declare_parameter(spec.name, ros_value(spec.default), descriptor(spec))
         except ParameterException as err:
             raise InvalidInputError(f'parameter {spec.name}: {err}') from err
+    if check_config is not None:
+        reason = whole_config_problem(check_config, lambda n: node.get_parameter(n).value)
+        if reason is not None:
+            raise InvalidInputError(f'parameters: {reason}')
     return callback
 
 
-def make_set_callback(table):
+def whole_config_problem(check_config, get):
+    """Return why ``check_config(get)`` refuses the values of ``get`` (None when it takes them)."""
+    try:
+        check_config(get)
+    except (Mover6Error, ValueError, TypeError, ArithmeticError) as err:
+        return short_reason(str(err))
+    return None
+
+
+def short_reason(text, most=MAX_REASON):
+    """Return ``text`` cut to ``most`` characters (a refusal quoting a huge value stays small)."""
+    return text if len(text) <= most else text[:most - 20] + f'... ({len(text)} characters)'
+
+
+def make_set_callback(table, node=None, check_config=None):
     """
     Return an ``on_set_parameters`` callback that refuses values ``table`` does not allow.
 
-    One bad value refuses the whole set, with the reason; nothing changes. Parameters not in
+    One bad value refuses the whole set, with the reason; nothing changes. Each value is checked
+    against its spec (``parameters.check_value``: type, length, finiteness, range, allowed
+    values), then, with ``node`` and ``check_config`` (see ``declare``) and once every parameter
+    of ``table`` is declared, the configuration the set would leave in force. Parameters not in
     the table (``use_sim_time`` ...) are left to rclpy.
     """
     def on_set_parameters(parameters):
+        new = {}
         for parameter in parameters:
             spec = table.get(parameter.name)
             if spec is None:
@@ -80,13 +109,24 @@ def make_set_callback(table):
             try:
                 check_value(spec, value)
             except InvalidInputError as err:
-                return SetParametersResult(successful=False, reason=str(err))
+                return SetParametersResult(successful=False, reason=short_reason(str(err)))
+            new[parameter.name] = value
+        if new and check_config is not None and all(node.has_parameter(n) for n in table):
+            reason = whole_config_problem(
+                check_config, lambda n: new[n] if n in new else node.get_parameter(n).value)
+            if reason is not None:
+                return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
     return on_set_parameters
 
 
 def collision_settings(get):
-    """Return the ``CollisionSettings`` of the collision parameters (planner or controller)."""
+    """
+    Return the ``CollisionSettings`` of the collision parameters (planner or controller).
+
+    Raises ``InvalidInputError`` for a tool size or keep-out boxes the checker cannot use: the
+    nodes' ``check_config`` builds it, so such a set is refused before it is accepted.
+    """
     return CollisionSettings(
         enabled=bool(get('collision_check')),
         tool=ToolVolume(get('tool_shape'), tuple(get('tool_size'))),

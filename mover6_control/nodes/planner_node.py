@@ -87,13 +87,30 @@ class Unconfirmed:
     first: float       # [s] monotonic time of the first send
 
 
+def settings_from_parameters(get):
+    """
+    Return the ``PlannerSettings`` of a parameter getter ``get(name)``; raise when invalid.
+
+    The set-parameters check builds it from the values a set would leave in force, so a value
+    the planner could not plan with (a tool size, keep-out boxes) is refused at the set.
+    """
+    return PlannerSettings(
+        n_waypoints=get('n_waypoints'), max_step=get('max_step'),
+        max_angle_step=get('max_angle_step'), peak_height=get('peak_height'),
+        max_joint_step=get('max_joint_step'), max_condition=get('max_condition'),
+        position_tolerance=get('position_tolerance'),
+        orientation_tolerance=get('orientation_tolerance'),
+        collision=params.collision_settings(get))
+
+
 class PlannerNode(Node):
     """Plan pose and path goals into joint waypoints, refuse what cannot be reached."""
 
     def __init__(self, **kwargs):
         """Declare the parameters, build the arm, start the topics and the planning thread."""
         super().__init__('planner', **kwargs)
-        params.declare(self, PLANNER)     # refuses invalid values, at start and later
+        # Refuses invalid values, each and as the planner's settings, at start and later.
+        params.declare(self, PLANNER, settings_from_parameters)
         limit_set = self.get_parameter('limit_set').value
         self.arm = mover6(limit_set)
         self.state = WAITING
@@ -269,14 +286,7 @@ class PlannerNode(Node):
 
     def settings(self):
         """Return the planner settings from the current parameters."""
-        p = {name: self.get_parameter(name).value for name in PLANNER}
-        return PlannerSettings(
-            n_waypoints=p['n_waypoints'], max_step=p['max_step'],
-            max_angle_step=p['max_angle_step'], peak_height=p['peak_height'],
-            max_joint_step=p['max_joint_step'], max_condition=p['max_condition'],
-            position_tolerance=p['position_tolerance'],
-            orientation_tolerance=p['orientation_tolerance'],
-            collision=params.collision_settings(lambda n: p[n]))
+        return settings_from_parameters(lambda n: self.get_parameter(n).value)
 
     def checker(self, settings):
         """Return the collision checker of ``settings`` (kept while they do not change)."""
