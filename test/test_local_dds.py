@@ -194,14 +194,11 @@ def test_the_launchers_keep_a_users_dds_setup():
     assert f"export FASTRTPS_DEFAULT_PROFILES_FILE='{local_dds.PROFILE}'" in out
 
 
-def test_the_default_is_local_only_in_a_private_namespace(tmp_path, monkeypatch):
+def test_the_default_is_local_only_in_a_private_namespace(monkeypatch):
     """Without a DDS choice: the profile where only lo exists, LOCALHOST on a wider host."""
-    for names, expected in ((['lo'], local_dds.local_environment()),
-                            (['eth0', 'lo'], {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'})):
-        net = tmp_path / '-'.join(names)
-        for name in names:
-            (net / name).mkdir(parents=True)
-        monkeypatch.setattr(local_dds, 'only_loopback',
-                            lambda net=net: local_dds.only_loopback(str(net)))
-        assert local_dds.default_environment({}) == expected, names
+    for interfaces, expected in (([(1, 'lo')], local_dds.local_environment()),
+                                 ([(1, 'lo'), (2, 'eth0')],
+                                  {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'})):
+        monkeypatch.setattr(socket, 'if_nameindex', lambda interfaces=interfaces: interfaces)
+        assert local_dds.default_environment({}) == expected, interfaces
     assert local_dds.default_environment({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET'}) == {}

@@ -203,10 +203,10 @@ def _refusal(problems):
             f'{MODE_ENV} to use the DDS setup of the environment as it is.')
 
 
-def only_loopback(net_dir: str = '/sys/class/net') -> bool:
+def only_loopback() -> bool:
     """Return True when this network namespace has no interface but ``lo`` (a private one)."""
     try:
-        return sorted(os.listdir(net_dir)) == ['lo']
+        return [name for _, name in socket.if_nameindex()] == ['lo']
     except OSError:
         return False
 
