@@ -105,7 +105,8 @@ def make_set_callback(table, node=None, check_config=None):
             try:
                 check_value(spec, value)
             except InvalidInputError as err:
-                return SetParametersResult(successful=False, reason=short_text(str(err), MAX_REASON))
+                return SetParametersResult(successful=False,
+                                           reason=short_text(str(err), MAX_REASON))
             new[parameter.name] = value
         if new and check_config is not None and all(node.has_parameter(n) for n in table):
             reason = whole_config_problem(
