@@ -60,3 +60,17 @@ def as_positive(value: object, name: str, n: Optional[int] = None, *,
     if np.any(arr <= 0.0):
         raise InvalidInputError(f'{name} must be positive and finite, got {arr.tolist()}')
     return arr
+
+
+def short_text(text: str, most: int = 500) -> str:
+    """
+    Return ``text`` cut to at most ``most`` characters, saying how long it was.
+
+    A reason that quotes hostile input (a huge list, thousands of waypoints) stays small where
+    it goes out again: a status, a set-parameters answer, a log line.
+    """
+    text = str(text)
+    if len(text) <= most:
+        return text
+    tail = f'... ({len(text)} characters)'
+    return text[:max(most - len(tail), 0)] + tail

@@ -68,13 +68,15 @@ from mover6_control.control.velocity_laws import (dead_zone_command, driver_velo
                                                   tick_pulse_command, to_jog_units)
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
-from mover6_control.validation import as_positive
+from mover6_control.validation import as_positive, short_text
 import numpy as np
 
 # After arrival the gain is at least this fraction of the error per control period (rad_per_s).
 FINE_GAIN_PER_TICK = 0.25
 # fraction_of_max, after arrival: readings after a whole-tick pulse starts before the next may.
 PULSE_READINGS = 3
+# Longest refusal reason [characters] kept for the status (hostile demands quote little).
+MAX_REASON = 500
 
 
 @dataclass(frozen=True)
@@ -186,14 +188,16 @@ class Snapshot:
 
     ``state``; ``start`` = ``(q, qd)`` the plan starts from: the reference of the last tick and
     its velocity while moving, the measured position and None (rest) otherwise; ``moving``;
-    ``motion_id`` of the latest accepted demand. Immutable, so planning from it outside the lock
-    cannot see a tick change it halfway.
+    ``motion_id`` of the latest accepted demand; ``message`` the state's reason then (a refusal
+    names the state it was refused in, not a later one). Immutable, so planning from it outside
+    the lock cannot see a tick change it halfway.
     """
 
     state: str
     start: tuple
     moving: bool
     motion_id: int
+    message: str = ''
 
 
 @dataclass(frozen=True, eq=False)
@@ -210,6 +214,11 @@ class PendingDemand:
     timing: Optional[Timing] = None     # the points' times (timed_plan); None: the law's
     timing_note: str = ''               # plan_demand's note: '', 'as given', or why not
     profile: str = ''                   # the demand's own profile ('': the parameter's)
+
+
+def _and_more(count):
+    """Return ' (and <count - 1> more)' after the first of ``count`` offences ('' for one)."""
+    return f' (and {count - 1} more)' if count > 1 else ''
 
 
 class ControllerCore:
@@ -403,7 +412,8 @@ class ControllerCore:
         state, ref = self._state, self.robot.reference          # each read once
         moving = state != sm.IDLE and ref is not None
         q = self.robot.q if self.robot.measured else None
-        return Snapshot(state, ref if moving else (q, None), moving, self._motion_id)
+        return Snapshot(state, ref if moving else (q, None), moving, self._motion_id,
+                        self._message)
 
     def prepare_demand(self, now: float, waypoints: np.ndarray,
                        snapshot: Optional[Snapshot] = None,
@@ -425,7 +435,7 @@ class ControllerCore:
         vlim = self._vlim
         snapshot = self.snapshot() if snapshot is None else snapshot
         Q = self.check_demand(waypoints)
-        self._check_accepts(snapshot.state)
+        self._check_accepts(snapshot.state, snapshot.message)
         q_start, qd_start = snapshot.start
         if q_start is None:
             raise InvalidInputError(f'cannot take a demand while {snapshot.state}: no joint '
@@ -462,17 +472,28 @@ class ControllerCore:
             Q = Q.reshape(-1, n)
         if Q.ndim != 2 or Q.shape[1] != n:
             raise InvalidInputError(f'demand must have shape (N, {n}), got {Q.shape}')
-        if not np.all(np.isfinite(Q)):
-            raise InvalidInputError('demand has non-finite values')
-        bad = [f'waypoint {k}: ' + ', '.join(self.arm.limit_violations(row, tol=1e-6))
-               for k, row in enumerate(Q) if not self.arm.within_limits(row, tol=1e-6)]
-        if bad:
-            raise InvalidInputError('demand outside joint limits: ' + '; '.join(bad))
+        # The first offence and a count, never every waypoint: a reason stays small.
+        finite = np.all(np.isfinite(Q), axis=1)
+        if not np.all(finite):
+            bad = np.flatnonzero(~finite)
+            raise InvalidInputError(f'demand has non-finite values: waypoint {bad[0]} of '
+                                    f'{len(Q)}{_and_more(bad.size)}')
+        inside = np.all((Q >= self.arm.lower - 1e-6) & (Q <= self.arm.upper + 1e-6), axis=1)
+        if not np.all(inside):
+            bad = np.flatnonzero(~inside)
+            raise InvalidInputError(
+                f'demand outside joint limits: waypoint {bad[0]} of {len(Q)}: '
+                + ', '.join(self.arm.limit_violations(Q[bad[0]], tol=1e-6))
+                + _and_more(bad.size))
         return np.clip(Q, self.arm.lower, self.arm.upper)   # float32 rounding at a limit
 
-    def commit_demand(self, pending: PendingDemand) -> int:
+    def commit_demand(self, pending: PendingDemand, start: Optional[float] = None) -> int:
         """
-        Start a prepared demand (time counts from when it was prepared); return the motion id.
+        Start a prepared demand; return the motion id.
+
+        Its time counts from ``start`` [s] (default: when it was prepared, which a plan from a
+        moving reference needs; a plan from rest may start when committed, however long its
+        planning took).
 
         Call it under the node's lock. When the controller moved on since the snapshot (the
         motion ended, another started: ``is_current`` is False) the demand is planned again
@@ -488,7 +509,7 @@ class ControllerCore:
             if self.collision_guard is not None:
                 self.collision_guard(plan)      # the new plan is checked as the first was
         self._timing = note
-        self.robot.give(plan, pending.now)
+        self.robot.give(plan, pending.now if start is None else start)
         self._motion_id += 1
         self._waypoints_total, self._waypoint = len(pending.waypoints), 0
         self._result = {}
@@ -514,13 +535,15 @@ class ControllerCore:
 
     def reject(self, now: float, reason: str, demand_id: str = '') -> None:
         """Note a refused demand: reason, time [s] and id stay in the status until one is taken."""
-        self._rejection = {'rejected': str(reason), 'rejected_time': f'{now:.3f}',
+        self._rejection = {'rejected': short_text(reason, MAX_REASON),
+                           'rejected_time': f'{now:.3f}',
                            'rejected_goal_id': str(demand_id)}
         self._changed = True
 
-    def _check_accepts(self, state):
+    def _check_accepts(self, state, message=None):
         if state not in sm.ACCEPTS_DEMANDS:
-            raise InvalidInputError(f'cannot take a demand while {state}: {self._message}')
+            message = self._message if message is None else message
+            raise InvalidInputError(f'cannot take a demand while {state}: {message}')
 
     def request_stop(self, now: float) -> tuple[bool, str]:
         """Decelerate to rest and hold; return ``(True, message)`` or why nothing moved."""

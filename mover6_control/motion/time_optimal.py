@@ -34,6 +34,8 @@ import numpy as np
 
 # Largest tangent turn [rad] across one grid interval on a blend arc.
 _MAX_TURN = 0.05
+# Entries converted to a list per call (``_as_list``): short enough that threads switch between.
+LIST_CHUNK = 20000
 # Limits are enforced at grid points only; between them a blend arc can exceed them by
 # O(_MAX_TURN^2 / 8) = 3e-4 relative. Planning to limits this much smaller keeps the whole
 # trajectory inside the true limits.
@@ -117,7 +119,21 @@ def _members(num, den, member):
     Row k's entries are ``[bounds[k]:bounds[k + 1]]`` of each list.
     """
     bounds = np.concatenate([[0], np.cumsum(member.sum(axis=1))]).tolist()
-    return num[member].tolist(), den[member].tolist(), bounds
+    return _as_list(num[member]), _as_list(den[member]), bounds
+
+
+def _as_list(values, chunk=LIST_CHUNK):
+    """
+    Return the 1-D array ``values`` as a list, converted ``chunk`` entries at a time.
+
+    One ``tolist`` of a long path's millions of entries holds the interpreter for up to half a
+    second on a loaded machine, and a controller planning in a thread must not stop its ticks
+    that long; between chunks the other threads run.
+    """
+    out = []
+    for start in range(0, len(values), chunk):
+        out.extend(values[start:start + chunk].tolist())
+    return out
 
 
 def _distinct_lines(gamma, slope):

@@ -57,12 +57,13 @@ import queue
 import sys
 import threading
 import traceback
+import time
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
 from mover6_control.control.collision_guard import CollisionGuard
-from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.controller_core import ControllerConfig, ControllerCore, MAX_REASON
 from mover6_control.control.servo import ServoConfig
 from mover6_control.control.state_machine import FAULT, WAITING_FOR_STATES
 from mover6_control.control.velocity_laws import LawConfig
@@ -72,6 +73,7 @@ from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from mover6_control.parameters import CONTROLLER
+from mover6_control.validation import short_text
 from rclpy.duration import Duration
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -83,6 +85,9 @@ TICK_GAP_WARN = 0.05
 # Plans of one demand made without the lock before the last is committed as it is (re-planned
 # under the lock when the controller moved on yet again: only when motions end that often).
 DEMAND_ATTEMPTS = 3
+# [s] a demand whose plan took longer than this is never planned again under the lock (the
+# ticks would wait for it): refused with the reason instead when the controller moved on again.
+LOCKED_PLAN_LIMIT = 0.02
 WATCHDOG_ENV = 'MOVER6_TICK_WATCHDOG'
 # Longest wait [s] at shutdown for the readers of /JointJog to acknowledge the last zero command.
 ZERO_ACK_TIMEOUT = 1.0
@@ -168,6 +173,7 @@ class ControllerNode(Node):
         self.motion_goals = {}       # motion_id -> goal id ('' for none)
         self.goal_motions = {}       # goal id -> motion_id
         self.goal_rejections = {}    # goal id -> why its demand was refused
+        self.withdrawn = set()       # goal ids whose action stopped waiting: never started
         self.motion_starts = {}      # motion_id -> node clock [s] its plan counts from
         self.last_q = None           # the latest valid joint positions, for the action
         self.trajectory_server = FollowJointTrajectoryServer(self)
@@ -280,13 +286,19 @@ class ControllerNode(Node):
         """
         Take the queued demands in order until ``None`` comes (the node closes).
 
-        An item is a /joint_demands message, or ``(message, Timing)`` from the action server
-        (a goal's ``time_from_start`` and velocities, ``control.timed_plan``).
+        An item is a /joint_demands message, ``(message, Timing)`` (a goal's ``time_from_start``
+        and velocities, ``control.timed_plan``), or a callable from the action server that
+        returns one of those, or None when it refused the goal: a goal of 10,000 points is
+        converted here, not in the executor thread that must keep taking /joint_states.
         """
         while True:
             msg = self.demands.get()
             if msg is None or not self.running:
                 return
+            if callable(msg):
+                msg = msg()
+                if msg is None:
+                    continue
             msg, timing = msg if isinstance(msg, tuple) else (msg, None)
             self.take_demand(msg, timing)   # never raises: refuses with a reason instead
 
@@ -297,7 +309,10 @@ class ControllerNode(Node):
         The one concurrency rule (docs/architecture.md, "Threads"): a snapshot of the core is
         taken under the lock, the plan is made from it without the lock (the ticks go on), and
         it is committed under the lock only if the snapshot is still current; otherwise it is
-        planned again from a new snapshot (the last attempt re-plans under the lock).
+        planned again from a new snapshot (the last attempt re-plans under the lock, unless the
+        plans take longer than ``LOCKED_PLAN_LIMIT``: then it is refused). The waypoints are
+        checked before the first snapshot (a refusal names the state the snapshot saw), and a
+        goal its action gave up waiting for (``withdrawn``) is never started.
         """
         now = self.now()
         goal_id = conversions.demand_id_from_msg(msg)
@@ -312,22 +327,35 @@ class ControllerNode(Node):
             if self.core.state in WAIT_FOR_STATES:   # no valid states yet: wait a moment
                 self.has_states.wait(DEMAND_STATE_WAIT)
                 now = self.now()
+            Q = self.core.check_demand(Q)       # the arm's limits only: no lock needed
             for attempt in range(DEMAND_ATTEMPTS):
                 with self.lock:
                     snapshot = self.core.snapshot()
+                started = time.monotonic()
                 pending = self.core.prepare_demand(now, Q, snapshot, goal_id, timing=timing,
                                                    profile=profile)
+                slow = time.monotonic() - started > LOCKED_PLAN_LIMIT
                 with self.lock:
-                    if attempt + 1 == DEMAND_ATTEMPTS or self.core.is_current(pending):
-                        motion_id = self.core.commit_demand(pending)
+                    if goal_id and goal_id in self.withdrawn:
+                        raise InvalidInputError(f'goal {goal_id}: its sender stopped waiting')
+                    current = self.core.is_current(pending)
+                    if not current and slow and attempt + 1 == DEMAND_ATTEMPTS:
+                        raise InvalidInputError(
+                            f'the controller moved on while this demand was planned, '
+                            f'{DEMAND_ATTEMPTS} times; send it again')
+                    if attempt + 1 == DEMAND_ATTEMPTS or current:
+                        # From rest the plan starts now, not when its (long) planning began.
+                        start = pending.now if pending.moving else self.now()
+                        motion_id = self.core.commit_demand(pending, start)
                         self.motion_goals[motion_id] = goal_id
-                        self.motion_starts[motion_id] = pending.now
+                        self.motion_starts[motion_id] = start
                         if goal_id:
                             self.goal_motions[goal_id] = motion_id
                         break
                 now = self.now()
         except Exception as err:  # noqa: B902 - no demand is dropped without a status
             reason = str(err) if isinstance(err, Mover6Error) else f'{type(err).__name__}: {err}'
+            reason = short_text(reason, MAX_REASON)   # hostile demands quote little
             self.get_logger().warning(f'rejected /joint_demands: {reason}')
             if goal_id:
                 self.goal_rejections[goal_id] = reason

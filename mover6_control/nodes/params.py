@@ -11,6 +11,7 @@ from mover6_control.collision.checker import CollisionSettings
 from mover6_control.collision.geometry import ToolVolume
 from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.parameters import check_value
+from mover6_control.validation import short_text
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
 from rclpy.exceptions import ParameterException
@@ -74,17 +75,12 @@ def declare(node, table, check_config=None):
 
 
 def whole_config_problem(check_config, get):
-    """Return why ``check_config(get)`` refuses the values of ``get`` (None when it takes them)."""
+    """Return why ``check_config(get)`` refuses the values of ``get`` (None: it takes them)."""
     try:
         check_config(get)
     except (Mover6Error, ValueError, TypeError, ArithmeticError) as err:
-        return short_reason(str(err))
+        return short_text(str(err), MAX_REASON)
     return None
-
-
-def short_reason(text, most=MAX_REASON):
-    """Return ``text`` cut to ``most`` characters (a refusal quoting a huge value stays small)."""
-    return text if len(text) <= most else text[:most - 20] + f'... ({len(text)} characters)'
 
 
 def make_set_callback(table, node=None, check_config=None):
@@ -109,7 +105,8 @@ def make_set_callback(table, node=None, check_config=None):
             try:
                 check_value(spec, value)
             except InvalidInputError as err:
-                return SetParametersResult(successful=False, reason=short_reason(str(err)))
+                return SetParametersResult(successful=False,
+                                           reason=short_text(str(err), MAX_REASON))
             new[parameter.name] = value
         if new and check_config is not None and all(node.has_parameter(n) for n in table):
             reason = whole_config_problem(

@@ -34,11 +34,13 @@ running goal: it is aborted with INVALID_GOAL (as joint_trajectory_controller) a
 """
 
 from control_msgs.action import FollowJointTrajectory
+from mover6_control.control.controller_core import MAX_REASON
 from mover6_control.control.status import (Cause, FINAL_RESULTS, MotionResult, State, StatusKey,
                                            TIMING_AS_GIVEN)
 from mover6_control.control.timed_plan import Timing
 from mover6_control.errors import InvalidInputError
 from mover6_control.nodes import conversions
+from mover6_control.validation import short_text
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.duration import Duration
@@ -47,8 +49,10 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 
 Result = FollowJointTrajectory.Result
 FEEDBACK_PERIOD = 0.1    # [s]
-# Longest wait [s] for the demand thread to accept or refuse a goal's demand.
+# Longest wait [s] for the demand thread to accept or refuse a goal's demand: this, plus
+# ACCEPT_PER_POINT for each point (the continuous law plans 10,000 points for seconds).
 ACCEPT_TIMEOUT = 10.0
+ACCEPT_PER_POINT = 0.005
 # A motion's result counts once the controller has left these states.
 ENDED_AFTER = (State.EXECUTING, State.SETTLING, State.STOPPING)
 
@@ -191,29 +195,43 @@ class FollowJointTrajectoryServer:
         names = node.joint_names
         goal = handle.request
         goal_id = 'fjt-' + bytes(handle.goal_id.uuid).hex()[:12]
-        try:
-            rows = map_goal(goal.trajectory, names)
-            timing = map_timing(goal.trajectory, names)
-        except ValueError as err:
-            return self.finish(handle, err.args[0], err.args[1])
         path_tol = tolerances(goal.path_tolerance, names,
                               node.get_parameter('path_tolerance').value)
         goal_tol = tolerances(goal.goal_tolerance, names,
                               node.get_parameter('goal_tolerance').value)
         self.active = handle
-        demand = conversions.make_demands(rows, goal_id)
-        node.demands.put((demand, timing) if timing.timed else demand)
-        waited = 0.0
+        mapped = {}              # what the demand thread made of the goal
+
+        def convert():
+            """Map the goal's points in the demand thread (a long goal takes a while)."""
+            try:
+                mapped['rows'] = map_goal(goal.trajectory, names)
+                mapped['timing'] = map_timing(goal.trajectory, names)
+            except ValueError as err:
+                mapped['code'] = err.args[0]
+                node.goal_rejections[goal_id] = short_text(err.args[1], MAX_REASON)
+                return None
+            demand = conversions.make_demands(mapped['rows'], goal_id)
+            return (demand, mapped['timing']) if mapped['timing'].timed else demand
+
+        node.demands.put(convert)
+        waited, timeout = 0.0, ACCEPT_TIMEOUT + ACCEPT_PER_POINT * len(goal.trajectory.points)
         while goal_id not in node.goal_motions and goal_id not in node.goal_rejections:
-            if waited > ACCEPT_TIMEOUT or not node.running:
-                return self.finish(handle, Result.INVALID_GOAL, 'the controller did not take '
-                                                                'the demand in time')
+            if waited > timeout or not node.running:
+                with node.lock:      # the demand thread commits under it: taken, or never
+                    if goal_id not in node.goal_motions:
+                        node.withdrawn.add(goal_id)
+                if goal_id not in node.goal_motions:
+                    return self.finish(handle, Result.INVALID_GOAL, 'the controller did not '
+                                                                    'take the demand in time')
+                break
             await self.sleep(0.01)
             waited += 0.01
         if goal_id in node.goal_rejections:
-            return self.finish(handle, Result.INVALID_GOAL,
+            return self.finish(handle, mapped.get('code', Result.INVALID_GOAL),
                                f'refused: {node.goal_rejections.pop(goal_id)}')
         motion_id = node.goal_motions[goal_id]
+        rows, timing = mapped['rows'], mapped['timing']
         note = self.timing_note(goal_id, motion_id, timing)
         stopping = None          # why the arm is being stopped: (code, text, how)
         while node.running:

@@ -1,0 +1,325 @@
+"""
+End to end: hostile parameter values, service requests and action goals change nothing.
+
+The three nodes run as processes. Their parameters and services are listed at run time (as
+``ros2 param list`` and ``ros2 service list`` see them), so a parameter or service added later
+is tried too. Each parameter gets values of the wrong type, wrong lengths, NaN, infinities,
+huge values and values that break a relation between entries or parameters: every one is
+refused with a reason, the parameter keeps its value and every node stays alive. Then
+malformed and oversized FollowJointTrajectory goals and /joint_demands are refused with short
+reasons, and a valid goal afterwards arrives.
+"""
+
+import math
+
+from control_msgs.action import FollowJointTrajectory
+from mover6_control.kinematics.arm import mover6
+from mover6_control.parameters import NODES
+from mover6_control.tools.goal_cli import GoalClient
+import numpy as np
+import pytest
+from rcl_interfaces.msg import ParameterType
+from rcl_interfaces.srv import (DescribeParameters, GetParameters, GetParameterTypes,
+                                ListParameters, SetParameters, SetParametersAtomically)
+import rclpy
+from rclpy.action import ActionClient
+from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.parameter_client import AsyncParameterClient
+from ros_testing import Stack, wait_until
+from std_srvs.srv import SetBool, Trigger
+from trajectory_msgs.msg import JointTrajectoryPoint
+from type_description_interfaces.srv import GetTypeDescription
+
+pytestmark = pytest.mark.e2e
+
+ARM = mover6()
+NAMES = list(ARM.joint_names)
+Result = FollowJointTrajectory.Result
+# Longest reason [characters] a refusal may carry (the nodes cut theirs at 500).
+SHORT = 600
+HUGE = 1e308
+
+# Values by declared type; each must be refused (every parameter is typed, none is free).
+BY_TYPE = {
+    ParameterType.PARAMETER_DOUBLE: [math.nan, math.inf, -math.inf, HUGE, -HUGE, 3, 'x',
+                                     [1.0], True],
+    ParameterType.PARAMETER_INTEGER: [2 ** 62, -2 ** 62, 1.5, 'x', [1], True],
+    ParameterType.PARAMETER_BOOL: [1, 1.0, 'true', [True]],
+    ParameterType.PARAMETER_STRING: [1, 2.5, True, ['a']],
+    ParameterType.PARAMETER_DOUBLE_ARRAY: [[], [math.nan] * 6, [HUGE] * 6, [-math.inf] * 3,
+                                           [0.05], [0.05] * 7, [0.05] * 1000, [1, 2, 3], 'x',
+                                           1.0],
+}
+# Values of the right type and length that break a relation (between entries, or with the
+# other parameters in force), or a list of allowed names.
+RELATIONS = {
+    'tool_size': [[0.205, 0.655, 0.415], [1.0, 1.0, 0.001]],     # capsule shorter than wide
+    'keep_out_boxes': [[0.0] * 5, [0.5, 0.5, 0.5, 0.1, 0.1, 0.1],  # max below min
+                       [0.0] * 6 + [0.1, 0.1, 0.1, 0.2, 0.2, -0.1]],
+    'driver_tick_size': [[1e-3], [1e-3] * 5, [1e-3] * 7],
+    'servo_lower_singularity_threshold': [100.0],               # above the hard stop (30)
+    't_blend': [200.0],                                          # above t_max / 2
+}
+NOT_ALLOWED = 'no-such-value'
+
+
+@pytest.fixture(scope='module')
+def stack(tmp_path_factory):
+    """Start sim_bridge, controller and planner as processes for this module's tests."""
+    with Stack(tmp_path_factory.mktemp('hostile_logs')) as running:
+        yield running
+
+
+@pytest.fixture(scope='module')
+def client(stack):
+    """Return (goal client node, action client) once every node answers."""
+    rclpy.init()
+    node = GoalClient(name='hostile_client')
+    problem = node.wait_ready(timeout=60.0)
+    assert problem is None, problem + '\n' + stack.report()
+    action = ActionClient(node, FollowJointTrajectory, '/controller/follow_joint_trajectory')
+    assert action.wait_for_server(timeout_sec=20.0), stack.report()
+    yield node, action
+    action.destroy()
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def done(node, future, timeout=20.0):
+    """Spin until ``future`` is done; return its result."""
+    assert wait_until(future.done, timeout, lambda t: rclpy.spin_once(node, timeout_sec=t))
+    return future.result()
+
+
+def all_alive(stack):
+    """Assert every node process still runs."""
+    dead = [n.name for n in stack.nodes.values() if not n.alive()]
+    assert not dead, f'{dead} died\n{stack.report()}'
+
+
+def hostile_values(name, descriptor):
+    """Return the values to try on one parameter (listed at run time)."""
+    values = list(BY_TYPE[descriptor.type]) + RELATIONS.get(name, [])
+    if descriptor.additional_constraints.startswith('one of'):
+        values.append(NOT_ALLOWED)
+    return values
+
+
+def values_of(node, params, names):
+    """Return ``{name: value}`` of the parameters ``names`` as the node reports them now."""
+    values = done(node, params.get_parameters(names)).values
+    return {name: parameter_value_to_python(v) for name, v in zip(names, values)}
+
+
+def same(a, b):
+    """Return whether two parameter values are equal (lists element by element)."""
+    return list(a) == list(b) if isinstance(a, (list, tuple)) else a == b
+
+
+@pytest.mark.parametrize('node_name', sorted(NODES))
+def test_every_parameter_refuses_hostile_values(stack, client, node_name):
+    """Every listed parameter: each hostile value refused with a reason, the value unchanged."""
+    node, _ = client
+    params = AsyncParameterClient(node, node_name)
+    assert params.wait_for_services(timeout_sec=20.0), stack.report()
+    names = list(done(node, params.list_parameters()).result.names)
+    assert set(NODES[node_name]) <= set(names), names
+    descriptors = done(node, params.describe_parameters(names)).descriptors
+    before = values_of(node, params, names)
+    tried, accepted = 0, []
+    for name, descriptor in zip(names, descriptors):
+        if name == 'use_sim_time':      # rclpy's own, switches the clock: not ours to break
+            continue
+        values = hostile_values(name, descriptor)
+        if descriptor.read_only:
+            values.append(before[name])     # even its own value: read-only while running
+        for value in values:
+            result = done(node, params.set_parameters([Parameter(name, value=value)]))
+            outcome = result.results[0]
+            tried += 1
+            if outcome.successful:
+                accepted.append((name, value))
+            else:
+                assert outcome.reason and len(outcome.reason) < SHORT, (name, outcome.reason)
+    assert not accepted, f'accepted: {accepted}'
+    after = values_of(node, params, names)
+    changed = [n for n in names if not same(before[n], after[n])]
+    assert not changed, changed
+    assert tried > 5 * len(NODES[node_name])
+    all_alive(stack)
+
+
+def test_parameter_relations_are_refused_with_the_reason(stack, client):
+    """The cases the issue saw kill the controller: refused, saying which relation, unchanged."""
+    node, _ = client
+    for node_name in ('controller', 'planner'):
+        params = AsyncParameterClient(node, node_name)
+        assert params.wait_for_services(timeout_sec=20.0)
+        for name, value, words in (
+                ('tool_size', [0.06] * 7, 'exactly 3 values'),
+                ('tool_size', [0.205, 0.655, 0.415], 'at least as long as it is wide'),
+                ('keep_out_boxes', [0.0] * 5, 'multiple of 6'),
+                ('keep_out_boxes', [0.5, 0.5, 0.5, 0.1, 0.1, 0.1], 'max below its min')):
+            outcome = done(node, params.set_parameters([Parameter(name, value=value)]))
+            assert not outcome.results[0].successful, (node_name, name, value)
+            assert words in outcome.results[0].reason, outcome.results[0].reason
+        # A valid value after them is taken: the check refuses bad values, not every value.
+        outcome = done(node, params.set_parameters(
+            [Parameter('tool_size', value=[0.05, 0.05, 0.09])]))
+        assert outcome.results[0].successful, outcome.results[0].reason
+        outcome = done(node, params.set_parameters(
+            [Parameter('tool_size', value=[0.06, 0.06, 0.08])]))
+        assert outcome.results[0].successful, outcome.results[0].reason
+    ticks = done(node, AsyncParameterClient(node, 'controller').set_parameters(
+        [Parameter('driver_tick_size', value=[1e-3])]))
+    assert not ticks.results[0].successful and 'exactly 6' in ticks.results[0].reason
+    all_alive(stack)
+
+
+def service_requests(srv_type):
+    """Return bad and edge requests for one service type (None: a type not known here)."""
+    if srv_type == 'std_srvs/srv/Trigger':
+        return Trigger, [Trigger.Request()] * 3
+    if srv_type == 'std_srvs/srv/SetBool':
+        return SetBool, [SetBool.Request(data=d) for d in (True, True, False, False)]
+    if srv_type == 'type_description_interfaces/srv/GetTypeDescription':
+        return GetTypeDescription, [GetTypeDescription.Request(
+            type_name='no_such/msg/Type', type_hash='x' * 1000, include_type_sources=True)]
+    bad = Parameter('no_such_parameter', value=math.nan).to_parameter_msg()
+    hostile = Parameter('rate', value=math.nan).to_parameter_msg()
+    return {
+        'rcl_interfaces/srv/SetParameters': (SetParameters, [
+            SetParameters.Request(), SetParameters.Request(parameters=[bad, hostile] * 50)]),
+        'rcl_interfaces/srv/SetParametersAtomically': (SetParametersAtomically, [
+            SetParametersAtomically.Request(parameters=[hostile, bad])]),
+        'rcl_interfaces/srv/GetParameters': (GetParameters, [
+            GetParameters.Request(names=['no_such', '', 'x' * 1000])]),
+        'rcl_interfaces/srv/GetParameterTypes': (GetParameterTypes, [
+            GetParameterTypes.Request(names=['no_such', ''])]),
+        'rcl_interfaces/srv/DescribeParameters': (DescribeParameters, [
+            DescribeParameters.Request(names=['no_such', ''])]),
+        'rcl_interfaces/srv/ListParameters': (ListParameters, [
+            ListParameters.Request(prefixes=['no_such', ''], depth=2 ** 63)]),
+    }.get(srv_type)
+
+
+def test_every_service_survives_bad_and_edge_requests(stack, client):
+    """Every service of every node (listed at run time) answers bad requests; all stay alive."""
+    node, _ = client
+    called = []
+    for node_name in sorted(NODES):
+        services = node.get_service_names_and_types_by_node(node_name, '/')
+        for service, types in services:
+            if '/_action/' in service:          # the action's own: tried through the action
+                continue
+            known = service_requests(types[0])
+            assert known is not None, f'{service} ({types[0]}): no requests for this type'
+            srv, requests = known
+            caller = node.create_client(srv, service)
+            assert caller.wait_for_service(timeout_sec=10.0), service
+            for request in requests:
+                response = done(node, caller.call_async(request))
+                assert response is not None, service
+            called.append(service)
+            node.destroy_client(caller)
+    assert {'/controller/stop', '/controller/reset', '/sim_bridge/pause',
+            '/sim_bridge/reset', '/sim_bridge/step'} <= set(called), called
+    all_alive(stack)
+    # The sim runs again (pause false came last): the controller recovers from the pause.
+    assert node.spin_until(
+        lambda: node.values(node.controller_status).get('state') == 'idle', 30.0), \
+        node.values(node.controller_status)
+
+
+def goal_of(rows, names=None, times=None, velocities=None):
+    """Return a FollowJointTrajectory goal through ``rows`` (arm order) named ``names``."""
+    goal = FollowJointTrajectory.Goal()
+    goal.trajectory.joint_names = list(names or NAMES)
+    for k, q in enumerate(rows):
+        point = JointTrajectoryPoint(positions=[float(v) for v in q])
+        if times is not None:
+            point.time_from_start.sec = int(times[k])
+            point.time_from_start.nanosec = int(round((times[k] % 1.0) * 1e9)) % 1000000000
+        if velocities is not None and velocities[k] is not None:
+            point.velocities = [float(v) for v in velocities[k]]
+        goal.trajectory.points.append(point)
+    return goal
+
+
+def run(node, action, goal, timeout=120.0):
+    """Send ``goal``; return its Result."""
+    handle = done(node, action.send_goal_async(goal), 60.0)
+    assert handle.accepted
+    return done(node, handle.get_result_async(), timeout).result
+
+
+def smooth(n, amplitude=0.3):
+    """Return ``n`` waypoints (n, 6) of a smooth excursion inside the limits, back to home."""
+    s = np.sin(np.pi * np.linspace(0.0, 1.0, n))[:, None]
+    return amplitude * s * np.array([1.0, -0.5, 0.5, 0.3, 0.4, -0.4])
+
+
+def test_malformed_and_oversized_goals_are_refused_and_the_next_arrives(stack, client):
+    """Each malformed goal refused with a short reason; then a valid goal moves the arm."""
+    node, action = client
+    q = np.full(6, 0.1)
+    out = np.full((20000, 6), 2.5)
+    cases = [
+        (goal_of([]), Result.INVALID_GOAL, 'no points'),
+        (goal_of([q], names=NAMES[:5]), Result.INVALID_JOINTS, 'exactly'),
+        (goal_of([q], names=NAMES[:5] + NAMES[:1]), Result.INVALID_JOINTS, 'each once'),
+        (goal_of([q[:5]]), Result.INVALID_GOAL, '5 positions'),
+        (goal_of([[math.nan] * 6]), Result.INVALID_GOAL, 'non-finite'),
+        (goal_of([q, q], times=[2.0, 1.0]), Result.INVALID_GOAL, 'before the point before'),
+        (goal_of([q, q], times=[1.0, 2.0], velocities=[[0.0] * 6, None]), Result.INVALID_GOAL,
+         'for all or none'),
+        (goal_of([q], times=[1.0], velocities=[[math.inf] * 6]), Result.INVALID_GOAL, ''),
+        (goal_of(out), Result.INVALID_GOAL, 'waypoint 0 of 20000'),
+    ]
+    for goal, code, words in cases:
+        result = run(node, action, goal)
+        assert result.error_code == code, (words, result.error_string)
+        assert words in result.error_string and len(result.error_string) < SHORT, \
+            result.error_string
+    assert '(and 19999 more)' in result.error_string, result.error_string
+    all_alive(stack)
+    result = run(node, action, goal_of([q * 2.0]))
+    assert result.error_code == Result.SUCCESSFUL, f'{result.error_string}\n{stack.report()}'
+    assert np.abs(node.q - q * 2.0).max() < 0.01
+
+
+def test_an_oversized_demand_is_refused_in_short_and_the_next_goal_arrives(stack, client):
+    """20,000 rows outside the limits: the first offence and a count; the status stays small."""
+    node, _ = client
+    outcome = node.send_joints(np.full((20000, 6), 2.5), timeout=60.0)
+    assert not outcome.arrived
+    values = node.values(node.controller_status)
+    assert 'waypoint 0 of 20000' in values.get('rejected', ''), values
+    assert '(and 19999 more)' in values['rejected']
+    size = sum(len(k) + len(v) for k, v in values.items()) + len(node.controller_status.message)
+    assert size < 2000, size
+    outcome = node.send_joints([np.full(6, -0.1)], timeout=60.0)
+    assert outcome.arrived, f'{outcome}\n{stack.report()}'
+
+
+def test_a_large_goal_is_planned_off_the_tick_and_arrives(stack, client):
+    """
+    A smooth 10,000-point goal inside the limits is taken and carried out.
+
+    It is converted and planned in the demand thread, for as long as that takes (seconds: the
+    action gave up after 10 s before, and the controller then started the goal anyway): the
+    executor keeps taking /joint_states and the ticks keep running, and the plan starts when it
+    is committed, not when its planning began. A fault on a loaded machine (a process not
+    scheduled for 0.25 s) is not the goal's doing, so it is shown, not asserted.
+    """
+    node, action = client
+    states = []
+    subscription = node.create_subscription(
+        type(node.controller_status), 'controller/status',
+        lambda msg: states.append(node.values(msg).get('state')), 10)
+    result = run(node, action, goal_of(smooth(10000)), timeout=240.0)
+    node.destroy_subscription(subscription)
+    assert result.error_code == Result.SUCCESSFUL, \
+        f'{result.error_string}; states {states}\n{stack.report()}'
+    result = run(node, action, goal_of([np.full(6, 0.15)]))
+    assert result.error_code == Result.SUCCESSFUL, result.error_string
