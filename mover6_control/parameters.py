@@ -156,7 +156,7 @@ LIMIT_SET_TEXT = ('joint limits: within_90_deg (every joint in [-pi/2, pi/2], th
 MOVER6_TICKS = (8.260740495997393e-06, 8.260740495997393e-06, 8.260740495997393e-06,
                 8.742382548559054e-06, 0.006135923151542565, 0.006135923151542565)
 
-# The controller's velocity laws (control.velocity_laws.PROFILES; a test checks they agree).
+# The controller's velocity laws (control.profiles.PROFILES; a test checks they agree).
 PROFILES = ('synchronised', 'trapezoidal', 'jerk_limited', 'continuous',
             'cubic', 'quintic', 'septic', 'sharp_trapezoid',
             'cubic_spline', 'quintic_spline', 'bspline', 'multi_trapezoid')

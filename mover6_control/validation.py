@@ -62,7 +62,11 @@ def as_positive(value: object, name: str, n: Optional[int] = None, *,
     return arr
 
 
-def short_text(text: str, most: int = 500) -> str:
+# [characters] the longest reason sent out again (a status, a result, a set-parameters answer).
+MAX_REASON = 500
+
+
+def short_text(text: str, most: int = MAX_REASON) -> str:
     """
     Return ``text`` cut to at most ``most`` characters, saying how long it was.
 

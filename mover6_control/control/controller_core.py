@@ -27,7 +27,7 @@ whole encoder ticks per cycle (``driver_tick_size``, ``driver_cycle``), so a joi
 under one tick per cycle does not move at all (J5/J6: about 7 deg/s), and its position is only
 known to a tick. Two things make the arm arrive anyway:
 
-- dead-zone compensation (``velocity_laws.dead_zone_command``): a joint whose command is below
+- dead-zone compensation (``commands.dead_zone_command``): a joint whose command is below
   ``min_jog_speed`` gets exactly that speed towards its error while the error exceeds half a
   tick, zero inside. Its readings lag the driver by up to two cycles, so such a joint moves in
   pulses: one driver cycle long (one tick), started on a fresh reading, then no new pulse until
@@ -38,7 +38,7 @@ known to a tick. Two things make the arm arrive anyway:
   reading minus what was commanded since (from two cycles before it came: maybe in flight) are
   within it, so a joint still moving does not arrive on a stale reading and then drift out.
 - after arrival (settling to one tick) each joint more than half a tick off gets one pulse of
-  the whole number of ticks nearest its error (``velocity_laws.tick_pulse_command``: the
+  the whole number of ticks nearest its error (``commands.tick_pulse_command``: the
   driver truncates the speed to exactly that), then none until a reading shows it landed; so
   every joint ends on the tick nearest its goal (a closed loop on the lagging readings crept:
   4-10 ticks off a second after arrival).
@@ -57,15 +57,16 @@ from dataclasses import dataclass, field, replace
 from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
+from mover6_control.control.commands import (dead_zone_command, driver_velocity_limits,
+                                             guard_position_limits, JOG_UNITS, min_jog_speed,
+                                             tick_pulse_command, to_jog_units)
+from mover6_control.control.motion_plan import MotionPlan, plan_stop
+from mover6_control.control.profiles import LawConfig
 from mover6_control.control.robot import Robot
 from mover6_control.control.servo import (command_age, initial_state, joint_jog_command,
                                           servo_step, ServoConfig, TwistCommand)
 from mover6_control.control.status import Cause, MotionResult, StatusKey as K
 from mover6_control.control.timed_plan import plan_demand, Timing
-from mover6_control.control.velocity_laws import (dead_zone_command, driver_velocity_limits,
-                                                  guard_position_limits, JOG_UNITS, LawConfig,
-                                                  min_jog_speed, MotionPlan, plan_stop,
-                                                  tick_pulse_command, to_jog_units)
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 from mover6_control.validation import as_positive, short_text
@@ -75,8 +76,6 @@ import numpy as np
 FINE_GAIN_PER_TICK = 0.25
 # fraction_of_max, after arrival: readings after a whole-tick pulse starts before the next may.
 PULSE_READINGS = 3
-# Longest refusal reason [characters] kept for the status (hostile demands quote little).
-MAX_REASON = 500
 
 
 @dataclass(frozen=True)
@@ -535,7 +534,7 @@ class ControllerCore:
 
     def reject(self, now: float, reason: str, demand_id: str = '') -> None:
         """Note a refused demand: reason, time [s] and id stay in the status until one is taken."""
-        self._rejection = {'rejected': short_text(reason, MAX_REASON),
+        self._rejection = {'rejected': short_text(reason),
                            'rejected_time': f'{now:.3f}',
                            'rejected_goal_id': str(demand_id)}
         self._changed = True
@@ -861,7 +860,7 @@ class ControllerCore:
         (a low gain: 4-10 ticks off a second after arrival) or oscillates. The driver is exact
         instead: a command held over one cycle boundary moves ``trunc(speed * cycle / tick)``
         ticks. So a joint whose reading is more than half a tick off gets one pulse of the
-        whole number of ticks nearest its error (``velocity_laws.tick_pulse_command``), lasting
+        whole number of ticks nearest its error (``commands.tick_pulse_command``), lasting
         one driver cycle (as ``_whole_ticks``), and no new one until a reading shows it landed
         (``PULSE_READINGS`` readings later; the law's last moves too). Each pulse closes the
         error to the nearest tick, up to the servo's lag in the reading it was computed from.

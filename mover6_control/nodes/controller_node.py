@@ -56,17 +56,17 @@ import os
 import queue
 import sys
 import threading
-import traceback
 import time
+import traceback
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
 from mover6_control.control.collision_guard import CollisionGuard
-from mover6_control.control.controller_core import ControllerConfig, ControllerCore, MAX_REASON
+from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.profiles import LawConfig
 from mover6_control.control.servo import ServoConfig
 from mover6_control.control.state_machine import FAULT, WAITING_FOR_STATES
-from mover6_control.control.velocity_laws import LawConfig
 from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.kinematics.arm import LIMIT_SETS, mover6
 from mover6_control.nodes import conversions, params, shutdown
@@ -355,7 +355,7 @@ class ControllerNode(Node):
                 now = self.now()
         except Exception as err:  # noqa: B902 - no demand is dropped without a status
             reason = str(err) if isinstance(err, Mover6Error) else f'{type(err).__name__}: {err}'
-            reason = short_text(reason, MAX_REASON)   # hostile demands quote little
+            reason = short_text(reason)   # hostile demands quote little
             self.get_logger().warning(f'rejected /joint_demands: {reason}')
             if goal_id:
                 self.goal_rejections[goal_id] = reason

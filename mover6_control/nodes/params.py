@@ -24,7 +24,6 @@ ROS_TYPES = {
     'float_list': ParameterType.PARAMETER_DOUBLE_ARRAY,
 }
 # Longest refusal reason [characters] a set-parameters answer carries.
-MAX_REASON = 500
 
 
 def descriptor(spec):
@@ -79,7 +78,7 @@ def whole_config_problem(check_config, get):
     try:
         check_config(get)
     except (Mover6Error, ValueError, TypeError, ArithmeticError) as err:
-        return short_text(str(err), MAX_REASON)
+        return short_text(str(err))
     return None
 
 
@@ -105,8 +104,7 @@ def make_set_callback(table, node=None, check_config=None):
             try:
                 check_value(spec, value)
             except InvalidInputError as err:
-                return SetParametersResult(successful=False,
-                                           reason=short_text(str(err), MAX_REASON))
+                return SetParametersResult(successful=False, reason=short_text(str(err)))
             new[parameter.name] = value
         if new and check_config is not None and all(node.has_parameter(n) for n in table):
             reason = whole_config_problem(

@@ -42,8 +42,8 @@ import time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from mover6_control.collision.checker import CollisionChecker
+from mover6_control.control.planners import predicted_duration
 from mover6_control.control.status import PlannerResult, PlannerState
-from mover6_control.control.velocity_laws import predicted_duration
 from mover6_control.errors import Mover6Error, UnreachableError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx

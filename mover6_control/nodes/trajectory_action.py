@@ -34,7 +34,6 @@ running goal: it is aborted with INVALID_GOAL (as joint_trajectory_controller) a
 """
 
 from control_msgs.action import FollowJointTrajectory
-from mover6_control.control.controller_core import MAX_REASON
 from mover6_control.control.status import (Cause, FINAL_RESULTS, MotionResult, State, StatusKey,
                                            TIMING_AS_GIVEN)
 from mover6_control.control.timed_plan import Timing
@@ -209,7 +208,7 @@ class FollowJointTrajectoryServer:
                 mapped['timing'] = map_timing(goal.trajectory, names)
             except ValueError as err:
                 mapped['code'] = err.args[0]
-                node.goal_rejections[goal_id] = short_text(err.args[1], MAX_REASON)
+                node.goal_rejections[goal_id] = short_text(err.args[1])
                 return None
             demand = conversions.make_demands(mapped['rows'], goal_id)
             return (demand, mapped['timing']) if mapped['timing'].timed else demand
