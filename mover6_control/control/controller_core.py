@@ -833,6 +833,10 @@ class ControllerCore:
         if not self._whole_tick_driver:
             gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / self._dt)
             return self.robot.command(gain, self._vlim)
+        if self.config.jog_units == 'rad_per_s':
+            # A driver with a cycle that integrates rad/s exactly (no whole ticks): the plain
+            # loop, whose gain is far below one over the readings' lag of two cycles.
+            return self.robot.command(self.config.position_gain, self._vlim)
         return self._tick_pulses(now)
 
     def _tick_pulses(self, now):
