@@ -130,6 +130,7 @@ def generate_launch_description():
         ["'vendor_driver' if '", jog_units, "' == 'fraction_of_max' else 'rad_per_s'"])
     with_sim = PythonExpression(["'", sim, "' == 'true' and '", hardware, "' == 'sim'"])
     state_timeout = PythonExpression([repr(STATE_TIMEOUT), "['", hardware, "']"])
+    cycle_driver = PythonExpression(["'", hardware, "' != 'sim'"])   # the driver's set-points
     return LaunchDescription([
         DeclareLaunchArgument(
             'sim', default_value='true', choices=['true', 'false'],
@@ -184,7 +185,8 @@ def generate_launch_description():
             package=PACKAGE, executable='controller', name='controller', output='screen',
             parameters=[LaunchConfiguration('controller_params'),
                         {'profile': profile, 'jog_units': jog_units, 'limit_set': limit_set,
-                         'state_timeout': ParameterValue(state_timeout, value_type=float)}],
+                         'state_timeout': ParameterValue(state_timeout, value_type=float),
+                         'cycle_driver': ParameterValue(cycle_driver, value_type=bool)}],
             ros_arguments=extra_ros_args('MOVER6_CONTROLLER_ARGS')),
         Node(
             package=PACKAGE, executable='planner', name='planner', output='screen',

@@ -283,6 +283,10 @@ CONTROLLER = _table(
       1e-9, 1.0, length=len(MOVER6_TICKS)),
     P('driver_cycle', 'float', 0.05, 's',
       'fraction_of_max: cycle of the vendor driver (20 Hz)', 0.001, 1.0),
+    P('cycle_driver', 'bool', False, '',
+      'the driver integrates /JointJog into set-points every driver_cycle and reports once a '
+      'cycle (the CAN driver): compensate what is in flight as in fraction_of_max, either unit',
+      read_only=True),
     P('limit_set', 'str', 'within_90_deg', '', LIMIT_SET_TEXT, allowed=LIMIT_SETS,
       read_only=True),
     P('status_rate', 'float', 5.0, 'Hz', 'rate of /controller/status between state changes',

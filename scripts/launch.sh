@@ -80,9 +80,11 @@ if [ "$hardware" != sim ]; then
     [ "$hardware" = can-sim ] && can_interface=cpr_usb2can
     [ "$hardware" = can ] && [ -z "$can_channel" ] && can_channel=/dev/ttyUSB0
     state_timeout=0.5
+    cycle_driver=true     # the driver integrates set-points at its cycle: compensate in flight
 else
     with_driver=0
     state_timeout=0.25
+    cycle_driver=false
 fi
 # The simulator stands in for the vendor driver when the controller speaks its units.
 sim_mode=rad_per_s
@@ -178,7 +180,8 @@ trap 'stop_all' EXIT
 # shellcheck disable=SC2086
 start controller controller \
     -p "profile:=$profile" -p "jog_units:=$jog_units" -p "limit_set:=$limit_set" \
-    -p "state_timeout:=$state_timeout" ${MOVER6_CONTROLLER_ARGS:-}
+    -p "state_timeout:=$state_timeout" -p "cycle_driver:=$cycle_driver" \
+    ${MOVER6_CONTROLLER_ARGS:-}
 # shellcheck disable=SC2086
 start planner planner -p "limit_set:=$limit_set" -p "profile:=$profile" ${MOVER6_PLANNER_ARGS:-}
 

@@ -92,6 +92,9 @@ class ControllerConfig:
     ``value * max speed * speed_override``). 'fraction_of_max' only: ``driver_tick_size`` (n,)
     [rad] one encoder tick per joint and ``driver_cycle`` [s] the driver's cycle (defaults: the
     Mover6's), for the dead-zone compensation and the goal tolerance of at least one tick.
+    ``cycle_driver``: the driver behind /JointJog integrates the command into set-points at
+    ``driver_cycle`` and reports once per cycle (this package's CAN driver, in either unit), so
+    the same in-flight compensation applies in 'rad_per_s'; 'fraction_of_max' implies it.
     ``settle_tolerance`` [rad]: after arriving (inside ``goal_tolerance``, result 'arrived')
     the controller keeps converging until every joint is this close (in 'fraction_of_max':
     one tick per joint, what the driver resolves) or ``settle_time`` [s] has passed, then
@@ -109,6 +112,7 @@ class ControllerConfig:
     speed_override: float = 0.25
     driver_tick_size: tuple = MOVER6_TICK_SIZE
     driver_cycle: float = MOVER6_DRIVER_CYCLE
+    cycle_driver: bool = False
     settle_tolerance: float = 0.0001
     settle_time: float = 1.0
     servo: ServoConfig = field(default_factory=ServoConfig)   # jogging (control.servo)
@@ -275,8 +279,9 @@ class ControllerCore:
         vlim = driver_velocity_limits(arm.velocity_limits, config.jog_units,
                                       config.speed_override)
         ticks = min_speed = None
-        if config.jog_units == 'fraction_of_max':
-            # The driver's tick sizes: the goal tolerance is at least one tick.
+        if config.jog_units == 'fraction_of_max' or config.cycle_driver:
+            # A driver with a cycle (the vendor's, or ours in either unit): its readings lag
+            # up to two cycles, so compensate what is in flight; goal tolerance >= one tick.
             ticks = np.asarray(config.driver_tick_size, dtype=float)
             if ticks.shape != (n,):
                 raise InvalidInputError(f'driver_tick_size has {ticks.size} values for '
@@ -850,6 +855,10 @@ class ControllerCore:
         if not self._whole_tick_driver:
             gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / self._dt)
             return self.robot.command(gain, self._vlim)
+        if self.config.jog_units == 'rad_per_s':
+            # A driver with a cycle that integrates rad/s exactly (no whole ticks): the plain
+            # loop, whose gain is far below one over the readings' lag of two cycles.
+            return self.robot.command(self.config.position_gain, self._vlim)
         return self._tick_pulses(now)
 
     def _tick_pulses(self, now):

@@ -112,7 +112,8 @@ def config_from_parameters(get):
         position_gain=get('position_gain'), settle_timeout=get('settle_timeout'),
         path_tolerance=get('path_tolerance'), rate=get('rate'), jog_units=get('jog_units'),
         speed_override=get('speed_override'), driver_tick_size=tuple(get('driver_tick_size')),
-        driver_cycle=get('driver_cycle'), settle_tolerance=get('settle_tolerance'),
+        driver_cycle=get('driver_cycle'), cycle_driver=get('cycle_driver'),
+        settle_tolerance=get('settle_tolerance'),
         settle_time=get('settle_time'), servo=servo_config_from_parameters(get))
     limit_set = get('limit_set')
     if limit_set not in LIMIT_SETS:

@@ -96,9 +96,8 @@ JOINT_TOLERANCE = 0.01     # [rad] the demo's pass mark for the final joint erro
 # The arm behind the stack (scripts/launch.sh --hardware): what each choice starts.
 STACKS = {'sim': 'sim_bridge', 'can-sim': 'can_sim (the CAN-level Mover6) with the driver'}
 LIMIT_SET = {'sim': 'within_90_deg', 'can-sim': 'hardware'}
-# Through the 20 Hz driver the controller settles in the vendor's units only (its in-flight
-# compensation is fraction_of_max's; in rad_per_s it overshoots there).
-STACK_JOG_UNITS = {'sim': 'rad_per_s', 'can-sim': 'fraction_of_max'}
+# The ROS standard units on both (launch.sh tells the controller the driver has a cycle).
+STACK_JOG_UNITS = {'sim': 'rad_per_s', 'can-sim': 'rad_per_s'}
 
 
 class Recorder:
