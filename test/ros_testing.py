@@ -92,8 +92,9 @@ class Stack:
     """The three nodes as processes; use as a context manager."""
 
     def __init__(self, log_dir, sim=None, controller=None, planner=None,
-                 names=('sim_bridge', 'controller', 'planner'), driver=None):
+                 names=('sim_bridge', 'controller', 'planner'), driver=None, ros_args=None):
         self.log_dir = str(log_dir)
+        self.ros_args = dict(ros_args or {})    # node name -> extra ROS arguments
         self.params = {'sim_bridge': sim or {}, 'controller': controller or {},
                        'planner': planner or {}, 'driver': driver or {}}
         self.names = names
@@ -104,7 +105,8 @@ class Stack:
         old = self.nodes.get(name)
         if old is not None and old.alive():
             old.stop()
-        self.nodes[name] = NodeProcess(name, self.log_dir, self.params[name])
+        self.nodes[name] = NodeProcess(name, self.log_dir, self.params[name],
+                                       ros_args=self.ros_args.get(name, ()))
         return self.nodes[name]
 
     def __enter__(self):

@@ -11,6 +11,7 @@ reasons, and a valid goal afterwards arrives.
 """
 
 import math
+import os
 
 from control_msgs.action import FollowJointTrajectory
 from mover6_control.kinematics.arm import mover6
@@ -61,12 +62,32 @@ RELATIONS = {
     't_blend': [200.0],                                          # above t_max / 2
 }
 NOT_ALLOWED = 'no-such-value'
+DRIVER_NS = '/hostile'
+
+
+def namespace(node_name):
+    """Return the namespace the stack started ``node_name`` in."""
+    return DRIVER_NS if node_name == 'driver' else '/'
+
+
+def full_name(node_name):
+    """Return the fully qualified name of ``node_name``."""
+    return f'{namespace(node_name).rstrip("/")}/{node_name}'
 
 
 @pytest.fixture(scope='module')
 def stack(tmp_path_factory):
-    """Start sim_bridge, controller and planner as processes for this module's tests."""
-    with Stack(tmp_path_factory.mktemp('hostile_logs')) as running:
+    """
+    Start sim_bridge, controller and planner, and a driver, as processes for these tests.
+
+    The driver runs on python-can's virtual bus with no arm behind it, in its own namespace
+    (``DRIVER_NS``: its /joint_states must not reach the controller): its parameters and
+    services are what is tried.
+    """
+    names = ('sim_bridge', 'controller', 'planner', 'driver')
+    driver = {'can_interface': 'virtual', 'can_channel': f'hostile_{os.getpid()}'}
+    with Stack(tmp_path_factory.mktemp('hostile_logs'), names=names, driver=driver,
+               ros_args={'driver': ('-r', f'__ns:={DRIVER_NS}')}) as running:
         yield running
 
 
@@ -120,7 +141,7 @@ def same(a, b):
 def test_every_parameter_refuses_hostile_values(stack, client, node_name):
     """Every listed parameter: each hostile value refused with a reason, the value unchanged."""
     node, _ = client
-    params = AsyncParameterClient(node, node_name)
+    params = AsyncParameterClient(node, full_name(node_name))
     assert params.wait_for_services(timeout_sec=20.0), stack.report()
     names = list(done(node, params.list_parameters()).result.names)
     assert set(NODES[node_name]) <= set(names), names
@@ -153,7 +174,7 @@ def test_parameter_relations_are_refused_with_the_reason(stack, client):
     """The cases the issue saw kill the controller: refused, saying which relation, unchanged."""
     node, _ = client
     for node_name in ('controller', 'planner'):
-        params = AsyncParameterClient(node, node_name)
+        params = AsyncParameterClient(node, full_name(node_name))
         assert params.wait_for_services(timeout_sec=20.0)
         for name, value, words in (
                 ('tool_size', [0.06] * 7, 'exactly 3 values'),
@@ -208,7 +229,7 @@ def test_every_service_survives_bad_and_edge_requests(stack, client):
     node, _ = client
     called = []
     for node_name in sorted(NODES):
-        services = node.get_service_names_and_types_by_node(node_name, '/')
+        services = node.get_service_names_and_types_by_node(node_name, namespace(node_name))
         for service, types in services:
             if '/_action/' in service:          # the action's own: tried through the action
                 continue

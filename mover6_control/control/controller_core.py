@@ -849,15 +849,17 @@ class ControllerCore:
 
         rad_per_s: the closed loop with a gain of at least ``FINE_GAIN_PER_TICK`` per control
         period (the readings are fresh), so the error falls from the goal tolerance to the
-        settle tolerance in a fraction of a second without overshoot. fraction_of_max: the
+        settle tolerance in a fraction of a second without overshoot. A ``cycle_driver`` (the
+        CAN driver, either unit): the plain loop. fraction_of_max on the vendor's driver: the
         whole-tick pulses of ``_tick_pulses``.
         """
         if not self._whole_tick_driver:
             gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / self._dt)
             return self.robot.command(gain, self._vlim)
-        if self.config.jog_units == 'rad_per_s':
-            # A driver with a cycle that integrates rad/s exactly (no whole ticks): the plain
-            # loop, whose gain is far below one over the readings' lag of two cycles.
+        if self.config.cycle_driver:
+            # A driver with a cycle that integrates the command exactly, in either unit (no
+            # whole ticks, unlike the vendor's): the plain loop, whose gain is far below one
+            # over the readings' lag of two cycles.
             return self.robot.command(self.config.position_gain, self._vlim)
         return self._tick_pulses(now)
 
