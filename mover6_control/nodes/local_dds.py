@@ -7,9 +7,10 @@ time a process joins the graph (eProsima/Fast-DDS issue 6535): every publish of 
 controller's tick included, stops that long. The local configuration instead is
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT`` with the shipped Fast DDS profile
 ``config/fastdds_local.xml``: UDPv4 on 127.0.0.1 only, unicast discovery to 127.0.0.1, no
-multicast, no shared memory. ``MOVER6_DDS=local`` says a node was asked for it; ./run.sh,
-scripts/launch.sh and the launch file set the three variables when the user has set no DDS
-variable of their own (``python -m mover6_control.nodes.local_dds env`` prints them).
+multicast, no shared memory. ``MOVER6_DDS=local`` says a node was asked for it. The launchers
+set it only where nothing sent can leave the machine: inside a private network namespace (only
+``lo``), or when the user sets ``MOVER6_DDS=local`` (``default_environment``); on a host with
+other interfaces they keep ``LOCALHOST``, and a user's own DDS variables are left as they are.
 
 A node asked for the local configuration that did not get it refuses to start with the reason
 (``shutdown.run_node`` calls ``check_environment`` before rclpy starts and makes the node with
