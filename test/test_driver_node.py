@@ -117,6 +117,9 @@ def test_states_diagnostics_enable_and_jog(rig):
     driver, operator, arm = rig
     assert wait_for(lambda: operator.states and operator.bus_status())
     assert list(operator.states[-1].name) == NAMES
+    # Until every module has answered the bus reads 'disconnected'; then the modules' power-up
+    # state (0x1C, an error until reset) shows.
+    assert wait_for(lambda: operator.bus_status().get('state') != 'disconnected')
     assert operator.bus_status()['state'] == 'error', operator.bus_status()  # power-up: 0x1C
     assert 'comm_watchdog' in operator.bus_status()['hold'] or \
         'position_lag' in operator.bus_status()['hold']
