@@ -7,6 +7,7 @@ with its parameter file from config/ plus overrides, and logs their output to fi
 test fails.
 """
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -35,6 +36,36 @@ def node_command(name):
     return [sys.executable, '-m', MODULES[name]]
 
 
+def installed():
+    """Return True when the package is found on the ament index (launch.sh needs it)."""
+    try:
+        from ament_index_python.packages import get_package_prefix
+        get_package_prefix('mover6_control')
+        return True
+    except Exception:  # noqa: B902 - not built
+        return False
+
+
+@contextlib.contextmanager
+def ready_client(stack, make, timeout=30.0):
+    """
+    Yield the goal client ``make()`` once every node of ``stack`` answers (its ``wait_ready``).
+
+    rclpy is initialised before ``make()`` and shut down after the client is destroyed: the
+    module fixtures of the end-to-end tests, one client per module.
+    """
+    import rclpy
+    rclpy.init()
+    node = make()
+    try:
+        problem = node.wait_ready(timeout=timeout)
+        assert problem is None, f'{problem}\n{stack.report()}'
+        yield node
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
 class NodeProcess:
     """
     One node in its own process, output to a log file.
@@ -42,20 +73,22 @@ class NodeProcess:
     ``ros_args`` are added after the parameters (e.g. remappings ``('-r', 'a:=b')``);
     ``new_session`` starts it in its own session and process group, with no controlling terminal,
     as a launch system or a service manager runs it; ``log_name`` names the log file (default:
-    the node's name).
+    the node's name); ``command`` replaces the node's command line (params and ros_args unused).
     """
 
-    def __init__(self, name, log_dir, params=None, ros_args=(), new_session=False, log_name=None):
+    def __init__(self, name, log_dir, params=None, ros_args=(), new_session=False, log_name=None,
+                 command=None):
         self.name = name
-        self.log_path = os.path.join(log_dir, f'{log_name or name}.log')
-        cmd = node_command(name) + ['--ros-args', '--params-file',
-                                    os.path.join(CONFIG_DIR, f'{name}.yaml')]
-        for key, value in (params or {}).items():
-            cmd += ['-p', f'{key}:={value}']
-        cmd += list(ros_args)
+        self.log_path = os.path.join(str(log_dir), f'{log_name or name}.log')
+        if command is None:
+            command = node_command(name) + ['--ros-args', '--params-file',
+                                            os.path.join(CONFIG_DIR, f'{name}.yaml')]
+            for key, value in (params or {}).items():
+                command += ['-p', f'{key}:={value}']
+            command += list(ros_args)
         self.log = open(self.log_path, 'w')
         env = dict(os.environ, PYTHONUNBUFFERED='1')
-        self.proc = subprocess.Popen(cmd, stdout=self.log, stderr=subprocess.STDOUT, env=env,
+        self.proc = subprocess.Popen(command, stdout=self.log, stderr=subprocess.STDOUT, env=env,
                                      cwd=ROOT, start_new_session=new_session)
 
     @property
@@ -66,6 +99,11 @@ class NodeProcess:
     def alive(self):
         """Return True while the process runs."""
         return self.proc.poll() is None
+
+    def interrupt(self):
+        """Send SIGINT by pid (the start of ``stop``, for stopping several at once)."""
+        if self.alive():
+            self.proc.send_signal(signal.SIGINT)
 
     def stop(self, timeout=10.0):
         """Stop the process by its pid: SIGINT, then SIGKILL after ``timeout`` [s]."""
@@ -120,7 +158,9 @@ class Stack:
         self.stop_all()
 
     def stop_all(self):
-        """Stop every node still running."""
+        """Stop every node still running: SIGINT to all at once, then wait for each."""
+        for node in self.nodes.values():
+            node.interrupt()
         for node in self.nodes.values():
             node.stop()
 
@@ -143,7 +183,7 @@ def wait_until(predicate, timeout, spin=None, period=0.05):
     return bool(predicate())
 
 
-class CanSimProcess:
+class CanSimProcess(NodeProcess):
     """
     The CAN-level Mover6 (``can_sim``) in its own process on a pty linked at ``link``.
 
@@ -154,21 +194,8 @@ class CanSimProcess:
     def __init__(self, log_dir, link, args=()):
         self.link = str(link)
         self.control_path = self.link + '.control'
-        self.name = 'can_sim'
-        self.log_path = os.path.join(str(log_dir), 'can_sim.log')
-        self.log = open(self.log_path, 'w')
-        cmd = node_command('can_sim') + ['--link', self.link] + list(args)
-        self.proc = subprocess.Popen(cmd, stdout=self.log, stderr=subprocess.STDOUT, cwd=ROOT,
-                                     env=dict(os.environ, PYTHONUNBUFFERED='1'))
-
-    @property
-    def pid(self):
-        """Return the process id."""
-        return self.proc.pid
-
-    def alive(self):
-        """Return True while the process runs."""
-        return self.proc.poll() is None
+        super().__init__('can_sim', log_dir,
+                         command=node_command('can_sim') + ['--link', self.link] + list(args))
 
     def wait_ready(self, timeout=30.0):
         """Wait until the link and the control socket exist; return True if they do."""
@@ -180,26 +207,6 @@ class CanSimProcess:
         """Send one control command; return its JSON answer as a dict."""
         from sim_bridge.can_sim import control
         return control(self.control_path, line)
-
-    def stop(self, timeout=10.0):
-        """Stop the process by its pid: SIGINT, then SIGKILL after ``timeout`` [s]."""
-        if self.alive():
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(5.0)
-        self.log.close()
-        return self.proc.returncode
-
-    def tail(self, lines=30):
-        """Return the last lines of its output."""
-        try:
-            with open(self.log_path) as f:
-                return ''.join(f.readlines()[-lines:])
-        except OSError:
-            return ''
 
     def __enter__(self):
         """Return self once it is ready (or raise with its output)."""

@@ -18,8 +18,7 @@ from mover6_control.resources import CONFIG_DIR
 from mover6_control.tools.goal_cli import EXIT_REFUSED, GoalClient, pose_from_goal
 import numpy as np
 import pytest
-import rclpy
-from ros_testing import Stack
+from ros_testing import ready_client, Stack
 
 pytestmark = pytest.mark.e2e
 
@@ -40,16 +39,11 @@ def stack(tmp_path_factory):
 @pytest.fixture(scope='module')
 def client(stack):
     """Return a goal client in this process once every node answers."""
-    rclpy.init()
-    node = GoalClient(name='e2e_client')
-    problem = node.wait_ready(timeout=30.0)
-    assert problem is None, problem + '\n' + stack.report()
-    # The controller's states are not the planner's: it says itself that it has them (issue 21:
-    # a goal sent before it did was refused).
-    assert node.values(node.planner_status)['state'] == 'ready'
-    yield node
-    node.destroy_node()
-    rclpy.try_shutdown()
+    with ready_client(stack, lambda: GoalClient(name='e2e_client')) as node:
+        # The controller's states are not the planner's: it says itself that it has them
+        # (issue 21: a goal sent before it did was refused).
+        assert node.values(node.planner_status)['state'] == 'ready'
+        yield node
 
 
 def test_pose_goal_arrives(stack, client):

@@ -22,8 +22,7 @@ from mover6_control.nodes.conversions import matrix_to_pose, status_values
 from mover6_control.tools.goal_cli import GoalClient, poses_from_numbers
 import numpy as np
 import pytest
-import rclpy
-from ros_testing import CanSimProcess, Stack
+from ros_testing import CanSimProcess, ready_client, Stack
 from std_srvs.srv import Trigger
 
 pytestmark = pytest.mark.e2e
@@ -64,31 +63,30 @@ def rig(tmp_path_factory):
 def client(rig):
     """Return a goal client that also keeps /JointJog times and the driver's /diagnostics."""
     _, stack = rig
-    rclpy.init()
-    node = GoalClient(name='e2e_can_client')
-    node.jog_stamps = []
-    node.diagnostics = {}
-    node.jogs = []
 
-    def on_jog(msg):
-        node.jog_stamps.append(msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec)
-        node.jogs.append((time.monotonic(), list(msg.joint_names), list(msg.velocities)))
-    node.create_subscription(JointJog, 'JointJog', on_jog, 100)
+    def make():
+        node = GoalClient(name='e2e_can_client')
+        node.jog_stamps = []
+        node.diagnostics = {}
+        node.jogs = []
 
-    def on_diagnostics(msg):
-        for status in msg.status:
-            node.diagnostics[status.name] = {kv.key: kv.value for kv in status.values}
-    node.create_subscription(DiagnosticArray, 'diagnostics', on_diagnostics, 100)
-    node.driver_services = {kind: node.create_client(Trigger, f'driver/{kind}')
-                            for kind in ('reset', 'enable')}
-    problem = node.wait_ready(timeout=60.0)
-    assert problem is None, problem + '\n' + stack.report()
-    assert node.spin_until(lambda: node.count_publishers('joint_demands') >= 2
-                           and node.count_subscribers('joint_demands') >= 2, 30.0), \
-        'planner or controller not on /joint_demands\n' + stack.report()
-    yield node
-    node.destroy_node()
-    rclpy.try_shutdown()
+        def on_jog(msg):
+            node.jog_stamps.append(msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec)
+            node.jogs.append((time.monotonic(), list(msg.joint_names), list(msg.velocities)))
+        node.create_subscription(JointJog, 'JointJog', on_jog, 100)
+
+        def on_diagnostics(msg):
+            for status in msg.status:
+                node.diagnostics[status.name] = {kv.key: kv.value for kv in status.values}
+        node.create_subscription(DiagnosticArray, 'diagnostics', on_diagnostics, 100)
+        node.driver_services = {kind: node.create_client(Trigger, f'driver/{kind}')
+                                for kind in ('reset', 'enable')}
+        return node
+    with ready_client(stack, make, timeout=60.0) as node:
+        assert node.spin_until(lambda: node.count_publishers('joint_demands') >= 2
+                               and node.count_subscribers('joint_demands') >= 2, 30.0), \
+            'planner or controller not on /joint_demands\n' + stack.report()
+        yield node
 
 
 def bus(client):

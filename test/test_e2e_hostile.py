@@ -26,7 +26,7 @@ import rclpy
 from rclpy.action import ActionClient
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
-from ros_testing import Stack, wait_until
+from ros_testing import ready_client, Stack, wait_until
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectoryPoint
 from type_description_interfaces.srv import GetTypeDescription
@@ -94,16 +94,11 @@ def stack(tmp_path_factory):
 @pytest.fixture(scope='module')
 def client(stack):
     """Return (goal client node, action client) once every node answers."""
-    rclpy.init()
-    node = GoalClient(name='hostile_client')
-    problem = node.wait_ready(timeout=60.0)
-    assert problem is None, problem + '\n' + stack.report()
-    action = ActionClient(node, FollowJointTrajectory, '/controller/follow_joint_trajectory')
-    assert action.wait_for_server(timeout_sec=20.0), stack.report()
-    yield node, action
-    action.destroy()
-    node.destroy_node()
-    rclpy.try_shutdown()
+    with ready_client(stack, lambda: GoalClient(name='hostile_client'), timeout=60.0) as node:
+        action = ActionClient(node, FollowJointTrajectory, '/controller/follow_joint_trajectory')
+        assert action.wait_for_server(timeout_sec=20.0), stack.report()
+        yield node, action
+        action.destroy()
 
 
 def done(node, future, timeout=20.0):

@@ -23,10 +23,9 @@ from mover6_control.parameters import CONTROLLER
 from mover6_control.tools.goal_cli import EXIT_REFUSED, GoalClient
 import numpy as np
 import pytest
-import rclpy
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from ros_testing import Stack
+from ros_testing import ready_client, Stack
 from sensor_msgs.msg import JointState
 
 pytestmark = pytest.mark.e2e
@@ -71,13 +70,8 @@ def stack(tmp_path_factory):
 @pytest.fixture(scope='module')
 def client(stack):
     """Return a client in this process once every node answers."""
-    rclpy.init()
-    node = Client()
-    problem = node.wait_ready(timeout=30.0)
-    assert problem is None, f'{problem}\n{stack.report()}'
-    yield node
-    node.destroy_node()
-    rclpy.try_shutdown()
+    with ready_client(stack, Client) as node:
+        yield node
 
 
 def arrived(client, stack, outcome, T_goal):

@@ -15,8 +15,7 @@ from mover6_control.resources import CONFIG_DIR
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import pytest
-import rclpy
-from ros_testing import Stack
+from ros_testing import ready_client, Stack
 from std_srvs.srv import Trigger
 from test_readme_goals import goal_argv, readme_goal_lines
 
@@ -33,13 +32,8 @@ def stack(tmp_path_factory):
 @pytest.fixture(scope='module')
 def client(stack):
     """Return a goal client in this process once every node answers."""
-    rclpy.init()
-    node = GoalClient(name='e2e_readme_client')
-    problem = node.wait_ready(timeout=30.0)
-    assert problem is None, problem + '\n' + stack.report()
-    yield node
-    node.destroy_node()
-    rclpy.try_shutdown()
+    with ready_client(stack, lambda: GoalClient(name='e2e_readme_client')) as node:
+        yield node
 
 
 def run_readme_line_from_home(stack, client, mark):

@@ -21,7 +21,7 @@ from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import pytest
 import rclpy
-from ros_testing import Stack, wait_until
+from ros_testing import installed, Stack, wait_until
 
 pytestmark = pytest.mark.e2e
 
@@ -31,16 +31,6 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # [s] the planner's wait for states: the bridge and the controller start after the goal, and a
 # loaded machine can take many seconds for that (the default is 5 s).
 STATE_WAIT = 60.0
-
-
-def installed():
-    """Return True when the package is found on the ament index (launch.sh needs it)."""
-    try:
-        from ament_index_python.packages import get_package_prefix
-        get_package_prefix('mover6_control')
-        return True
-    except Exception:  # noqa: B902 - not built
-        return False
 
 
 @pytest.fixture

@@ -16,7 +16,7 @@ import pytest
 import rclpy
 from rclpy.action import ActionClient
 from rclpy.duration import Duration
-from ros_testing import Stack, wait_until
+from ros_testing import ready_client, Stack, wait_until
 from trajectory_msgs.msg import JointTrajectoryPoint
 
 pytestmark = pytest.mark.e2e
@@ -38,16 +38,11 @@ def stack(tmp_path_factory):
 @pytest.fixture(scope='module')
 def client(stack):
     """Return (goal client node, action client) once every node answers."""
-    rclpy.init()
-    node = GoalClient(name='fjt_client')
-    problem = node.wait_ready(timeout=30.0)
-    assert problem is None, problem + '\n' + stack.report()
-    action = ActionClient(node, FollowJointTrajectory, '/controller/follow_joint_trajectory')
-    assert action.wait_for_server(timeout_sec=20.0), stack.report()
-    yield node, action
-    action.destroy()
-    node.destroy_node()
-    rclpy.try_shutdown()
+    with ready_client(stack, lambda: GoalClient(name='fjt_client'), timeout=30.0) as node:
+        action = ActionClient(node, FollowJointTrajectory, '/controller/follow_joint_trajectory')
+        assert action.wait_for_server(timeout_sec=20.0), stack.report()
+        yield node, action
+        action.destroy()
 
 
 def make_goal(*rows):

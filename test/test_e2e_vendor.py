@@ -14,8 +14,7 @@ from mover6_control.nodes.conversions import status_values
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import pytest
-import rclpy
-from ros_testing import Stack
+from ros_testing import ready_client, Stack
 
 pytestmark = pytest.mark.e2e
 
@@ -44,21 +43,20 @@ def stack(tmp_path_factory):
 @pytest.fixture(scope='module')
 def client(stack):
     """Return a goal client that also records every /JointJog, once every node answers."""
-    rclpy.init()
-    node = GoalClient(name='e2e_vendor_client')
-    node.jogs = []
-    node.create_subscription(JointJog, 'JointJog',
-                             lambda msg: node.jogs.append(np.array(msg.velocities)), 100)
-    problem = node.wait_ready(timeout=30.0)
-    assert problem is None, problem + '\n' + stack.report()
-    # The planner's demands reach the controller only once DDS has matched them (a message
-    # before that is lost): wait until this process sees both ends (itself being one of each).
-    assert node.spin_until(lambda: node.count_publishers('joint_demands') >= 2
-                           and node.count_subscribers('joint_demands') >= 2, 30.0), \
-        'planner or controller not on /joint_demands\n' + stack.report()
-    yield node
-    node.destroy_node()
-    rclpy.try_shutdown()
+    def make():
+        node = GoalClient(name='e2e_vendor_client')
+        node.jogs = []
+        node.create_subscription(JointJog, 'JointJog',
+                                 lambda msg: node.jogs.append(np.array(msg.velocities)), 100)
+        return node
+    with ready_client(stack, make) as node:
+        # The planner's demands reach the controller only once DDS has matched them (a message
+        # before that is lost): wait until this process sees both ends (itself being one of
+        # each).
+        assert node.spin_until(lambda: node.count_publishers('joint_demands') >= 2
+                               and node.count_subscribers('joint_demands') >= 2, 30.0), \
+            'planner or controller not on /joint_demands\n' + stack.report()
+        yield node
 
 
 def assert_at_rest(client, stack, q_goal):

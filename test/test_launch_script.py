@@ -12,20 +12,11 @@ import time
 
 from mover6_control.resources import CONFIG_DIR
 import pytest
+from ros_testing import installed
 
 pytestmark = pytest.mark.e2e
 
 SCRIPT = os.path.join(os.path.dirname(CONFIG_DIR), 'scripts', 'launch.sh')
-
-
-def installed():
-    """Return True when the package is found on the ament index."""
-    try:
-        from ament_index_python.packages import get_package_prefix
-        get_package_prefix('mover6_control')
-        return True
-    except Exception:  # noqa: B902 - not built
-        return False
 
 
 def alive(pid):
