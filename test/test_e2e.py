@@ -75,10 +75,23 @@ def test_unreachable_goal_is_refused_and_nothing_published(stack, client):
 
 def run_cli(*args):
     """Run the goal command line as its own process; return (exit code, output)."""
-    proc = subprocess.run([sys.executable, '-m', 'mover6_control.tools.goal_cli', *args],
-                          capture_output=True, text=True, timeout=120,
-                          cwd=os.path.dirname(CONFIG_DIR))
-    return proc.returncode, proc.stdout + proc.stderr
+    return run_clis(args)[0]
+
+
+def run_clis(*argvs):
+    """Run one goal command line per ``argvs`` entry, all at once; return their (code, output)."""
+    procs = [subprocess.Popen([sys.executable, '-m', 'mover6_control.tools.goal_cli', *args],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                              cwd=os.path.dirname(CONFIG_DIR)) for args in argvs]
+    results = []
+    for proc in procs:
+        try:
+            out, err = proc.communicate(timeout=120)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            out, err = proc.communicate()
+        results.append((proc.returncode, out + err))
+    return results
 
 
 def test_goal_cli_arrives_and_refuses_with_exit_codes(stack, client):
@@ -88,15 +101,20 @@ def test_goal_cli_arrives_and_refuses_with_exit_codes(stack, client):
     assert code == 0, f'{out}\n{stack.report()}'
     assert 'RESULT arrived' in out and 'final joint error' in out
     assert 'final tool position error' in out and 'waypoint' in out   # progress was shown
-    # The IK example's position with the home orientation: only outside the joint limits.
-    code, out = run_cli('pose', '0.1', '0.1', '0.2', '0', '0', '0')
+    # Three refusals at once (each command follows its own goal): the IK example's position
+    # with the home orientation, only outside the joint limits; a malformed goal (not six
+    # numbers); the same goal with base-frame angles (--absolute: home orientation is 0 1.5708
+    # 0).
+    limits, malformed, absolute = run_clis(
+        ('pose', '0.1', '0.1', '0.2', '0', '0', '0'), ('pose', '0.3', '0.0'),
+        ('pose', '0.1', '0.1', '0.2', '0', '1.5708', '0', '--absolute'))
+    code, out = limits
     assert code == 2, out
     assert 'RESULT refused' in out and 'joint_limits' in out
     assert 'closest pose inside the joint limits' in out, out
-    code, out = run_cli('pose', '0.3', '0.0')   # malformed: not six numbers
+    code, out = malformed
     assert code == 2 and 'X Y Z A B C' in out, out
-    # The same goal with base-frame angles (--absolute): home orientation is 0 1.5708 0.
-    code, out = run_cli('pose', '0.1', '0.1', '0.2', '0', '1.5708', '0', '--absolute')
+    code, out = absolute
     assert code == 2 and 'joint_limits' in out, out
 
 

@@ -82,10 +82,13 @@ def stack(tmp_path_factory):
 
     The driver runs on python-can's virtual bus with no arm behind it, in its own namespace
     (``DRIVER_NS``: its /joint_states must not reach the controller): its parameters and
-    services are what is tried.
+    services are what is tried. With no arm, each of its ~/reset, ~/enable and ~/disable
+    answers false after ``request_timeout``: 0.2 s here (2 s by default), a wait and nothing
+    more (the answer, not its delay, is what is tried).
     """
     names = ('sim_bridge', 'controller', 'planner', 'driver')
-    driver = {'can_interface': 'virtual', 'can_channel': f'hostile_{os.getpid()}'}
+    driver = {'can_interface': 'virtual', 'can_channel': f'hostile_{os.getpid()}',
+              'request_timeout': 0.2}
     with Stack(tmp_path_factory.mktemp('hostile_logs'), names=names, driver=driver,
                ros_args={'driver': ('-r', f'__ns:={DRIVER_NS}')}) as running:
         yield running

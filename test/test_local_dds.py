@@ -77,43 +77,48 @@ def test_the_run_used_what_run_sh_said():
     assert os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SYSTEM_DEFAULT'
 
 
+@pytest.fixture(scope='module')
+def stack(tmp_path_factory):
+    """Start the three nodes once for the tests of this module that need them running."""
+    with Stack(tmp_path_factory.mktemp('local_dds_logs')) as running:
+        yield running
+
+
 @local_only
-def test_nodes_bind_loopback_only_and_join_no_multicast_group(tmp_path):
+def test_nodes_bind_loopback_only_and_join_no_multicast_group(stack):
     """Every node's sockets are bound to 127.0.0.1; no multicast group is joined."""
     context = rclpy.Context()
     rclpy.init(context=context)
     node = rclpy.create_node('dds_probe', context=context)
     try:
-        with Stack(tmp_path) as stack:
-            wanted = {'sim_bridge', 'controller', 'planner'}
-            up = wait_until(lambda: wanted <= set(node.get_node_names()), 60.0)
-            assert up, f'{node.get_node_names()}\n{stack.report()}'
-            pids = {name: proc.pid for name, proc in stack.nodes.items()}
-            pids['this test'] = os.getpid()
-            for name, pid in pids.items():
-                sockets = local_dds.ip_sockets(pid)
-                assert sockets, f'{name}: no socket'
-                assert local_dds.not_loopback(sockets) == [], f'{name}: {sockets}'
-            assert local_dds.multicast_groups() == [], open('/proc/net/igmp').read()
-            assert all(proc.alive() for proc in stack.nodes.values()), stack.report()
+        wanted = {'sim_bridge', 'controller', 'planner'}
+        up = wait_until(lambda: wanted <= set(node.get_node_names()), 60.0)
+        assert up, f'{node.get_node_names()}\n{stack.report()}'
+        pids = {name: proc.pid for name, proc in stack.nodes.items()}
+        pids['this test'] = os.getpid()
+        for name, pid in pids.items():
+            sockets = local_dds.ip_sockets(pid)
+            assert sockets, f'{name}: no socket'
+            assert local_dds.not_loopback(sockets) == [], f'{name}: {sockets}'
+        assert local_dds.multicast_groups() == [], open('/proc/net/igmp').read()
+        assert all(proc.alive() for proc in stack.nodes.values()), stack.report()
     finally:
         node.destroy_node()
         rclpy.try_shutdown(context=context)
 
 
 @local_only
-def test_a_localhost_client_without_the_profile_sees_and_drives_the_nodes(tmp_path):
+def test_a_localhost_client_without_the_profile_sees_and_drives_the_nodes(stack):
     """The goal CLI as a user types it (only LOCALHOST, shared memory and UDP) moves the arm."""
     env = local_env(ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', MOVER6_DDS=None,
                     FASTRTPS_DEFAULT_PROFILES_FILE=None)
-    with Stack(tmp_path) as stack:
-        done = subprocess.run(
-            [sys.executable, '-m', 'mover6_control.tools.goal_cli', '0.30', '-0.08', '0.32', '0',
-             '0', '0', '--timeout', '60'], env=env, capture_output=True, text=True,
-            timeout=180, cwd=ROOT)
-        out = done.stdout + done.stderr
-        assert done.returncode == 0, f'{out}\n{stack.report()}'
-        assert 'RESULT arrived' in out
+    done = subprocess.run(
+        [sys.executable, '-m', 'mover6_control.tools.goal_cli', '0.30', '-0.08', '0.32', '0',
+         '0', '0', '--timeout', '60'], env=env, capture_output=True, text=True,
+        timeout=180, cwd=ROOT)
+    out = done.stdout + done.stderr
+    assert done.returncode == 0, f'{out}\n{stack.report()}'
+    assert 'RESULT arrived' in out
 
 
 def run_node_with(env, timeout=60):
