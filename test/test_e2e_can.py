@@ -219,6 +219,8 @@ def test_readme_goal_arrives_in_fraction_of_max(rig, client):
     sim, stack = rig
     stack.params['driver']['jog_units'] = 'fraction_of_max'
     stack.params['controller']['jog_units'] = 'fraction_of_max'
+    for name in ('driver', 'controller'):       # both stop at once, then start again
+        stack.nodes[name].interrupt()
     stack.start('driver')
     stack.start('controller')
     assert client.spin_until(lambda: status_values(client.controller_status).get(
