@@ -5,8 +5,8 @@ from dataclasses import replace
 from mover6_control.control import controller_core
 from mover6_control.control import state_machine as sm
 from mover6_control.control.collision_guard import CollisionGuard
-from mover6_control.control.controller_core import (config_changes, ControllerConfig,
-                                                    ControllerCore)
+from mover6_control.control.controller_config import config_changes, ControllerConfig
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.servo import ServoConfig
 from mover6_control.errors import InvalidInputError

@@ -1,7 +1,8 @@
 """A demand's own profile: its label, its motion only (node tests: test_controller_node.py)."""
 
 from geometry_msgs.msg import PoseStamped
-from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.controller_config import ControllerConfig
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.planners import plan_motion
 from mover6_control.control.profiles import LawConfig
 from mover6_control.errors import InvalidInputError

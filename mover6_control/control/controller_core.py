@@ -53,110 +53,30 @@ move two ticks, a wrist goal between two ticks may not settle, and the motion th
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
-from mover6_control.control.commands import (dead_zone_command, driver_velocity_limits,
-                                             guard_position_limits, JOG_UNITS, min_jog_speed,
+from mover6_control.control.commands import (dead_zone_command, guard_position_limits,
                                              tick_pulse_command, to_jog_units)
+from mover6_control.control.controller_config import (config_changes, ControllerConfig,
+                                                      derive_config)
 from mover6_control.control.motion_plan import MotionPlan, plan_stop
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.robot import Robot
 from mover6_control.control.servo import (command_age, initial_state, joint_jog_command,
-                                          servo_step, ServoConfig, TwistCommand)
+                                          servo_step, TwistCommand)
 from mover6_control.control.status import Cause, MotionResult, StatusKey as K
 from mover6_control.control.timed_plan import plan_demand, Timing
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
-from mover6_control.validation import as_positive, short_text
+from mover6_control.kinematics.arm import ArmModel
+from mover6_control.validation import short_text
 import numpy as np
 
 # After arrival the gain is at least this fraction of the error per control period (rad_per_s).
 FINE_GAIN_PER_TICK = 0.25
 # fraction_of_max, after arrival: readings after a whole-tick pulse starts before the next may.
 PULSE_READINGS = 3
-
-
-@dataclass(frozen=True)
-class ControllerConfig:
-    """
-    The controller's settings (the node's parameters).
-
-    ``goal_tolerance`` [rad] (scalar or (n,)): settled when every joint is this close.
-    ``state_timeout`` [s]: joint states older than this are stale. ``position_gain`` [1/s]: the
-    closed-loop gain on the position error. ``settle_timeout`` [s]: give up settling (result
-    'aborted'). ``path_tolerance`` [rad]: a tracking error above it aborts the motion with a
-    controlled stop. ``rate`` [Hz]: the tick rate, for the position-limit guard.
-    ``jog_units``: 'rad_per_s' or 'fraction_of_max' (the vendor driver, which moves at
-    ``value * max speed * speed_override``). 'fraction_of_max' only: ``driver_tick_size`` (n,)
-    [rad] one encoder tick per joint and ``driver_cycle`` [s] the driver's cycle (defaults: the
-    Mover6's), for the dead-zone compensation and the goal tolerance of at least one tick.
-    ``cycle_driver``: the driver behind /JointJog integrates the command into set-points at
-    ``driver_cycle`` and reports once per cycle (this package's CAN driver, in either unit), so
-    the same in-flight compensation applies in 'rad_per_s'; 'fraction_of_max' implies it.
-    ``settle_tolerance`` [rad]: after arriving (inside ``goal_tolerance``, result 'arrived')
-    the controller keeps converging until every joint is this close (in 'fraction_of_max':
-    one tick per joint, what the driver resolves) or ``settle_time`` [s] has passed, then
-    holds with a zero command.
-    """
-
-    law: LawConfig = field(default_factory=LawConfig)
-    goal_tolerance: object = 0.002
-    state_timeout: float = 0.25
-    position_gain: float = 2.0
-    settle_timeout: float = 3.0
-    path_tolerance: float = 0.3
-    rate: float = 100.0
-    jog_units: str = 'rad_per_s'
-    speed_override: float = 0.25
-    driver_tick_size: tuple = MOVER6_TICK_SIZE
-    driver_cycle: float = MOVER6_DRIVER_CYCLE
-    cycle_driver: bool = False
-    settle_tolerance: float = 0.0001
-    settle_time: float = 1.0
-    servo: ServoConfig = field(default_factory=ServoConfig)   # jogging (control.servo)
-
-    def __post_init__(self):
-        """Check every setting."""
-        for name in ('state_timeout', 'settle_timeout', 'path_tolerance', 'rate',
-                     'settle_tolerance'):
-            as_positive(getattr(self, name), name)
-        if not (np.isfinite(self.settle_time) and self.settle_time >= 0.0):
-            raise InvalidInputError(f'settle_time must be >= 0, got {self.settle_time}')
-        if not (np.isfinite(self.position_gain) and self.position_gain >= 0.0):
-            raise InvalidInputError(f'position_gain must be >= 0, got {self.position_gain}')
-        tol = np.asarray(self.goal_tolerance, dtype=float)
-        if not np.all(np.isfinite(tol)) or np.any(tol <= 0.0):
-            raise InvalidInputError(f'goal_tolerance must be positive, got {tol.tolist()}')
-        if self.jog_units not in JOG_UNITS:
-            raise InvalidInputError(f'jog_units must be one of {JOG_UNITS}, got '
-                                    f'"{self.jog_units}"')
-        if not (0.0 < self.speed_override <= 1.0):
-            raise InvalidInputError(f'speed_override must be in (0, 1], got '
-                                    f'{self.speed_override}')
-        ticks = np.asarray(self.driver_tick_size, dtype=float)
-        if ticks.ndim != 1 or not ticks.size:
-            raise InvalidInputError(f'driver_tick_size must be one value per joint, got '
-                                    f'{self.driver_tick_size!r}')
-        min_jog_speed(ticks, self.driver_cycle)          # raises on non-positive values
-        object.__setattr__(self, 'driver_tick_size', tuple(float(t) for t in ticks))
-
-
-def config_changes(old: ControllerConfig, new: ControllerConfig) -> list:
-    """Return ``[(name, new value)]`` of the settings (law settings included) that differ."""
-    changes = []
-    for name in ControllerConfig.__dataclass_fields__:
-        a, b = getattr(old, name), getattr(new, name)
-        if name == 'law':
-            changes += [(key, getattr(b, key)) for key in type(b).__dataclass_fields__
-                        if getattr(a, key) != getattr(b, key)]
-        elif name == 'servo':
-            changes += [(f'servo_{key}', getattr(b, key)) for key in type(b).__dataclass_fields__
-                        if getattr(a, key) != getattr(b, key)]
-        elif not np.array_equal(np.asarray(a), np.asarray(b)):
-            changes.append((name, b))
-    return changes
 
 
 @dataclass(frozen=True)
@@ -233,7 +153,7 @@ class ControllerCore:
         self.robot = Robot.from_arm(arm)  # the model: joints, states, demand, reference
         self.config = None
         self._pending_config = None      # applies when the running motion ends
-        self._apply(self._derive(ControllerConfig() if config is None else config))
+        self._apply(derive_config(self.arm, ControllerConfig() if config is None else config))
         n = arm.n_joints
         self._n_states_seen = 0          # the robot's n_states as of the previous tick
         self._pulse_until = np.full(n, -np.inf)  # [s] end of each joint's one-tick pulse
@@ -265,58 +185,21 @@ class ControllerCore:
         self._servo_vetoed = (None, None, None)   # (servo config, guard, the two combined)
         self.tick_failures = 0           # ticks in a row that raised (a fault each)
 
-    def _derive(self, config):
-        """
-        Return ``config`` and what follows from it, for ``arm``; raise when they do not fit.
-
-        Reads nothing of the controller's state, changes nothing: ``_apply`` installs it.
-        """
-        if not isinstance(config, ControllerConfig):
-            raise InvalidInputError(f'config must be a ControllerConfig, got {config!r}')
-        arm, n = self.arm, self.arm.n_joints
-        tol = np.broadcast_to(np.asarray(config.goal_tolerance, float), (n,)).copy()
-        settle_tol = np.minimum(np.full(n, config.settle_tolerance), tol)
-        vlim = driver_velocity_limits(arm.velocity_limits, config.jog_units,
-                                      config.speed_override)
-        ticks = min_speed = None
-        if config.jog_units == 'fraction_of_max' or config.cycle_driver:
-            # A driver with a cycle (the vendor's, or ours in either unit): its readings lag
-            # up to two cycles, so compensate what is in flight; goal tolerance >= one tick.
-            ticks = np.asarray(config.driver_tick_size, dtype=float)
-            if ticks.shape != (n,):
-                raise InvalidInputError(f'driver_tick_size has {ticks.size} values for '
-                                        f'{n} joints: give one per joint')
-            min_speed = min_jog_speed(ticks, config.driver_cycle)
-            slow = np.flatnonzero(min_speed > vlim)
-            if slow.size:
-                names = ', '.join(f'{arm.joint_names[i]} (needs {min_speed[i]:.3f} rad/s, '
-                                  f'can {vlim[i]:.3f})' for i in slow)
-                raise InvalidInputError(
-                    f'at speed_override {config.speed_override} the driver cannot move one '
-                    f'tick per cycle of {config.driver_cycle} s: {names}; raise '
-                    f'speed_override')
-            tol = np.maximum(tol, ticks)
-            settle_tol = ticks.copy()      # what the driver resolves: one tick per joint
-        log_length = int(np.ceil(4.0 * config.driver_cycle * config.rate)) + 2
-        return {'config': config, 'tol': tol, 'settle_tol': settle_tol, 'vlim': vlim,
-                'ticks': ticks, 'min_speed': min_speed, 'dt': 1.0 / config.rate,
-                'log_length': log_length}
-
     def _apply(self, derived):
-        """Install what ``_derive`` returned (the config last: ``prepare_demand`` reads it)."""
-        config = derived['config']
-        self.robot.set_limits(derived['tol'], config.law.a_max, derived['ticks'])
-        self._settle_tol = derived['settle_tol']
-        self._vlim, self._dt = derived['vlim'], derived['dt']
-        self._min_speed = derived['min_speed']
-        self._whole_tick_driver = derived['ticks'] is not None
+        """Install a ``DerivedConfig`` (the config last: ``prepare_demand`` reads it)."""
+        config = derived.config
+        self.robot.set_limits(derived.goal_tolerance, config.law.a_max, derived.ticks)
+        self._settle_tol = derived.settle_tolerance
+        self._vlim, self._dt = derived.velocity_limits, derived.dt
+        self._min_speed = derived.min_speed
+        self._whole_tick_driver = derived.whole_tick_driver
         old = getattr(self, '_travel_log', ())
-        self._travel_log = deque(old, maxlen=derived['log_length'])
-        self.config = derived['config']
+        self._travel_log = deque(old, maxlen=derived.log_length)
+        self.config = config
 
     def check_config(self, config: ControllerConfig) -> None:
         """Raise ``InvalidInputError`` saying why ``config`` cannot drive this arm."""
-        self._derive(config)
+        derive_config(self.arm, config)
 
     def reconfigure(self, config: ControllerConfig) -> bool:
         """
@@ -328,7 +211,7 @@ class ControllerCore:
         motion ends, so a motion runs with one config from start to end; a later call replaces
         a pending config. Raises ``InvalidInputError`` (nothing changed) when it does not fit.
         """
-        derived = self._derive(config)
+        derived = derive_config(self.arm, config)
         self._changed = True
         if self._state in sm.MOVING_STATES:
             self._pending_config = derived
@@ -340,7 +223,7 @@ class ControllerCore:
     @property
     def pending_config(self) -> Optional[ControllerConfig]:
         """Return the config waiting for the running motion to end (None when none)."""
-        return None if self._pending_config is None else self._pending_config['config']
+        return None if self._pending_config is None else self._pending_config.config
 
     @property
     def goal_tolerance(self) -> np.ndarray:
@@ -923,7 +806,7 @@ class ControllerCore:
             'goal_tolerance': ' '.join(f'{t:.6f}' for t in self.robot.goal_tolerances),
         }
         if self._pending_config is not None:
-            pending = self._pending_config['config']
+            pending = self._pending_config.config
             values['pending_parameters'] = ', '.join(
                 f'{name} {value}' for name, value in config_changes(self.config, pending))
         if self._timing:
