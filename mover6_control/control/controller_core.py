@@ -22,45 +22,21 @@ the joint limits raises ``InvalidInputError`` and leaves the running motion unto
 one while moving replaces the motion, starting from the present reference and its velocity, so
 the command does not jump. No joint is commanded further past a limit.
 
-``jog_units`` 'fraction_of_max' (the Mover6's vendor driver): the driver moves each joint by
-whole encoder ticks per cycle (``driver_tick_size``, ``driver_cycle``), so a joint commanded
-under one tick per cycle does not move at all (J5/J6: about 7 deg/s), and its position is only
-known to a tick. Two things make the arm arrive anyway:
-
-- dead-zone compensation (``commands.dead_zone_command``): a joint whose command is below
-  ``min_jog_speed`` gets exactly that speed towards its error while the error exceeds half a
-  tick, zero inside. Its readings lag the driver by up to two cycles, so such a joint moves in
-  pulses: one driver cycle long (one tick), started on a fresh reading, then no new pulse until
-  a reading that shows the pulse (two readings later; three after the law itself moved the
-  joint). It never overshoots by what is still in flight, so it settles instead of oscillating.
-- the goal tolerance of each joint is ``max(goal_tolerance, one tick)`` (reported in the
-  status as ``goal_tolerance``), and the arm has arrived only when both the reading and the
-  reading minus what was commanded since (from two cycles before it came: maybe in flight) are
-  within it, so a joint still moving does not arrive on a stale reading and then drift out.
-- after arrival (settling to one tick) each joint more than half a tick off gets one pulse of
-  the whole number of ticks nearest its error (``commands.tick_pulse_command``: the
-  driver truncates the speed to exactly that), then none until a reading shows it landed; so
-  every joint ends on the tick nearest its goal (a closed loop on the lagging readings crept:
-  4-10 ticks off a second after arrival).
-
-This assumes the readings come once per driver cycle (or less often) and that two and a half
-control periods plus the delays of a reading and of a command stay under one driver cycle (at
-100 Hz and 20 Hz: delays under 12 ms each). Beyond that (a reading 40 ms late) a pulse may
-move two ticks, a wrist goal between two ticks may not settle, and the motion then ends
-'aborted' after ``settle_timeout`` rather than 'arrived' out of tolerance.
+Behind a driver with a cycle (``jog_units`` 'fraction_of_max', the Mover6's vendor driver, or
+``cycle_driver``) the commands are compensated for its whole ticks and for what is still in
+flight (``driver_compensation``).
 """
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass, replace
 from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
-from mover6_control.control.commands import (dead_zone_command, guard_position_limits,
-                                             tick_pulse_command, to_jog_units)
+from mover6_control.control.commands import guard_position_limits, to_jog_units
 from mover6_control.control.controller_config import (config_changes, ControllerConfig,
                                                       derive_config)
+from mover6_control.control.driver_compensation import DriverCompensation
 from mover6_control.control.motion_plan import MotionPlan, plan_stop
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.robot import Robot
@@ -75,8 +51,6 @@ import numpy as np
 
 # After arrival the gain is at least this fraction of the error per control period (rad_per_s).
 FINE_GAIN_PER_TICK = 0.25
-# fraction_of_max, after arrival: readings after a whole-tick pulse starts before the next may.
-PULSE_READINGS = 3
 
 
 @dataclass(frozen=True)
@@ -151,15 +125,10 @@ class ControllerCore:
         """Make a controller for ``arm`` (an ``ArmModel``) with ``config``."""
         self.arm = arm
         self.robot = Robot.from_arm(arm)  # the model: joints, states, demand, reference
+        self._driver = DriverCompensation(arm.n_joints)   # a driver with a cycle behind
         self.config = None
         self._pending_config = None      # applies when the running motion ends
         self._apply(derive_config(self.arm, ControllerConfig() if config is None else config))
-        n = arm.n_joints
-        self._n_states_seen = 0          # the robot's n_states as of the previous tick
-        self._pulse_until = np.full(n, -np.inf)  # [s] end of each joint's one-tick pulse
-        self._pulse_after = np.zeros(n, dtype=int)  # no new pulse before this many readings
-        self._pulse_speed = np.zeros(n)  # [rad/s] the command of each joint's running pulse
-        self._travel = np.zeros(n)       # [rad] integral of the commands sent
         self._state = sm.WAITING_FOR_STATES
         self._t_fault = None
         self._motion_id = 0
@@ -191,10 +160,7 @@ class ControllerCore:
         self.robot.set_limits(derived.goal_tolerance, config.law.a_max, derived.ticks)
         self._settle_tol = derived.settle_tolerance
         self._vlim, self._dt = derived.velocity_limits, derived.dt
-        self._min_speed = derived.min_speed
-        self._whole_tick_driver = derived.whole_tick_driver
-        old = getattr(self, '_travel_log', ())
-        self._travel_log = deque(old, maxlen=derived.log_length)
+        self._driver.configure(derived)
         self.config = config
 
     def check_config(self, config: ControllerConfig) -> None:
@@ -572,18 +538,15 @@ class ControllerCore:
             qd = np.zeros(self.arm.n_joints)
             self.robot.reference = None
         else:
-            if (self._whole_tick_driver and self._state in (sm.EXECUTING, sm.SETTLING)
+            if (self._driver.active and self._state in (sm.EXECUTING, sm.SETTLING)
                     and self._arrived_at is None):     # after arrival: whole-tick pulses
-                qd = self._whole_ticks(now, qd)
+                qd = self._driver.whole_ticks(now, qd, self.robot)
             qd = guard_position_limits(qd, self.robot.q, self.robot.lower, self.robot.upper,
                                        self._dt)
             if not np.all(np.isfinite(qd)):      # never sent: no driver may receive a NaN
                 return self._tick_fault(now, f'non-finite command {np.asarray(qd).tolist()} '
                                              f'while {state}: not sent')
-        self._n_states_seen = self.robot.n_states
-        if self._whole_tick_driver:
-            self._travel_log.append((now, self._travel.copy()))
-            self._travel = self._travel + qd * self._dt
+        self._driver.end_tick(now, qd, self.robot.n_states)
         self.robot.commanded = qd
         jog = to_jog_units(qd, self.arm.velocity_limits, self.config.jog_units,
                            self.config.speed_override)
@@ -593,45 +556,6 @@ class ControllerCore:
             self._changed = True
         changed, self._changed = self._changed, False
         return TickOutput(qd, jog, self._state, changed)
-
-    def _whole_ticks(self, now, qd):
-        """
-        Return the command with the dead zone of a whole-tick driver compensated (pulses).
-
-        A pulse starts on the first tick after a fresh reading, lasts one driver cycle (plus
-        half a control period, so it surely spans one cycle boundary and not two) and moves its
-        joint one tick; the next may start only on a reading that shows it.
-        """
-        pulsing = now < self._pulse_until
-        fresh = self.robot.n_states > self._n_states_seen
-        may_start = fresh & (self.robot.n_states >= self._pulse_after)
-        qd, dead = dead_zone_command(qd, self.robot.error, self.robot.encoder_ticks,
-                                     self._min_speed, pulsing | may_start)
-        started = dead & ~pulsing & may_start & (qd != 0.0)
-        self._pulse_speed[started] = qd[started]
-        self._pulse_until[started] = now + self.config.driver_cycle + 0.5 * self._dt
-        self._pulse_after[started] = self.robot.n_states + 2
-        law = ~dead & (qd != 0.0)          # moved by the law: in flight for up to two cycles
-        self._pulse_until[law] = -np.inf
-        self._pulse_after[law] = self.robot.n_states + 3
-        return qd
-
-    def _in_flight(self):
-        """
-        Return the motion (n,) [rad] commanded that the latest reading cannot show yet.
-
-        The driver applies the command it holds at its cycle and the reading of that cycle is
-        taken before the move, so what was commanded from one cycle before that cycle may still
-        be on its way; counting from two cycles before the reading came also covers delays of
-        up to a cycle (erring towards 'in flight' only delays the arrival).
-        """
-        since = self.robot.t_states - 2.0 * self.config.driver_cycle
-        start = self._travel
-        for t, travel in reversed(self._travel_log):
-            start = travel
-            if t <= since:
-                break
-        return self._travel - start
 
     def _check_states(self, now):
         if not self.robot.measured:
@@ -705,7 +629,7 @@ class ControllerCore:
         if self._arrived_at is not None:
             fine = np.all(self._within(self._settle_tol))
             if fine or now - self._arrived_at >= self.config.settle_time:
-                if self._whole_tick_driver and np.any(self._in_flight() != 0.0):
+                if self._driver.active and np.any(self._in_flight() != 0.0):
                     # Settle time over: command zero until what is in flight has landed, so
                     # the arm is still once idle (the driver lags up to two cycles).
                     return np.zeros_like(goal)
@@ -717,9 +641,13 @@ class ControllerCore:
             return self._fine_command(now)
         return self.robot.command(self.config.position_gain, self._vlim)
 
+    def _in_flight(self):
+        """Return the motion (n,) [rad] commanded that the latest reading cannot show yet."""
+        return self._driver.in_flight(self.robot.t_states)
+
     def _within(self, tol):
         """Return which joints are within ``tol`` (n,) of the goal, counting what still moves."""
-        if self._whole_tick_driver:
+        if self._driver.active:
             return self.robot.within(tol, self._in_flight())
         # Not arrived while still moving: where the arm will be two ticks from now must be
         # within tolerance too (a law that ends at full speed, such as the synchronised one,
@@ -734,9 +662,9 @@ class ControllerCore:
         period (the readings are fresh), so the error falls from the goal tolerance to the
         settle tolerance in a fraction of a second without overshoot. A ``cycle_driver`` (the
         CAN driver, either unit): the plain loop. fraction_of_max on the vendor's driver: the
-        whole-tick pulses of ``_tick_pulses``.
+        whole-tick pulses of ``DriverCompensation.tick_pulses``.
         """
-        if not self._whole_tick_driver:
+        if not self._driver.active:
             gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / self._dt)
             return self.robot.command(gain, self._vlim)
         if self.config.cycle_driver:
@@ -744,32 +672,7 @@ class ControllerCore:
             # whole ticks, unlike the vendor's): the plain loop, whose gain is far below one
             # over the readings' lag of two cycles.
             return self.robot.command(self.config.position_gain, self._vlim)
-        return self._tick_pulses(now)
-
-    def _tick_pulses(self, now):
-        """
-        Return the command that moves each joint onto the tick nearest its goal (n,) [rad/s].
-
-        The readings lag the driver by up to two cycles, so a closed loop on them either creeps
-        (a low gain: 4-10 ticks off a second after arrival) or oscillates. The driver is exact
-        instead: a command held over one cycle boundary moves ``trunc(speed * cycle / tick)``
-        ticks. So a joint whose reading is more than half a tick off gets one pulse of the
-        whole number of ticks nearest its error (``commands.tick_pulse_command``), lasting
-        one driver cycle (as ``_whole_ticks``), and no new one until a reading shows it landed
-        (``PULSE_READINGS`` readings later; the law's last moves too). Each pulse closes the
-        error to the nearest tick, up to the servo's lag in the reading it was computed from.
-        """
-        ticks, cycle = self.robot.encoder_ticks, self.config.driver_cycle
-        error = self.robot.error
-        pulsing = now < self._pulse_until
-        fresh = self.robot.n_states > self._n_states_seen
-        start = (fresh & ~pulsing & (self.robot.n_states >= self._pulse_after)
-                 & (np.abs(error) > 0.5 * ticks))
-        speed = tick_pulse_command(error, ticks, cycle, self._vlim)
-        self._pulse_speed[start] = speed[start]
-        self._pulse_until[start] = now + cycle + 0.5 * self._dt
-        self._pulse_after[start] = self.robot.n_states + PULSE_READINGS
-        return np.where(pulsing | start, self._pulse_speed, 0.0)
+        return self._driver.tick_pulses(now, self.robot, self._vlim)
 
     def _tick_stopping(self, now):
         t = self.robot.follow(now)
