@@ -25,6 +25,11 @@ the command does not jump. No joint is commanded further past a limit.
 Behind a driver with a cycle (``jog_units`` 'fraction_of_max', the Mover6's vendor driver, or
 ``cycle_driver``) the commands are compensated for its whole ticks and for what is still in
 flight (``driver_compensation``).
+
+One concept a module: this one holds the state, the inputs and the tick; its parts are the
+settings (``controller_config``), the demand protocol (``demand_intake``), jogging
+(``jogging``), the per-state ticks of a motion (``motion_ticks``) and the status
+(``status_report``).
 """
 
 from __future__ import annotations
@@ -34,8 +39,7 @@ from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
 from mover6_control.control.commands import guard_position_limits, to_jog_units
-from mover6_control.control.controller_config import (config_changes, ControllerConfig,
-                                                      derive_config)
+from mover6_control.control.controller_config import ControllerConfig, derive_config
 from mover6_control.control.demand_intake import DemandIntake
 from mover6_control.control.driver_compensation import DriverCompensation
 from mover6_control.control.jogging import Jogging
@@ -43,18 +47,9 @@ from mover6_control.control.motion_plan import MotionPlan, plan_stop
 from mover6_control.control.motion_ticks import MotionTicks
 from mover6_control.control.robot import Robot
 from mover6_control.control.status import Cause, MotionResult, StatusKey as K
+from mover6_control.control.status_report import StatusReport
 from mover6_control.kinematics.arm import ArmModel
 import numpy as np
-
-
-@dataclass(frozen=True)
-class Status:
-    """What goes out on /controller/status: state, level, human message, named values."""
-
-    state: str
-    level: str
-    message: str
-    values: dict
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,7 +67,7 @@ class TickOutput:
     status_changed: bool
 
 
-class ControllerCore(DemandIntake, Jogging, MotionTicks):
+class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
     """The controller's logic for one arm; see the module docstring."""
 
     def __init__(self, arm: ArmModel, config: Optional[ControllerConfig] = None):
@@ -236,7 +231,7 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks):
     def _tick_fault(self, now, reason):
         """Fault at ``now``: drop the motion or jog, a zero command, ``reason`` on the status."""
         if self._state in sm.MOVING_STATES:
-            self._result = {'result': 'fault', 'reason': reason}
+            self._result = {K.RESULT: MotionResult.FAULT, K.REASON: reason}
         self.robot.drop_plan()
         self._t_fault = now
         self._set(sm.TICK_FAULT, 'ERROR', reason)
@@ -305,37 +300,3 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks):
         self._state = sm.step(self._state, event)
         self._level, self._message = level, message
         self._changed = True
-
-    # --- status -------------------------------------------------------------------------------
-
-    def status(self) -> Status:
-        """Return the ``Status`` to publish now (state, level, reason, figures)."""
-        moving = self._state in sm.MOVING_STATES
-        error = self.robot.error if moving else np.zeros(self.arm.n_joints)
-        values = {
-            'state': self._state,
-            'motion_id': self._motion_id,
-            'waypoint': self._waypoint,
-            'waypoints': self._waypoints_total,
-            'tracking_error': f'{float(np.linalg.norm(error)):.6f}',
-            'max_joint_error': f'{float(np.max(np.abs(error))):.6f}',
-            'profile': self.config.law.profile,
-            'jog_units': self.config.jog_units,
-            'rate': f'{self.config.rate:g}',
-            'goal_tolerance': ' '.join(f'{t:.6f}' for t in self.robot.goal_tolerances),
-        }
-        if self._pending_config is not None:
-            pending = self._pending_config.config
-            values['pending_parameters'] = ', '.join(
-                f'{name} {value}' for name, value in config_changes(self.config, pending))
-        if self._timing:
-            values['timing'] = self._timing
-        if self._motion_profile:
-            values['motion_profile'] = self._motion_profile
-        values.update(self._result)
-        values.update(self._rejection)
-        if self._state == sm.JOGGING:
-            values.update(self._jog_values)
-        if self._jog_refused:
-            values['jog_refused'] = self._jog_refused
-        return Status(self._state, self._level, self._message, values)

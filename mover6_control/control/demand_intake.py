@@ -20,6 +20,7 @@ from mover6_control.control import state_machine as sm
 from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.motion_plan import MotionPlan
 from mover6_control.control.profiles import LawConfig
+from mover6_control.control.status import StatusKey as K
 from mover6_control.control.timed_plan import plan_demand, Timing
 from mover6_control.errors import InvalidInputError
 from mover6_control.validation import short_text
@@ -215,9 +216,9 @@ class DemandIntake:
 
     def reject(self, now: float, reason: str, demand_id: str = '') -> None:
         """Note a refused demand: reason, time [s] and id stay in the status until one is taken."""
-        self._rejection = {'rejected': short_text(reason),
-                           'rejected_time': f'{now:.3f}',
-                           'rejected_goal_id': str(demand_id)}
+        self._rejection = {K.REJECTED: short_text(reason),
+                           K.REJECTED_TIME: f'{now:.3f}',
+                           K.REJECTED_GOAL_ID: str(demand_id)}
         self._changed = True
 
     def _check_accepts(self, state, message=None):

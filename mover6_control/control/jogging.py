@@ -86,8 +86,8 @@ class Jogging:
         self.robot.reference = (q, out.qd)      # a demand now starts from the jog's velocity
         kind = ('stale' if out.stale else 'halted' if out.halted
                 else 'slowed' if out.scale < 1.0 else 'free')
-        self._jog_values = {'jog_reason': out.reason, 'jog_condition': f'{out.condition:.2f}',
-                            'jog_scale': f'{out.scale:.3f}'}
+        self._jog_values = {K.JOG_REASON: out.reason, K.JOG_CONDITION: f'{out.condition:.2f}',
+                            K.JOG_SCALE: f'{out.scale:.3f}'}
         self._message = f'jogging: {out.reason}' if out.reason else 'jogging'
         self._level = 'OK' if kind in ('free', 'stale') else 'WARN'
         if kind != self._jog_kind:

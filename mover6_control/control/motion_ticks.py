@@ -79,7 +79,7 @@ class MotionTicks:
                     # Settle time over: command zero until what is in flight has landed, so
                     # the arm is still once idle (the driver lags up to two cycles).
                     return np.zeros_like(goal)
-                self._result = dict(self._result, settled_joint_error=f'{worst:.6f}')
+                self._result = {**self._result, K.SETTLED_JOINT_ERROR: f'{worst:.6f}'}
                 how = 'settled' if fine else f'settle time {self.config.settle_time} s over'
                 self._set(sm.SETTLED, 'OK', f'motion {self._motion_id} arrived; {how} '
                                             f'(max joint error {worst:.6f} rad); holding')
