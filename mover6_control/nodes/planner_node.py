@@ -66,7 +66,7 @@ from std_srvs.srv import Trigger
 CONTROLLER_STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # [s] a demand no controller acknowledged (by goal id in its status) is sent again after this,
 # at most RESENDS more times; then the goal fails (not_acknowledged). The controller waits for
-# its first states at most controller_node.DEMAND_STATE_WAIT (2 s) before it answers: less than
+# its first states at most controller_demands.DEMAND_STATE_WAIT (2 s) before it answers: less than
 # RESEND_AFTER * (RESENDS + 1).
 RESEND_AFTER = 1.0
 RESENDS = 2

@@ -33,6 +33,8 @@ ends canceled once the arm is at rest. A new goal, or a /joint_demands message, 
 running goal: it is aborted with INVALID_GOAL (as joint_trajectory_controller) and the reason.
 """
 
+from typing import Optional
+
 from control_msgs.action import FollowJointTrajectory
 from mover6_control.control.status import (Cause, FINAL_RESULTS, MotionResult, State, StatusKey,
                                            TIMING_AS_GIVEN)
@@ -168,10 +170,10 @@ class FollowJointTrajectoryServer:
         """Destroy the action server."""
         self.server.destroy()
 
-    async def sleep(self, seconds):
-        """Wait ``seconds`` on the node's clock without holding the executor."""
-        future = Future()
-        timer = self.node.create_timer(seconds, lambda: future.done() or future.set_result(1),
+    async def sleep(self, seconds: float, future: Optional[Future] = None) -> None:
+        """Wait ``seconds`` on the node's clock, or until ``future`` is done, not holding it."""
+        future = Future() if future is None else future
+        timer = self.node.create_timer(seconds, lambda: future.done() or future.set_result(None),
                                        callback_group=self.group)
         try:
             await future
@@ -208,28 +210,25 @@ class FollowJointTrajectoryServer:
                 mapped['timing'] = map_timing(goal.trajectory, names)
             except ValueError as err:
                 mapped['code'] = err.args[0]
-                node.goal_rejections[goal_id] = short_text(err.args[1])
+                node.goals.refused(goal_id, short_text(err.args[1]))
                 return None
             demand = conversions.make_demands(mapped['rows'], goal_id)
             return (demand, mapped['timing']) if mapped['timing'].timed else demand
 
+        taken = node.goals.expect(goal_id, node.executor)   # done when taken or refused
         node.demands.put(convert)
-        waited, timeout = 0.0, ACCEPT_TIMEOUT + ACCEPT_PER_POINT * len(goal.trajectory.points)
-        while goal_id not in node.goal_motions and goal_id not in node.goal_rejections:
-            if waited > timeout or not node.running:
-                with node.lock:      # the demand thread commits under it: taken, or never
-                    if goal_id not in node.goal_motions:
-                        node.withdrawn.add(goal_id)
-                if goal_id not in node.goal_motions:
-                    return self.finish(handle, Result.INVALID_GOAL, 'the controller did not '
-                                                                    'take the demand in time')
-                break
-            await self.sleep(0.01)
-            waited += 0.01
-        if goal_id in node.goal_rejections:
+        if node.running:
+            await self.sleep(ACCEPT_TIMEOUT + ACCEPT_PER_POINT * len(goal.trajectory.points),
+                             taken)
+        # The demand thread commits under the ledger's lock: taken, refused, or never.
+        outcome = node.goals.withdraw(goal_id)
+        if outcome is None:
+            return self.finish(handle, Result.INVALID_GOAL, 'the controller did not '
+                                                            'take the demand in time')
+        if isinstance(outcome, str):
             return self.finish(handle, mapped.get('code', Result.INVALID_GOAL),
-                               f'refused: {node.goal_rejections.pop(goal_id)}')
-        motion_id = node.goal_motions[goal_id]
+                               f'refused: {outcome}')
+        motion_id = outcome
         rows, timing = mapped['rows'], mapped['timing']
         note = self.timing_note(goal_id, motion_id, timing)
         stopping = None          # why the arm is being stopped: (code, text, how)
@@ -239,7 +238,7 @@ class FollowJointTrajectoryServer:
                 plan = node.core.plan
             values = status.values
             if int(values[StatusKey.MOTION_ID]) != motion_id:
-                other = (node.motion_goals.get(int(values[StatusKey.MOTION_ID]), '')
+                other = (node.goals.goal_of(int(values[StatusKey.MOTION_ID]))
                          or '/joint_demands')
                 # As joint_trajectory_controller: INVALID_GOAL, aborted, with the reason.
                 return self.finish(handle, Result.INVALID_GOAL,
@@ -307,7 +306,7 @@ class FollowJointTrajectoryServer:
 
         ``t`` [s] is the time into the plan, the feedback's ``time_from_start``.
         """
-        start = self.node.motion_starts.get(motion_id)
+        start = self.node.goals.start_of(motion_id)
         if plan is None or start is None:
             return None
         t = min(max(self.node.now() - start, 0.0), plan.duration)
