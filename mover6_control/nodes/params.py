@@ -17,6 +17,7 @@ from mover6_control.control.servo import ServoConfig
 from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.kinematics.arm import LIMIT_SETS
 from mover6_control.parameters import check_value
+from mover6_control.planning.planner_core import PlannerSettings
 from mover6_control.validation import short_text
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
@@ -161,3 +162,19 @@ def servo_config_from_parameters(get: Callable[[str], object]) -> ServoConfig:
         lower_singularity_threshold=get('servo_lower_singularity_threshold'),
         hard_stop_singularity_threshold=get('servo_hard_stop_singularity_threshold'),
         joint_limit_margin=get('servo_joint_limit_margin'), a_max=get('a_max'))
+
+
+def planner_settings_from_parameters(get: Callable[[str], object]) -> PlannerSettings:
+    """
+    Return the ``PlannerSettings`` of a parameter getter ``get(name)``; raise when invalid.
+
+    The set-parameters check builds it from the values a set would leave in force, so a value
+    the planner could not plan with (a tool size, keep-out boxes) is refused at the set.
+    """
+    return PlannerSettings(
+        n_waypoints=get('n_waypoints'), max_step=get('max_step'),
+        max_angle_step=get('max_angle_step'), peak_height=get('peak_height'),
+        max_joint_step=get('max_joint_step'), max_condition=get('max_condition'),
+        position_tolerance=get('position_tolerance'),
+        orientation_tolerance=get('orientation_tolerance'),
+        collision=collision_settings(get))
