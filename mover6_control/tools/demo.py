@@ -29,8 +29,9 @@ from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk_batch
 from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.resources import CONFIG_DIR
-from mover6_control.tools.goal_cli import (EXIT_REFUSED, format_numbers, format_outcome,
-                                           GoalClient, poses_from_numbers)
+from mover6_control.tools.goal_cli import GoalClient
+from mover6_control.tools.goal_convention import (EXIT_REFUSED, format_numbers, format_outcome,
+                                                  poses_from_numbers)
 import numpy as np
 import rclpy
 from sensor_msgs.msg import JointState
