@@ -35,11 +35,13 @@ changed only under ``lock``; nothing slow happens under it, and nothing is publi
 import queue
 import sys
 import threading
+from typing import Callable, Optional
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
 from mover6_control.control.collision_guard import CollisionGuard
+from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.status import StatusKey
 from mover6_control.errors import InvalidInputError
@@ -54,6 +56,7 @@ from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from mover6_control.parameters import CONTROLLER
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
@@ -113,7 +116,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.demand_thread.start()
         self.publish_status(self.now())
 
-    def log_start(self, limit_set: str, config) -> None:
+    def log_start(self, limit_set: str, config: ControllerConfig) -> None:
         """Say what the controller runs with (before its threads start: no lock needed)."""
         ticks = ''
         if config.jog_units == 'fraction_of_max':
@@ -127,7 +130,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         """Return the node clock's time [s] (sim time when use_sim_time is set)."""
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def check_config(self, get) -> None:
+    def check_config(self, get: Callable[[str], object]) -> None:
         """
         Raise saying why the parameters of ``get(name)`` make no valid controller config.
 
@@ -141,7 +144,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         if core is not None:
             core.check_config(config)
 
-    def on_parameters_set(self, parameters) -> None:
+    def on_parameters_set(self, parameters: list[Parameter]) -> None:
         """
         Apply parameters just set: to the core now, or when the running motion ends.
 
@@ -272,7 +275,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
                 'controller', level or status.level, message or status.message, values))
 
 
-def main(args=None) -> None:
+def main(args: Optional[list[str]] = None) -> None:
     """
     Run the controller node until Ctrl-C, SIGTERM or shutdown; then send a zero command.
 

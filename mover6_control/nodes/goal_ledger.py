@@ -15,8 +15,9 @@ takes or refuses the goal, instead of polling.
 
 from collections import OrderedDict
 import threading
-from typing import Optional
+from typing import Optional, Union
 
+from rclpy.executors import Executor
 from rclpy.task import Future
 
 # Goals (and motions) the ledger remembers; older ones are forgotten.
@@ -43,7 +44,7 @@ class GoalLedger:
         self._withdrawn = OrderedDict()      # goal ids their sender stopped waiting for
         self._waiting = {}                   # goal id -> Future of an action server
 
-    def expect(self, goal_id: str, executor=None) -> Future:
+    def expect(self, goal_id: str, executor: Optional[Executor] = None) -> Future:
         """
         Return a ``Future`` done once ``goal_id`` is taken or refused (or the ledger closes).
 
@@ -82,7 +83,7 @@ class GoalLedger:
         if future is not None:
             future.set_result(outcome)
 
-    def withdraw(self, goal_id: str):
+    def withdraw(self, goal_id: str) -> Union[int, str, None]:
         """
         Return the outcome of ``goal_id`` (motion id, or refusal); with none, withdraw it.
 

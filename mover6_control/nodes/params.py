@@ -7,7 +7,7 @@ the unit, ``floating_point_range`` / ``integer_range``, allowed values as
 bridge alike; and the controller's configs from its parameters (``config_from_parameters``).
 """
 
-from typing import Callable
+from typing import Callable, Optional
 
 from mover6_control.collision.checker import CollisionSettings
 from mover6_control.collision.geometry import ToolVolume
@@ -16,12 +16,13 @@ from mover6_control.control.profiles import LawConfig
 from mover6_control.control.servo import ServoConfig
 from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.kinematics.arm import LIMIT_SETS
-from mover6_control.parameters import check_value
+from mover6_control.parameters import check_value, ParameterSpec
 from mover6_control.planning.planner_core import PlannerSettings
 from mover6_control.validation import short_text
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
 from rclpy.exceptions import ParameterException
+from rclpy.node import Node
 
 ROS_TYPES = {
     'bool': ParameterType.PARAMETER_BOOL,
@@ -33,7 +34,7 @@ ROS_TYPES = {
 # Longest refusal reason [characters] a set-parameters answer carries.
 
 
-def descriptor(spec):
+def descriptor(spec: ParameterSpec) -> ParameterDescriptor:
     """Return the ``ParameterDescriptor`` of a ``ParameterSpec``."""
     text = spec.description + (f' [{spec.unit}]' if spec.unit else '')
     d = ParameterDescriptor(name=spec.name, type=ROS_TYPES[spec.type], description=text,
@@ -48,12 +49,12 @@ def descriptor(spec):
     return d
 
 
-def ros_value(value):
+def ros_value(value: object) -> object:
     """Return a default as rclpy takes it (a tuple becomes a list)."""
     return list(value) if isinstance(value, tuple) else value
 
 
-def declare(node, table, check_config=None):
+def declare(node: Node, table: dict, check_config: Optional[Callable] = None) -> Callable:
     """
     Declare every parameter of ``table`` on ``node`` and refuse invalid values from then on.
 
@@ -80,7 +81,7 @@ def declare(node, table, check_config=None):
     return callback
 
 
-def whole_config_problem(check_config, get):
+def whole_config_problem(check_config: Callable, get: Callable[[str], object]) -> Optional[str]:
     """Return why ``check_config(get)`` refuses the values of ``get`` (None: it takes them)."""
     try:
         check_config(get)
@@ -89,7 +90,9 @@ def whole_config_problem(check_config, get):
     return None
 
 
-def make_set_callback(table, node=None, check_config=None):
+def make_set_callback(table: dict, node: Optional[Node] = None,
+                      check_config: Optional[Callable] = None
+                      ) -> Callable[[list], SetParametersResult]:
     """
     Return an ``on_set_parameters`` callback that refuses values ``table`` does not allow.
 
@@ -122,7 +125,7 @@ def make_set_callback(table, node=None, check_config=None):
     return on_set_parameters
 
 
-def collision_settings(get):
+def collision_settings(get: Callable[[str], object]) -> CollisionSettings:
     """
     Return the ``CollisionSettings`` of the collision parameters (planner or controller).
 

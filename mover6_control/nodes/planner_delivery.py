@@ -13,10 +13,13 @@ at most ``RESENDS`` more times; then the goal fails (``not_acknowledged``).
 
 import dataclasses
 import time
+from typing import Optional
 
+from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.control.status import PlannerResult
 from mover6_control.nodes import conversions
 from mover6_control.nodes.planner_thread import POLL
+from mover6_control.planning.planner_core import JointPlan
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import Float32MultiArray
 
@@ -45,7 +48,7 @@ class Unconfirmed:
 class DemandDelivery:
     """The delivery of the planner's demands (module docstring)."""
 
-    def on_controller_status(self, msg):
+    def on_controller_status(self, msg: DiagnosticStatus) -> None:
         """
         Note the controller's status: it names the goal it took, or refused and why.
 
@@ -64,7 +67,7 @@ class DemandDelivery:
             self.refuse(refused.motion, 'the controller refused the demand: '
                         + values.get('rejected', ''), 'controller_refused', {}, refused.goal)
 
-    def subscribers_matched(self):
+    def subscribers_matched(self) -> tuple[int, int]:
         """
         Return (matched, known): /joint_demands readers matched, and readers in the graph.
 
@@ -74,7 +77,7 @@ class DemandDelivery:
         known = len(self.get_subscriptions_info_by_topic(self.demands_pub.topic_name))
         return self.demands_pub.get_subscription_count(), known
 
-    def deliver(self, goal, motion, plan):
+    def deliver(self, goal: dict, motion: str, plan: JointPlan) -> None:
         """Publish the plan once every known reader of /joint_demands is matched; say planned."""
         since = time.monotonic()
         while True:
@@ -108,7 +111,7 @@ class DemandDelivery:
         self.publish_status('OK', text, values, goal)
         self.demands_pub.publish(msg)
 
-    def resend_due(self):
+    def resend_due(self) -> Optional[float]:
         """Return the time [s] until the next demand is due again (None: none waits)."""
         with self.lock:
             if not self.unconfirmed:
@@ -116,7 +119,7 @@ class DemandDelivery:
             due = min(u.sent for u in self.unconfirmed.values()) + RESEND_AFTER
         return max(due - time.monotonic(), POLL)
 
-    def confirm_delivery(self):
+    def confirm_delivery(self) -> None:
         """
         Send a demand again while no controller has acknowledged its goal (up to RESENDS times).
 

@@ -37,10 +37,11 @@ the goal after ``RESENDS`` more sends).
 import queue
 import threading
 import time
+from typing import Callable, Optional
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
-from mover6_control.control.status import PlannerResult
+from mover6_control.control.status import PlannerResult, PlannerState
 from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
@@ -56,7 +57,7 @@ import numpy as np
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float32MultiArray
+from std_msgs.msg import Float32MultiArray, Header
 from std_srvs.srv import Trigger
 
 
@@ -109,7 +110,7 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
 
     # --- inputs (executor thread) ----------------------------------------------------------
 
-    def on_joint_states(self, raw):
+    def on_joint_states(self, raw: bytes) -> None:
         """
         Keep the latest /joint_states as it came (serialized) with its arrival time.
 
@@ -123,7 +124,7 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
             self.set_state(READY)
         self.states_came.set()
 
-    def positions(self, raw):
+    def positions(self, raw: bytes) -> np.ndarray:
         """Return the joint positions [rad] of a serialized JointState; raise when malformed."""
         if self._converted is None or self._converted[0] is not raw:
             msg = deserialize_message(raw, JointState)
@@ -136,14 +137,14 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
         return self._converted[1]
 
     @property
-    def q(self):
+    def q(self) -> Optional[np.ndarray]:
         """Return the latest joint positions (6,) [rad], or None (none yet, or malformed)."""
         try:
             return None if self.states is None else self.positions(self.states[0])
         except Mover6Error:
             return None
 
-    def on_pose_goal(self, msg, motion=None):
+    def on_pose_goal(self, msg: PoseStamped, motion: Optional[str] = None) -> None:
         """Plan a pose goal with ``motion``, by default the shape of the ``motion`` parameter."""
         motion = motion or self.get_parameter('motion').value
 
@@ -153,20 +154,20 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
                                                       self.checker(settings))
         self.submit(msg.header, motion, prepare)
 
-    def on_path_goal(self, msg, motion=None):
+    def on_path_goal(self, msg: PoseArray, motion: Optional[str] = None) -> None:
         """Plan a path goal (via poses then the goal) with ``motion`` (or ``path_motion``)."""
         motion = motion or self.get_parameter('path_motion').value
         self.submit(msg.header, motion, lambda: self.path_planner(
             msg, motion, lambda q, vias, goal, settings: plan_path_goal(
                 self.arm, q, vias, goal, motion, settings, self.checker(settings))))
 
-    def on_via_joint_goal(self, msg):
+    def on_via_joint_goal(self, msg: PoseArray) -> None:
         """Plan a joint move through one via pose (PoseArray [via, goal]): ``via_joint``."""
         self.submit(msg.header, 'joint', lambda: self.path_planner(
             msg, 'joint', lambda q, vias, goal, settings: plan_via_path_goal(
                 self.arm, q, vias, goal, settings, self.checker(settings))))
 
-    def path_planner(self, msg, motion, plan):
+    def path_planner(self, msg: PoseArray, motion: str, plan: Callable) -> Callable:
         """
         Check a PoseArray goal of shape ``motion``; return its plan function ``f(q, settings)``.
 
@@ -178,7 +179,7 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
         poses = conversions.pose_array_to_matrices(msg, self.frame_id())
         return lambda q, settings: plan(q, poses[:-1], poses[-1], settings)
 
-    def on_stop(self, request, response):
+    def on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Drop every goal received so far that waits or is being planned; send none again."""
         with self.lock:
             self.stopped_seq = self.goal_seq
@@ -193,7 +194,7 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
                         entry.goal)
         return response
 
-    def submit(self, header, motion, prepare):
+    def submit(self, header: Header, motion: str, prepare: Callable[[], Callable]) -> None:
         """
         Give a goal its id, check its form, and queue it for the planning thread.
 
@@ -218,7 +219,7 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
 
     # --- status ----------------------------------------------------------------------------
 
-    def set_state(self, state):
+    def set_state(self, state: PlannerState) -> None:
         """Say on the status that the planner is ready, or waiting for /joint_states."""
         with self.lock:
             if self.state == state:
@@ -230,7 +231,7 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
         else:
             self.publish_status('WARN', 'waiting for /joint_states', {})
 
-    def refuse(self, motion, text, reason, details, goal):
+    def refuse(self, motion: str, text: str, reason: str, details: dict, goal: dict) -> None:
         """Report a refused goal on /planner/status and in the log; publish no demands."""
         values = {'result': PlannerResult.REFUSED, 'motion': motion, 'reason': reason}
         for key in ('waypoint', 'position_error', 'orientation_error', 'fraction', 'shapes',
@@ -245,7 +246,8 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
         self.get_logger().error(f'goal {goal["goal_id"]} refused ({reason}): {text}')
         self.publish_status('ERROR', f'goal refused ({reason}): {text}', values, goal)
 
-    def publish_status(self, level, text, values, goal=None):
+    def publish_status(self, level: str, text: str, values: dict,
+                       goal: Optional[dict] = None) -> None:
         """Publish /planner/status: ``state``, then the goal it is about (if any), then values."""
         merged = {'state': self.state}
         merged.update(goal or {})
@@ -253,7 +255,7 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
         with self.status_lock:
             self.status_pub.publish(conversions.make_status('planner', level, text, merged))
 
-    def destroy_node(self):
+    def destroy_node(self) -> None:
         """End the planning thread (a goal being planned finishes first), then the node."""
         self.running = False
         self.jobs.put(None)
@@ -263,7 +265,7 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
         super().destroy_node()
 
 
-def main(args=None):
+def main(args: Optional[list[str]] = None) -> None:
     """Run the planner node until Ctrl-C, SIGTERM or shutdown (one or more signals: exit 0)."""
     shutdown.run_node(PlannerNode, args)
 

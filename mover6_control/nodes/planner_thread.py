@@ -14,12 +14,15 @@ reading states, answering ~/stop and the controller's status while a goal is pla
 import dataclasses
 import queue
 import time
+from typing import Callable, Optional
 
 from mover6_control.collision.checker import CollisionChecker
 from mover6_control.control.planners import predicted_duration
 from mover6_control.control.status import PlannerState
 from mover6_control.errors import Mover6Error, UnreachableError
 from mover6_control.nodes.params import planner_settings_from_parameters
+from mover6_control.planning.planner_core import PlannerSettings
+import numpy as np
 
 WAITING, READY = PlannerState.WAITING_FOR_STATES, PlannerState.READY
 # [s] how often a waiting planning thread looks again (states, stop, shutdown).
@@ -29,15 +32,15 @@ POLL = 0.02
 class PlanningThread:
     """The planning thread of ``PlannerNode`` (module docstring)."""
 
-    def frame_id(self):
+    def frame_id(self) -> str:
         """Return the frame goals must be given in."""
         return self.get_parameter('frame_id').value
 
-    def settings(self):
+    def settings(self) -> PlannerSettings:
         """Return the planner settings from the current parameters."""
         return planner_settings_from_parameters(lambda n: self.get_parameter(n).value)
 
-    def checker(self, settings):
+    def checker(self, settings: PlannerSettings) -> Optional[CollisionChecker]:
         """Return the collision checker of ``settings`` (kept while they do not change)."""
         if not settings.collision.enabled:
             return None
@@ -45,7 +48,7 @@ class PlanningThread:
             self._checker = CollisionChecker(self.arm, settings.collision)
         return self._checker
 
-    def current_q(self):
+    def current_q(self) -> np.ndarray:
         """Return the latest joint positions, or raise when there are none or they are old."""
         if self.states is None:
             raise Mover6Error('no /joint_states received yet: the current pose is unknown')
@@ -57,7 +60,7 @@ class PlanningThread:
                               'the current pose is uncertain')
         return self.positions(raw).copy()
 
-    def plan_loop(self):
+    def plan_loop(self) -> None:
         """Plan the queued goals in order; send demands again until acknowledged."""
         while self.running:
             try:
@@ -74,11 +77,11 @@ class PlanningThread:
                                 job[0])
             self.confirm_delivery()
 
-    def stopped(self, goal):
+    def stopped(self, goal: dict) -> bool:
         """Return True when ~/stop dropped ``goal``."""
         return goal['goal_seq'] <= self.stopped_seq
 
-    def plan_goal(self, goal, motion, plan_fn, received):
+    def plan_goal(self, goal: dict, motion: str, plan_fn: Callable, received: float) -> None:
         """Plan one goal, then send its demand and say planned, or say why not."""
         if self.stopped(goal):
             self.refuse(motion, 'stopped before it was planned', 'stopped', {}, goal)
@@ -100,7 +103,7 @@ class PlanningThread:
             return
         self.deliver(goal, motion, plan)
 
-    def wait_for_states(self, goal, motion, received):
+    def wait_for_states(self, goal: dict, motion: str, received: float) -> Optional[np.ndarray]:
         """
         Return the current joint positions, waiting up to ``state_wait_timeout`` for them.
 

@@ -36,14 +36,16 @@ malformed, 3 nodes not found.
 import argparse
 import sys
 import time
+from typing import Callable, Optional, Sequence
 
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from mover6_control.control.profiles import PROFILES
 from mover6_control.control.status import (FINAL_RESULTS, MotionResult, PlannerResult, State,
                                            StatusKey)
 from mover6_control.errors import Mover6Error
-from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_error
 from mover6_control.nodes import conversions
@@ -58,6 +60,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.publisher import Publisher
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
@@ -101,11 +104,11 @@ class GoalClient(Readiness, Node):
 
     # --- subscriptions ---------------------------------------------------------------------
 
-    def on_planner(self, msg):
+    def on_planner(self, msg: DiagnosticStatus) -> None:
         """Keep the planner's latest status."""
         self.planner_status = msg
 
-    def on_controller(self, msg):
+    def on_controller(self, msg: DiagnosticStatus) -> None:
         """Keep the controller's latest status, and note when it rejected a demand."""
         self.controller_status = msg
         values = self.values(msg)
@@ -114,21 +117,21 @@ class GoalClient(Readiness, Node):
                 self.goal_id, ''):
             self.rejection = rejected
 
-    def on_joint_states(self, msg):
+    def on_joint_states(self, msg: JointState) -> None:
         """Keep the latest joint positions."""
         try:
             self.q, _ = conversions.joint_state_from_msg(msg, self.arm.joint_names)
         except Mover6Error:
             pass
 
-    def on_demands(self, msg):
+    def on_demands(self, msg: Float32MultiArray) -> None:
         """Keep the latest joint demands (the planner's output)."""
         try:
             self.last_demands = conversions.demands_from_msg(msg)
         except Mover6Error:
             pass
 
-    def set_planner_parameters(self, params, timeout=10.0):
+    def set_planner_parameters(self, params: dict, timeout: float = 10.0) -> Optional[str]:
         """Set planner parameters (e.g. motion); return an error text or None."""
         if not params:
             return None
@@ -143,7 +146,7 @@ class GoalClient(Readiness, Node):
                 return f'planner refused parameter {name}: {result.reason}'
         return None
 
-    def stop(self, timeout=10.0):
+    def stop(self, timeout: float = 10.0) -> tuple[bool, str, bool]:
         """
         Call the planner's ~/stop, then the controller's; return (success, message, was it there).
 
@@ -158,7 +161,7 @@ class GoalClient(Readiness, Node):
         ok, text, available = self.stop_controller(timeout)
         return ok, text + planner_note, available
 
-    def stop_controller(self, timeout=10.0):
+    def stop_controller(self, timeout: float = 10.0) -> tuple[bool, str, bool]:
         """Call the controller's ~/stop service; return (success, its message, was it there)."""
         if not self.stop_client.wait_for_service(timeout_sec=timeout):
             return False, ('the controller stop service is not available (is the controller '
@@ -170,14 +173,16 @@ class GoalClient(Readiness, Node):
 
     # --- goals -----------------------------------------------------------------------------
 
-    def publisher(self, msg_type, topic):
+    def publisher(self, msg_type: type, topic: str) -> Publisher:
         """Return the publisher of ``topic`` (made on first use)."""
         if topic not in self.shape_pubs:
             self.shape_pubs[topic] = self.create_publisher(msg_type, topic, 10)
         return self.shape_pubs[topic]
 
-    def run_goal(self, publish, T_goal=None, planned=True, timeout=60.0, progress=None,
-                 stamp=None, goal_id=None):
+    def run_goal(self, publish: Callable[[], None], T_goal: Optional[np.ndarray] = None,
+                 planned: bool = True, timeout: float = 60.0,
+                 progress: Optional[Callable[[str], None]] = None, stamp: Optional[Time] = None,
+                 goal_id: Optional[str] = None) -> Outcome:
         """
         Publish a goal with ``publish()``, then follow it, and only it, to its end.
 
@@ -282,8 +287,9 @@ class GoalClient(Readiness, Node):
             return Outcome(EXIT_FAILED, self.controller_status.message, **figures)
         return Outcome(EXIT_ARRIVED, 'arrived', **figures)
 
-    def send_pose(self, T_goal, frame_id='base_link', motion=None, peak_height=None,
-                  **kwargs):
+    def send_pose(self, T_goal: np.ndarray, frame_id: str = 'base_link',
+                  motion: Optional[str] = None, peak_height: Optional[float] = None,
+                  **kwargs: object) -> Outcome:
         """
         Send a pose goal and follow it; see ``run_goal``.
 
@@ -310,7 +316,8 @@ class GoalClient(Readiness, Node):
         return self.run_goal(lambda: pub.publish(msg), T_goal=T_goal, stamp=msg.header.stamp,
                              **kwargs)
 
-    def send_path(self, poses, frame_id='base_link', shape=None, **kwargs):
+    def send_path(self, poses: np.ndarray, frame_id: str = 'base_link',
+                  shape: Optional[str] = None, **kwargs: object) -> Outcome:
         """Send a path goal (via poses then the goal, (k, 4, 4)) and follow it."""
         msg = PoseArray()
         msg.header.frame_id = frame_id
@@ -321,11 +328,11 @@ class GoalClient(Readiness, Node):
         return self.run_goal(lambda: pub.publish(msg), T_goal=poses[-1], stamp=msg.header.stamp,
                              **kwargs)
 
-    def wait_matched(self, pub, timeout=10.0):
+    def wait_matched(self, pub: Publisher, timeout: float = 10.0) -> None:
         """Wait until ``pub`` is matched with a reader (a topic made just now is not yet)."""
         self.spin_until(lambda: pub.get_subscription_count() > 0, timeout)
 
-    def send_joints(self, Q, profile='', **kwargs):
+    def send_joints(self, Q: np.ndarray, profile: str = '', **kwargs: object) -> Outcome:
         """Send joint waypoints (n, 6) to /joint_demands (timed by ``profile``) and follow them."""
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         stamp = self.get_clock().now().to_msg()
@@ -340,7 +347,7 @@ class GoalClient(Readiness, Node):
 
 # --- command line ----------------------------------------------------------------------------
 
-def build_parser():
+def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of the goal command."""
     parser = argparse.ArgumentParser(
         prog='goal', description=__doc__.split('\n\n')[0],
@@ -394,7 +401,8 @@ def build_parser():
     return parser
 
 
-def run(argv, client=None, out=print):
+def run(argv: Sequence[str], client: Optional[GoalClient] = None,
+        out: Callable[[str], None] = print) -> int:
     """Run the command line ``argv``; return the exit code."""
     if argv and argv[0] not in ('pose', 'path', 'joints', 'stop', '-h', '--help'):
         argv = ['pose'] + list(argv)  # the plain form: goal X Y Z A B C
@@ -458,12 +466,12 @@ def run(argv, client=None, out=print):
     return outcome.code
 
 
-def client_arm(client):
+def client_arm(client: Optional[GoalClient]) -> ArmModel:
     """Return the arm of ``client`` (the Mover6 when there is no client)."""
     return getattr(client, 'arm', None) or mover6()
 
 
-def main(args=None):
+def main(args: Optional[list[str]] = None) -> None:
     """Entry point of ``ros2 run mover6_control goal``."""
     argv = sys.argv[1:] if args is None else list(args)
     if argv[:1] == ['jog']:                  # goal jog: the keyboard teleop

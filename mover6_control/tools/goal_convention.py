@@ -9,9 +9,10 @@ goal's own convention (``goal_from_pose``). The exit codes are the command's (``
 """
 
 import math
+from typing import Optional, Sequence
 
 from mover6_control.errors import Mover6Error
-from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import (euler_zyx_near, make_transform,
                                                  pose_from_xyzabc, quaternion_to_matrix)
@@ -24,12 +25,13 @@ EXIT_ARRIVED, EXIT_FAILED, EXIT_REFUSED, EXIT_NO_NODES = 0, 1, 2, 3
 PRINT_LOCK_TOL = 1e-3
 
 
-def home_pose(arm):
+def home_pose(arm: ArmModel) -> np.ndarray:
     """Return the flange pose (4, 4) at q = 0, by forward kinematics of ``arm``."""
     return fk(arm, np.zeros(arm.n_joints))
 
 
-def pose_from_goal(arm, x, y, z, a, b, c, absolute=False):
+def pose_from_goal(arm: ArmModel, x: float, y: float, z: float, a: float, b: float, c: float,
+                   absolute: bool = False) -> np.ndarray:
     """
     Return the pose (4, 4) of a goal typed as X Y Z [m] A B C [rad].
 
@@ -41,7 +43,8 @@ def pose_from_goal(arm, x, y, z, a, b, c, absolute=False):
     return goal_relative_to_start(home_pose(arm), x, y, z, a, b, c)
 
 
-def goal_from_pose(arm, T, absolute=False, ref=(0.0, 0.0, 0.0)):
+def goal_from_pose(arm: ArmModel, T: np.ndarray, absolute: bool = False,
+                   ref: Sequence[float] = (0.0, 0.0, 0.0)) -> tuple:
     """
     Return X Y Z [m] A B C [rad] of pose ``T`` (4, 4) in the goal convention (``pose_from_goal``).
 
@@ -53,7 +56,7 @@ def goal_from_pose(arm, T, absolute=False, ref=(0.0, 0.0, 0.0)):
     return tuple(float(v) for v in T[:3, 3]) + tuple(angles)
 
 
-def format_numbers(values):
+def format_numbers(values: Sequence[float]) -> str:
     """Return numbers as text with 4 decimals and no negative zero."""
     return ' '.join('0.0000' if abs(v) < 5e-5 else f'{v:.4f}' for v in values)
 
@@ -67,7 +70,7 @@ class Outcome:
         self.figures = figures
 
     @property
-    def arrived(self):
+    def arrived(self) -> bool:
         """Return True when the arm arrived."""
         return self.code == EXIT_ARRIVED
 
@@ -76,7 +79,8 @@ class Outcome:
         return f'Outcome({self.code}, {self.text!r}, {self.figures})'
 
 
-def poses_from_numbers(numbers, quat, arm=None, absolute=False):
+def poses_from_numbers(numbers: Sequence[float], quat: bool, arm: Optional[ArmModel] = None,
+                       absolute: bool = False) -> np.ndarray:
     """
     Return poses (k, 4, 4) from groups of 6 numbers (X Y Z A B C) or 7 (X Y Z qx qy qz qw).
 
@@ -100,7 +104,7 @@ def poses_from_numbers(numbers, quat, arm=None, absolute=False):
     return np.stack(out)
 
 
-def format_outcome(outcome, convention=None):
+def format_outcome(outcome: Outcome, convention: Optional[tuple] = None) -> str:
     """
     Return the one result line of an outcome.
 

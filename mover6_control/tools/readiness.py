@@ -10,7 +10,9 @@ is None or what was missing, said so that a user knows which node to start.
 """
 
 import time
+from typing import Callable, Optional
 
+from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.control.status import PlannerState, State, StatusKey
 from mover6_control.nodes import conversions
 import rclpy
@@ -22,7 +24,8 @@ NOT_READY = (None, State.WAITING_FOR_STATES, State.FAULT)
 class Readiness:
     """Spin until a condition holds; wait for the nodes to be ready (module docstring)."""
 
-    def spin_until(self, predicate, timeout, tick=None):
+    def spin_until(self, predicate: Callable[[], bool], timeout: float,
+                   tick: Optional[Callable[[], None]] = None) -> bool:
         """Spin until ``predicate()`` is true or ``timeout`` [s] passes; return the predicate."""
         deadline = time.monotonic() + timeout
         while rclpy.ok() and not predicate():
@@ -34,11 +37,12 @@ class Readiness:
         return bool(predicate())
 
     @staticmethod
-    def values(msg):
+    def values(msg: Optional[DiagnosticStatus]) -> dict:
         """Return a status message's values as a dict (empty for None)."""
         return conversions.status_values(msg) if msg is not None else {}
 
-    def wait_ready(self, timeout=30.0, need_planner=True, steady=1.0):
+    def wait_ready(self, timeout: float = 30.0, need_planner: bool = True,
+                   steady: float = 1.0) -> Optional[str]:
         """
         Wait for joint states, the controller's status and (optionally) the planner's.
 
@@ -81,7 +85,7 @@ class Readiness:
             return f'the controller did not stay ready for {steady:.1f} s (state {state})'
         return None
 
-    def on_topic(self, topic, publisher_node, subscriber_node):
+    def on_topic(self, topic: str, publisher_node: str, subscriber_node: str) -> bool:
         """Return True when the graph shows ``publisher_node`` and ``subscriber_node`` on it."""
         name = self.resolve_topic_name(topic)
         pubs = {info.node_name for info in self.get_publishers_info_by_topic(name)}
