@@ -8,7 +8,7 @@ The Mover6 report's example: from home (q = 0, flange at (0.345, 0, 0.4425) m) t
 Z = 0.4425 [m] with A = B = C = 0 composed relative to the home orientation
 (``R_goal = R_home @ Rzyx(0, 0, 0)``: the home orientation kept), a straight line in 20
 waypoints (the planner's ``n_waypoints``). The goal is checked offline first
-(``reachability.check_pose``, ``planning.plan_pose_goal``); should it be refused, the same
+(``reachability.check_pose``, ``planner_core.plan_pose_goal``); should it be refused, the same
 straight line is shortened, then other directions from home are tried, and the output and JSON
 say which variant ran.
 

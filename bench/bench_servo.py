@@ -24,7 +24,8 @@ import time
 
 from bench.output import write_json
 from bench.processes import NodeProcess
-from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.controller_config import ControllerConfig
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import jacobian
 import numpy as np

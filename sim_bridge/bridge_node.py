@@ -30,6 +30,7 @@ import math
 import os
 import threading
 import time
+from typing import Callable, Optional
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -39,6 +40,7 @@ from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.parameters import SIM_BRIDGE
 import numpy as np
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -51,7 +53,7 @@ MAX_BATCH = 200           # physics steps per loop pass before pacing gives up a
 VIEWER_PERIOD = 1.0 / 30.0
 
 
-def sim_config_from_parameters(get):
+def sim_config_from_parameters(get: Callable[[str], object]) -> SimConfig:
     """Return the ``SimConfig`` of a parameter getter ``get(name)``; raise when invalid."""
     return SimConfig(mode=get('mode'), command_timeout=float(get('command_timeout')),
                      speed_override=float(get('speed_override')),
@@ -122,7 +124,7 @@ class SimBridgeNode(Node):
             f'{self.rtf}, /joint_states every {self.publish_period:.4f} s, command timeout '
             f'{config.command_timeout} s' + (', publishing /clock' if self.publish_clock else ''))
 
-    def on_parameters_set(self, parameters):
+    def on_parameters_set(self, parameters: list[Parameter]) -> None:
         """
         Apply ``real_time_factor`` and ``publish_rate`` live (the others are read-only).
 
@@ -168,7 +170,7 @@ class SimBridgeNode(Node):
 
     # --- callbacks ---------------------------------------------------------------------------
 
-    def on_joint_jog(self, msg):
+    def on_joint_jog(self, msg: JointJog) -> None:
         """Take a /JointJog: validate, clamp, hand to the simulator; log why when rejected."""
         arrival = time.monotonic()
         try:
@@ -188,7 +190,7 @@ class SimBridgeNode(Node):
             self.get_logger().warning(f'/JointJog speed clamped: {text}',
                                       throttle_duration_sec=1.0)
 
-    def on_reset_to(self, msg):
+    def on_reset_to(self, msg: JointState) -> None:
         """Reset to the positions of a JointState (by name; unnamed joints go home)."""
         names = list(msg.name)
         try:
@@ -206,14 +208,14 @@ class SimBridgeNode(Node):
         except InvalidInputError as exc:
             self.get_logger().warning(f'~/reset_to rejected: {exc}')
 
-    def on_reset(self, request, response):
+    def on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Reset to ``initial_q``, at rest, commands dropped."""
         self._reset(None)
         response.success = True
         response.message = f'reset to {np.round(self.sim.home_q, 4).tolist()}'
         return response
 
-    def on_pause(self, request, response):
+    def on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
         """Pause (data true) or resume (data false) the physics."""
         with self.step_lock:
             self._catch_up()             # pause at the present time
@@ -226,7 +228,7 @@ class SimBridgeNode(Node):
         self.get_logger().info(response.message)
         return response
 
-    def on_step(self, request, response):
+    def on_step(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """While paused, run one control period and publish; refuse when running."""
         if not self.paused:
             response.success = False
@@ -407,7 +409,7 @@ class SimBridgeNode(Node):
         with self.lock:
             self.viewer.sync()
 
-    def destroy_node(self):
+    def destroy_node(self) -> None:
         """Stop the physics thread and the viewer, then destroy the node."""
         self.stop_event.set()
         self._wake.set()
@@ -419,7 +421,7 @@ class SimBridgeNode(Node):
         return super().destroy_node()
 
 
-def main(args=None):
+def main(args: Optional[list[str]] = None) -> None:
     """Run the sim_bridge node until Ctrl-C, SIGTERM or shutdown (one or more signals: exit 0)."""
     shutdown.run_node(SimBridgeNode, args)
 

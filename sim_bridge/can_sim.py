@@ -33,8 +33,10 @@ import select
 import signal
 import socket
 import sys
+import threading
 import time
 import tty
+from typing import Optional, Sequence
 
 import can
 from mover6_control.errors import InvalidInputError
@@ -48,7 +50,8 @@ COMMAND_IDS = tuple(protocol.command_id(j) for j in protocol.JOINTS)
 
 
 def build_arm(limit_set: str = 'hardware', joints_file: str = JOINTS_YAML,
-              home_q=None, timing: ModuleTiming | None = None) -> CanArm:
+              home_q: Optional[Sequence[float]] = None,
+              timing: ModuleTiming | None = None) -> CanArm:
     """Return the CAN-level Mover6 counting with the joint file the driver reads."""
     _, joints = load_joints(joints_file)
     return CanArm(mover6(limit_set), joints, timing,
@@ -74,7 +77,7 @@ class BusServer:
             msg = self.bus.recv(0.0)
         self.arm.advance(self.clock())
 
-    def serve(self, stop) -> None:
+    def serve(self, stop: threading.Event) -> None:
         """Poll until ``stop.is_set()`` (a ``threading.Event``)."""
         while not stop.is_set():
             self.poll(self.arm.sim.config.physics_dt)
@@ -210,7 +213,7 @@ class SerialArm:
                 frame = usb2can.encode_serial_frame(reply_id, reply)
                 self.pty.write(self.corruptor.apply(reply_id, frame))
 
-    def on_client(self, client) -> None:
+    def on_client(self, client: socket.socket) -> None:
         """Read from a control client; answer each complete line."""
         try:
             data = client.recv(4096)
@@ -276,7 +279,7 @@ def control(path: str, line: str, timeout: float = 5.0) -> dict:
     return json.loads(answer.decode())
 
 
-def parse_args(argv):
+def parse_args(argv: Optional[list[str]]) -> argparse.Namespace:
     """Return the command line's options."""
     parser = argparse.ArgumentParser(
         prog='can_sim', description='The Mover6 at CAN level on a pseudo-terminal speaking the '
@@ -303,7 +306,7 @@ def parse_args(argv):
     return args
 
 
-def main(argv=None) -> int:
+def main(argv: Optional[list[str]] = None) -> int:
     """Run the simulated arm on a pty until SIGINT or SIGTERM; or send one control command."""
     args = parse_args(sys.argv[1:] if argv is None else argv)
     if args.send is not None:

@@ -176,7 +176,7 @@ def test_every_readme_goal_is_free(line):
 def test_every_demo_goal_is_free_and_the_table_goal_refused():
     """The showcase, in order as the demo sends it: moves free, refusals for their reason."""
     from mover6_control.tools.demo import SHOWCASE
-    from mover6_control.tools.goal_cli import poses_from_numbers
+    from mover6_control.tools.goal_convention import poses_from_numbers
     q = HOME
     reasons = []
     for step in SHOWCASE:

@@ -19,7 +19,8 @@ import random
 import threading
 
 from mover6_control.control import state_machine as sm
-from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.controller_config import ControllerConfig
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.robot import Robot
 from mover6_control.errors import InvalidInputError

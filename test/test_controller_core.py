@@ -5,7 +5,8 @@ import importlib.util
 from hypothesis import given, settings
 import hypothesis.strategies as st
 from mover6_control.control import state_machine as sm
-from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.controller_config import ControllerConfig
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.status import Cause
 from mover6_control.errors import InvalidInputError

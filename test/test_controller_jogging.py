@@ -2,11 +2,11 @@
 
 from dataclasses import replace
 
-from mover6_control.control import controller_core
+from mover6_control.control import jogging
 from mover6_control.control import state_machine as sm
 from mover6_control.control.collision_guard import CollisionGuard
-from mover6_control.control.controller_core import (config_changes, ControllerConfig,
-                                                    ControllerCore)
+from mover6_control.control.controller_config import config_changes, ControllerConfig
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.servo import ServoConfig
 from mover6_control.errors import InvalidInputError
@@ -234,7 +234,7 @@ def test_an_exception_in_a_tick_is_a_fault_with_the_reason_that_fresh_states_cle
 def test_a_non_finite_command_is_a_fault_and_never_sent(monkeypatch):
     """Whatever law makes a NaN (the servo did, from a 1e308 twist), zero goes out instead."""
     core, sim = make()
-    real = controller_core.servo_step
+    real = jogging.servo_step
 
     def nan_step(*args):
         out = real(*args)
@@ -242,14 +242,14 @@ def test_a_non_finite_command_is_a_fault_and_never_sent(monkeypatch):
 
     for _ in range(10):
         sim.tick(twist_x)
-    monkeypatch.setattr(controller_core, 'servo_step', nan_step)
+    monkeypatch.setattr(jogging, 'servo_step', nan_step)
     out = sim.tick(twist_x)
     assert out.state == sm.FAULT
     assert np.array_equal(out.qd, np.zeros(6)) and np.array_equal(out.jog, np.zeros(6))
     assert np.array_equal(core.robot.commanded, np.zeros(6))
     assert core.status().message.startswith('non-finite command [nan')
     assert 'while jogging: not sent' in core.status().message
-    monkeypatch.setattr(controller_core, 'servo_step', real)
+    monkeypatch.setattr(jogging, 'servo_step', real)
     assert sim.tick().state == sm.IDLE
 
 

@@ -15,7 +15,8 @@ from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc
 from mover6_control.nodes.conversions import status_values
 from mover6_control.resources import CONFIG_DIR
-from mover6_control.tools.goal_cli import EXIT_REFUSED, GoalClient, pose_from_goal
+from mover6_control.tools.goal_cli import GoalClient
+from mover6_control.tools.goal_convention import EXIT_REFUSED, pose_from_goal
 import numpy as np
 import pytest
 from ros_testing import ready_client, Stack

@@ -19,7 +19,8 @@ from geometry_msgs.msg import PoseStamped
 from mover6_control.hardware.scaling import load_joints
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes.conversions import matrix_to_pose, status_values
-from mover6_control.tools.goal_cli import GoalClient, poses_from_numbers
+from mover6_control.tools.goal_cli import GoalClient
+from mover6_control.tools.goal_convention import poses_from_numbers
 import numpy as np
 import pytest
 from ros_testing import CanSimProcess, ready_client, Stack

@@ -20,7 +20,8 @@ from mover6_control.motion.metrics import max_deviation_from_polyline
 from mover6_control.nodes import conversions
 from mover6_control.nodes.conversions import status_values
 from mover6_control.parameters import CONTROLLER
-from mover6_control.tools.goal_cli import EXIT_REFUSED, GoalClient
+from mover6_control.tools.goal_cli import GoalClient
+from mover6_control.tools.goal_convention import EXIT_REFUSED
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter

@@ -240,7 +240,8 @@ def planner_parameters(node, names):
 @pytest.mark.parametrize('extra', (['--peak-height', '0.03'], []))
 def test_cli_parabolic_leaves_the_planner_parameters(stack, client, extra):
     """``goal pose ... --motion parabolic``: arrives; the planner's parameters are unchanged."""
-    from mover6_control.tools.goal_cli import EXIT_ARRIVED, run
+    from mover6_control.tools.goal_cli import run
+    from mover6_control.tools.goal_convention import EXIT_ARRIVED
     node, _ = client
     home = node.send_joints(np.zeros((1, 6)), timeout=60.0)     # the goal is planned from home
     assert home.arrived, f'{home}\n{stack.report()}'

@@ -14,7 +14,7 @@ import re
 from mover6_control.collision.checker import CollisionSettings
 from mover6_control.collision.geometry import TOOL_SHAPES, ToolVolume
 from mover6_control.control.commands import JOG_UNITS
-from mover6_control.control.controller_core import ControllerConfig
+from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.profiles import LawConfig, PROFILES
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import LIMIT_SETS, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE

@@ -1,13 +1,15 @@
 """A demand's own profile: its label, its motion only (node tests: test_controller_node.py)."""
 
 from geometry_msgs.msg import PoseStamped
-from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.controller_config import ControllerConfig
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.planners import plan_motion
 from mover6_control.control.profiles import LawConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes import conversions
-from mover6_control.tools.goal_cli import EXIT_ARRIVED, EXIT_REFUSED, Outcome, run
+from mover6_control.tools.goal_cli import run
+from mover6_control.tools.goal_convention import EXIT_ARRIVED, EXIT_REFUSED, Outcome
 import numpy as np
 import pytest
 from std_msgs.msg import Float32MultiArray

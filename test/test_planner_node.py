@@ -11,7 +11,8 @@ from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_from_xyzabc
 from mover6_control.nodes import conversions
-from mover6_control.nodes.planner_node import PlannerNode, RESEND_AFTER, RESENDS
+from mover6_control.nodes.planner_delivery import RESEND_AFTER, RESENDS
+from mover6_control.nodes.planner_node import PlannerNode
 import numpy as np
 import pytest
 import rclpy

@@ -6,7 +6,7 @@ from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc
 from mover6_control.motion.metrics import max_deviation_from_polyline
 from mover6_control.planning.planner_core import plan_path_goal, plan_pose_goal, PlannerSettings
-from mover6_control.tools.goal_cli import pose_from_goal
+from mover6_control.tools.goal_convention import pose_from_goal
 import numpy as np
 import pytest
 

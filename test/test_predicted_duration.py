@@ -2,7 +2,8 @@
 
 import re
 
-from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.controller_config import ControllerConfig
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.planners import predicted_duration
 from mover6_control.control.profiles import LawConfig, PROFILES
 from mover6_control.kinematics.arm import mover6

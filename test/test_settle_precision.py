@@ -7,7 +7,8 @@ most 0.2 mrad in 'rad_per_s' and at most one encoder tick per joint in 'fraction
 the command is zero once the controller is idle again.
 """
 
-from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.controller_config import ControllerConfig
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.profiles import LawConfig
 from mover6_control.kinematics.arm import mover6, MOVER6_TICK_SIZE
 import numpy as np

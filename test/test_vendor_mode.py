@@ -11,7 +11,8 @@ from hypothesis import given, settings
 import hypothesis.strategies as st
 from mover6_control.control.commands import (dead_zone_command, min_jog_speed, TICK_MARGIN,
                                              tick_pulse_command, to_jog_units)
-from mover6_control.control.controller_core import ControllerConfig, ControllerCore
+from mover6_control.control.controller_config import ControllerConfig
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.profiles import LawConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE

@@ -9,7 +9,7 @@ writes it in the driver's units.
 For a driver that reads JointJog as fractions of the maximum speed and moves whole encoder ticks
 per cycle (the Mover6's vendor driver), ``dead_zone_command`` lifts commands too small to move a
 tick up to ``min_jog_speed`` while the error exceeds half a tick, and ``tick_pulse_command``
-moves a joint whole ticks after arrival (see ``controller_core``).
+moves a joint whole ticks after arrival (see ``driver_compensation``).
 """
 
 from __future__ import annotations

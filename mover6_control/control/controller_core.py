@@ -22,151 +22,34 @@ the joint limits raises ``InvalidInputError`` and leaves the running motion unto
 one while moving replaces the motion, starting from the present reference and its velocity, so
 the command does not jump. No joint is commanded further past a limit.
 
-``jog_units`` 'fraction_of_max' (the Mover6's vendor driver): the driver moves each joint by
-whole encoder ticks per cycle (``driver_tick_size``, ``driver_cycle``), so a joint commanded
-under one tick per cycle does not move at all (J5/J6: about 7 deg/s), and its position is only
-known to a tick. Two things make the arm arrive anyway:
+Behind a driver with a cycle (``jog_units`` 'fraction_of_max', the Mover6's vendor driver, or
+``cycle_driver``) the commands are compensated for its whole ticks and for what is still in
+flight (``driver_compensation``).
 
-- dead-zone compensation (``commands.dead_zone_command``): a joint whose command is below
-  ``min_jog_speed`` gets exactly that speed towards its error while the error exceeds half a
-  tick, zero inside. Its readings lag the driver by up to two cycles, so such a joint moves in
-  pulses: one driver cycle long (one tick), started on a fresh reading, then no new pulse until
-  a reading that shows the pulse (two readings later; three after the law itself moved the
-  joint). It never overshoots by what is still in flight, so it settles instead of oscillating.
-- the goal tolerance of each joint is ``max(goal_tolerance, one tick)`` (reported in the
-  status as ``goal_tolerance``), and the arm has arrived only when both the reading and the
-  reading minus what was commanded since (from two cycles before it came: maybe in flight) are
-  within it, so a joint still moving does not arrive on a stale reading and then drift out.
-- after arrival (settling to one tick) each joint more than half a tick off gets one pulse of
-  the whole number of ticks nearest its error (``commands.tick_pulse_command``: the
-  driver truncates the speed to exactly that), then none until a reading shows it landed; so
-  every joint ends on the tick nearest its goal (a closed loop on the lagging readings crept:
-  4-10 ticks off a second after arrival).
-
-This assumes the readings come once per driver cycle (or less often) and that two and a half
-control periods plus the delays of a reading and of a command stay under one driver cycle (at
-100 Hz and 20 Hz: delays under 12 ms each). Beyond that (a reading 40 ms late) a pulse may
-move two ticks, a wrist goal between two ticks may not settle, and the motion then ends
-'aborted' after ``settle_timeout`` rather than 'arrived' out of tolerance.
+One concept a module: this one holds the state, the inputs and the tick; its parts are the
+settings (``controller_config``), the demand protocol (``demand_intake``), jogging
+(``jogging``), the per-state ticks of a motion (``motion_ticks``) and the status
+(``status_report``).
 """
 
 from __future__ import annotations
 
-from collections import deque
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
-from mover6_control.control.commands import (dead_zone_command, driver_velocity_limits,
-                                             guard_position_limits, JOG_UNITS, min_jog_speed,
-                                             tick_pulse_command, to_jog_units)
+from mover6_control.control.commands import guard_position_limits, to_jog_units
+from mover6_control.control.controller_config import ControllerConfig, derive_config
+from mover6_control.control.demand_intake import DemandIntake
+from mover6_control.control.driver_compensation import DriverCompensation
+from mover6_control.control.jogging import Jogging
 from mover6_control.control.motion_plan import MotionPlan, plan_stop
-from mover6_control.control.profiles import LawConfig
+from mover6_control.control.motion_ticks import MotionTicks
 from mover6_control.control.robot import Robot
-from mover6_control.control.servo import (command_age, initial_state, joint_jog_command,
-                                          servo_step, ServoConfig, TwistCommand)
 from mover6_control.control.status import Cause, MotionResult, StatusKey as K
-from mover6_control.control.timed_plan import plan_demand, Timing
-from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
-from mover6_control.validation import as_positive, short_text
+from mover6_control.control.status_report import StatusReport
+from mover6_control.kinematics.arm import ArmModel
 import numpy as np
-
-# After arrival the gain is at least this fraction of the error per control period (rad_per_s).
-FINE_GAIN_PER_TICK = 0.25
-# fraction_of_max, after arrival: readings after a whole-tick pulse starts before the next may.
-PULSE_READINGS = 3
-
-
-@dataclass(frozen=True)
-class ControllerConfig:
-    """
-    The controller's settings (the node's parameters).
-
-    ``goal_tolerance`` [rad] (scalar or (n,)): settled when every joint is this close.
-    ``state_timeout`` [s]: joint states older than this are stale. ``position_gain`` [1/s]: the
-    closed-loop gain on the position error. ``settle_timeout`` [s]: give up settling (result
-    'aborted'). ``path_tolerance`` [rad]: a tracking error above it aborts the motion with a
-    controlled stop. ``rate`` [Hz]: the tick rate, for the position-limit guard.
-    ``jog_units``: 'rad_per_s' or 'fraction_of_max' (the vendor driver, which moves at
-    ``value * max speed * speed_override``). 'fraction_of_max' only: ``driver_tick_size`` (n,)
-    [rad] one encoder tick per joint and ``driver_cycle`` [s] the driver's cycle (defaults: the
-    Mover6's), for the dead-zone compensation and the goal tolerance of at least one tick.
-    ``cycle_driver``: the driver behind /JointJog integrates the command into set-points at
-    ``driver_cycle`` and reports once per cycle (this package's CAN driver, in either unit), so
-    the same in-flight compensation applies in 'rad_per_s'; 'fraction_of_max' implies it.
-    ``settle_tolerance`` [rad]: after arriving (inside ``goal_tolerance``, result 'arrived')
-    the controller keeps converging until every joint is this close (in 'fraction_of_max':
-    one tick per joint, what the driver resolves) or ``settle_time`` [s] has passed, then
-    holds with a zero command.
-    """
-
-    law: LawConfig = field(default_factory=LawConfig)
-    goal_tolerance: object = 0.002
-    state_timeout: float = 0.25
-    position_gain: float = 2.0
-    settle_timeout: float = 3.0
-    path_tolerance: float = 0.3
-    rate: float = 100.0
-    jog_units: str = 'rad_per_s'
-    speed_override: float = 0.25
-    driver_tick_size: tuple = MOVER6_TICK_SIZE
-    driver_cycle: float = MOVER6_DRIVER_CYCLE
-    cycle_driver: bool = False
-    settle_tolerance: float = 0.0001
-    settle_time: float = 1.0
-    servo: ServoConfig = field(default_factory=ServoConfig)   # jogging (control.servo)
-
-    def __post_init__(self):
-        """Check every setting."""
-        for name in ('state_timeout', 'settle_timeout', 'path_tolerance', 'rate',
-                     'settle_tolerance'):
-            as_positive(getattr(self, name), name)
-        if not (np.isfinite(self.settle_time) and self.settle_time >= 0.0):
-            raise InvalidInputError(f'settle_time must be >= 0, got {self.settle_time}')
-        if not (np.isfinite(self.position_gain) and self.position_gain >= 0.0):
-            raise InvalidInputError(f'position_gain must be >= 0, got {self.position_gain}')
-        tol = np.asarray(self.goal_tolerance, dtype=float)
-        if not np.all(np.isfinite(tol)) or np.any(tol <= 0.0):
-            raise InvalidInputError(f'goal_tolerance must be positive, got {tol.tolist()}')
-        if self.jog_units not in JOG_UNITS:
-            raise InvalidInputError(f'jog_units must be one of {JOG_UNITS}, got '
-                                    f'"{self.jog_units}"')
-        if not (0.0 < self.speed_override <= 1.0):
-            raise InvalidInputError(f'speed_override must be in (0, 1], got '
-                                    f'{self.speed_override}')
-        ticks = np.asarray(self.driver_tick_size, dtype=float)
-        if ticks.ndim != 1 or not ticks.size:
-            raise InvalidInputError(f'driver_tick_size must be one value per joint, got '
-                                    f'{self.driver_tick_size!r}')
-        min_jog_speed(ticks, self.driver_cycle)          # raises on non-positive values
-        object.__setattr__(self, 'driver_tick_size', tuple(float(t) for t in ticks))
-
-
-def config_changes(old: ControllerConfig, new: ControllerConfig) -> list:
-    """Return ``[(name, new value)]`` of the settings (law settings included) that differ."""
-    changes = []
-    for name in ControllerConfig.__dataclass_fields__:
-        a, b = getattr(old, name), getattr(new, name)
-        if name == 'law':
-            changes += [(key, getattr(b, key)) for key in type(b).__dataclass_fields__
-                        if getattr(a, key) != getattr(b, key)]
-        elif name == 'servo':
-            changes += [(f'servo_{key}', getattr(b, key)) for key in type(b).__dataclass_fields__
-                        if getattr(a, key) != getattr(b, key)]
-        elif not np.array_equal(np.asarray(a), np.asarray(b)):
-            changes.append((name, b))
-    return changes
-
-
-@dataclass(frozen=True)
-class Status:
-    """What goes out on /controller/status: state, level, human message, named values."""
-
-    state: str
-    level: str
-    message: str
-    values: dict
 
 
 @dataclass(frozen=True, eq=False)
@@ -184,62 +67,17 @@ class TickOutput:
     status_changed: bool
 
 
-@dataclass(frozen=True, eq=False)
-class Snapshot:
-    """
-    What a demand is planned from, read once under the node's lock (``ControllerCore.snapshot``).
-
-    ``state``; ``start`` = ``(q, qd)`` the plan starts from: the reference of the last tick and
-    its velocity while moving, the measured position and None (rest) otherwise; ``moving``;
-    ``motion_id`` of the latest accepted demand; ``message`` the state's reason then (a refusal
-    names the state it was refused in, not a later one). Immutable, so planning from it outside
-    the lock cannot see a tick change it halfway.
-    """
-
-    state: str
-    start: tuple
-    moving: bool
-    motion_id: int
-    message: str = ''
-
-
-@dataclass(frozen=True, eq=False)
-class PendingDemand:
-    """A checked and planned demand not yet started (``ControllerCore.prepare_demand``)."""
-
-    now: float
-    waypoints: np.ndarray
-    plan: MotionPlan
-    moving: bool
-    motion_id: int
-    demand_id: str = ''
-    config: Optional[ControllerConfig] = None   # the config it was planned with
-    timing: Optional[Timing] = None     # the points' times (timed_plan); None: the law's
-    timing_note: str = ''               # plan_demand's note: '', 'as given', or why not
-    profile: str = ''                   # the demand's own profile ('': the parameter's)
-
-
-def _and_more(count):
-    """Return ' (and <count - 1> more)' after the first of ``count`` offences ('' for one)."""
-    return f' (and {count - 1} more)' if count > 1 else ''
-
-
-class ControllerCore:
+class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
     """The controller's logic for one arm; see the module docstring."""
 
     def __init__(self, arm: ArmModel, config: Optional[ControllerConfig] = None):
         """Make a controller for ``arm`` (an ``ArmModel``) with ``config``."""
         self.arm = arm
         self.robot = Robot.from_arm(arm)  # the model: joints, states, demand, reference
+        self._driver = DriverCompensation(arm.n_joints)   # a driver with a cycle behind
         self.config = None
         self._pending_config = None      # applies when the running motion ends
-        self._apply(self._derive(ControllerConfig() if config is None else config))
-        n = arm.n_joints
-        self._n_states_seen = 0          # the robot's n_states as of the previous tick
-        self._pulse_until = np.full(n, -np.inf)  # [s] end of each joint's one-tick pulse
-        self._pulse_after = np.zeros(n, dtype=int)  # no new pulse before this many readings
-        self._pulse_speed = np.zeros(n)  # [rad/s] the command of each joint's running pulse
-        self._travel = np.zeros(n)       # [rad] integral of the commands sent
+        self._apply(derive_config(self.arm, ControllerConfig() if config is None else config))
         self._state = sm.WAITING_FOR_STATES
         self._t_fault = None
         self._motion_id = 0
@@ -265,58 +103,18 @@ class ControllerCore:
         self._servo_vetoed = (None, None, None)   # (servo config, guard, the two combined)
         self.tick_failures = 0           # ticks in a row that raised (a fault each)
 
-    def _derive(self, config):
-        """
-        Return ``config`` and what follows from it, for ``arm``; raise when they do not fit.
-
-        Reads nothing of the controller's state, changes nothing: ``_apply`` installs it.
-        """
-        if not isinstance(config, ControllerConfig):
-            raise InvalidInputError(f'config must be a ControllerConfig, got {config!r}')
-        arm, n = self.arm, self.arm.n_joints
-        tol = np.broadcast_to(np.asarray(config.goal_tolerance, float), (n,)).copy()
-        settle_tol = np.minimum(np.full(n, config.settle_tolerance), tol)
-        vlim = driver_velocity_limits(arm.velocity_limits, config.jog_units,
-                                      config.speed_override)
-        ticks = min_speed = None
-        if config.jog_units == 'fraction_of_max' or config.cycle_driver:
-            # A driver with a cycle (the vendor's, or ours in either unit): its readings lag
-            # up to two cycles, so compensate what is in flight; goal tolerance >= one tick.
-            ticks = np.asarray(config.driver_tick_size, dtype=float)
-            if ticks.shape != (n,):
-                raise InvalidInputError(f'driver_tick_size has {ticks.size} values for '
-                                        f'{n} joints: give one per joint')
-            min_speed = min_jog_speed(ticks, config.driver_cycle)
-            slow = np.flatnonzero(min_speed > vlim)
-            if slow.size:
-                names = ', '.join(f'{arm.joint_names[i]} (needs {min_speed[i]:.3f} rad/s, '
-                                  f'can {vlim[i]:.3f})' for i in slow)
-                raise InvalidInputError(
-                    f'at speed_override {config.speed_override} the driver cannot move one '
-                    f'tick per cycle of {config.driver_cycle} s: {names}; raise '
-                    f'speed_override')
-            tol = np.maximum(tol, ticks)
-            settle_tol = ticks.copy()      # what the driver resolves: one tick per joint
-        log_length = int(np.ceil(4.0 * config.driver_cycle * config.rate)) + 2
-        return {'config': config, 'tol': tol, 'settle_tol': settle_tol, 'vlim': vlim,
-                'ticks': ticks, 'min_speed': min_speed, 'dt': 1.0 / config.rate,
-                'log_length': log_length}
-
     def _apply(self, derived):
-        """Install what ``_derive`` returned (the config last: ``prepare_demand`` reads it)."""
-        config = derived['config']
-        self.robot.set_limits(derived['tol'], config.law.a_max, derived['ticks'])
-        self._settle_tol = derived['settle_tol']
-        self._vlim, self._dt = derived['vlim'], derived['dt']
-        self._min_speed = derived['min_speed']
-        self._whole_tick_driver = derived['ticks'] is not None
-        old = getattr(self, '_travel_log', ())
-        self._travel_log = deque(old, maxlen=derived['log_length'])
-        self.config = derived['config']
+        """Install a ``DerivedConfig`` (the config last: ``prepare_demand`` reads it)."""
+        config = derived.config
+        self.robot.set_limits(derived.goal_tolerance, config.law.a_max, derived.ticks)
+        self._settle_tol = derived.settle_tolerance
+        self._vlim, self._dt = derived.velocity_limits, derived.dt
+        self._driver.configure(derived)
+        self.config = config
 
     def check_config(self, config: ControllerConfig) -> None:
         """Raise ``InvalidInputError`` saying why ``config`` cannot drive this arm."""
-        self._derive(config)
+        derive_config(self.arm, config)
 
     def reconfigure(self, config: ControllerConfig) -> bool:
         """
@@ -328,7 +126,7 @@ class ControllerCore:
         motion ends, so a motion runs with one config from start to end; a later call replaces
         a pending config. Raises ``InvalidInputError`` (nothing changed) when it does not fit.
         """
-        derived = self._derive(config)
+        derived = derive_config(self.arm, config)
         self._changed = True
         if self._state in sm.MOVING_STATES:
             self._pending_config = derived
@@ -340,7 +138,7 @@ class ControllerCore:
     @property
     def pending_config(self) -> Optional[ControllerConfig]:
         """Return the config waiting for the running motion to end (None when none)."""
-        return None if self._pending_config is None else self._pending_config['config']
+        return None if self._pending_config is None else self._pending_config.config
 
     @property
     def goal_tolerance(self) -> np.ndarray:
@@ -393,162 +191,6 @@ class ControllerCore:
         """Note joint states rejected at ``now`` [s] (missing joints, non-finite): fault."""
         self.robot.invalidate(reason)
 
-    def on_demands(self, now: float, waypoints: np.ndarray, demand_id: str = '',
-                   profile: str = '') -> int:
-        """
-        Accept waypoints (N, n) [rad] at ``now`` [s] and return the new motion id.
-
-        Raises ``InvalidInputError`` (the running motion untouched, the refusal kept in the
-        status until the next accepted demand) when the demand is empty, has the wrong shape,
-        non-finite values or values outside the joint limits, or when the controller cannot
-        take a demand now (no joint states, fault, stopping). The same as
-        ``commit_demand(prepare_demand(now, waypoints, snapshot()))``, in one thread.
-        """
-        try:
-            return self.commit_demand(self.prepare_demand(now, waypoints, self.snapshot(),
-                                                          demand_id, profile=profile))
-        except InvalidInputError as err:
-            self.reject(now, str(err), demand_id)
-            raise
-
-    def snapshot(self) -> Snapshot:
-        """Return the ``Snapshot`` a demand is planned from (call it under the node's lock)."""
-        state, ref = self._state, self.robot.reference          # each read once
-        moving = state != sm.IDLE and ref is not None
-        q = self.robot.q if self.robot.measured else None
-        return Snapshot(state, ref if moving else (q, None), moving, self._motion_id,
-                        self._message)
-
-    def prepare_demand(self, now: float, waypoints: np.ndarray,
-                       snapshot: Optional[Snapshot] = None,
-                       demand_id: str = '', timing: Optional[Timing] = None,
-                       profile: str = '') -> PendingDemand:
-        """
-        Check a demand and plan it from ``snapshot``; return a ``PendingDemand``.
-
-        Reads nothing of the controller but ``snapshot`` (and the constant arm and config), so
-        a node calls it without holding its lock while the ticks go on (planning the continuous
-        law takes tens of milliseconds), with a snapshot taken under the lock, then
-        ``commit_demand`` under the lock. Without ``snapshot`` it takes one itself (the caller
-        then holds the lock). Raises as ``on_demands``, and for an unknown ``profile``. With
-        ``timing`` (a goal's ``time_from_start`` and velocities) the plan follows it where it can
-        (``timed_plan.plan_demand``; its note goes to the status as ``timing``). ``profile``
-        times this demand only (``law_for``).
-        """
-        config = self.config       # read once, before the limits it comes with (_apply)
-        vlim = self._vlim
-        snapshot = self.snapshot() if snapshot is None else snapshot
-        Q = self.check_demand(waypoints)
-        self._check_accepts(snapshot.state, snapshot.message)
-        q_start, qd_start = snapshot.start
-        if q_start is None:
-            raise InvalidInputError(f'cannot take a demand while {snapshot.state}: no joint '
-                                    f'states yet')
-        plan, note = plan_demand(self.law_for(profile, config), q_start, Q, vlim, qd_start,
-                                 timing, self.arm.lower, self.arm.upper)
-        guard = self.collision_guard
-        if guard is not None:
-            guard(plan)         # raises InvalidInputError: the motion collides
-        return PendingDemand(now, Q, plan, snapshot.moving, snapshot.motion_id, demand_id,
-                             config, timing, note, profile)
-
-    def law_for(self, profile: str = '', config: Optional[ControllerConfig] = None) -> LawConfig:
-        """
-        Return the law of a demand: ``config``'s (default: in force) with its own ``profile``.
-
-        A demand's profile ('' : none) changes that demand's law only, never the configuration;
-        an unknown one raises ``InvalidInputError`` (the demand is refused with the reason).
-        """
-        law = (self.config if config is None else config).law
-        if not profile or profile == law.profile:
-            return law
-        return replace(law, profile=profile)
-
-    def check_demand(self, waypoints: np.ndarray) -> np.ndarray:
-        """Return the demand as (N, n) [rad] inside the limits, or raise ``InvalidInputError``."""
-        n = self.arm.n_joints
-        Q = np.asarray(waypoints, dtype=float)
-        if Q.size == 0:
-            raise InvalidInputError('demand is empty')
-        if Q.ndim == 1:
-            if Q.size % n:
-                raise InvalidInputError(f'demand length {Q.size} is not a multiple of {n}')
-            Q = Q.reshape(-1, n)
-        if Q.ndim != 2 or Q.shape[1] != n:
-            raise InvalidInputError(f'demand must have shape (N, {n}), got {Q.shape}')
-        # The first offence and a count, never every waypoint: a reason stays small.
-        finite = np.all(np.isfinite(Q), axis=1)
-        if not np.all(finite):
-            bad = np.flatnonzero(~finite)
-            raise InvalidInputError(f'demand has non-finite values: waypoint {bad[0]} of '
-                                    f'{len(Q)}{_and_more(bad.size)}')
-        inside = np.all((Q >= self.arm.lower - 1e-6) & (Q <= self.arm.upper + 1e-6), axis=1)
-        if not np.all(inside):
-            bad = np.flatnonzero(~inside)
-            raise InvalidInputError(
-                f'demand outside joint limits: waypoint {bad[0]} of {len(Q)}: '
-                + ', '.join(self.arm.limit_violations(Q[bad[0]], tol=1e-6))
-                + _and_more(bad.size))
-        return np.clip(Q, self.arm.lower, self.arm.upper)   # float32 rounding at a limit
-
-    def commit_demand(self, pending: PendingDemand, start: Optional[float] = None) -> int:
-        """
-        Start a prepared demand; return the motion id.
-
-        Its time counts from ``start`` [s] (default: when it was prepared, which a plan from a
-        moving reference needs; a plan from rest may start when committed, however long its
-        planning took).
-
-        Call it under the node's lock. When the controller moved on since the snapshot (the
-        motion ended, another started: ``is_current`` is False) the demand is planned again
-        from a new snapshot; raises when it cannot take a demand any more.
-        """
-        self._check_accepts(self._state)
-        plan, note = pending.plan, pending.timing_note
-        if not self.is_current(pending):
-            snapshot = self.snapshot()
-            plan, note = plan_demand(self.law_for(pending.profile), snapshot.start[0],
-                                     pending.waypoints, self._vlim, snapshot.start[1],
-                                     pending.timing, self.arm.lower, self.arm.upper)
-            if self.collision_guard is not None:
-                self.collision_guard(plan)      # the new plan is checked as the first was
-        self._timing = note
-        self.robot.give(plan, pending.now if start is None else start)
-        self._motion_id += 1
-        self._waypoints_total, self._waypoint = len(pending.waypoints), 0
-        self._result = {}
-        self._rejection = {}
-        self._arrived_at = None
-        self._motion_profile = pending.profile or self.config.law.profile
-        self._set(sm.DEMAND, 'OK', f'motion {self._motion_id}: {len(pending.waypoints)} '
-                                   f'waypoint(s), {self._motion_profile}, '
-                                   f'{plan.duration:.2f} s')
-        return self._motion_id
-
-    def is_current(self, pending: PendingDemand) -> bool:
-        """
-        Return whether ``pending`` still fits the controller (``commit_demand`` would not re-plan).
-
-        It does not once the motion it was planned from ended or another one started; a node
-        then prepares the demand again without its lock rather than let the commit plan under
-        it (the ticks would wait for the planning).
-        """
-        snapshot = self.snapshot()
-        return (snapshot.moving == pending.moving and snapshot.motion_id == pending.motion_id
-                and self._state in sm.ACCEPTS_DEMANDS and pending.config is self.config)
-
-    def reject(self, now: float, reason: str, demand_id: str = '') -> None:
-        """Note a refused demand: reason, time [s] and id stay in the status until one is taken."""
-        self._rejection = {'rejected': short_text(reason),
-                           'rejected_time': f'{now:.3f}',
-                           'rejected_goal_id': str(demand_id)}
-        self._changed = True
-
-    def _check_accepts(self, state, message=None):
-        if state not in sm.ACCEPTS_DEMANDS:
-            message = self._message if message is None else message
-            raise InvalidInputError(f'cannot take a demand while {state}: {message}')
-
     def request_stop(self, now: float) -> tuple[bool, str]:
         """Decelerate to rest and hold; return ``(True, message)`` or why nothing moved."""
         if self._state not in (sm.EXECUTING, sm.SETTLING, sm.JOGGING):
@@ -566,82 +208,6 @@ class ControllerCore:
         if self._state == sm.FAULT:
             self.robot.forget_states()
             self._set(sm.RESET, 'WARN', 'reset: waiting for /joint_states')
-
-    # --- jogging (control.servo) --------------------------------------------------------------
-
-    def on_twist(self, now: float, stamp: float, linear: Sequence[float],
-                 angular: Sequence[float], frame: str = 'base_link') -> None:
-        """
-        Take a flange twist [m/s, rad/s] in ``frame`` stamped ``stamp`` [s], at ``now`` [s].
-
-        Idle, a fresh command starts jogging; jogging, it replaces the previous command. Raises
-        ``InvalidInputError`` with the reason (kept in the status as ``jog_refused``) for a bad
-        command, a stamp from the future (``servo.FUTURE_STAMP_TOLERANCE`` after ``now``), or
-        while a motion executes, settles or stops (stop it first), or in fault. The command
-        goes stale ``servo_command_timeout`` after the earlier of its stamp and ``now``.
-        """
-        self._take_jog(now, lambda: TwistCommand(stamp, linear, angular, frame, now))
-
-    def on_joint_jog(self, now: float, stamp: float, names: Sequence[str],
-                     velocities: Sequence[float]) -> None:
-        """Take joint velocities [rad/s] by joint name, stamped ``stamp`` [s]; as ``on_twist``."""
-        self._take_jog(now, lambda: joint_jog_command(self.arm, stamp, names, velocities, now))
-
-    def _take_jog(self, now, make):
-        try:
-            command = make()
-            if self._state != sm.JOGGING:
-                if self._state != sm.IDLE:
-                    hint = '; stop the motion first' if self._state in sm.MOVING_STATES else ''
-                    raise InvalidInputError(f'jogging refused while {self._state}: '
-                                            f'{self._message}{hint}')
-                timeout = self.config.servo.command_timeout
-                if command_age(command, now) > timeout:
-                    raise InvalidInputError(f'jog command older than the timeout {timeout:g} s '
-                                            'by its stamp')
-        except InvalidInputError as err:
-            self.note_jog_refused(str(err))
-            raise
-        self._jog = command
-        if self._jog_refused:
-            self._jog_refused, self._changed = '', True
-        if self._state == sm.IDLE:
-            self._jog_state = initial_state(self.arm)
-            self._jog_kind = ''
-            self._result = {}
-            self._set(sm.JOG, 'OK', 'jogging')
-
-    def note_jog_refused(self, reason: str) -> None:
-        """Keep why a jog command was refused (status: ``jog_refused``) until one is taken."""
-        if self._jog_refused != reason:     # a stream of the same refusal: one status change
-            self._jog_refused, self._changed = reason, True
-
-    def _tick_jogging(self, now):
-        """Return this tick's jogging command; back to idle once stale and at rest."""
-        q = self.robot.q
-        servo, guard = self.config.servo, self.collision_guard
-        if guard is not None and servo.veto is None:     # the jog's next poses are checked too
-            if self._servo_vetoed[0] is not servo or self._servo_vetoed[1] is not guard:
-                self._servo_vetoed = (servo, guard, replace(servo, veto=guard.veto))
-            servo = self._servo_vetoed[2]
-        out = servo_step(self.arm, servo, self._jog_state, self._jog, q, now,
-                         self._dt, self._vlim)
-        self._jog_state = out.state
-        self.robot.reference = (q, out.qd)      # a demand now starts from the jog's velocity
-        kind = ('stale' if out.stale else 'halted' if out.halted
-                else 'slowed' if out.scale < 1.0 else 'free')
-        self._jog_values = {'jog_reason': out.reason, 'jog_condition': f'{out.condition:.2f}',
-                            'jog_scale': f'{out.scale:.3f}'}
-        self._message = f'jogging: {out.reason}' if out.reason else 'jogging'
-        self._level = 'OK' if kind in ('free', 'stale') else 'WARN'
-        if kind != self._jog_kind:
-            self._jog_kind, self._changed = kind, True
-        if out.stale and out.at_rest:
-            self._result = {K.RESULT: MotionResult.JOG_STOPPED, K.CAUSE: Cause.JOG_ENDED,
-                            K.REASON: out.reason}
-            self._set(sm.JOG_DONE, 'OK', f'jog ended, at rest: {out.reason}; idle')
-            return None
-        return out.qd
 
     # --- the tick -----------------------------------------------------------------------------
 
@@ -665,7 +231,7 @@ class ControllerCore:
     def _tick_fault(self, now, reason):
         """Fault at ``now``: drop the motion or jog, a zero command, ``reason`` on the status."""
         if self._state in sm.MOVING_STATES:
-            self._result = {'result': 'fault', 'reason': reason}
+            self._result = {K.RESULT: MotionResult.FAULT, K.REASON: reason}
         self.robot.drop_plan()
         self._t_fault = now
         self._set(sm.TICK_FAULT, 'ERROR', reason)
@@ -689,18 +255,15 @@ class ControllerCore:
             qd = np.zeros(self.arm.n_joints)
             self.robot.reference = None
         else:
-            if (self._whole_tick_driver and self._state in (sm.EXECUTING, sm.SETTLING)
+            if (self._driver.active and self._state in (sm.EXECUTING, sm.SETTLING)
                     and self._arrived_at is None):     # after arrival: whole-tick pulses
-                qd = self._whole_ticks(now, qd)
+                qd = self._driver.whole_ticks(now, qd, self.robot)
             qd = guard_position_limits(qd, self.robot.q, self.robot.lower, self.robot.upper,
                                        self._dt)
             if not np.all(np.isfinite(qd)):      # never sent: no driver may receive a NaN
                 return self._tick_fault(now, f'non-finite command {np.asarray(qd).tolist()} '
                                              f'while {state}: not sent')
-        self._n_states_seen = self.robot.n_states
-        if self._whole_tick_driver:
-            self._travel_log.append((now, self._travel.copy()))
-            self._travel = self._travel + qd * self._dt
+        self._driver.end_tick(now, qd, self.robot.n_states)
         self.robot.commanded = qd
         jog = to_jog_units(qd, self.arm.velocity_limits, self.config.jog_units,
                            self.config.speed_override)
@@ -710,45 +273,6 @@ class ControllerCore:
             self._changed = True
         changed, self._changed = self._changed, False
         return TickOutput(qd, jog, self._state, changed)
-
-    def _whole_ticks(self, now, qd):
-        """
-        Return the command with the dead zone of a whole-tick driver compensated (pulses).
-
-        A pulse starts on the first tick after a fresh reading, lasts one driver cycle (plus
-        half a control period, so it surely spans one cycle boundary and not two) and moves its
-        joint one tick; the next may start only on a reading that shows it.
-        """
-        pulsing = now < self._pulse_until
-        fresh = self.robot.n_states > self._n_states_seen
-        may_start = fresh & (self.robot.n_states >= self._pulse_after)
-        qd, dead = dead_zone_command(qd, self.robot.error, self.robot.encoder_ticks,
-                                     self._min_speed, pulsing | may_start)
-        started = dead & ~pulsing & may_start & (qd != 0.0)
-        self._pulse_speed[started] = qd[started]
-        self._pulse_until[started] = now + self.config.driver_cycle + 0.5 * self._dt
-        self._pulse_after[started] = self.robot.n_states + 2
-        law = ~dead & (qd != 0.0)          # moved by the law: in flight for up to two cycles
-        self._pulse_until[law] = -np.inf
-        self._pulse_after[law] = self.robot.n_states + 3
-        return qd
-
-    def _in_flight(self):
-        """
-        Return the motion (n,) [rad] commanded that the latest reading cannot show yet.
-
-        The driver applies the command it holds at its cycle and the reading of that cycle is
-        taken before the move, so what was commanded from one cycle before that cycle may still
-        be on its way; counting from two cycles before the reading came also covers delays of
-        up to a cycle (erring towards 'in flight' only delays the arrival).
-        """
-        since = self.robot.t_states - 2.0 * self.config.driver_cycle
-        start = self._travel
-        for t, travel in reversed(self._travel_log):
-            start = travel
-            if t <= since:
-                break
-        return self._travel - start
 
     def _check_states(self, now):
         if not self.robot.measured:
@@ -772,168 +296,7 @@ class ControllerCore:
         elif self._state == sm.FAULT and self.robot.t_states > self._t_fault:
             self._set(sm.STATES_VALID, 'OK', 'valid joint states again; idle')
 
-    def _tick_executing(self, now):
-        t = self.robot.follow(now)
-        q_ref, qd_ref = self.robot.reference
-        self._waypoint = self.robot.plan.waypoints_reached(t)
-        worst = float(np.max(np.abs(self.robot.error)))
-        if worst > self.config.path_tolerance:
-            self.robot.give(plan_stop(q_ref, qd_ref, self.config.law.a_max), now)
-            reason = (f'tracking error {worst:.3f} rad above path tolerance '
-                      f'{self.config.path_tolerance} rad')
-            self._result = {K.RESULT: MotionResult.ABORTED, K.CAUSE: Cause.PATH_TOLERANCE,
-                            K.REASON: reason}
-            self._set(sm.PATH_ERROR, 'WARN', f'aborting motion {self._motion_id}: {reason}')
-            return self._tick_stopping(now)
-        if t >= self.robot.plan.duration:
-            self._t_settle = now
-            self._set(sm.REFERENCE_DONE, 'OK', f'motion {self._motion_id}: settling')
-            return self._tick_settling(now)
-        return self.robot.command(self.config.position_gain, self._vlim)
-
-    def _tick_settling(self, now):
-        """
-        Converge on the goal: 'arrived' inside the goal tolerance, then on to the fine one.
-
-        The result 'arrived' is reported when every joint is inside ``goal_tolerance`` (as it
-        always was); the state stays settling, with a zero reference velocity, until every
-        joint is inside the settle tolerance or ``settle_time`` has passed since the arrival,
-        then the controller goes idle and holds with a zero command.
-        """
-        goal = self.robot.plan.q_goal
-        self.robot.hold(goal)
-        self._waypoint = self._waypoints_total
-        worst = float(np.max(np.abs(self.robot.error)))
-        if self._arrived_at is None:
-            if np.all(self._within(self.robot.goal_tolerances)):
-                self._arrived_at = now
-                self._result = {K.RESULT: MotionResult.ARRIVED,
-                                K.FINAL_JOINT_ERROR: f'{worst:.6f}'}
-                self._message = (f'motion {self._motion_id} arrived (max joint error '
-                                 f'{worst:.4f} rad); settling')
-                self._changed = True
-            elif now - self._t_settle > self.config.settle_timeout:
-                reason = (f'not within goal tolerance after {self.config.settle_timeout} s '
-                          f'(max joint error {worst:.4f} rad)')
-                self._result = {K.RESULT: MotionResult.ABORTED, K.CAUSE: Cause.GOAL_TOLERANCE,
-                                K.REASON: reason, K.FINAL_JOINT_ERROR: f'{worst:.6f}'}
-                self._set(sm.SETTLE_TIMEOUT, 'WARN', f'motion {self._motion_id}: {reason}')
-                return None
-        if self._arrived_at is not None:
-            fine = np.all(self._within(self._settle_tol))
-            if fine or now - self._arrived_at >= self.config.settle_time:
-                if self._whole_tick_driver and np.any(self._in_flight() != 0.0):
-                    # Settle time over: command zero until what is in flight has landed, so
-                    # the arm is still once idle (the driver lags up to two cycles).
-                    return np.zeros_like(goal)
-                self._result = dict(self._result, settled_joint_error=f'{worst:.6f}')
-                how = 'settled' if fine else f'settle time {self.config.settle_time} s over'
-                self._set(sm.SETTLED, 'OK', f'motion {self._motion_id} arrived; {how} '
-                                            f'(max joint error {worst:.6f} rad); holding')
-                return None
-            return self._fine_command(now)
-        return self.robot.command(self.config.position_gain, self._vlim)
-
-    def _within(self, tol):
-        """Return which joints are within ``tol`` (n,) of the goal, counting what still moves."""
-        if self._whole_tick_driver:
-            return self.robot.within(tol, self._in_flight())
-        # Not arrived while still moving: where the arm will be two ticks from now must be
-        # within tolerance too (a law that ends at full speed, such as the synchronised one,
-        # would otherwise declare arrival and coast one tick past the goal).
-        return self.robot.within(tol, 2.0 * self._dt * self.robot.qd)
-
-    def _fine_command(self, now):
-        """
-        Return the command that closes the last of the error after arrival (n,) [rad/s].
-
-        rad_per_s: the closed loop with a gain of at least ``FINE_GAIN_PER_TICK`` per control
-        period (the readings are fresh), so the error falls from the goal tolerance to the
-        settle tolerance in a fraction of a second without overshoot. A ``cycle_driver`` (the
-        CAN driver, either unit): the plain loop. fraction_of_max on the vendor's driver: the
-        whole-tick pulses of ``_tick_pulses``.
-        """
-        if not self._whole_tick_driver:
-            gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / self._dt)
-            return self.robot.command(gain, self._vlim)
-        if self.config.cycle_driver:
-            # A driver with a cycle that integrates the command exactly, in either unit (no
-            # whole ticks, unlike the vendor's): the plain loop, whose gain is far below one
-            # over the readings' lag of two cycles.
-            return self.robot.command(self.config.position_gain, self._vlim)
-        return self._tick_pulses(now)
-
-    def _tick_pulses(self, now):
-        """
-        Return the command that moves each joint onto the tick nearest its goal (n,) [rad/s].
-
-        The readings lag the driver by up to two cycles, so a closed loop on them either creeps
-        (a low gain: 4-10 ticks off a second after arrival) or oscillates. The driver is exact
-        instead: a command held over one cycle boundary moves ``trunc(speed * cycle / tick)``
-        ticks. So a joint whose reading is more than half a tick off gets one pulse of the
-        whole number of ticks nearest its error (``commands.tick_pulse_command``), lasting
-        one driver cycle (as ``_whole_ticks``), and no new one until a reading shows it landed
-        (``PULSE_READINGS`` readings later; the law's last moves too). Each pulse closes the
-        error to the nearest tick, up to the servo's lag in the reading it was computed from.
-        """
-        ticks, cycle = self.robot.encoder_ticks, self.config.driver_cycle
-        error = self.robot.error
-        pulsing = now < self._pulse_until
-        fresh = self.robot.n_states > self._n_states_seen
-        start = (fresh & ~pulsing & (self.robot.n_states >= self._pulse_after)
-                 & (np.abs(error) > 0.5 * ticks))
-        speed = tick_pulse_command(error, ticks, cycle, self._vlim)
-        self._pulse_speed[start] = speed[start]
-        self._pulse_until[start] = now + cycle + 0.5 * self._dt
-        self._pulse_after[start] = self.robot.n_states + PULSE_READINGS
-        return np.where(pulsing | start, self._pulse_speed, 0.0)
-
-    def _tick_stopping(self, now):
-        t = self.robot.follow(now)
-        qd_ref = self.robot.reference[1]
-        if t >= self.robot.plan.duration:
-            self.robot.drop_plan()
-            result = self._result.get(K.RESULT, MotionResult.STOPPED)
-            self._set(sm.AT_REST, 'OK' if result == MotionResult.STOPPED else 'WARN',
-                      f'motion {self._motion_id} {result}: at rest, holding')
-            return None
-        return qd_ref.copy()
-
     def _set(self, event, level, message):
         self._state = sm.step(self._state, event)
         self._level, self._message = level, message
         self._changed = True
-
-    # --- status -------------------------------------------------------------------------------
-
-    def status(self) -> Status:
-        """Return the ``Status`` to publish now (state, level, reason, figures)."""
-        moving = self._state in sm.MOVING_STATES
-        error = self.robot.error if moving else np.zeros(self.arm.n_joints)
-        values = {
-            'state': self._state,
-            'motion_id': self._motion_id,
-            'waypoint': self._waypoint,
-            'waypoints': self._waypoints_total,
-            'tracking_error': f'{float(np.linalg.norm(error)):.6f}',
-            'max_joint_error': f'{float(np.max(np.abs(error))):.6f}',
-            'profile': self.config.law.profile,
-            'jog_units': self.config.jog_units,
-            'rate': f'{self.config.rate:g}',
-            'goal_tolerance': ' '.join(f'{t:.6f}' for t in self.robot.goal_tolerances),
-        }
-        if self._pending_config is not None:
-            pending = self._pending_config['config']
-            values['pending_parameters'] = ', '.join(
-                f'{name} {value}' for name, value in config_changes(self.config, pending))
-        if self._timing:
-            values['timing'] = self._timing
-        if self._motion_profile:
-            values['motion_profile'] = self._motion_profile
-        values.update(self._result)
-        values.update(self._rejection)
-        if self._state == sm.JOGGING:
-            values.update(self._jog_values)
-        if self._jog_refused:
-            values['jog_refused'] = self._jog_refused
-        return Status(self._state, self._level, self._message, values)

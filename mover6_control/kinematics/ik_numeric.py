@@ -124,7 +124,7 @@ def pose_residual_batch(chain: ScrewChain, Q: np.ndarray,
     """
     Return errors (m, 6) ``[p_goal - p; log(R_goal R^T)]`` and Jacobians (m, 6, n) at ``Q``.
 
-    The Jacobian is the geometric one (rows [v; w], base frame, as ``kinematics.jacobian``);
+    The Jacobian is the geometric one (rows [v; w], base frame, as ``forward.jacobian``);
     to first order ``e(q + dq) = e(q) - J dq``. Uses the screws of ``chain`` (a
     ``ScrewChain``), made for small batches in a tight loop.
     """

@@ -87,7 +87,7 @@ def trajectory_metrics(traj: JointTrajectory,
     Return ``TrajectoryMetrics`` of a ``JointTrajectory`` sampled every ``dt`` [s].
 
     ``fk_fn(Q (m, n)) -> (m, 4, 4) or (m, 3)`` gives tool positions, e.g.
-    ``lambda Q: kinematics.fk_batch(arm, Q)``; with it the tool path length is measured, and
+    ``lambda Q: forward.fk_batch(arm, Q)``; with it the tool path length is measured, and
     with ``desired_positions`` (k, 3) [m] (the intended path as a polyline, e.g. the positions
     of the planned poses) the largest deviation of the tool from it.
     """

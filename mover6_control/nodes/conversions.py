@@ -6,16 +6,18 @@ read; the nodes log that reason and drop the message. Every ``make_*`` function 
 """
 
 import math
+from typing import Optional, Sequence
 
+from builtin_interfaces.msg import Time
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Pose
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped, TwistStamped
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import matrix_to_quaternion, quaternion_to_matrix
 import numpy as np
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float32MultiArray, MultiArrayDimension
+from std_msgs.msg import Float32MultiArray, Header, MultiArrayDimension
 
 STATUS_LEVELS = {
     'OK': DiagnosticStatus.OK,
@@ -25,12 +27,12 @@ STATUS_LEVELS = {
 }
 
 
-def stamp_to_seconds(stamp):
+def stamp_to_seconds(stamp: Time) -> float:
     """Return a ``builtin_interfaces/Time`` as float seconds."""
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-def seconds_to_stamp(seconds):
+def seconds_to_stamp(seconds: float) -> Time:
     """Return a ``builtin_interfaces/Time`` for ``seconds`` [s] >= 0 (to the nanosecond)."""
     if not (math.isfinite(seconds) and seconds >= 0.0):
         raise InvalidInputError(f'a stamp needs finite seconds >= 0, got {seconds}')
@@ -40,7 +42,7 @@ def seconds_to_stamp(seconds):
     return stamp
 
 
-def make_clock(seconds):
+def make_clock(seconds: float) -> Clock:
     """Build a rosgraph_msgs/Clock for sim time ``seconds`` [s]."""
     msg = Clock()
     msg.clock = seconds_to_stamp(seconds)
@@ -49,7 +51,8 @@ def make_clock(seconds):
 
 # --- /joint_states -------------------------------------------------------------------------
 
-def joint_state_from_msg(msg, joint_names):
+def joint_state_from_msg(msg: JointState,
+                         joint_names: Sequence[str]) -> tuple[np.ndarray, Optional[np.ndarray]]:
     """
     Return ``(q, qd)`` (6,) [rad], [rad/s] from a JointState, mapped by name.
 
@@ -76,7 +79,10 @@ def joint_state_from_msg(msg, joint_names):
     return q, qd
 
 
-def make_joint_state(joint_names, q, qd=None, effort=None, stamp=None):
+def make_joint_state(joint_names: Sequence[str], q: Sequence[float],
+                     qd: Optional[Sequence[float]] = None,
+                     effort: Optional[Sequence[float]] = None,
+                     stamp: Optional[Time] = None) -> JointState:
     """Build a JointState from arrays (6,) [rad], [rad/s], [N m]."""
     msg = JointState()
     if stamp is not None:
@@ -92,7 +98,7 @@ def make_joint_state(joint_names, q, qd=None, effort=None, stamp=None):
 
 # --- /joint_demands ------------------------------------------------------------------------
 
-def demands_from_msg(msg, n_joints=6):
+def demands_from_msg(msg: Float32MultiArray, n_joints: int = 6) -> np.ndarray:
     """
     Return the waypoints (n, n_joints) [rad] of a Float32MultiArray.
 
@@ -127,7 +133,7 @@ DEMAND_ID_MARK = ' goal '
 DEMAND_OPTIONS = ('goal', 'profile')   # the words of a demand label, each with one value
 
 
-def make_demands(Q, goal_id='', profile=''):
+def make_demands(Q: np.ndarray, goal_id: str = '', profile: str = '') -> Float32MultiArray:
     """
     Build a Float32MultiArray (with layout) from waypoints (n, 6) [rad].
 
@@ -149,7 +155,7 @@ def make_demands(Q, goal_id='', profile=''):
     return msg
 
 
-def demand_options_from_msg(msg):
+def demand_options_from_msg(msg: Float32MultiArray) -> dict:
     """
     Return the options of a demand's label as a dict (``goal``, ``profile``; absent: not given).
 
@@ -172,7 +178,7 @@ def demand_options_from_msg(msg):
     return options
 
 
-def demand_id_from_msg(msg):
+def demand_id_from_msg(msg: Float32MultiArray) -> str:
     """Return the goal id a demand carries (``make_demands``), '' when it carries none."""
     try:
         return demand_options_from_msg(msg).get('goal', '')
@@ -180,14 +186,14 @@ def demand_id_from_msg(msg):
         return ''
 
 
-def demand_profile_from_msg(msg):
+def demand_profile_from_msg(msg: Float32MultiArray) -> str:
     """Return the profile a demand asks for, '' for the controller's; raises on a bad label."""
     return demand_options_from_msg(msg).get('profile', '')
 
 
 # --- poses ---------------------------------------------------------------------------------
 
-def pose_to_matrix(pose):
+def pose_to_matrix(pose: Pose) -> np.ndarray:
     """Return ``T`` (4, 4) of a geometry_msgs/Pose; raises on a bad quaternion or position."""
     p, o = pose.position, pose.orientation
     position = np.array([p.x, p.y, p.z], dtype=float)
@@ -199,7 +205,7 @@ def pose_to_matrix(pose):
     return T
 
 
-def matrix_to_pose(T):
+def matrix_to_pose(T: np.ndarray) -> Pose:
     """Build a geometry_msgs/Pose from ``T`` (4, 4)."""
     T = np.asarray(T, dtype=float)
     pose = Pose()
@@ -213,7 +219,7 @@ def matrix_to_pose(T):
 GOAL_PROFILE_MARK = ' profile '
 
 
-def goal_profile_from_header(header):
+def goal_profile_from_header(header: Header) -> str:
     """
     Return the profile a goal asks for: its frame id ``base_link profile <name>``, else ''.
 
@@ -227,7 +233,7 @@ def goal_profile_from_header(header):
     return profile.strip()
 
 
-def check_frame(header, expected_frame):
+def check_frame(header: Header, expected_frame: str) -> None:
     """Raise when a header's frame is not ``expected_frame`` (an empty frame is accepted)."""
     frame = header.frame_id.partition(GOAL_PROFILE_MARK)[0].lstrip('/')
     if frame and frame != expected_frame:
@@ -236,13 +242,13 @@ def check_frame(header, expected_frame):
             '(no TF lookup is done: send goals in the base frame)')
 
 
-def pose_stamped_to_matrix(msg, expected_frame='base_link'):
+def pose_stamped_to_matrix(msg: PoseStamped, expected_frame: str = 'base_link') -> np.ndarray:
     """Return ``T_base_tool`` (4, 4) of a PoseStamped after checking its frame."""
     check_frame(msg.header, expected_frame)
     return pose_to_matrix(msg.pose)
 
 
-def pose_array_to_matrices(msg, expected_frame='base_link'):
+def pose_array_to_matrices(msg: PoseArray, expected_frame: str = 'base_link') -> np.ndarray:
     """Return the poses (n, 4, 4) of a PoseArray after checking its frame."""
     check_frame(msg.header, expected_frame)
     if not msg.poses:
@@ -252,7 +258,8 @@ def pose_array_to_matrices(msg, expected_frame='base_link'):
 
 # --- /JointJog -----------------------------------------------------------------------------
 
-def make_joint_jog(joint_names, velocities, stamp=None):
+def make_joint_jog(joint_names: Sequence[str], velocities: Sequence[float],
+                   stamp: Optional[Time] = None) -> JointJog:
     """Build a JointJog carrying ``velocities`` (6,) for all joints, ``displacements`` empty."""
     msg = JointJog()
     if stamp is not None:
@@ -262,7 +269,7 @@ def make_joint_jog(joint_names, velocities, stamp=None):
     return msg
 
 
-def joint_jog_from_msg(msg):
+def joint_jog_from_msg(msg: JointJog) -> tuple[list, np.ndarray]:
     """Return ``(names, velocities)`` of a JointJog; raises on length mismatch or non-finite."""
     names = list(msg.joint_names)
     velocities = [float(v) for v in msg.velocities]
@@ -280,7 +287,7 @@ def joint_jog_from_msg(msg):
 
 # --- jogging: ~/delta_twist_cmds, ~/delta_joint_cmds -----------------------------------------
 
-def twist_command_from_msg(msg, now):
+def twist_command_from_msg(msg: TwistStamped, now: float) -> tuple[float, list, list, str]:
     """
     Return ``(stamp, linear, angular, frame)`` of a TwistStamped jog command.
 
@@ -294,7 +301,7 @@ def twist_command_from_msg(msg, now):
     return _jog_stamp(msg.header.stamp, now), linear, angular, msg.header.frame_id or 'base_link'
 
 
-def joint_jog_command_from_msg(msg, now):
+def joint_jog_command_from_msg(msg: JointJog, now: float) -> tuple[float, list, list]:
     """
     Return ``(stamp, names, velocities)`` of a JointJog jog command (velocities only).
 
@@ -317,7 +324,8 @@ def _jog_stamp(stamp, now):
 
 # --- status --------------------------------------------------------------------------------
 
-def make_status(name, level, message, values=None, hardware_id='mover6'):
+def make_status(name: str, level: str, message: str, values: Optional[dict] = None,
+                hardware_id: str = 'mover6') -> DiagnosticStatus:
     """Build a DiagnosticStatus; ``level`` is 'OK', 'WARN', 'ERROR' or 'STALE'."""
     msg = DiagnosticStatus()
     msg.level = STATUS_LEVELS[level]
@@ -328,12 +336,12 @@ def make_status(name, level, message, values=None, hardware_id='mover6'):
     return msg
 
 
-def status_values(msg):
+def status_values(msg: DiagnosticStatus) -> dict:
     """Return the key/value pairs of a DiagnosticStatus as a dict of strings."""
     return {kv.key: kv.value for kv in msg.values}
 
 
-def status_level_name(msg):
+def status_level_name(msg: DiagnosticStatus) -> str:
     """Return the level of a DiagnosticStatus as 'OK', 'WARN', 'ERROR' or 'STALE'."""
     for name, level in STATUS_LEVELS.items():
         if msg.level == level:

@@ -18,13 +18,19 @@ A node asked for the local configuration that did not get it refuses to start wi
 would otherwise fall back silently to multicast discovery on every interface.
 """
 
+from __future__ import annotations
+
 import filecmp
 import os
 import socket
 import struct
 import sys
+from typing import Callable, Mapping, Optional, TYPE_CHECKING, Union
 
 from mover6_control.resources import CONFIG_DIR
+
+if TYPE_CHECKING:      # no rclpy at import: the launchers call this before anything of ROS
+    from rclpy.node import Node
 
 MODE_ENV = 'MOVER6_DDS'
 LOCAL = 'local'
@@ -51,12 +57,12 @@ def local_environment(profile: str = PROFILE) -> dict:
     return {MODE_ENV: LOCAL, RANGE_ENV: 'SYSTEM_DEFAULT', PROFILE_ENV: profile}
 
 
-def user_chose_dds(environ) -> bool:
+def user_chose_dds(environ: Mapping[str, str]) -> bool:
     """Return True when ``environ`` sets any DDS variable of the user's own (not empty)."""
     return any(environ.get(name) for name in USER_DDS_ENV)
 
 
-def requested(environ=None) -> bool:
+def requested(environ: Optional[Mapping[str, str]] = None) -> bool:
     """Return True when the environment asks for the local configuration (``MOVER6_DDS``)."""
     environ = os.environ if environ is None else environ
     mode = environ.get(MODE_ENV, '')
@@ -66,7 +72,7 @@ def requested(environ=None) -> bool:
     return mode == LOCAL
 
 
-def check_environment(environ=None) -> None:
+def check_environment(environ: Optional[Mapping[str, str]] = None) -> None:
     """
     Raise ``LocalDdsError`` when the local configuration was asked for and is not selected.
 
@@ -105,7 +111,7 @@ def _hex_ipv4(text):
     return socket.inet_ntoa(struct.pack('<I', int(text, 16)))
 
 
-def socket_inodes(pid) -> set:
+def socket_inodes(pid: Union[int, str]) -> set:
     """Return the inodes of the sockets process ``pid`` has open."""
     inodes = set()
     fd_dir = f'/proc/{pid}/fd'
@@ -119,7 +125,7 @@ def socket_inodes(pid) -> set:
     return inodes
 
 
-def ip_sockets(pid) -> list:
+def ip_sockets(pid: Union[int, str]) -> list:
     """
     Return ``(protocol, local address, local port, inode)`` of every IP socket of ``pid``.
 
@@ -164,12 +170,12 @@ def multicast_groups() -> list:
     return groups
 
 
-def not_loopback(sockets) -> list:
+def not_loopback(sockets: list) -> list:
     """Return the sockets of ``ip_sockets`` not bound to 127.0.0.1."""
     return [s for s in sockets if s[1] != LOOPBACK]
 
 
-def make_checked_node(make_node):
+def make_checked_node(make_node: Callable[[], Node]) -> Node:
     """
     Return ``make_node()``; asked for the local configuration, check the participant first.
 
@@ -212,7 +218,7 @@ def only_loopback() -> bool:
         return False
 
 
-def default_environment(environ) -> dict:
+def default_environment(environ: Mapping[str, str]) -> dict:
     """
     Return the DDS variables the launchers set in ``environ``: none when the user chose DDS.
 
@@ -232,7 +238,7 @@ def default_environment(environ) -> dict:
     return {RANGE_ENV: 'LOCALHOST'}
 
 
-def main(argv=None) -> int:
+def main(argv: Optional[list[str]] = None) -> int:
     """``env``: print the shell exports of ``default_environment`` (none: the user chose)."""
     argv = sys.argv[1:] if argv is None else argv
     if argv != ['env']:

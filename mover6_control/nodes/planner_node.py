@@ -34,83 +34,41 @@ controller's reason, or ``stopped``), or ``failed`` (``not_acknowledged``: no co
 the goal after ``RESENDS`` more sends).
 """
 
-import dataclasses
 import queue
 import threading
 import time
+from typing import Callable, Optional
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
-from mover6_control.collision.checker import CollisionChecker
-from mover6_control.control.planners import predicted_duration
 from mover6_control.control.status import PlannerResult, PlannerState
-from mover6_control.errors import Mover6Error, UnreachableError
+from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 from mover6_control.nodes import conversions, params, shutdown
+from mover6_control.nodes.planner_delivery import CONTROLLER_STATUS_QOS, DemandDelivery
+from mover6_control.nodes.planner_thread import PlanningThread, READY, WAITING
 from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.parameters import PLANNER
 from mover6_control.planning.planner_core import (check_path_shape, PATH_MOTIONS,
-                                                  plan_path_goal, plan_pose_goal,
-                                                  PlannerSettings, POSE_MOTIONS)
+                                                  plan_path_goal, plan_pose_goal, POSE_MOTIONS)
 from mover6_control.planning.via_joint import plan_via_path_goal
 import numpy as np
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float32MultiArray
+from std_msgs.msg import Float32MultiArray, Header
 from std_srvs.srv import Trigger
 
-# The controller's status is read with a deeper queue: each status may name a goal it took.
-CONTROLLER_STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# [s] a demand no controller acknowledged (by goal id in its status) is sent again after this,
-# at most RESENDS more times; then the goal fails (not_acknowledged). The controller waits for
-# its first states at most controller_node.DEMAND_STATE_WAIT (2 s) before it answers: less than
-# RESEND_AFTER * (RESENDS + 1).
-RESEND_AFTER = 1.0
-RESENDS = 2
-WAITING, READY = PlannerState.WAITING_FOR_STATES, PlannerState.READY
-# [s] how often a waiting planning thread looks again (states, stop, shutdown).
-POLL = 0.02
 
-
-@dataclasses.dataclass
-class Unconfirmed:
-    """A demand sent that no controller has named yet."""
-
-    goal: dict
-    motion: str
-    msg: Float32MultiArray
-    sent: float        # [s] monotonic time of the last send
-    count: int         # times sent
-    first: float       # [s] monotonic time of the first send
-
-
-def settings_from_parameters(get):
-    """
-    Return the ``PlannerSettings`` of a parameter getter ``get(name)``; raise when invalid.
-
-    The set-parameters check builds it from the values a set would leave in force, so a value
-    the planner could not plan with (a tool size, keep-out boxes) is refused at the set.
-    """
-    return PlannerSettings(
-        n_waypoints=get('n_waypoints'), max_step=get('max_step'),
-        max_angle_step=get('max_angle_step'), peak_height=get('peak_height'),
-        max_joint_step=get('max_joint_step'), max_condition=get('max_condition'),
-        position_tolerance=get('position_tolerance'),
-        orientation_tolerance=get('orientation_tolerance'),
-        collision=params.collision_settings(get))
-
-
-class PlannerNode(Node):
+class PlannerNode(PlanningThread, DemandDelivery, Node):
     """Plan pose and path goals into joint waypoints, refuse what cannot be reached."""
 
     def __init__(self, **kwargs):
         """Declare the parameters, build the arm, start the topics and the planning thread."""
         super().__init__('planner', **kwargs)
         # Refuses invalid values, each and as the planner's settings, at start and later.
-        params.declare(self, PLANNER, settings_from_parameters)
+        params.declare(self, PLANNER, params.planner_settings_from_parameters)
         limit_set = self.get_parameter('limit_set').value
         self.arm = mover6(limit_set)
         self.state = WAITING
@@ -152,7 +110,7 @@ class PlannerNode(Node):
 
     # --- inputs (executor thread) ----------------------------------------------------------
 
-    def on_joint_states(self, raw):
+    def on_joint_states(self, raw: bytes) -> None:
         """
         Keep the latest /joint_states as it came (serialized) with its arrival time.
 
@@ -166,7 +124,7 @@ class PlannerNode(Node):
             self.set_state(READY)
         self.states_came.set()
 
-    def positions(self, raw):
+    def positions(self, raw: bytes) -> np.ndarray:
         """Return the joint positions [rad] of a serialized JointState; raise when malformed."""
         if self._converted is None or self._converted[0] is not raw:
             msg = deserialize_message(raw, JointState)
@@ -179,14 +137,14 @@ class PlannerNode(Node):
         return self._converted[1]
 
     @property
-    def q(self):
+    def q(self) -> Optional[np.ndarray]:
         """Return the latest joint positions (6,) [rad], or None (none yet, or malformed)."""
         try:
             return None if self.states is None else self.positions(self.states[0])
         except Mover6Error:
             return None
 
-    def on_pose_goal(self, msg, motion=None):
+    def on_pose_goal(self, msg: PoseStamped, motion: Optional[str] = None) -> None:
         """Plan a pose goal with ``motion``, by default the shape of the ``motion`` parameter."""
         motion = motion or self.get_parameter('motion').value
 
@@ -196,20 +154,20 @@ class PlannerNode(Node):
                                                       self.checker(settings))
         self.submit(msg.header, motion, prepare)
 
-    def on_path_goal(self, msg, motion=None):
+    def on_path_goal(self, msg: PoseArray, motion: Optional[str] = None) -> None:
         """Plan a path goal (via poses then the goal) with ``motion`` (or ``path_motion``)."""
         motion = motion or self.get_parameter('path_motion').value
         self.submit(msg.header, motion, lambda: self.path_planner(
             msg, motion, lambda q, vias, goal, settings: plan_path_goal(
                 self.arm, q, vias, goal, motion, settings, self.checker(settings))))
 
-    def on_via_joint_goal(self, msg):
+    def on_via_joint_goal(self, msg: PoseArray) -> None:
         """Plan a joint move through one via pose (PoseArray [via, goal]): ``via_joint``."""
         self.submit(msg.header, 'joint', lambda: self.path_planner(
             msg, 'joint', lambda q, vias, goal, settings: plan_via_path_goal(
                 self.arm, q, vias, goal, settings, self.checker(settings))))
 
-    def path_planner(self, msg, motion, plan):
+    def path_planner(self, msg: PoseArray, motion: str, plan: Callable) -> Callable:
         """
         Check a PoseArray goal of shape ``motion``; return its plan function ``f(q, settings)``.
 
@@ -221,26 +179,7 @@ class PlannerNode(Node):
         poses = conversions.pose_array_to_matrices(msg, self.frame_id())
         return lambda q, settings: plan(q, poses[:-1], poses[-1], settings)
 
-    def on_controller_status(self, msg):
-        """
-        Note the controller's status: it names the goal it took, or refused and why.
-
-        A refusal there is the goal's end: the planner's status says so (``controller_refused``
-        with the controller's reason), in place of 'planned'.
-        """
-        values = conversions.status_values(msg)
-        self.controller_values = values
-        with self.lock:
-            taken = self.unconfirmed.pop(values.get('goal_id') or None, None)
-            refused = self.unconfirmed.pop(values.get('rejected_goal_id') or None, None)
-        if taken is not None:
-            self.get_logger().info(f'goal {taken.goal["goal_id"]}: the controller took it '
-                                   f'(motion {values.get("motion_id", "?")})')
-        if refused is not None:
-            self.refuse(refused.motion, 'the controller refused the demand: '
-                        + values.get('rejected', ''), 'controller_refused', {}, refused.goal)
-
-    def on_stop(self, request, response):
+    def on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Drop every goal received so far that waits or is being planned; send none again."""
         with self.lock:
             self.stopped_seq = self.goal_seq
@@ -255,7 +194,7 @@ class PlannerNode(Node):
                         entry.goal)
         return response
 
-    def submit(self, header, motion, prepare):
+    def submit(self, header: Header, motion: str, prepare: Callable[[], Callable]) -> None:
         """
         Give a goal its id, check its form, and queue it for the planning thread.
 
@@ -278,201 +217,9 @@ class PlannerNode(Node):
             return
         self.jobs.put((goal, motion, plan_fn, time.monotonic()))
 
-    # --- planning (planning thread) --------------------------------------------------------
-
-    def frame_id(self):
-        """Return the frame goals must be given in."""
-        return self.get_parameter('frame_id').value
-
-    def settings(self):
-        """Return the planner settings from the current parameters."""
-        return settings_from_parameters(lambda n: self.get_parameter(n).value)
-
-    def checker(self, settings):
-        """Return the collision checker of ``settings`` (kept while they do not change)."""
-        if not settings.collision.enabled:
-            return None
-        if self._checker is None or self._checker.settings != settings.collision:
-            self._checker = CollisionChecker(self.arm, settings.collision)
-        return self._checker
-
-    def current_q(self):
-        """Return the latest joint positions, or raise when there are none or they are old."""
-        if self.states is None:
-            raise Mover6Error('no /joint_states received yet: the current pose is unknown')
-        raw, arrival = self.states
-        age = (self.get_clock().now() - arrival).nanoseconds * 1e-9
-        timeout = self.get_parameter('state_timeout').value
-        if age > timeout:
-            raise Mover6Error(f'/joint_states are {age:.2f} s old (limit {timeout:.2f} s): '
-                              'the current pose is uncertain')
-        return self.positions(raw).copy()
-
-    def plan_loop(self):
-        """Plan the queued goals in order; send demands again until acknowledged."""
-        while self.running:
-            try:
-                job = self.jobs.get(timeout=self.resend_due())
-            except queue.Empty:
-                job = ()
-            if job is None or not self.running:
-                return
-            if job:
-                try:
-                    self.plan_goal(*job)
-                except Exception as err:  # noqa: B902 - no goal ends without a status
-                    self.refuse(job[1], f'{type(err).__name__}: {err}', 'internal_error', {},
-                                job[0])
-            self.confirm_delivery()
-
-    def stopped(self, goal):
-        """Return True when ~/stop dropped ``goal``."""
-        return goal['goal_seq'] <= self.stopped_seq
-
-    def plan_goal(self, goal, motion, plan_fn, received):
-        """Plan one goal, then send its demand and say planned, or say why not."""
-        if self.stopped(goal):
-            self.refuse(motion, 'stopped before it was planned', 'stopped', {}, goal)
-            return
-        try:
-            q_now = self.wait_for_states(goal, motion, received)
-            if q_now is None:
-                return
-            plan = plan_fn(q_now, self.settings())
-            # One timing model: the controller's law times the waypoints from the same start.
-            plan = dataclasses.replace(plan, predicted_duration=predicted_duration(
-                goal.get('profile') or self.get_parameter('profile').value, q_now, plan.q,
-                self.arm.velocity_limits))
-        except UnreachableError as err:
-            self.refuse(motion, str(err), err.reason, err.details, goal)
-            return
-        except (Mover6Error, ValueError) as err:
-            self.refuse(motion, str(err), 'invalid_goal', {}, goal)
-            return
-        self.deliver(goal, motion, plan)
-
-    def wait_for_states(self, goal, motion, received):
-        """
-        Return the current joint positions, waiting up to ``state_wait_timeout`` for them.
-
-        Returns None when the goal ended meanwhile (refused: no states in time, or stopped).
-        """
-        wait = self.get_parameter('state_wait_timeout').value
-        said = False
-        while True:
-            self.states_came.clear()
-            try:
-                return self.current_q()
-            except Mover6Error as err:
-                problem = err
-            if self.state != WAITING:
-                self.set_state(WAITING)
-            left = received + wait - time.monotonic()
-            if self.stopped(goal) or not self.running:
-                self.refuse(motion, 'stopped while waiting for /joint_states', 'stopped', {},
-                            goal)
-                return None
-            if left <= 0.0:
-                self.refuse(motion, f'no valid /joint_states within {wait:g} s: {problem}',
-                            'no_joint_states', {}, goal)
-                return None
-            if not said:
-                said = True
-                self.get_logger().info(f'goal {goal["goal_id"]}: waiting up to {left:.1f} s '
-                                       f'for /joint_states ({problem})')
-                self.publish_status('WARN', f'goal waits for /joint_states: {problem}',
-                                    {'result': WAITING, 'motion': motion,
-                                     'wait_timeout': f'{wait:g}'}, goal)
-            self.states_came.wait(min(left, POLL * 5))
-
-    def subscribers_matched(self):
-        """
-        Return (matched, known): /joint_demands readers matched, and readers in the graph.
-
-        A reader the graph shows but the publisher has not matched yet would miss a message
-        published now (volatile durability); under load discovery can take a few seconds.
-        """
-        known = len(self.get_subscriptions_info_by_topic(self.demands_pub.topic_name))
-        return self.demands_pub.get_subscription_count(), known
-
-    def deliver(self, goal, motion, plan):
-        """Publish the plan once every known reader of /joint_demands is matched; say planned."""
-        since = time.monotonic()
-        while True:
-            matched, known = self.subscribers_matched()
-            waited = time.monotonic() - since
-            if matched >= max(known, 1) or waited >= self.get_parameter('match_timeout').value:
-                break
-            if self.stopped(goal) or not self.running:
-                break
-            time.sleep(POLL)
-        if self.stopped(goal) or not self.running:
-            self.refuse(motion, 'stopped before its demand was sent', 'stopped', {}, goal)
-            return
-        if matched == 0:
-            self.refuse(motion, 'nobody subscribes to /joint_demands: is the controller running?',
-                        'no_controller', {}, goal)
-            return
-        msg = conversions.make_demands(plan.q, goal['goal_id'], goal.get('profile', ''))
-        now = time.monotonic()
-        with self.lock:
-            self.unconfirmed[goal['goal_id']] = Unconfirmed(goal, motion, msg, now, 1, now)
-        values = {'result': PlannerResult.PLANNED, 'motion': motion, 'waypoints': plan.n_waypoints,
-                  'path_length': f'{plan.path_length:.6f}',
-                  'predicted_duration': f'{plan.predicted_duration:.3f}',
-                  'position_error': f'{plan.final_position_error:.3e}',
-                  'orientation_error': f'{plan.final_orientation_error:.3e}'}
-        text = (f'planned {motion} move: {plan.n_waypoints} waypoints, '
-                f'{plan.path_length * 1e3:.1f} mm, about {plan.predicted_duration:.2f} s')
-        self.get_logger().info(f'goal {goal["goal_id"]}: {text}')
-        # The status first: a controller's refusal of the demand then comes after it.
-        self.publish_status('OK', text, values, goal)
-        self.demands_pub.publish(msg)
-
-    def resend_due(self):
-        """Return the time [s] until the next demand is due again (None: none waits)."""
-        with self.lock:
-            if not self.unconfirmed:
-                return None
-            due = min(u.sent for u in self.unconfirmed.values()) + RESEND_AFTER
-        return max(due - time.monotonic(), POLL)
-
-    def confirm_delivery(self):
-        """
-        Send a demand again while no controller has acknowledged its goal (up to RESENDS times).
-
-        The graph can show a freshly started controller's reader before the planner's writer
-        has matched it; a demand published then is lost (volatile durability). The controller
-        names in its status the goal it took or refused (``on_controller_status``), and ignores
-        a goal id it already had, so sending again is safe. After the last send the goal fails
-        (``not_acknowledged``) on the status.
-        """
-        now = time.monotonic()
-        resend, failed = [], []
-        with self.lock:
-            for goal_id, entry in list(self.unconfirmed.items()):
-                if now - entry.sent < RESEND_AFTER:
-                    continue
-                if entry.count > RESENDS:
-                    failed.append(self.unconfirmed.pop(goal_id))
-                    continue
-                entry.sent, entry.count = now, entry.count + 1
-                resend.append(entry)
-        for entry in resend:
-            self.get_logger().info(f'goal {entry.goal["goal_id"]}: not acknowledged yet, '
-                                   'sending the demand again')
-            self.demands_pub.publish(entry.msg)
-        for entry in failed:
-            text = (f'no controller acknowledged the demand (sent {entry.count} times in '
-                    f'{now - entry.first:.1f} s): is the controller running?')
-            self.get_logger().error(f'goal {entry.goal["goal_id"]} failed: {text}')
-            self.publish_status('ERROR', f'goal failed (not_acknowledged): {text}',
-                                {'result': PlannerResult.FAILED, 'motion': entry.motion,
-                                 'reason': 'not_acknowledged'}, entry.goal)
-
     # --- status ----------------------------------------------------------------------------
 
-    def set_state(self, state):
+    def set_state(self, state: PlannerState) -> None:
         """Say on the status that the planner is ready, or waiting for /joint_states."""
         with self.lock:
             if self.state == state:
@@ -484,7 +231,7 @@ class PlannerNode(Node):
         else:
             self.publish_status('WARN', 'waiting for /joint_states', {})
 
-    def refuse(self, motion, text, reason, details, goal):
+    def refuse(self, motion: str, text: str, reason: str, details: dict, goal: dict) -> None:
         """Report a refused goal on /planner/status and in the log; publish no demands."""
         values = {'result': PlannerResult.REFUSED, 'motion': motion, 'reason': reason}
         for key in ('waypoint', 'position_error', 'orientation_error', 'fraction', 'shapes',
@@ -499,7 +246,8 @@ class PlannerNode(Node):
         self.get_logger().error(f'goal {goal["goal_id"]} refused ({reason}): {text}')
         self.publish_status('ERROR', f'goal refused ({reason}): {text}', values, goal)
 
-    def publish_status(self, level, text, values, goal=None):
+    def publish_status(self, level: str, text: str, values: dict,
+                       goal: Optional[dict] = None) -> None:
         """Publish /planner/status: ``state``, then the goal it is about (if any), then values."""
         merged = {'state': self.state}
         merged.update(goal or {})
@@ -507,7 +255,7 @@ class PlannerNode(Node):
         with self.status_lock:
             self.status_pub.publish(conversions.make_status('planner', level, text, merged))
 
-    def destroy_node(self):
+    def destroy_node(self) -> None:
         """End the planning thread (a goal being planned finishes first), then the node."""
         self.running = False
         self.jobs.put(None)
@@ -517,7 +265,7 @@ class PlannerNode(Node):
         super().destroy_node()
 
 
-def main(args=None):
+def main(args: Optional[list[str]] = None) -> None:
     """Run the planner node until Ctrl-C, SIGTERM or shutdown (one or more signals: exit 0)."""
     shutdown.run_node(PlannerNode, args)
 

@@ -17,11 +17,14 @@ the context still valid, and the process exits 0.
 
 import signal
 import sys
+from types import FrameType
+from typing import Callable, Optional
 
 from mover6_control.nodes import local_dds
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.experimental.events_executor import EventsExecutor
+from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -37,13 +40,13 @@ class StopSignals:
         for signum in STOP_SIGNALS:
             signal.signal(signum, self.on_signal)
 
-    def on_signal(self, signum, frame):
+    def on_signal(self, signum: int, frame: Optional[FrameType]) -> None:
         """Record the first stop signal; a later one changes nothing."""
         if self.signum is None:
             self.signum = signum
 
     @staticmethod
-    def ignore_from_now():
+    def ignore_from_now() -> None:
         """
         Ignore SIGINT and SIGTERM for the rest of the process (call it once teardown is done).
 
@@ -66,7 +69,8 @@ class StopSignals:
         return self.signum is not None
 
 
-def run_node(make_node, args=None, make_executor=EventsExecutor):
+def run_node(make_node: Callable[..., Node], args: Optional[list[str]] = None,
+             make_executor: Callable[[], Executor] = EventsExecutor) -> None:
     """
     Init rclpy, make the node with ``make_node()``, spin it until a stop; destroy it, shut down.
 

@@ -33,7 +33,11 @@ ends canceled once the arm is at rest. A new goal, or a /joint_demands message, 
 running goal: it is aborted with INVALID_GOAL (as joint_trajectory_controller) and the reason.
 """
 
+from typing import Optional, Sequence
+
 from control_msgs.action import FollowJointTrajectory
+from control_msgs.msg import JointTolerance
+from mover6_control.control.motion_plan import MotionPlan
 from mover6_control.control.status import (Cause, FINAL_RESULTS, MotionResult, State, StatusKey,
                                            TIMING_AS_GIVEN)
 from mover6_control.control.timed_plan import Timing
@@ -41,10 +45,11 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.nodes import conversions
 from mover6_control.validation import short_text
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.duration import Duration
 from rclpy.task import Future
-from trajectory_msgs.msg import JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 Result = FollowJointTrajectory.Result
 FEEDBACK_PERIOD = 0.1    # [s]
@@ -56,7 +61,7 @@ ACCEPT_PER_POINT = 0.005
 ENDED_AFTER = (State.EXECUTING, State.SETTLING, State.STOPPING)
 
 
-def map_goal(trajectory, joint_names):
+def map_goal(trajectory: JointTrajectory, joint_names: Sequence[str]) -> list:
     """
     Return the waypoints (N, n) [rad] of a JointTrajectory in ``joint_names`` order.
 
@@ -88,7 +93,7 @@ def map_goal(trajectory, joint_names):
     return rows
 
 
-def map_timing(trajectory, joint_names):
+def map_timing(trajectory: JointTrajectory, joint_names: Sequence[str]) -> Timing:
     """
     Return the ``Timing`` of a JointTrajectory's points in ``joint_names`` order.
 
@@ -119,7 +124,7 @@ def map_timing(trajectory, joint_names):
         raise ValueError(Result.INVALID_GOAL, str(err))
 
 
-def ended_code(values):
+def ended_code(values: dict) -> int:
     """
     Return the error code of a goal whose motion ended other than arrived, from its status.
 
@@ -132,7 +137,8 @@ def ended_code(values):
     return Result.PATH_TOLERANCE_VIOLATED
 
 
-def tolerances(entries, joint_names, default):
+def tolerances(entries: Sequence[JointTolerance], joint_names: Sequence[str],
+               default: float) -> list:
     """Return the position tolerance per joint [rad] (None: unchecked) from JointTolerance[]."""
     tol = {name: default for name in joint_names}
     for entry in entries:
@@ -143,7 +149,8 @@ def tolerances(entries, joint_names, default):
     return [tol[name] for name in joint_names]
 
 
-def violations(error, tol, joint_names):
+def violations(error: Sequence[float], tol: Sequence[Optional[float]],
+               joint_names: Sequence[str]) -> str:
     """Return the words for each joint whose |error| exceeds its tolerance ('' when none)."""
     return '; '.join(f'{name} off by {abs(e):.4f} rad (tolerance {t:g})'
                      for name, e, t in zip(joint_names, error, tol)
@@ -164,21 +171,21 @@ class FollowJointTrajectoryServer:
             cancel_callback=lambda handle: CancelResponse.ACCEPT,
             callback_group=self.group)
 
-    def destroy(self):
+    def destroy(self) -> None:
         """Destroy the action server."""
         self.server.destroy()
 
-    async def sleep(self, seconds):
-        """Wait ``seconds`` on the node's clock without holding the executor."""
-        future = Future()
-        timer = self.node.create_timer(seconds, lambda: future.done() or future.set_result(1),
+    async def sleep(self, seconds: float, future: Optional[Future] = None) -> None:
+        """Wait ``seconds`` on the node's clock, or until ``future`` is done, not holding it."""
+        future = Future() if future is None else future
+        timer = self.node.create_timer(seconds, lambda: future.done() or future.set_result(None),
                                        callback_group=self.group)
         try:
             await future
         finally:
             self.node.destroy_timer(timer)
 
-    def finish(self, handle, code, text, how='abort'):
+    def finish(self, handle: ServerGoalHandle, code: int, text: str, how: str = 'abort') -> Result:
         """End ``handle`` (abort, succeed or canceled) with ``code`` and ``text``."""
         getattr(handle, {'abort': 'abort', 'succeed': 'succeed', 'cancel': 'canceled'}[how])()
         # Two call sites: rclpy refuses one call site logging at two severities.
@@ -188,7 +195,7 @@ class FollowJointTrajectoryServer:
             self.node.get_logger().warning(f'follow_joint_trajectory: {text}')
         return Result(error_code=code, error_string=text)
 
-    async def execute(self, handle):
+    async def execute(self, handle: ServerGoalHandle) -> Result:
         """Run one goal to its end; return its ``Result``."""
         node = self.node
         names = node.joint_names
@@ -208,28 +215,25 @@ class FollowJointTrajectoryServer:
                 mapped['timing'] = map_timing(goal.trajectory, names)
             except ValueError as err:
                 mapped['code'] = err.args[0]
-                node.goal_rejections[goal_id] = short_text(err.args[1])
+                node.goals.refused(goal_id, short_text(err.args[1]))
                 return None
             demand = conversions.make_demands(mapped['rows'], goal_id)
             return (demand, mapped['timing']) if mapped['timing'].timed else demand
 
+        taken = node.goals.expect(goal_id, node.executor)   # done when taken or refused
         node.demands.put(convert)
-        waited, timeout = 0.0, ACCEPT_TIMEOUT + ACCEPT_PER_POINT * len(goal.trajectory.points)
-        while goal_id not in node.goal_motions and goal_id not in node.goal_rejections:
-            if waited > timeout or not node.running:
-                with node.lock:      # the demand thread commits under it: taken, or never
-                    if goal_id not in node.goal_motions:
-                        node.withdrawn.add(goal_id)
-                if goal_id not in node.goal_motions:
-                    return self.finish(handle, Result.INVALID_GOAL, 'the controller did not '
-                                                                    'take the demand in time')
-                break
-            await self.sleep(0.01)
-            waited += 0.01
-        if goal_id in node.goal_rejections:
+        if node.running:
+            await self.sleep(ACCEPT_TIMEOUT + ACCEPT_PER_POINT * len(goal.trajectory.points),
+                             taken)
+        # The demand thread commits under the ledger's lock: taken, refused, or never.
+        outcome = node.goals.withdraw(goal_id)
+        if outcome is None:
+            return self.finish(handle, Result.INVALID_GOAL, 'the controller did not '
+                                                            'take the demand in time')
+        if isinstance(outcome, str):
             return self.finish(handle, mapped.get('code', Result.INVALID_GOAL),
-                               f'refused: {node.goal_rejections.pop(goal_id)}')
-        motion_id = node.goal_motions[goal_id]
+                               f'refused: {outcome}')
+        motion_id = outcome
         rows, timing = mapped['rows'], mapped['timing']
         note = self.timing_note(goal_id, motion_id, timing)
         stopping = None          # why the arm is being stopped: (code, text, how)
@@ -239,7 +243,7 @@ class FollowJointTrajectoryServer:
                 plan = node.core.plan
             values = status.values
             if int(values[StatusKey.MOTION_ID]) != motion_id:
-                other = (node.motion_goals.get(int(values[StatusKey.MOTION_ID]), '')
+                other = (node.goals.goal_of(int(values[StatusKey.MOTION_ID]))
                          or '/joint_demands')
                 # As joint_trajectory_controller: INVALID_GOAL, aborted, with the reason.
                 return self.finish(handle, Result.INVALID_GOAL,
@@ -280,7 +284,7 @@ class FollowJointTrajectoryServer:
             await self.sleep(FEEDBACK_PERIOD)
         return self.finish(handle, Result.PATH_TOLERANCE_VIOLATED, 'the controller closed')
 
-    def timing_note(self, goal_id, motion_id, timing):
+    def timing_note(self, goal_id: str, motion_id: int, timing: Timing) -> str:
         """
         Log how a timed goal's timing is followed; return '' or '; timing: <why not>'.
 
@@ -301,20 +305,21 @@ class FollowJointTrajectoryServer:
             return f'; timing: {note}'
         return ''
 
-    def reference(self, plan, motion_id):
+    def reference(self, plan: Optional[MotionPlan], motion_id: int) -> Optional[tuple]:
         """
         Return ``(q, qd, t)`` of the reference now (the goal once it ended), None before it.
 
         ``t`` [s] is the time into the plan, the feedback's ``time_from_start``.
         """
-        start = self.node.motion_starts.get(motion_id)
+        start = self.node.goals.start_of(motion_id)
         if plan is None or start is None:
             return None
         t = min(max(self.node.now() - start, 0.0), plan.duration)
         q_ref, qd_ref = plan.sample(t)
         return [float(v) for v in q_ref], [float(v) for v in qd_ref], t
 
-    def feedback(self, desired, actual, error):
+    def feedback(self, desired: tuple, actual: Sequence[float],
+                 error: Sequence[float]) -> FollowJointTrajectory.Feedback:
         """Build a feedback message (joint order: the controller's)."""
         msg = FollowJointTrajectory.Feedback()
         msg.header.stamp = self.node.get_clock().now().to_msg()

@@ -22,15 +22,17 @@ import signal
 import subprocess
 import sys
 import time
+from typing import Callable, Optional, Sequence
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.control.status import MotionResult
-from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk_batch
 from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.resources import CONFIG_DIR
-from mover6_control.tools.goal_cli import (EXIT_REFUSED, format_numbers, format_outcome,
-                                           GoalClient, poses_from_numbers)
+from mover6_control.tools.goal_cli import GoalClient
+from mover6_control.tools.goal_convention import (EXIT_REFUSED, format_numbers, format_outcome,
+                                                  poses_from_numbers)
 import numpy as np
 import rclpy
 from sensor_msgs.msg import JointState
@@ -111,11 +113,11 @@ class Recorder:
         node.create_subscription(DiagnosticStatus, 'sim_bridge/contacts', self.on_contacts,
                                  STATUS_QOS)
 
-    def on_contacts(self, msg):
+    def on_contacts(self, msg: DiagnosticStatus) -> None:
         """Keep the simulator's latest contact report."""
         self.contacts = {kv.key: kv.value for kv in msg.values}
 
-    def on_msg(self, msg):
+    def on_msg(self, msg: JointState) -> None:
         """Store one sample, mapped by name."""
         index = {n: i for i, n in enumerate(msg.name)}
         try:
@@ -126,14 +128,14 @@ class Recorder:
         except (KeyError, IndexError):
             pass
 
-    def segment(self, t0, t1):
+    def segment(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (t - t0, q, qd) arrays of the samples between t0 and t1."""
         t = np.asarray(self.t)
         mask = (t >= t0) & (t <= t1)
         return t[mask] - t0, np.asarray(self.q)[mask], np.asarray(self.qd)[mask]
 
 
-def start_stack(log_dir, env, hardware='sim'):
+def start_stack(log_dir: str, env: dict, hardware: str = 'sim') -> subprocess.Popen:
     """Start scripts/launch.sh (the arm, controller, planner) in its own process group."""
     cmd = ['bash', os.path.join(ROOT, 'scripts', 'launch.sh'), '--log-dir', log_dir,
            '--hardware', hardware, '--limit-set', LIMIT_SET[hardware],
@@ -142,7 +144,7 @@ def start_stack(log_dir, env, hardware='sim'):
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
-def stop_stack(proc):
+def stop_stack(proc: subprocess.Popen) -> None:
     """Stop launch.sh by its pid (it stops its nodes); insist after 15 s."""
     if proc.poll() is None:
         proc.send_signal(signal.SIGINT)
@@ -153,13 +155,14 @@ def stop_stack(proc):
             proc.wait(5.0)
 
 
-def deviation_from_polyline(points, polyline):
+def deviation_from_polyline(points: np.ndarray, polyline: np.ndarray) -> float:
     """Return the largest distance [m] of ``points`` (m, 3) from a polyline (k, 3)."""
     from mover6_control.motion.metrics import max_deviation_from_polyline
     return max_deviation_from_polyline(points, polyline)
 
 
-def run_step(client, recorder, arm, step, say):
+def run_step(client: GoalClient, recorder: Recorder, arm: ArmModel, step: Step,
+             say: Callable[[str], None]) -> dict:
     """Run one showcase step; return its metrics row."""
     Ts = poses_from_numbers([v for p in step.poses for v in p], quat=False, arm=arm)
     goal = format_numbers(step.poses[-1])
@@ -194,7 +197,7 @@ def run_step(client, recorder, arm, step, say):
     return row
 
 
-def write_report(report_dir, rows, arm):
+def write_report(report_dir: str, rows: list[dict], arm: ArmModel) -> list[str]:
     """Write metrics.json, metrics.md and the plots; return the list of files written."""
     from mover6_control.tools import plots
     files = []
@@ -233,7 +236,7 @@ def write_report(report_dir, rows, arm):
     return files
 
 
-def render_animation(report_dir, rows, arm):
+def render_animation(report_dir: str, rows: list[dict], arm: ArmModel) -> Optional[str]:
     """Render the recorded motion of every step into one animated GIF; return its path."""
     if not os.environ.get('DISPLAY'):
         os.environ.setdefault('MUJOCO_GL', 'egl')   # read when MuJoCo is first imported
@@ -250,7 +253,7 @@ def render_animation(report_dir, rows, arm):
                            os.path.join(report_dir, 'motion.gif'))
 
 
-def passed(rows, steps):
+def passed(rows: list[dict], steps: Sequence[Step]) -> bool:
     """Return True when every move arrived within tolerance and each refusal had its reason."""
     for row, step in zip(rows, steps):
         if step.expect != MotionResult.ARRIVED:
@@ -262,7 +265,7 @@ def passed(rows, steps):
     return len(rows) == len(steps)
 
 
-def write_profile_comparison(report_dir, arm):
+def write_profile_comparison(report_dir: str, arm: ArmModel) -> list[str]:
     """
     Write one plot per profile family and a table (appended to metrics.md); return the files.
 
@@ -296,7 +299,7 @@ def write_profile_comparison(report_dir, arm):
     return files
 
 
-def main(argv=None):
+def main(argv: Optional[list[str]] = None) -> int:
     """Run the showcase; exit 0 only when everything behaved."""
     parser = argparse.ArgumentParser(prog='demo', description=__doc__.split('\n\n')[0])
     parser.add_argument('--report', default=os.path.join(os.getcwd(), 'report'),

@@ -34,101 +34,47 @@ malformed, 3 nodes not found.
 """
 
 import argparse
-import math
 import sys
 import time
+from typing import Callable, Optional, Sequence
 
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from mover6_control.control.profiles import PROFILES
-from mover6_control.control.status import (FINAL_RESULTS, MotionResult, PlannerResult,
-                                           PlannerState, State, StatusKey)
+from mover6_control.control.status import (FINAL_RESULTS, MotionResult, PlannerResult, State,
+                                           StatusKey)
 from mover6_control.errors import Mover6Error
-from mover6_control.kinematics.arm import mover6
+from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk
-from mover6_control.kinematics.rotations import (euler_zyx_near, make_transform, pose_error,
-                                                 pose_from_xyzabc, quaternion_to_matrix)
-from mover6_control.motion.paths import goal_relative_to_start
+from mover6_control.kinematics.rotations import pose_error
 from mover6_control.nodes import conversions
 from mover6_control.nodes.qos import STATUS_READER_QOS
+from mover6_control.tools.goal_convention import (EXIT_ARRIVED, EXIT_FAILED, EXIT_NO_NODES,
+                                                  EXIT_REFUSED, format_outcome, Outcome,
+                                                  poses_from_numbers)
+from mover6_control.tools.readiness import Readiness
 import numpy as np
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.publisher import Publisher
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
 
-EXIT_ARRIVED, EXIT_FAILED, EXIT_REFUSED, EXIT_NO_NODES = 0, 1, 2, 3
 # [s] longest wait for the planner's ~/stop service (no planner: the controller is stopped).
 PLANNER_STOP_WAIT = 2.0
 # [s] longest wait for the planner's answer about a goal (more when it says the goal waits for
 # joint states: by as much as it says).
 PLANNER_ANSWER_WAIT = 15.0
-# The controller is not ready in these states: a demand would be refused.
-NOT_READY = (None, State.WAITING_FOR_STATES, State.FAULT)
 # [s] longest wait, after arrival, for the controller to finish settling (its settle_time is 1 s).
 SETTLE_WAIT = 5.0
-# Within this [rad] of gimbal lock (B = +-pi/2) a reached pose is printed with B = +-pi/2 and the
-# A/C split nearest the goal's angles: closer to lock the split follows the arm's tiny error.
-PRINT_LOCK_TOL = 1e-3
 
 
-def home_pose(arm):
-    """Return the flange pose (4, 4) at q = 0, by forward kinematics of ``arm``."""
-    return fk(arm, np.zeros(arm.n_joints))
-
-
-def pose_from_goal(arm, x, y, z, a, b, c, absolute=False):
-    """
-    Return the pose (4, 4) of a goal typed as X Y Z [m] A B C [rad].
-
-    By default as the Mover6 report: ``R = R_home Rz(A) Ry(B) Rx(C)``, ``R_home`` the flange
-    orientation at q = 0; with ``absolute`` base-frame ZYX angles, ``R = Rz(A) Ry(B) Rx(C)``.
-    """
-    if absolute:
-        return pose_from_xyzabc(x, y, z, a, b, c)
-    return goal_relative_to_start(home_pose(arm), x, y, z, a, b, c)
-
-
-def goal_from_pose(arm, T, absolute=False, ref=(0.0, 0.0, 0.0)):
-    """
-    Return X Y Z [m] A B C [rad] of pose ``T`` (4, 4) in the goal convention (``pose_from_goal``).
-
-    Of the equivalent angle triples the one nearest ``ref`` (the goal's angles) is returned.
-    """
-    T = np.asarray(T, dtype=float)
-    R = T[:3, :3] if absolute else home_pose(arm)[:3, :3].T @ T[:3, :3]
-    angles = euler_zyx_near(R, ref, lock_tol=PRINT_LOCK_TOL)
-    return tuple(float(v) for v in T[:3, 3]) + tuple(angles)
-
-
-def format_numbers(values):
-    """Return numbers as text with 4 decimals and no negative zero."""
-    return ' '.join('0.0000' if abs(v) < 5e-5 else f'{v:.4f}' for v in values)
-
-
-class Outcome:
-    """What became of one goal."""
-
-    def __init__(self, code, text, **figures):
-        self.code = code
-        self.text = text
-        self.figures = figures
-
-    @property
-    def arrived(self):
-        """Return True when the arm arrived."""
-        return self.code == EXIT_ARRIVED
-
-    def __repr__(self):
-        """Return a one-line description."""
-        return f'Outcome({self.code}, {self.text!r}, {self.figures})'
-
-
-class GoalClient(Node):
+class GoalClient(Readiness, Node):
     """A node that sends goals and follows the planner's and controller's status."""
 
     def __init__(self, name='goal_client', planner_node='planner', controller_node='controller'):
@@ -158,11 +104,11 @@ class GoalClient(Node):
 
     # --- subscriptions ---------------------------------------------------------------------
 
-    def on_planner(self, msg):
+    def on_planner(self, msg: DiagnosticStatus) -> None:
         """Keep the planner's latest status."""
         self.planner_status = msg
 
-    def on_controller(self, msg):
+    def on_controller(self, msg: DiagnosticStatus) -> None:
         """Keep the controller's latest status, and note when it rejected a demand."""
         self.controller_status = msg
         values = self.values(msg)
@@ -171,89 +117,21 @@ class GoalClient(Node):
                 self.goal_id, ''):
             self.rejection = rejected
 
-    def on_joint_states(self, msg):
+    def on_joint_states(self, msg: JointState) -> None:
         """Keep the latest joint positions."""
         try:
             self.q, _ = conversions.joint_state_from_msg(msg, self.arm.joint_names)
         except Mover6Error:
             pass
 
-    def on_demands(self, msg):
+    def on_demands(self, msg: Float32MultiArray) -> None:
         """Keep the latest joint demands (the planner's output)."""
         try:
             self.last_demands = conversions.demands_from_msg(msg)
         except Mover6Error:
             pass
 
-    # --- helpers ---------------------------------------------------------------------------
-
-    def spin_until(self, predicate, timeout, tick=None):
-        """Spin until ``predicate()`` is true or ``timeout`` [s] passes; return the predicate."""
-        deadline = time.monotonic() + timeout
-        while rclpy.ok() and not predicate():
-            if time.monotonic() > deadline:
-                return False
-            rclpy.spin_once(self, timeout_sec=0.05)
-            if tick is not None:
-                tick()
-        return bool(predicate())
-
-    @staticmethod
-    def values(msg):
-        """Return a status message's values as a dict (empty for None)."""
-        return conversions.status_values(msg) if msg is not None else {}
-
-    def wait_ready(self, timeout=30.0, need_planner=True, steady=1.0):
-        """
-        Wait for joint states, the controller's status and (optionally) the planner's.
-
-        The planner must say it is ready (status value ``state``: it has received joint
-        states), as the controller must have left ``waiting_for_states``.
-
-        The controller must then stay ready (idle or moving, not waiting for states and not in
-        fault) for ``steady`` [s]: nodes that have just started can stall briefly, and a demand
-        that reaches a controller in fault is rejected.
-        """
-        checks = [('/joint_states (is the sim bridge or robot driver running?)',
-                   lambda: self.q is not None),
-                  ('/controller/status (is the controller running?)',
-                   lambda: self.controller_status is not None),
-                  ('the controller to receive /joint_states',
-                   lambda: self.values(self.controller_status).get(StatusKey.STATE)
-                   not in (None, State.WAITING_FOR_STATES))]
-        if need_planner:
-            checks += [('/planner/status (is the planner running?)',
-                        lambda: self.planner_status is not None),
-                       ('the planner to receive /joint_states',
-                        lambda: self.values(self.planner_status).get(StatusKey.STATE)
-                        == PlannerState.READY),
-                       ('a subscriber on /pose_goal',
-                        lambda: self.pose_pub.get_subscription_count() > 0),
-                       ('the planner and the controller on /joint_demands',
-                        lambda: self.on_topic('joint_demands', 'planner', 'controller'))]
-        for what, check in checks:
-            if not self.spin_until(check, timeout):
-                return f'no {what} within {timeout:.0f} s'
-        deadline = time.monotonic() + timeout
-        ready_since = [time.monotonic()]
-
-        def steady_ready():
-            if self.values(self.controller_status).get(StatusKey.STATE) in NOT_READY:
-                ready_since[0] = time.monotonic()
-            return time.monotonic() - ready_since[0] >= steady
-        if not self.spin_until(steady_ready, max(deadline - time.monotonic(), steady)):
-            state = self.values(self.controller_status).get(StatusKey.STATE)
-            return f'the controller did not stay ready for {steady:.1f} s (state {state})'
-        return None
-
-    def on_topic(self, topic, publisher_node, subscriber_node):
-        """Return True when the graph shows ``publisher_node`` and ``subscriber_node`` on it."""
-        name = self.resolve_topic_name(topic)
-        pubs = {info.node_name for info in self.get_publishers_info_by_topic(name)}
-        subs = {info.node_name for info in self.get_subscriptions_info_by_topic(name)}
-        return publisher_node in pubs and subscriber_node in subs
-
-    def set_planner_parameters(self, params, timeout=10.0):
+    def set_planner_parameters(self, params: dict, timeout: float = 10.0) -> Optional[str]:
         """Set planner parameters (e.g. motion); return an error text or None."""
         if not params:
             return None
@@ -268,7 +146,7 @@ class GoalClient(Node):
                 return f'planner refused parameter {name}: {result.reason}'
         return None
 
-    def stop(self, timeout=10.0):
+    def stop(self, timeout: float = 10.0) -> tuple[bool, str, bool]:
         """
         Call the planner's ~/stop, then the controller's; return (success, message, was it there).
 
@@ -283,7 +161,7 @@ class GoalClient(Node):
         ok, text, available = self.stop_controller(timeout)
         return ok, text + planner_note, available
 
-    def stop_controller(self, timeout=10.0):
+    def stop_controller(self, timeout: float = 10.0) -> tuple[bool, str, bool]:
         """Call the controller's ~/stop service; return (success, its message, was it there)."""
         if not self.stop_client.wait_for_service(timeout_sec=timeout):
             return False, ('the controller stop service is not available (is the controller '
@@ -295,14 +173,16 @@ class GoalClient(Node):
 
     # --- goals -----------------------------------------------------------------------------
 
-    def publisher(self, msg_type, topic):
+    def publisher(self, msg_type: type, topic: str) -> Publisher:
         """Return the publisher of ``topic`` (made on first use)."""
         if topic not in self.shape_pubs:
             self.shape_pubs[topic] = self.create_publisher(msg_type, topic, 10)
         return self.shape_pubs[topic]
 
-    def run_goal(self, publish, T_goal=None, planned=True, timeout=60.0, progress=None,
-                 stamp=None, goal_id=None):
+    def run_goal(self, publish: Callable[[], None], T_goal: Optional[np.ndarray] = None,
+                 planned: bool = True, timeout: float = 60.0,
+                 progress: Optional[Callable[[str], None]] = None, stamp: Optional[Time] = None,
+                 goal_id: Optional[str] = None) -> Outcome:
         """
         Publish a goal with ``publish()``, then follow it, and only it, to its end.
 
@@ -407,8 +287,9 @@ class GoalClient(Node):
             return Outcome(EXIT_FAILED, self.controller_status.message, **figures)
         return Outcome(EXIT_ARRIVED, 'arrived', **figures)
 
-    def send_pose(self, T_goal, frame_id='base_link', motion=None, peak_height=None,
-                  **kwargs):
+    def send_pose(self, T_goal: np.ndarray, frame_id: str = 'base_link',
+                  motion: Optional[str] = None, peak_height: Optional[float] = None,
+                  **kwargs: object) -> Outcome:
         """
         Send a pose goal and follow it; see ``run_goal``.
 
@@ -435,7 +316,8 @@ class GoalClient(Node):
         return self.run_goal(lambda: pub.publish(msg), T_goal=T_goal, stamp=msg.header.stamp,
                              **kwargs)
 
-    def send_path(self, poses, frame_id='base_link', shape=None, **kwargs):
+    def send_path(self, poses: np.ndarray, frame_id: str = 'base_link',
+                  shape: Optional[str] = None, **kwargs: object) -> Outcome:
         """Send a path goal (via poses then the goal, (k, 4, 4)) and follow it."""
         msg = PoseArray()
         msg.header.frame_id = frame_id
@@ -446,11 +328,11 @@ class GoalClient(Node):
         return self.run_goal(lambda: pub.publish(msg), T_goal=poses[-1], stamp=msg.header.stamp,
                              **kwargs)
 
-    def wait_matched(self, pub, timeout=10.0):
+    def wait_matched(self, pub: Publisher, timeout: float = 10.0) -> None:
         """Wait until ``pub`` is matched with a reader (a topic made just now is not yet)."""
         self.spin_until(lambda: pub.get_subscription_count() > 0, timeout)
 
-    def send_joints(self, Q, profile='', **kwargs):
+    def send_joints(self, Q: np.ndarray, profile: str = '', **kwargs: object) -> Outcome:
         """Send joint waypoints (n, 6) to /joint_demands (timed by ``profile``) and follow them."""
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         stamp = self.get_clock().now().to_msg()
@@ -465,31 +347,7 @@ class GoalClient(Node):
 
 # --- command line ----------------------------------------------------------------------------
 
-def poses_from_numbers(numbers, quat, arm=None, absolute=False):
-    """
-    Return poses (k, 4, 4) from groups of 6 numbers (X Y Z A B C) or 7 (X Y Z qx qy qz qw).
-
-    A B C follow ``pose_from_goal`` (relative to the home orientation of ``arm``, default the
-    Mover6, unless ``absolute``); a quaternion is in the base frame.
-    """
-    arm = mover6() if arm is None else arm
-    size = 7 if quat else 6
-    if len(numbers) == 0 or len(numbers) % size:
-        form = 'X Y Z QX QY QZ QW' if quat else 'X Y Z A B C'
-        raise Mover6Error(f'a pose is {size} numbers ({form}); got {len(numbers)} numbers')
-    if not all(math.isfinite(v) for v in numbers):
-        raise Mover6Error(f'pose numbers must be finite, got {numbers}')
-    out = []
-    for i in range(0, len(numbers), size):
-        group = numbers[i:i + size]
-        if quat:
-            out.append(make_transform(group[:3], quaternion_to_matrix(group[3:])))
-        else:
-            out.append(pose_from_goal(arm, *group, absolute=absolute))
-    return np.stack(out)
-
-
-def build_parser():
+def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of the goal command."""
     parser = argparse.ArgumentParser(
         prog='goal', description=__doc__.split('\n\n')[0],
@@ -543,7 +401,8 @@ def build_parser():
     return parser
 
 
-def run(argv, client=None, out=print):
+def run(argv: Sequence[str], client: Optional[GoalClient] = None,
+        out: Callable[[str], None] = print) -> int:
     """Run the command line ``argv``; return the exit code."""
     if argv and argv[0] not in ('pose', 'path', 'joints', 'stop', '-h', '--help'):
         argv = ['pose'] + list(argv)  # the plain form: goal X Y Z A B C
@@ -607,47 +466,12 @@ def run(argv, client=None, out=print):
     return outcome.code
 
 
-def client_arm(client):
+def client_arm(client: Optional[GoalClient]) -> ArmModel:
     """Return the arm of ``client`` (the Mover6 when there is no client)."""
     return getattr(client, 'arm', None) or mover6()
 
 
-def format_outcome(outcome, convention=None):
-    """
-    Return the one result line of an outcome.
-
-    ``convention`` (arm, absolute, reference angles) adds the pose reached, or for a refusal the
-    closest pose the planner found, as ``X Y Z A B C`` in the goal's convention
-    (``goal_from_pose``).
-    """
-    f = outcome.figures
-    parts = []
-    if 'final_joint_error' in f:
-        parts.append(f'final joint error {f["final_joint_error"]:.4f} rad')
-    if 'final_position_error' in f:
-        parts.append(f'final tool position error {f["final_position_error"] * 1e3:.2f} mm')
-    if 'final_orientation_error' in f:
-        parts.append(f'orientation error {f["final_orientation_error"]:.4f} rad')
-    if 'duration' in f:
-        parts.append(f'{f["duration"]:.2f} s')
-    word = {EXIT_ARRIVED: 'arrived', EXIT_REFUSED: 'refused'}.get(outcome.code, 'failed')
-    text = '' if outcome.arrived else f' {outcome.text}'
-    line = f'RESULT {word}:{text}' + (' (' + ', '.join(parts) + ')' if parts else '')
-    if convention is not None:
-        arm, absolute, ref = convention
-        form = 'A B C base frame' if absolute else 'A B C from home'
-        if 'reached_pose' in f:
-            pose = goal_from_pose(arm, f['reached_pose'], absolute, ref)
-            line += f'; reached X Y Z {form}: {format_numbers(pose)}'
-        closest = str(f.get('closest_pose_xyzabc', '')).split()
-        if len(closest) == 6:
-            T = pose_from_xyzabc(*(float(v) for v in closest))
-            pose = goal_from_pose(arm, T, absolute, ref)
-            line += f'; closest pose inside the joint limits, X Y Z {form}: {format_numbers(pose)}'
-    return line
-
-
-def main(args=None):
+def main(args: Optional[list[str]] = None) -> None:
     """Entry point of ``ros2 run mover6_control goal``."""
     argv = sys.argv[1:] if args is None else list(args)
     if argv[:1] == ['jog']:                  # goal jog: the keyboard teleop

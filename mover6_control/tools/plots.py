@@ -6,12 +6,14 @@ Each function writes one PNG and returns its path.
 """
 
 import os
+from typing import Optional, Sequence
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from mover6_control.control.planners import plan_motion
 from mover6_control.control.profiles import LawConfig
 from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.arm import ArmModel
 from mover6_control.kinematics.forward import fk_batch
 from mover6_control.motion.metrics import max_deviation_from_polyline
 from mover6_control.validation import as_finite_array
@@ -28,7 +30,7 @@ def _save(fig, path):
     return path
 
 
-def plot_time_law(laws, path, n=501):
+def plot_time_law(laws: object, path: str, n: int = 501) -> str:
     """
     Plot ``s(tau)`` and its first three derivatives for each law.
 
@@ -57,7 +59,10 @@ def plot_time_law(laws, path, n=501):
     return _save(fig, path)
 
 
-def plot_joint_trajectories(t, Q, lower, upper, path, QD=None, QDD=None, names=None):
+def plot_joint_trajectories(t: np.ndarray, Q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                            path: str, QD: Optional[np.ndarray] = None,
+                            QDD: Optional[np.ndarray] = None,
+                            names: Optional[Sequence[str]] = None) -> str:
     """
     Plot joint positions (m, n) [rad] over ``t`` (m,) [s] with dashed joint limits (n,).
 
@@ -94,7 +99,8 @@ def plot_joint_trajectories(t, Q, lower, upper, path, QD=None, QDD=None, names=N
     return _save(fig, path)
 
 
-def plot_path_3d(desired, realised, path, waypoints=None):
+def plot_path_3d(desired: np.ndarray, realised: np.ndarray, path: str,
+                 waypoints: Optional[np.ndarray] = None) -> str:
     """Plot the desired tool path (k, 3) [m] against the realised one (m, 3), as Fig. 1 does."""
     desired = as_finite_array(desired, (None, 3), 'desired')
     realised = as_finite_array(realised, (None, 3), 'realised')
@@ -113,7 +119,8 @@ def plot_path_3d(desired, realised, path, waypoints=None):
     return _save(fig, path)
 
 
-def plot_joint_velocities(t, QD, velocity_limits, path, names=None):
+def plot_joint_velocities(t: np.ndarray, QD: np.ndarray, velocity_limits: np.ndarray, path: str,
+                          names: Optional[Sequence[str]] = None) -> str:
     """Plot joint velocities (m, n) [rad/s] over ``t`` (m,) [s] with dashed +- limits (n,)."""
     QD = as_finite_array(QD, (None, None), 'QD')
     m, n = QD.shape
@@ -135,7 +142,8 @@ def plot_joint_velocities(t, QD, velocity_limits, path, names=None):
     return _save(fig, path)
 
 
-def profile_metrics(arm, profile, q_start, waypoints, dt=1e-3):
+def profile_metrics(arm: ArmModel, profile: str, q_start: np.ndarray, waypoints: np.ndarray,
+                    dt: float = 1e-3) -> dict:
     """
     Return the figures of ``profile``'s plan (offline, at rest at ``q_start``) on ``waypoints``.
 
@@ -161,7 +169,7 @@ def profile_metrics(arm, profile, q_start, waypoints, dt=1e-3):
             't': t, 'qd': qd}
 
 
-def plot_profile_comparison(rows, path, title=''):
+def plot_profile_comparison(rows: list[dict], path: str, title: str = '') -> str:
     """
     Plot one profile family side by side: speed of the fastest joint over time, and bars.
 

@@ -31,6 +31,7 @@ import sys
 import termios
 import time
 import tty
+from typing import Callable, Iterator, Optional, TextIO
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -113,7 +114,7 @@ class Teleop:
         self.held = {k: t for k, t in self.held.items() if t >= now}
         return sorted(self.held)
 
-    def command(self, now: float):
+    def command(self, now: float) -> Optional[tuple]:
         """
         Return what to publish at ``now`` [s], or None (nothing held, nothing to say).
 
@@ -151,7 +152,7 @@ class Teleop:
 
 
 @contextmanager
-def raw_terminal(fd):
+def raw_terminal(fd: int) -> Iterator[None]:
     """Put the terminal ``fd`` in cbreak mode, no echo; restore it on exit, whatever happens."""
     saved = termios.tcgetattr(fd) if os.isatty(fd) else None
     try:
@@ -163,7 +164,7 @@ def raw_terminal(fd):
             termios.tcsetattr(fd, termios.TCSADRAIN, saved)
 
 
-def read_keys(fd, timeout: float) -> str:
+def read_keys(fd: int, timeout: float) -> str:
     """Return the keys waiting on ``fd`` within ``timeout`` [s] ('' when none)."""
     ready, _, _ = select.select([fd], [], [], max(timeout, 0.0))
     if not ready:
@@ -174,8 +175,10 @@ def read_keys(fd, timeout: float) -> str:
     return data.decode(errors='ignore')
 
 
-def loop(fd, teleop, publish, show=None, status=lambda: '', rate=RATE, clock=time.monotonic,
-         spin=lambda: None):
+def loop(fd: int, teleop: Teleop, publish: Callable[[tuple], None],
+         show: Optional[Callable[[str], None]] = None, status: Callable[[], str] = lambda: '',
+         rate: float = RATE, clock: Callable[[], float] = time.monotonic,
+         spin: Callable[[], None] = lambda: None) -> None:
     """
     Read keys from ``fd`` and ``publish(command)`` at ``rate`` while one is held, until quit.
 
@@ -202,7 +205,7 @@ def loop(fd, teleop, publish, show=None, status=lambda: '', rate=RATE, clock=tim
                 show(teleop.status_line(now, status()))
 
 
-def terminal_show(out=sys.stdout):
+def terminal_show(out: TextIO = sys.stdout) -> Callable[[str], None]:
     """Return a ``show`` that rewrites the last line of ``out`` when the line changes."""
     shown = ['']
 
@@ -230,15 +233,15 @@ class TeleopNode(Node):
         self.executor_ = SingleThreadedExecutor(context=self.context)
         self.executor_.add_node(self)
 
-    def on_status(self, msg):
+    def on_status(self, msg: DiagnosticStatus) -> None:
         """Keep the controller's latest status."""
         self.status = msg
 
-    def spin_some(self):
+    def spin_some(self) -> None:
         """Serve the callbacks that are ready."""
         self.executor_.spin_once(timeout_sec=0.0)
 
-    def publish_command(self, command):
+    def publish_command(self, command: tuple) -> None:
         """Publish a ``Teleop.command`` stamped now."""
         stamp = self.get_clock().now().to_msg()
         if command[0] == 'twist':
@@ -255,7 +258,7 @@ class TeleopNode(Node):
             msg.joint_names, msg.velocities = list(names), [float(v) for v in velocities]
             self.joint_pub.publish(msg)
 
-    def controller_summary(self):
+    def controller_summary(self) -> str:
         """Return the controller's state and message, or that none was heard."""
         if self.status is None:
             return 'controller: not heard yet'
@@ -263,7 +266,7 @@ class TeleopNode(Node):
         message = self.status.message
         return state if message in ('', state) else f'{state}: {message}'
 
-    def destroy_node(self):
+    def destroy_node(self) -> None:
         """Stop the executor, then destroy the node."""
         self.executor_.shutdown()
         super().destroy_node()
@@ -273,7 +276,7 @@ def _raise_interrupt(*_):
     raise KeyboardInterrupt
 
 
-def main(args=None):
+def main(args: Optional[list[str]] = None) -> int:
     """Run the teleop on this terminal until quit; publish to the controller."""
     argv = sys.argv[1:] if args is None else list(args)
     if not sys.stdin.isatty():

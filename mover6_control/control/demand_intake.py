@@ -1,0 +1,227 @@
+"""
+Demands into the controller: check, plan from a snapshot outside the node's lock, commit.
+
+A node takes a ``Snapshot`` under its lock (``snapshot``), checks and plans the demand from it
+without the lock (``prepare_demand``: planning the continuous profile takes tens of
+milliseconds, the ticks go on), and starts it under the lock (``commit_demand``), which plans
+again only when the controller moved on since the snapshot (``is_current``). ``on_demands`` does
+the three in one thread. A refused demand stays in the status (``reject``) until one is taken.
+
+``DemandIntake`` is a part of ``controller_core.ControllerCore`` (its state is the core's, set
+in ``ControllerCore.__init__``); it is not used on its own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Optional
+
+from mover6_control.control import state_machine as sm
+from mover6_control.control.controller_config import ControllerConfig
+from mover6_control.control.motion_plan import MotionPlan
+from mover6_control.control.profiles import LawConfig
+from mover6_control.control.status import StatusKey as K
+from mover6_control.control.timed_plan import plan_demand, Timing
+from mover6_control.errors import InvalidInputError
+from mover6_control.validation import short_text
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Snapshot:
+    """
+    What a demand is planned from, read once under the node's lock (``ControllerCore.snapshot``).
+
+    ``state``; ``start`` = ``(q, qd)`` the plan starts from: the reference of the last tick and
+    its velocity while moving, the measured position and None (rest) otherwise; ``moving``;
+    ``motion_id`` of the latest accepted demand; ``message`` the state's reason then (a refusal
+    names the state it was refused in, not a later one). Immutable, so planning from it outside
+    the lock cannot see a tick change it halfway.
+    """
+
+    state: str
+    start: tuple
+    moving: bool
+    motion_id: int
+    message: str = ''
+
+
+@dataclass(frozen=True, eq=False)
+class PendingDemand:
+    """A checked and planned demand not yet started (``ControllerCore.prepare_demand``)."""
+
+    now: float
+    waypoints: np.ndarray
+    plan: MotionPlan
+    moving: bool
+    motion_id: int
+    demand_id: str = ''
+    config: Optional[ControllerConfig] = None   # the config it was planned with
+    timing: Optional[Timing] = None     # the points' times (timed_plan); None: the law's
+    timing_note: str = ''               # plan_demand's note: '', 'as given', or why not
+    profile: str = ''                   # the demand's own profile ('': the parameter's)
+
+
+def _and_more(count):
+    """Return ' (and <count - 1> more)' after the first of ``count`` offences ('' for one)."""
+    return f' (and {count - 1} more)' if count > 1 else ''
+
+
+class DemandIntake:
+    """The demand protocol of ``ControllerCore`` (module docstring)."""
+
+    def on_demands(self, now: float, waypoints: np.ndarray, demand_id: str = '',
+                   profile: str = '') -> int:
+        """
+        Accept waypoints (N, n) [rad] at ``now`` [s] and return the new motion id.
+
+        Raises ``InvalidInputError`` (the running motion untouched, the refusal kept in the
+        status until the next accepted demand) when the demand is empty, has the wrong shape,
+        non-finite values or values outside the joint limits, or when the controller cannot
+        take a demand now (no joint states, fault, stopping). The same as
+        ``commit_demand(prepare_demand(now, waypoints, snapshot()))``, in one thread.
+        """
+        try:
+            return self.commit_demand(self.prepare_demand(now, waypoints, self.snapshot(),
+                                                          demand_id, profile=profile))
+        except InvalidInputError as err:
+            self.reject(now, str(err), demand_id)
+            raise
+
+    def snapshot(self) -> Snapshot:
+        """Return the ``Snapshot`` a demand is planned from (call it under the node's lock)."""
+        state, ref = self._state, self.robot.reference          # each read once
+        moving = state != sm.IDLE and ref is not None
+        q = self.robot.q if self.robot.measured else None
+        return Snapshot(state, ref if moving else (q, None), moving, self._motion_id,
+                        self._message)
+
+    def prepare_demand(self, now: float, waypoints: np.ndarray,
+                       snapshot: Optional[Snapshot] = None,
+                       demand_id: str = '', timing: Optional[Timing] = None,
+                       profile: str = '') -> PendingDemand:
+        """
+        Check a demand and plan it from ``snapshot``; return a ``PendingDemand``.
+
+        Reads nothing of the controller but ``snapshot`` (and the constant arm and config), so
+        a node calls it without holding its lock while the ticks go on (planning the continuous
+        law takes tens of milliseconds), with a snapshot taken under the lock, then
+        ``commit_demand`` under the lock. Without ``snapshot`` it takes one itself (the caller
+        then holds the lock). Raises as ``on_demands``, and for an unknown ``profile``. With
+        ``timing`` (a goal's ``time_from_start`` and velocities) the plan follows it where it can
+        (``timed_plan.plan_demand``; its note goes to the status as ``timing``). ``profile``
+        times this demand only (``law_for``).
+        """
+        config = self.config       # read once, before the limits it comes with (_apply)
+        vlim = self._vlim
+        snapshot = self.snapshot() if snapshot is None else snapshot
+        Q = self.check_demand(waypoints)
+        self._check_accepts(snapshot.state, snapshot.message)
+        q_start, qd_start = snapshot.start
+        if q_start is None:
+            raise InvalidInputError(f'cannot take a demand while {snapshot.state}: no joint '
+                                    f'states yet')
+        plan, note = plan_demand(self.law_for(profile, config), q_start, Q, vlim, qd_start,
+                                 timing, self.arm.lower, self.arm.upper)
+        guard = self.collision_guard
+        if guard is not None:
+            guard(plan)         # raises InvalidInputError: the motion collides
+        return PendingDemand(now, Q, plan, snapshot.moving, snapshot.motion_id, demand_id,
+                             config, timing, note, profile)
+
+    def law_for(self, profile: str = '', config: Optional[ControllerConfig] = None) -> LawConfig:
+        """
+        Return the law of a demand: ``config``'s (default: in force) with its own ``profile``.
+
+        A demand's profile ('' : none) changes that demand's law only, never the configuration;
+        an unknown one raises ``InvalidInputError`` (the demand is refused with the reason).
+        """
+        law = (self.config if config is None else config).law
+        if not profile or profile == law.profile:
+            return law
+        return replace(law, profile=profile)
+
+    def check_demand(self, waypoints: np.ndarray) -> np.ndarray:
+        """Return the demand as (N, n) [rad] inside the limits, or raise ``InvalidInputError``."""
+        n = self.arm.n_joints
+        Q = np.asarray(waypoints, dtype=float)
+        if Q.size == 0:
+            raise InvalidInputError('demand is empty')
+        if Q.ndim == 1:
+            if Q.size % n:
+                raise InvalidInputError(f'demand length {Q.size} is not a multiple of {n}')
+            Q = Q.reshape(-1, n)
+        if Q.ndim != 2 or Q.shape[1] != n:
+            raise InvalidInputError(f'demand must have shape (N, {n}), got {Q.shape}')
+        # The first offence and a count, never every waypoint: a reason stays small.
+        finite = np.all(np.isfinite(Q), axis=1)
+        if not np.all(finite):
+            bad = np.flatnonzero(~finite)
+            raise InvalidInputError(f'demand has non-finite values: waypoint {bad[0]} of '
+                                    f'{len(Q)}{_and_more(bad.size)}')
+        inside = np.all((Q >= self.arm.lower - 1e-6) & (Q <= self.arm.upper + 1e-6), axis=1)
+        if not np.all(inside):
+            bad = np.flatnonzero(~inside)
+            raise InvalidInputError(
+                f'demand outside joint limits: waypoint {bad[0]} of {len(Q)}: '
+                + ', '.join(self.arm.limit_violations(Q[bad[0]], tol=1e-6))
+                + _and_more(bad.size))
+        return np.clip(Q, self.arm.lower, self.arm.upper)   # float32 rounding at a limit
+
+    def commit_demand(self, pending: PendingDemand, start: Optional[float] = None) -> int:
+        """
+        Start a prepared demand; return the motion id.
+
+        Its time counts from ``start`` [s] (default: when it was prepared, which a plan from a
+        moving reference needs; a plan from rest may start when committed, however long its
+        planning took).
+
+        Call it under the node's lock. When the controller moved on since the snapshot (the
+        motion ended, another started: ``is_current`` is False) the demand is planned again
+        from a new snapshot; raises when it cannot take a demand any more.
+        """
+        self._check_accepts(self._state)
+        plan, note = pending.plan, pending.timing_note
+        if not self.is_current(pending):
+            snapshot = self.snapshot()
+            plan, note = plan_demand(self.law_for(pending.profile), snapshot.start[0],
+                                     pending.waypoints, self._vlim, snapshot.start[1],
+                                     pending.timing, self.arm.lower, self.arm.upper)
+            if self.collision_guard is not None:
+                self.collision_guard(plan)      # the new plan is checked as the first was
+        self._timing = note
+        self.robot.give(plan, pending.now if start is None else start)
+        self._motion_id += 1
+        self._waypoints_total, self._waypoint = len(pending.waypoints), 0
+        self._result = {}
+        self._rejection = {}
+        self._arrived_at = None
+        self._motion_profile = pending.profile or self.config.law.profile
+        self._set(sm.DEMAND, 'OK', f'motion {self._motion_id}: {len(pending.waypoints)} '
+                                   f'waypoint(s), {self._motion_profile}, '
+                                   f'{plan.duration:.2f} s')
+        return self._motion_id
+
+    def is_current(self, pending: PendingDemand) -> bool:
+        """
+        Return whether ``pending`` still fits the controller (``commit_demand`` would not re-plan).
+
+        It does not once the motion it was planned from ended or another one started; a node
+        then prepares the demand again without its lock rather than let the commit plan under
+        it (the ticks would wait for the planning).
+        """
+        snapshot = self.snapshot()
+        return (snapshot.moving == pending.moving and snapshot.motion_id == pending.motion_id
+                and self._state in sm.ACCEPTS_DEMANDS and pending.config is self.config)
+
+    def reject(self, now: float, reason: str, demand_id: str = '') -> None:
+        """Note a refused demand: reason, time [s] and id stay in the status until one is taken."""
+        self._rejection = {K.REJECTED: short_text(reason),
+                           K.REJECTED_TIME: f'{now:.3f}',
+                           K.REJECTED_GOAL_ID: str(demand_id)}
+        self._changed = True
+
+    def _check_accepts(self, state, message=None):
+        if state not in sm.ACCEPTS_DEMANDS:
+            message = self._message if message is None else message
+            raise InvalidInputError(f'cannot take a demand while {state}: {message}')

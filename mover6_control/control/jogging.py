@@ -1,0 +1,100 @@
+"""
+Jogging in the controller: servo commands in, one servo step per tick out (``control.servo``).
+
+The commands are a flange twist (``on_twist``) or joint velocities (``on_joint_jog``).
+
+Idle, a fresh command starts jogging; jogging, the next replaces it; it ends, at rest, once the
+command goes stale. While a collision guard is set, the jog's next poses are checked by it too.
+
+``Jogging`` is a part of ``controller_core.ControllerCore`` (its state is the core's, set in
+``ControllerCore.__init__``); it is not used on its own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Sequence
+
+from mover6_control.control import state_machine as sm
+from mover6_control.control.servo import (command_age, initial_state, joint_jog_command,
+                                          servo_step, TwistCommand)
+from mover6_control.control.status import Cause, MotionResult, StatusKey as K
+from mover6_control.errors import InvalidInputError
+
+
+class Jogging:
+    """The jogging of ``ControllerCore`` (module docstring)."""
+
+    def on_twist(self, now: float, stamp: float, linear: Sequence[float],
+                 angular: Sequence[float], frame: str = 'base_link') -> None:
+        """
+        Take a flange twist [m/s, rad/s] in ``frame`` stamped ``stamp`` [s], at ``now`` [s].
+
+        Idle, a fresh command starts jogging; jogging, it replaces the previous command. Raises
+        ``InvalidInputError`` with the reason (kept in the status as ``jog_refused``) for a bad
+        command, a stamp from the future (``servo.FUTURE_STAMP_TOLERANCE`` after ``now``), or
+        while a motion executes, settles or stops (stop it first), or in fault. The command
+        goes stale ``servo_command_timeout`` after the earlier of its stamp and ``now``.
+        """
+        self._take_jog(now, lambda: TwistCommand(stamp, linear, angular, frame, now))
+
+    def on_joint_jog(self, now: float, stamp: float, names: Sequence[str],
+                     velocities: Sequence[float]) -> None:
+        """Take joint velocities [rad/s] by joint name, stamped ``stamp`` [s]; as ``on_twist``."""
+        self._take_jog(now, lambda: joint_jog_command(self.arm, stamp, names, velocities, now))
+
+    def _take_jog(self, now, make):
+        try:
+            command = make()
+            if self._state != sm.JOGGING:
+                if self._state != sm.IDLE:
+                    hint = '; stop the motion first' if self._state in sm.MOVING_STATES else ''
+                    raise InvalidInputError(f'jogging refused while {self._state}: '
+                                            f'{self._message}{hint}')
+                timeout = self.config.servo.command_timeout
+                if command_age(command, now) > timeout:
+                    raise InvalidInputError(f'jog command older than the timeout {timeout:g} s '
+                                            'by its stamp')
+        except InvalidInputError as err:
+            self.note_jog_refused(str(err))
+            raise
+        self._jog = command
+        if self._jog_refused:
+            self._jog_refused, self._changed = '', True
+        if self._state == sm.IDLE:
+            self._jog_state = initial_state(self.arm)
+            self._jog_kind = ''
+            self._result = {}
+            self._set(sm.JOG, 'OK', 'jogging')
+
+    def note_jog_refused(self, reason: str) -> None:
+        """Keep why a jog command was refused (status: ``jog_refused``) until one is taken."""
+        if self._jog_refused != reason:     # a stream of the same refusal: one status change
+            self._jog_refused, self._changed = reason, True
+
+    def _tick_jogging(self, now):
+        """Return this tick's jogging command; back to idle once stale and at rest."""
+        q = self.robot.q
+        servo, guard = self.config.servo, self.collision_guard
+        if guard is not None and servo.veto is None:     # the jog's next poses are checked too
+            if self._servo_vetoed[0] is not servo or self._servo_vetoed[1] is not guard:
+                self._servo_vetoed = (servo, guard, replace(servo, veto=guard.veto))
+            servo = self._servo_vetoed[2]
+        out = servo_step(self.arm, servo, self._jog_state, self._jog, q, now,
+                         self._dt, self._vlim)
+        self._jog_state = out.state
+        self.robot.reference = (q, out.qd)      # a demand now starts from the jog's velocity
+        kind = ('stale' if out.stale else 'halted' if out.halted
+                else 'slowed' if out.scale < 1.0 else 'free')
+        self._jog_values = {K.JOG_REASON: out.reason, K.JOG_CONDITION: f'{out.condition:.2f}',
+                            K.JOG_SCALE: f'{out.scale:.3f}'}
+        self._message = f'jogging: {out.reason}' if out.reason else 'jogging'
+        self._level = 'OK' if kind in ('free', 'stale') else 'WARN'
+        if kind != self._jog_kind:
+            self._jog_kind, self._changed = kind, True
+        if out.stale and out.at_rest:
+            self._result = {K.RESULT: MotionResult.JOG_STOPPED, K.CAUSE: Cause.JOG_ENDED,
+                            K.REASON: out.reason}
+            self._set(sm.JOG_DONE, 'OK', f'jog ended, at rest: {out.reason}; idle')
+            return None
+        return out.qd

@@ -1,0 +1,208 @@
+"""
+The controller node's tick thread: one core tick, one /JointJog and the status when due.
+
+The tick runs in its own thread that sleeps on the node's clock (``Clock.sleep_until``, so sim
+time works): that costs less CPU and jitter than an executor timer; the executor thread serves
+the callbacks, and the node's lock keeps the core consistent between the two (``core.state``,
+``core.config`` and the core's other state are read only under it). Nothing slow happens under
+that lock. JointJog and status are published outside it: a DDS write can block. Measured
+(``bench/bench_churn.py``): Fast DDS 2.14 holds one send lock per participant, and its discovery
+thread holds it while it opens the shared-memory port of a process that just joined the graph,
+which can take 333 ms (eProsima/Fast-DDS issue 6535); every write of the node waits that long.
+
+The status value ``max_tick_gap`` [s] is the longest time between two ticks since the node
+started (node clock; nominal ``1 / rate``), and a tick later than ``TICK_GAP_WARN`` logs a
+warning, so a stalled tick thread shows in the controller and not only as a stale command at the
+driver. To see what held it up, set the environment variable ``MOVER6_TICK_WATCHDOG`` to a time
+[s]: a tick later than that dumps the stack of every thread to stderr (``faulthandler``, which
+needs no interpreter lock for it; wall time, so a paused sim clock trips it too).
+
+The tick never dies: an exception inside it is a fault (zero command, the reason on the
+status, cleared by fresh joint states as any fault); when ``MAX_TICK_FAILURES`` ticks in a row
+raise, or the tick thread ends by an exception, the node gives up (``fatal``) and its process
+exits with 1 after the last zero command, so the launcher sees it.
+
+``TickLoop`` is a part of ``controller_node.ControllerNode`` (its state is the node's, set in
+``ControllerNode.__init__``); it is not used on its own.
+"""
+
+import faulthandler
+import os
+import threading
+import traceback
+
+from mover6_control.control.state_machine import FAULT
+from mover6_control.nodes import conversions
+from mover6_control.nodes.controller_demands import WAIT_FOR_STATES
+from rclpy.duration import Duration
+
+# A tick this late [s] is logged: the driver (and the sim bridge) halt after 0.2 s without one.
+TICK_GAP_WARN = 0.05
+WATCHDOG_ENV = 'MOVER6_TICK_WATCHDOG'
+# Ticks in a row that raised (each a fault with a zero command) after which the tick cannot run
+# at all: the node gives up and its process exits with 1, so the launcher sees it.
+MAX_TICK_FAILURES = 10
+
+
+class TickLoop:
+    """The tick thread of ``ControllerNode`` (module docstring)."""
+
+    def tick_loop(self) -> None:
+        """Call ``on_tick`` every ``1 / rate`` [s] of the node's clock until the node closes."""
+        self.set_tick_priority(self.get_parameter('tick_priority').value)
+        clock = self.get_clock()
+        deadline = clock.now()
+        watchdog = float(os.environ.get(WATCHDOG_ENV) or 0.0)
+        while self.running and self.context.ok():
+            with self.lock:
+                period = 1.0 / self.core.config.rate  # the rate in force: set live
+            step = Duration(seconds=period)
+            if watchdog > 0.0:
+                faulthandler.dump_traceback_later(watchdog + period)   # re-armed each tick
+            deadline = deadline + step
+            if not clock.sleep_until(deadline, self.context):
+                deadline = clock.now()          # clock switched (sim time) or shutting down
+                self.last_tick = None           # no gap across the switch
+                continue
+            now = clock.now()
+            if (now - deadline).nanoseconds > step.nanoseconds:
+                deadline = now                  # fell behind by a whole period: no burst
+            if self.running:
+                self.run_tick()
+        if watchdog > 0.0:
+            faulthandler.cancel_dump_traceback_later()
+
+    def run_ticks(self) -> None:
+        """Run ``tick_loop`` (the tick thread); if it ends by an exception the node gives up."""
+        try:
+            self.tick_loop()
+        except Exception as err:  # noqa: B902 - a dead tick thread must not go unnoticed
+            self.give_up(f'the tick thread died: {type(err).__name__}: {err}',
+                         traceback.format_exc())
+
+    def run_tick(self) -> None:
+        """
+        Run ``on_tick``; a tick that raised is a fault, ``MAX_TICK_FAILURES`` in a row fatal.
+
+        The core turns an exception in its tick into a fault itself (zero command, the reason
+        on the status) and counts them; one here (publishing, the status) sends a zero command.
+        """
+        try:
+            self.on_tick()
+        except Exception as err:  # noqa: B902 - the tick goes on, the arm held
+            self.tick_errors += 1
+            self.get_logger().error(f'tick failed: {type(err).__name__}: {err}',
+                                    throttle_duration_sec=1.0)
+            try:
+                self.send_zero()
+            except Exception:  # noqa: B902 - giving up below if this keeps happening
+                pass
+        else:
+            self.tick_errors = 0
+        with self.lock:
+            failures = self.core.tick_failures
+            last = self.core.status().message if failures >= MAX_TICK_FAILURES else ''
+        if failures >= MAX_TICK_FAILURES:
+            self.give_up(f'{failures} ticks in a row failed ({last})')
+        elif self.tick_errors >= MAX_TICK_FAILURES:
+            self.give_up(f'{self.tick_errors} ticks in a row failed to publish')
+
+    def give_up(self, reason: str, details: str = '') -> None:
+        """Stop ticking for good: log ``reason``, send a zero command, let the process exit 1."""
+        self.fatal = reason
+        self.running = False
+        log = f'{reason}; the controller stops'
+        self.get_logger().fatal(f'{log}\n{details}' if details else log)
+        try:
+            self.send_zero()
+        except Exception:  # noqa: B902 - destroy_node sends one more
+            pass
+
+    def set_tick_priority(self, priority: int) -> None:
+        """
+        Run the tick thread at real-time priority ``priority`` (SCHED_FIFO), the rest just below.
+
+        As ros2_control's controller manager does for its update thread; 0: as is. In Python the
+        tick also needs the interpreter lock: when another thread of the node holds it (the
+        demand thread planning, the executor) and waits for a CPU behind the machine's other
+        processes, the tick waits with it. So every other thread of the process (Fast DDS's
+        receive threads too: the joint states) runs at SCHED_FIFO ``priority - 1`` (at least 1).
+        Where the system refuses it (no CAP_SYS_NICE, no rtprio limit), say so once and go on
+        with normal scheduling.
+        """
+        if priority <= 0:
+            return
+        tick = threading.get_native_id()
+        others = [int(t) for t in os.listdir('/proc/self/task') if int(t) != tick]
+        try:
+            os.sched_setscheduler(tick, os.SCHED_FIFO, os.sched_param(priority))
+            for tid in others:
+                try:
+                    os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(max(1, priority - 1)))
+                except ProcessLookupError:      # a thread that ended meanwhile
+                    pass
+        except (OSError, AttributeError) as err:
+            self.get_logger().warning(
+                f'tick_priority {priority}: real-time scheduling refused ({err}); the tick '
+                'thread runs at normal priority (allow it with an rtprio limit in '
+                '/etc/security/limits.conf or CAP_SYS_NICE)')
+            return
+        self.get_logger().info(f'tick thread at SCHED_FIFO priority {priority}, the '
+                               f'{len(others)} other threads of the process at '
+                               f'{max(1, priority - 1)}')
+
+    def on_tick(self) -> None:
+        """Run one control tick: publish the JointJog, and the status when due."""
+        time_now = self.get_clock().now()
+        now = time_now.nanoseconds * 1e-9
+        gap = self.note_tick(time_now.nanoseconds)
+        with self.lock:
+            out = self.core.tick(now)
+            fault_change = None
+            if (out.state == FAULT) != (self.last_state == FAULT):
+                fault_change = self.core.status().message
+            if out.state in WAIT_FOR_STATES:
+                if self.last_state not in WAIT_FOR_STATES:
+                    self.has_states.clear()
+            elif self.last_state is None or self.last_state in WAIT_FOR_STATES:
+                self.has_states.set()
+            self.last_state = out.state
+            applied = self.pending_logged and self.core.pending_config is None
+            if applied:
+                self.pending_logged = False
+            profile, rate = self.core.config.law.profile, self.core.config.rate
+            status_due = (out.status_changed or self.last_status is None
+                          or now - self.last_status >= self.status_period
+                          or now < self.last_status)
+        if applied:
+            self.get_logger().info(f'parameters in force from now: {profile} at {rate:g} Hz')
+        if fault_change is not None:        # entering fault and leaving it: logged once each
+            if out.state == FAULT:
+                self.get_logger().error(f'fault: {fault_change}')
+            else:
+                self.get_logger().info(f'fault cleared ({out.state}): {fault_change}')
+        # Published without the lock: a DDS write can block (seen for 0.33 s right after start-up
+        # while the sim bridge was being matched), and the callbacks must not wait for it.
+        self.jog_pub.publish(
+            conversions.make_joint_jog(self.joint_names, out.jog, time_now.to_msg()))
+        if gap > TICK_GAP_WARN:         # logged after the command went, not before it
+            self.get_logger().warning(
+                f'tick {gap * 1e3:.0f} ms after the one before (period '
+                f'{1e3 / rate:.0f} ms): the tick thread stalled',
+                throttle_duration_sec=1.0)
+        if status_due:
+            self.publish_status(now)
+
+    def note_tick(self, stamp_ns: int) -> float:
+        """Record a tick at ``stamp_ns`` [ns] of the node clock; return the gap [s] (0 first)."""
+        last, self.last_tick = self.last_tick, stamp_ns
+        if last is None or stamp_ns < last:          # first tick, or the clock went back
+            return 0.0
+        gap = (stamp_ns - last) * 1e-9
+        self.max_tick_gap = max(self.max_tick_gap, gap)
+        return gap
+
+    def send_zero(self) -> None:
+        """Publish a zero JointJog (the vendor driver keeps the last command forever)."""
+        self.jog_pub.publish(conversions.make_joint_jog(
+            self.joint_names, [0.0] * len(self.joint_names), self.get_clock().now().to_msg()))

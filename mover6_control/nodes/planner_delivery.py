@@ -1,0 +1,153 @@
+"""
+The planner node's delivery of demands: sent when matched, again until a controller names them.
+
+The graph can show a freshly started controller's reader before the planner's writer has matched
+it, and a demand published then is lost (volatile durability); so a demand is published once the
+known readers of /joint_demands are matched (or after ``match_timeout``), and sent again every
+``RESEND_AFTER`` until the controller's status names its goal (taken, or refused: the goal's end),
+at most ``RESENDS`` more times; then the goal fails (``not_acknowledged``).
+
+``DemandDelivery`` is a part of ``planner_node.PlannerNode`` (its state is the node's, set in
+``PlannerNode.__init__``); it is not used on its own.
+"""
+
+import dataclasses
+import time
+from typing import Optional
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from mover6_control.control.status import PlannerResult
+from mover6_control.nodes import conversions
+from mover6_control.nodes.planner_thread import POLL
+from mover6_control.planning.planner_core import JointPlan
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from std_msgs.msg import Float32MultiArray
+
+# The controller's status is read with a deeper queue: each status may name a goal it took.
+CONTROLLER_STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# [s] a demand no controller acknowledged (by goal id in its status) is sent again after this,
+# at most RESENDS more times; then the goal fails (not_acknowledged). The controller waits for
+# its first states at most controller_demands.DEMAND_STATE_WAIT (2 s) before it answers: less than
+# RESEND_AFTER * (RESENDS + 1).
+RESEND_AFTER = 1.0
+RESENDS = 2
+
+
+@dataclasses.dataclass
+class Unconfirmed:
+    """A demand sent that no controller has named yet."""
+
+    goal: dict
+    motion: str
+    msg: Float32MultiArray
+    sent: float        # [s] monotonic time of the last send
+    count: int         # times sent
+    first: float       # [s] monotonic time of the first send
+
+
+class DemandDelivery:
+    """The delivery of the planner's demands (module docstring)."""
+
+    def on_controller_status(self, msg: DiagnosticStatus) -> None:
+        """
+        Note the controller's status: it names the goal it took, or refused and why.
+
+        A refusal there is the goal's end: the planner's status says so (``controller_refused``
+        with the controller's reason), in place of 'planned'.
+        """
+        values = conversions.status_values(msg)
+        self.controller_values = values
+        with self.lock:
+            taken = self.unconfirmed.pop(values.get('goal_id') or None, None)
+            refused = self.unconfirmed.pop(values.get('rejected_goal_id') or None, None)
+        if taken is not None:
+            self.get_logger().info(f'goal {taken.goal["goal_id"]}: the controller took it '
+                                   f'(motion {values.get("motion_id", "?")})')
+        if refused is not None:
+            self.refuse(refused.motion, 'the controller refused the demand: '
+                        + values.get('rejected', ''), 'controller_refused', {}, refused.goal)
+
+    def subscribers_matched(self) -> tuple[int, int]:
+        """
+        Return (matched, known): /joint_demands readers matched, and readers in the graph.
+
+        A reader the graph shows but the publisher has not matched yet would miss a message
+        published now (volatile durability); under load discovery can take a few seconds.
+        """
+        known = len(self.get_subscriptions_info_by_topic(self.demands_pub.topic_name))
+        return self.demands_pub.get_subscription_count(), known
+
+    def deliver(self, goal: dict, motion: str, plan: JointPlan) -> None:
+        """Publish the plan once every known reader of /joint_demands is matched; say planned."""
+        since = time.monotonic()
+        while True:
+            matched, known = self.subscribers_matched()
+            waited = time.monotonic() - since
+            if matched >= max(known, 1) or waited >= self.get_parameter('match_timeout').value:
+                break
+            if self.stopped(goal) or not self.running:
+                break
+            time.sleep(POLL)
+        if self.stopped(goal) or not self.running:
+            self.refuse(motion, 'stopped before its demand was sent', 'stopped', {}, goal)
+            return
+        if matched == 0:
+            self.refuse(motion, 'nobody subscribes to /joint_demands: is the controller running?',
+                        'no_controller', {}, goal)
+            return
+        msg = conversions.make_demands(plan.q, goal['goal_id'], goal.get('profile', ''))
+        now = time.monotonic()
+        with self.lock:
+            self.unconfirmed[goal['goal_id']] = Unconfirmed(goal, motion, msg, now, 1, now)
+        values = {'result': PlannerResult.PLANNED, 'motion': motion, 'waypoints': plan.n_waypoints,
+                  'path_length': f'{plan.path_length:.6f}',
+                  'predicted_duration': f'{plan.predicted_duration:.3f}',
+                  'position_error': f'{plan.final_position_error:.3e}',
+                  'orientation_error': f'{plan.final_orientation_error:.3e}'}
+        text = (f'planned {motion} move: {plan.n_waypoints} waypoints, '
+                f'{plan.path_length * 1e3:.1f} mm, about {plan.predicted_duration:.2f} s')
+        self.get_logger().info(f'goal {goal["goal_id"]}: {text}')
+        # The status first: a controller's refusal of the demand then comes after it.
+        self.publish_status('OK', text, values, goal)
+        self.demands_pub.publish(msg)
+
+    def resend_due(self) -> Optional[float]:
+        """Return the time [s] until the next demand is due again (None: none waits)."""
+        with self.lock:
+            if not self.unconfirmed:
+                return None
+            due = min(u.sent for u in self.unconfirmed.values()) + RESEND_AFTER
+        return max(due - time.monotonic(), POLL)
+
+    def confirm_delivery(self) -> None:
+        """
+        Send a demand again while no controller has acknowledged its goal (up to RESENDS times).
+
+        The graph can show a freshly started controller's reader before the planner's writer
+        has matched it; a demand published then is lost (volatile durability). The controller
+        names in its status the goal it took or refused (``on_controller_status``), and ignores
+        a goal id it already had, so sending again is safe. After the last send the goal fails
+        (``not_acknowledged``) on the status.
+        """
+        now = time.monotonic()
+        resend, failed = [], []
+        with self.lock:
+            for goal_id, entry in list(self.unconfirmed.items()):
+                if now - entry.sent < RESEND_AFTER:
+                    continue
+                if entry.count > RESENDS:
+                    failed.append(self.unconfirmed.pop(goal_id))
+                    continue
+                entry.sent, entry.count = now, entry.count + 1
+                resend.append(entry)
+        for entry in resend:
+            self.get_logger().info(f'goal {entry.goal["goal_id"]}: not acknowledged yet, '
+                                   'sending the demand again')
+            self.demands_pub.publish(entry.msg)
+        for entry in failed:
+            text = (f'no controller acknowledged the demand (sent {entry.count} times in '
+                    f'{now - entry.first:.1f} s): is the controller running?')
+            self.get_logger().error(f'goal {entry.goal["goal_id"]} failed: {text}')
+            self.publish_status('ERROR', f'goal failed (not_acknowledged): {text}',
+                                {'result': PlannerResult.FAILED, 'motion': entry.motion,
+                                 'reason': 'not_acknowledged'}, entry.goal)
