@@ -25,8 +25,8 @@ mover6_control: the one entry point.
 
 On a machine with a sourced ROS 2 Jazzy install it uses that install. Otherwise it makes a
 project-local virtual environment (.venv) with ROS 2 Jazzy from PyPI wheels (these need
-Python 3.11), builds a local control_msgs (JointJog, FollowJointTrajectory) when none is found, and builds this
-package with colcon into .colcon/. What it installs is listed in requirements/*.txt.
+Python 3.11), builds a local control_msgs (JointJog, FollowJointTrajectory) and tf2_msgs
+(TFMessage) when none is found, and builds this package with colcon into .colcon/. What it installs is listed in requirements/*.txt.
 Re-running is quick and changes nothing. It works from any directory.
 
 Environment: PYTHON  the interpreter that makes the venv (default python3)
@@ -192,12 +192,17 @@ setup_system_libs() {
 }
 
 colcon_build() {
-    # Build control_msgs only when the environment has none, then this package. Skipped when
+    # Build control_msgs and tf2_msgs only when the environment has none, then this package. Skipped when
     # nothing changed since the last build.
     local stamp="$WS/.built" paths=(".")
     if ! python -c 'from control_msgs.msg import JointJog' >/dev/null 2>&1 \
         || [ -d "$WS/install/control_msgs" ]; then
         paths+=("interfaces/control_msgs")
+    fi
+    # tf2_msgs (/tf, /tf_static) likewise: the PyPI wheels have none.
+    if ! python -c 'from tf2_msgs.msg import TFMessage' >/dev/null 2>&1 \
+        || [ -d "$WS/install/tf2_msgs" ]; then
+        paths+=("interfaces/tf2_msgs")
     fi
     if [ -f "$stamp" ] && [ -z "$(cd "$ROOT" && find package.xml setup.py setup.cfg \
             mover6_control sim_bridge config scripts interfaces launch -newer "$stamp" \

@@ -34,6 +34,7 @@ setup(
             'can_sim = sim_bridge.can_sim:main',
             'goal = mover6_control.tools.goal_cli:main',
             'teleop = mover6_control.tools.teleop:main',
+            'state_publisher = mover6_control.nodes.state_publisher_node:main',
         ],
     },
 )

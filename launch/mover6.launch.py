@@ -3,7 +3,7 @@ Start the mover6_control nodes: the arm (sim_bridge, or the CAN driver), control
 
 The same nodes, parameter files and choices as scripts/launch.sh (test/test_launch_file.py keeps
 the two in step), plus robot_state_publisher with config/mover6.urdf when that package is
-installed:
+installed, else the package's own state_publisher (as launch.sh):
 
     ros2 launch mover6_control mover6.launch.py
     ros2 launch mover6_control mover6.launch.py sim:=false jog_units:=fraction_of_max
@@ -57,12 +57,22 @@ def extra_ros_args(variable):
 
 
 def robot_state_publisher(context):
-    """Start robot_state_publisher with the package's URDF, when that package is installed."""
+    """
+    Start robot_state_publisher with the package's URDF, where that package is installed.
+
+    Elsewhere (the PyPI wheels) the package's own state publisher, which publishes the same
+    /robot_description, /tf and /tf_static.
+    """
+    urdf = os.path.join(FindPackageShare(PACKAGE).perform(context), 'config', 'mover6.urdf')
     try:
         get_package_prefix('robot_state_publisher')
     except PackageNotFoundError:
-        return [LogInfo(msg='robot_state_publisher is not installed: not started')]
-    urdf = os.path.join(FindPackageShare(PACKAGE).perform(context), 'config', 'mover6.urdf')
+        return [LogInfo(msg="robot_state_publisher is not installed: the package's own "
+                            'state_publisher publishes /robot_description and /tf'),
+                Node(package=PACKAGE, executable='state_publisher', name='state_publisher',
+                     output='screen',
+                     parameters=[LaunchConfiguration('state_publisher_params'), {}],
+                     ros_arguments=extra_ros_args('MOVER6_STATE_PUBLISHER_ARGS'))]
     with open(urdf) as f:
         description = ParameterValue(f.read(), value_type=str)    # a string, not YAML
     return [Node(package='robot_state_publisher', executable='robot_state_publisher',
@@ -172,6 +182,9 @@ def generate_launch_description():
         DeclareLaunchArgument(
             'planner_params', default_value=config_file('planner.yaml'),
             description='parameter file of the planner'),
+        DeclareLaunchArgument(
+            'state_publisher_params', default_value=config_file('state_publisher.yaml'),
+            description='parameter file of the state publisher (without robot_state_publisher)'),
         # DDS stays on this machine (the package's Fast DDS profile: UDP on 127.0.0.1, no shared
         # memory) unless the user chose their own DDS setup (a robot network); README, "DDS".
         OpaqueFunction(function=local_dds_environment),

@@ -406,5 +406,18 @@ DRIVER = _table(
       0.1, 50.0),
 )
 
+# The package's own state publisher (nodes/state_publisher_node.py): robot_state_publisher's
+# parameters of the same names, where the ROS install has no robot_state_publisher.
+STATE_PUBLISHER = _table(
+    P('robot_description', 'str', '', '',
+      'URDF text published on /robot_description and used for /tf; empty = the shipped Mover6 '
+      '(config/mover6.urdf); set at start', read_only=True),
+    P('publish_frequency', 'float', 20.0, 'Hz',
+      'largest rate of /tf (one message per /joint_states, at most this often)', 0.1, 1000.0),
+    P('frame_prefix', 'str', '', '',
+      'prefix of every frame id on /tf and /tf_static (e.g. arm1/); set at start',
+      read_only=True),
+)
+
 NODES = {'planner': PLANNER, 'controller': CONTROLLER, 'sim_bridge': SIM_BRIDGE,
          'driver': DRIVER}

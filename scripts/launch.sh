@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Start the mover6_control nodes (the arm: sim_bridge or the CAN driver; controller, planner) and
-# keep them running until Ctrl-C. Stops all of them on exit, on Ctrl-C / SIGTERM, and as soon as
-# one dies.
+# Start the mover6_control nodes (the arm: sim_bridge or the CAN driver; controller, planner; the
+# state publisher: /robot_description, /tf) and keep them running until Ctrl-C. Stops all of them
+# on exit, on Ctrl-C / SIGTERM, and as soon as one dies.
 #
 # Usage: scripts/launch.sh [--hardware H] [--can-interface I] [--can-channel C] [--no-sim]
 #                          [--profile P] [--jog-units U] [--limit-set L] [--log-dir DIR]
@@ -20,8 +20,9 @@
 #   --limit-set L    joint limits of every node: within_90_deg (default) | hardware
 #   --log-dir DIR    also write each node's output to DIR/<node>.log
 # Extra ROS arguments per node: MOVER6_SIM_ARGS, MOVER6_DRIVER_ARGS, MOVER6_CONTROLLER_ARGS,
-# MOVER6_PLANNER_ARGS, e.g. MOVER6_CONTROLLER_ARGS="-p t_max:=2.0"; MOVER6_CAN_SIM_ARGS for
-# can_sim's command line (e.g. "--home 0 0.3 0 0 0 0"). Parameter files: config/<node>.yaml.
+# MOVER6_PLANNER_ARGS, MOVER6_STATE_PUBLISHER_ARGS, e.g. MOVER6_CONTROLLER_ARGS="-p t_max:=2.0";
+# MOVER6_CAN_SIM_ARGS for can_sim's command line (e.g. "--home 0 0.3 0 0 0 0"). Parameter files:
+# config/<node>.yaml.
 # With the driver the controller's state_timeout is 0.5 s (the driver publishes at its 20 Hz).
 # launch/mover6.launch.py (ros2 launch) starts the same (test/test_launch_file.py checks).
 #
@@ -59,7 +60,7 @@ while [ $# -gt 0 ]; do
         --hardware) hardware=${2:-}; shift ;;
         --can-interface) can_interface=${2:-}; shift ;;
         --can-channel) can_channel=${2:-}; shift ;;
-        -h | --help) sed -n '2,27p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h | --help) sed -n '2,28p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "launch.sh: unknown argument '$1'" >&2; exit 2 ;;
     esac
     shift
@@ -184,6 +185,9 @@ start controller controller \
     ${MOVER6_CONTROLLER_ARGS:-}
 # shellcheck disable=SC2086
 start planner planner -p "limit_set:=$limit_set" -p "profile:=$profile" ${MOVER6_PLANNER_ARGS:-}
+# /robot_description, /tf and /tf_static for RViz (robot_state_publisher's topics).
+# shellcheck disable=SC2086
+start state_publisher state_publisher ${MOVER6_STATE_PUBLISHER_ARGS:-}
 
 # Wait until any node exits; then stop the rest and report which one it was.
 wait -n "${pids[@]}"
