@@ -3,13 +3,15 @@ Start the mover6_control nodes: the arm (sim_bridge, or the CAN driver), control
 
 The same nodes, parameter files and choices as scripts/launch.sh (test/test_launch_file.py keeps
 the two in step), plus robot_state_publisher with config/mover6.urdf when that package is
-installed, else the package's own state_publisher (as launch.sh):
+installed, else the package's own state_publisher (as launch.sh), the markers node, and RViz
+with rviz/mover6.rviz on ``rviz:=true``:
 
     ros2 launch mover6_control mover6.launch.py
     ros2 launch mover6_control mover6.launch.py sim:=false jog_units:=fraction_of_max
     ros2 launch mover6_control mover6.launch.py profile:=trapezoidal limit_set:=hardware
     ros2 launch mover6_control mover6.launch.py controller_params:=/path/to/controller.yaml
     ros2 launch mover6_control mover6.launch.py hardware:=can_sim
+    ros2 launch mover6_control mover6.launch.py rviz:=true
     ros2 launch mover6_control mover6.launch.py hardware:=can can_interface:=socketcan \
         can_channel:=can0
 
@@ -183,6 +185,13 @@ def generate_launch_description():
             'planner_params', default_value=config_file('planner.yaml'),
             description='parameter file of the planner'),
         DeclareLaunchArgument(
+            'markers_params', default_value=config_file('markers.yaml'),
+            description='parameter file of the markers node (goal, planned path, table, '
+                        'keep-out boxes on /markers)'),
+        DeclareLaunchArgument(
+            'rviz', default_value='false', choices=['true', 'false'],
+            description='true: start RViz (rviz2, where installed) with rviz/mover6.rviz'),
+        DeclareLaunchArgument(
             'state_publisher_params', default_value=config_file('state_publisher.yaml'),
             description='parameter file of the state publisher (without robot_state_publisher)'),
         # DDS stays on this machine (the package's Fast DDS profile: UDP on 127.0.0.1, no shared
@@ -206,6 +215,15 @@ def generate_launch_description():
             parameters=[LaunchConfiguration('planner_params'),
                         {'profile': profile, 'limit_set': limit_set}],
             ros_arguments=extra_ros_args('MOVER6_PLANNER_ARGS')),
+        Node(
+            package=PACKAGE, executable='markers', name='markers', output='screen',
+            parameters=[LaunchConfiguration('markers_params'), {}],
+            ros_arguments=extra_ros_args('MOVER6_MARKERS_ARGS')),
+        Node(
+            package='rviz2', executable='rviz2', name='rviz2', output='screen',
+            condition=IfCondition(LaunchConfiguration('rviz')),
+            arguments=['-d', PathJoinSubstitution([FindPackageShare(PACKAGE), 'rviz',
+                                                   'mover6.rviz'])]),
         OpaqueFunction(function=hardware_nodes),
         OpaqueFunction(function=robot_state_publisher),
     ])

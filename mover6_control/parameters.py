@@ -419,5 +419,20 @@ STATE_PUBLISHER = _table(
       read_only=True),
 )
 
+# The markers node (nodes/markers_node.py): RViz markers of the goal, the planned tool path, the
+# table and the keep-out boxes.
+_PLANNER_COLLISION = {spec.name: spec for spec in _collision_specs('by the planner')}
+MARKERS = _table(
+    P('frame_id', 'str', 'base_link', '', "frame of the markers (the planner's frame_id)"),
+    P('frame_prefix', 'str', '', '',
+      "prefix of the frame (the state publisher's frame_prefix); set at start", read_only=True),
+    P('planner_node', 'str', 'planner', '',
+      'node whose table_margin and keep_out_boxes are shown (followed as they change); empty: '
+      "this node's own; set at start", read_only=True),
+    P('table_size', 'float', 1.0, 'm', 'side of the table slab shown', 0.01, 20.0),
+    _PLANNER_COLLISION['table_margin'],
+    _PLANNER_COLLISION['keep_out_boxes'],
+)
+
 NODES = {'planner': PLANNER, 'controller': CONTROLLER, 'sim_bridge': SIM_BRIDGE,
          'driver': DRIVER}

@@ -22,7 +22,7 @@ import yaml
 ROOT = os.path.dirname(CONFIG_DIR)
 LAUNCH_FILE = os.path.join(ROOT, 'launch', 'mover6.launch.py')
 LAUNCH_SH = os.path.join(ROOT, 'scripts', 'launch.sh')
-NODES = ('sim_bridge', 'driver', 'controller', 'planner', 'state_publisher')
+NODES = ('sim_bridge', 'driver', 'controller', 'planner', 'state_publisher', 'markers')
 CHOICES = {'profile': PROFILES, 'jog_units': JOG_UNITS, 'limit_set': LIMIT_SETS}
 # launch.sh's option and choice variable for each launch argument.
 SH_NAMES = {'profile': ('--profile', 'PROFILES'), 'jog_units': ('--jog-units', 'JOG_UNITS'),

@@ -17,7 +17,7 @@ pytestmark = pytest.mark.e2e
 
 SCRIPT = os.path.join(os.path.dirname(CONFIG_DIR), 'scripts', 'launch.sh')
 # What a plain launch.sh (the simulator) starts.
-STARTED = {'sim_bridge', 'controller', 'planner', 'state_publisher'}
+STARTED = {'sim_bridge', 'controller', 'planner', 'state_publisher', 'markers'}
 
 
 def installed():
