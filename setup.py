@@ -37,6 +37,7 @@ setup(
             'teleop = mover6_control.tools.teleop:main',
             'state_publisher = mover6_control.nodes.state_publisher_node:main',
             'markers = mover6_control.nodes.markers_node:main',
+            'recorder = mover6_control.nodes.recorder_node:main',
         ],
     },
 )

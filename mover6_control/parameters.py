@@ -434,5 +434,25 @@ MARKERS = _table(
     _PLANNER_COLLISION['keep_out_boxes'],
 )
 
+# The recorder (nodes/recorder_node.py): a rosbag2-layout MCAP recording of the stack's topics.
+# The goals: /pose_goal and /path_goal, and their shape topics (the planner's motion and
+# path_motion choices) and /path_goal/joint.
+RECORDED_TOPICS = (
+    ('joint_states', 'JointJog', 'joint_demands', 'pose_goal', 'path_goal')
+    + tuple(f'pose_goal/{m}' for m in PLANNER['motion'].allowed)
+    + tuple(f'path_goal/{m}' for m in PLANNER['path_motion'].allowed + ('joint',))
+    + ('planner/status', 'controller/status', '/tf', '/tf_static', 'diagnostics',
+       'sim_bridge/contacts', 'robot_description', '/parameter_events'))
+RECORDER = _table(
+    P('path', 'str', '', '',
+      'recording folder (must not exist; its folder must be writable); empty = '
+      'rosbag2_<date>-<time> in the working folder, as ros2 bag; set at start', read_only=True),
+    P('topics', 'str', ' '.join(RECORDED_TOPICS), '',
+      'topics to record, separated by spaces (relative names follow the namespace); set at '
+      'start', read_only=True),
+    P('discovery_period', 'float', 0.2, 's',
+      'how often the graph is looked at for the topics not yet recorded', 0.01, 10.0),
+)
+
 NODES = {'planner': PLANNER, 'controller': CONTROLLER, 'sim_bridge': SIM_BRIDGE,
          'driver': DRIVER}

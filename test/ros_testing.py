@@ -20,7 +20,8 @@ MODULES = {'sim_bridge': 'sim_bridge.bridge_node',
            'controller': 'mover6_control.nodes.controller_node',
            'planner': 'mover6_control.nodes.planner_node',
            'driver': 'mover6_control.nodes.driver_node',
-           'can_sim': 'sim_bridge.can_sim'}
+           'can_sim': 'sim_bridge.can_sim',
+           'recorder': 'mover6_control.nodes.recorder_node'}
 
 
 def node_command(name):
