@@ -5,6 +5,7 @@
 #
 # Usage: scripts/launch.sh [--hardware H] [--can-interface I] [--can-channel C] [--no-sim]
 #                          [--profile P] [--jog-units U] [--limit-set L] [--log-dir DIR] [--rviz]
+#                          [--namespace NS]
 #   --hardware H     what stands for the arm: sim (default: the MuJoCo bridge) | can-sim (the
 #                    CAN-level Mover6 on a pty, can_sim, and the driver on it, enabled at start)
 #                    | can (the driver on a real arm's bus; enable it with its ~/reset, ~/enable)
@@ -20,6 +21,8 @@
 #   --limit-set L    joint limits of every node: within_90_deg (default) | hardware
 #   --log-dir DIR    also write each node's output to DIR/<node>.log
 #   --rviz           also start RViz (rviz2) with rviz/mover6.rviz: the arm, /tf, /markers
+#   --namespace NS   every node, topic, service and action under NS (a second arm: /arm2), TF
+#                    frames prefixed NS/ (ROS naming rules; a malformed one is refused)
 # Extra ROS arguments per node: MOVER6_SIM_ARGS, MOVER6_DRIVER_ARGS, MOVER6_CONTROLLER_ARGS,
 # MOVER6_PLANNER_ARGS, MOVER6_STATE_PUBLISHER_ARGS, MOVER6_MARKERS_ARGS, e.g.
 # MOVER6_CONTROLLER_ARGS="-p t_max:=2.0"; MOVER6_CAN_SIM_ARGS for can_sim's command line (e.g.
@@ -44,6 +47,7 @@ jog_units=rad_per_s
 limit_set=within_90_deg
 log_dir=''
 rviz=0
+namespace=''
 one_of() {
     # one_of OPTION VALUE CHOICES...: exit 2 unless VALUE is one of CHOICES
     local option=$1 value=$2 choice
@@ -56,6 +60,7 @@ while [ $# -gt 0 ]; do
     case "$1" in
         --no-sim) with_sim=0 ;;
         --rviz) rviz=1 ;;
+        --namespace) namespace=${2:-}; shift ;;
         --profile) profile=${2:-}; shift ;;
         --jog-units) jog_units=${2:-}; shift ;;
         --limit-set) limit_set=${2:-}; shift ;;
@@ -63,7 +68,7 @@ while [ $# -gt 0 ]; do
         --hardware) hardware=${2:-}; shift ;;
         --can-interface) can_interface=${2:-}; shift ;;
         --can-channel) can_channel=${2:-}; shift ;;
-        -h | --help) sed -n '2,29p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h | --help) sed -n '2,32p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "launch.sh: unknown argument '$1'" >&2; exit 2 ;;
     esac
     shift
@@ -107,6 +112,11 @@ prefix=$(python3 -c 'from ament_index_python.packages import get_package_prefix 
 dds=$(python3 -m mover6_control.nodes.local_dds env) || exit 1
 eval "$dds"
 bin="$prefix/lib/mover6_control"
+# The namespace, checked by ROS's naming rules, and its TF frame prefix (/arm1 -> arm1/).
+checked=$(python3 -m mover6_control.nodes.names "$namespace") || exit 2
+read -r namespace tf_prefix <<<"$checked"
+ns_args=()
+[ "$namespace" != / ] && ns_args=(-r "__ns:=$namespace")
 share="$prefix/share/mover6_control/config"
 [ -n "$log_dir" ] && mkdir -p "$log_dir"
 
@@ -145,9 +155,10 @@ start() {
     local params=()
     [ -f "$share/$name.yaml" ] && params=(--params-file "$share/$name.yaml")
     if [ -n "$log_dir" ]; then
-        "$bin/$exe" --ros-args "${params[@]}" "$@" > >(tee "$log_dir/$name.log") 2>&1 &
+        "$bin/$exe" --ros-args "${params[@]}" "${ns_args[@]}" "$@" \
+            > >(tee "$log_dir/$name.log") 2>&1 &
     else
-        "$bin/$exe" --ros-args "${params[@]}" "$@" &
+        "$bin/$exe" --ros-args "${params[@]}" "${ns_args[@]}" "$@" &
     fi
     pids+=($!)
     names+=("$name")
@@ -194,10 +205,11 @@ start controller controller \
 start planner planner -p "limit_set:=$limit_set" -p "profile:=$profile" ${MOVER6_PLANNER_ARGS:-}
 # /robot_description, /tf and /tf_static for RViz (robot_state_publisher's topics).
 # shellcheck disable=SC2086
-start state_publisher state_publisher ${MOVER6_STATE_PUBLISHER_ARGS:-}
+start state_publisher state_publisher -p "frame_prefix:='$tf_prefix'" \
+    ${MOVER6_STATE_PUBLISHER_ARGS:-}
 # The goal, the planned tool path, the table and the keep-out boxes on /markers.
 # shellcheck disable=SC2086
-start markers markers ${MOVER6_MARKERS_ARGS:-}
+start markers markers -p "frame_prefix:='$tf_prefix'" ${MOVER6_MARKERS_ARGS:-}
 if [ "$rviz" = 1 ]; then
     "$(command -v rviz2)" -d "$prefix/share/mover6_control/rviz/mover6.rviz" &
     pids+=($!)

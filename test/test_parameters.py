@@ -101,7 +101,7 @@ def test_mover6_driver_constants_are_the_arms():
 def test_config_file_matches_the_table(node):
     """config/<node>.yaml: every parameter, no other key, each valid and the default."""
     with open(os.path.join(ROOT, 'config', f'{node}.yaml')) as f:
-        values = yaml.safe_load(f)[node]['ros__parameters']
+        values = yaml.safe_load(f)[f'/**/{node}']['ros__parameters']
     table = NODES[node]
     assert list(values) == list(table), 'same parameters, in the same order'
     for name, value in values.items():

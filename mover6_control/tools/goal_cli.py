@@ -499,6 +499,8 @@ def build_parser():
                         help='seconds to wait for the motion to finish (default 60)')
     common.add_argument('--frame', default='base_link', help='frame of the goal (base_link)')
     common.add_argument('--quiet', action='store_true', help='print only the result line')
+    common.add_argument('--namespace', default='',
+                        help='the namespace of the stack to talk to (e.g. /arm1; default none)')
     common.add_argument('--profile', choices=PROFILES,
                         help="the controller's law for this goal only (default: its profile "
                              'parameter, which does not change)')
@@ -647,6 +649,23 @@ def format_outcome(outcome, convention=None):
     return line
 
 
+def namespace_from(argv):
+    """
+    Return (the checked ``--namespace``, ``argv`` without it); (None, argv) when it is malformed.
+
+    A malformed one is refused with the ROS naming rule it breaks, before anything starts.
+    """
+    from mover6_control.nodes.names import check_namespace
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument('--namespace', default='')
+    known, rest = pre.parse_known_args(argv)
+    try:
+        return check_namespace(known.namespace), rest
+    except Mover6Error as err:
+        print(f'goal: {err}', file=sys.stderr)
+        return None, rest
+
+
 def main(args=None):
     """Entry point of ``ros2 run mover6_control goal``."""
     argv = sys.argv[1:] if args is None else list(args)
@@ -657,6 +676,11 @@ def main(args=None):
     if '--ros-args' in argv:
         idx = argv.index('--ros-args')
         argv, ros_args = argv[:idx], argv[idx:]
+    namespace, argv = namespace_from(argv)
+    if namespace is None:
+        sys.exit(EXIT_REFUSED)
+    if namespace != '/':        # every topic, service and action of the CLI follows it
+        ros_args = (ros_args or ['--ros-args']) + ['-r', f'__ns:={namespace}']
     rclpy.init(args=['goal'] + ros_args)
     client = None
     code = EXIT_FAILED
