@@ -13,6 +13,7 @@ import sys
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.nodes.bag_writer import check_bag_path
+from mover6_control.nodes.names import check_namespace
 from mover6_control.nodes.recorder_node import default_path
 from mover6_control.parameters import RECORDED_TOPICS
 
@@ -42,10 +43,11 @@ def main(argv=None):
     args = parser.parse_args(argv)
     try:
         path = check_bag_path(args.output or default_path())
+        namespace = check_namespace(args.namespace)
     except InvalidInputError as err:
         print(f'record: {err}; nothing started', file=sys.stderr)
         return 2
-    cmd = recorder_command(path, args.topics, args.namespace)
+    cmd = recorder_command(path, args.topics, '' if namespace == '/' else namespace)
     os.execv(cmd[0], cmd)
 
 
