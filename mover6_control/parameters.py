@@ -455,4 +455,5 @@ RECORDER = _table(
 )
 
 NODES = {'planner': PLANNER, 'controller': CONTROLLER, 'sim_bridge': SIM_BRIDGE,
-         'driver': DRIVER}
+         'driver': DRIVER, 'state_publisher': STATE_PUBLISHER, 'markers': MARKERS,
+         'recorder': RECORDER}
