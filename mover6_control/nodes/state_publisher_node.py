@@ -25,6 +25,7 @@ from mover6_control.nodes.qos import LATCHED_QOS
 from mover6_control.parameters import STATE_PUBLISHER
 from mover6_control.resources import CONFIG_DIR
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
@@ -70,17 +71,20 @@ class StatePublisherNode(Node):
         self.pub_static.publish(TFMessage(transforms=[
             make_transform_stamped(T, j.parent, j.child, now, self.prefix)
             for j, T in fixed_transforms(self.tree)]))
-        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
+        # Raw: a message is deserialized only when /tf is due (at most publish_frequency), not
+        # at the 100 Hz of /joint_states (the planner reads its states the same way).
+        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10, raw=True)
         self.get_logger().info(
             f'{self.tree.name}: {len(self.tree.moving)} moving and {len(self.tree.fixed)} fixed '
             f'joints from {self.tree.root}')
 
-    def on_joint_states(self, msg):
-        """Publish /tf for the joints ``msg`` names (at most ``publish_frequency`` per second)."""
+    def on_joint_states(self, data):
+        """Publish /tf for the joints a message names (at most ``publish_frequency`` a second)."""
         now = self.get_clock().now()
         period = 1.0 / self.get_parameter('publish_frequency').value
         if self.last_publish is not None and (now - self.last_publish).nanoseconds < period * 1e9:
             return
+        msg = deserialize_message(data, JointState)
         if len(msg.position) != len(msg.name):
             return              # robot_state_publisher, too, drops such a message
         positions = dict(zip(msg.name, msg.position))
