@@ -78,8 +78,10 @@ def full_name(node_name):
 @pytest.fixture(scope='module')
 def stack(tmp_path_factory):
     """
-    Start sim_bridge, controller and planner, a driver, the state publisher, the markers node
-    and a recorder (into the log folder), as processes for these tests.
+    Start every node of the package as a process for these tests.
+
+    sim_bridge, controller and planner, a driver, the state publisher, the markers node and a
+    recorder (into the log folder).
 
     The driver runs on python-can's virtual bus with no arm behind it, in its own namespace
     (``DRIVER_NS``: its /joint_states must not reach the controller): its parameters and
