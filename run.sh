@@ -14,19 +14,21 @@ usage() {
     cat <<'EOF'
 mover6_control: the one entry point.
 
-  ./run.sh demo            start the three nodes headless, run the showcase, print the results
+  ./run.sh demo            start the nodes headless, run the showcase (recorded), print the results
   ./run.sh test            colcon build + colcon test (pytest summary on the console)
                            (inside a private network namespace when the machine allows one)
   ./run.sh launch [args]   the three nodes in the foreground until Ctrl-C (scripts/launch.sh)
   ./run.sh goal ...        the goal CLI (./run.sh goal --help)
+  ./run.sh record [-o BAG] [TOPICS]  record the stack's topics (rosbag2 MCAP) until Ctrl-C
+  ./run.sh report BAG      the demo's report (plots, metrics, gif) of a recording
   ./run.sh bench [--quick] the benchmarks: tables on the console, JSON in bench/results/
   ./run.sh setup           only set up (also done on first use of any other command)
   ./run.sh exec CMD ...    run CMD inside the project environment
 
 On a machine with a sourced ROS 2 Jazzy install it uses that install. Otherwise it makes a
 project-local virtual environment (.venv) with ROS 2 Jazzy from PyPI wheels (these need
-Python 3.11), builds a local control_msgs (JointJog, FollowJointTrajectory) when none is found, and builds this
-package with colcon into .colcon/. What it installs is listed in requirements/*.txt.
+Python 3.11), builds a local control_msgs (JointJog, FollowJointTrajectory) and tf2_msgs
+(TFMessage) when none is found, and builds this package with colcon into .colcon/. What it installs is listed in requirements/*.txt.
 Re-running is quick and changes nothing. It works from any directory.
 
 Environment: PYTHON  the interpreter that makes the venv (default python3)
@@ -50,8 +52,8 @@ export MPLBACKEND=Agg
 log() { printf '[run.sh] %s\n' "$*" >&2; }
 
 # Everything pip installs is listed in requirements/: ros.txt, build.txt and lint.txt for the
-# PyPI ROS only, python.txt always. Versions are pinned where a newer release could change
-# behaviour.
+# PyPI ROS only, python.txt and test.txt (the tests' own) always. Versions are pinned where a
+# newer release could change behaviour.
 read_reqs() {
     # read_reqs ARRAY NAME: ARRAY gets the requirement lines of requirements/NAME.txt (comments
     # and blank lines left out).
@@ -64,6 +66,7 @@ read_reqs ROS_REQS ros
 read_reqs BUILD_REQS build
 read_reqs LINT_REQS lint
 read_reqs PY_REQS python
+read_reqs TEST_REQS test
 
 have_system_ros() {
     [ "${ROS_DISTRO:-}" = "jazzy" ] && "$PYTHON_BIN" -c 'import rclpy' >/dev/null 2>&1
@@ -75,12 +78,13 @@ to_install() {
     INSTALL=()
     if [ -n "${MOVER6_SYSTEM_ROS:-}" ]; then
         local r
-        INSTALL=("${PY_REQS[@]}")
+        INSTALL=("${PY_REQS[@]}" "${TEST_REQS[@]}")
         for r in "${BUILD_REQS[@]}"; do
             case "$r" in setuptools*) INSTALL+=("$r") ;; esac
         done
     else
-        INSTALL=("${ROS_REQS[@]}" "${BUILD_REQS[@]}" "${LINT_REQS[@]}" "${PY_REQS[@]}")
+        INSTALL=("${ROS_REQS[@]}" "${BUILD_REQS[@]}" "${LINT_REQS[@]}" "${PY_REQS[@]}" \
+                 "${TEST_REQS[@]}")
     fi
 }
 
@@ -192,12 +196,17 @@ setup_system_libs() {
 }
 
 colcon_build() {
-    # Build control_msgs only when the environment has none, then this package. Skipped when
+    # Build control_msgs and tf2_msgs only when the environment has none, then this package. Skipped when
     # nothing changed since the last build.
     local stamp="$WS/.built" paths=(".")
     if ! python -c 'from control_msgs.msg import JointJog' >/dev/null 2>&1 \
         || [ -d "$WS/install/control_msgs" ]; then
         paths+=("interfaces/control_msgs")
+    fi
+    # tf2_msgs (/tf, /tf_static) likewise: the PyPI wheels have none.
+    if ! python -c 'from tf2_msgs.msg import TFMessage' >/dev/null 2>&1 \
+        || [ -d "$WS/install/tf2_msgs" ]; then
+        paths+=("interfaces/tf2_msgs")
     fi
     if [ -f "$stamp" ] && [ -z "$(cd "$ROOT" && find package.xml setup.py setup.cfg \
             mover6_control sim_bridge config scripts interfaces launch -newer "$stamp" \
@@ -343,6 +352,14 @@ case "$cmd" in
     goal)
         ensure
         exec python -m mover6_control.tools.goal_cli "$@"
+        ;;
+    record)
+        ensure
+        exec python -m mover6_control.tools.record "$@"
+        ;;
+    report)
+        ensure
+        exec python -m mover6_control.tools.report "$@"
         ;;
     bench)
         ensure

@@ -17,6 +17,7 @@ setup(
         (os.path.join('share', package_name, 'config'), glob('config/*')),
         (os.path.join('share', package_name, 'launch'), glob('launch/*.launch.py')),
         (os.path.join('share', package_name, 'scripts'), glob('scripts/*.sh')),
+        (os.path.join('share', package_name, 'rviz'), glob('rviz/*.rviz')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
@@ -34,6 +35,9 @@ setup(
             'can_sim = sim_bridge.can_sim:main',
             'goal = mover6_control.tools.goal_cli:main',
             'teleop = mover6_control.tools.teleop:main',
+            'state_publisher = mover6_control.nodes.state_publisher_node:main',
+            'markers = mover6_control.nodes.markers_node:main',
+            'recorder = mover6_control.nodes.recorder_node:main',
         ],
     },
 )

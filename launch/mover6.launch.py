@@ -3,13 +3,16 @@ Start the mover6_control nodes: the arm (sim_bridge, or the CAN driver), control
 
 The same nodes, parameter files and choices as scripts/launch.sh (test/test_launch_file.py keeps
 the two in step), plus robot_state_publisher with config/mover6.urdf when that package is
-installed:
+installed, else the package's own state_publisher (as launch.sh), the markers node, and RViz
+with rviz/mover6.rviz on ``rviz:=true``:
 
     ros2 launch mover6_control mover6.launch.py
     ros2 launch mover6_control mover6.launch.py sim:=false jog_units:=fraction_of_max
     ros2 launch mover6_control mover6.launch.py profile:=trapezoidal limit_set:=hardware
     ros2 launch mover6_control mover6.launch.py controller_params:=/path/to/controller.yaml
     ros2 launch mover6_control mover6.launch.py hardware:=can_sim
+    ros2 launch mover6_control mover6.launch.py rviz:=true
+    ros2 launch mover6_control mover6.launch.py namespace:=arm2
     ros2 launch mover6_control mover6.launch.py hardware:=can can_interface:=socketcan \
         can_channel:=can0
 
@@ -41,9 +44,13 @@ from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
 from mover6_control.nodes import local_dds
+from mover6_control.nodes.names import check_namespace
 
 PACKAGE = 'mover6_control'
 STATE_TIMEOUT = {'sim': '0.25', 'can_sim': '0.5', 'can': '0.5'}   # [s] of the controller
+# Every node in the ``namespace`` argument; TF frames prefixed with it (/arm1 -> arm1/).
+NAMESPACE = LaunchConfiguration('namespace')
+TF_PREFIX = PythonExpression(["(lambda n: n + '/' if n else '')('", NAMESPACE, "'.strip('/'))"])
 
 
 def config_file(name):
@@ -57,20 +64,37 @@ def extra_ros_args(variable):
 
 
 def robot_state_publisher(context):
-    """Start robot_state_publisher with the package's URDF, when that package is installed."""
+    """
+    Start robot_state_publisher with the package's URDF, where that package is installed.
+
+    Elsewhere (the PyPI wheels) the package's own state publisher, which publishes the same
+    /robot_description, /tf and /tf_static.
+    """
+    urdf = os.path.join(FindPackageShare(PACKAGE).perform(context), 'config', 'mover6.urdf')
     try:
         get_package_prefix('robot_state_publisher')
     except PackageNotFoundError:
-        return [LogInfo(msg='robot_state_publisher is not installed: not started')]
-    urdf = os.path.join(FindPackageShare(PACKAGE).perform(context), 'config', 'mover6.urdf')
+        return [LogInfo(msg="robot_state_publisher is not installed: the package's own "
+                            'state_publisher publishes /robot_description and /tf'),
+                Node(package=PACKAGE, executable='state_publisher', name='state_publisher',
+                     output='screen', namespace=NAMESPACE,
+                     parameters=[LaunchConfiguration('state_publisher_params'),
+                                 {'frame_prefix': TF_PREFIX}],
+                     ros_arguments=extra_ros_args('MOVER6_STATE_PUBLISHER_ARGS'))]
     with open(urdf) as f:
         description = ParameterValue(f.read(), value_type=str)    # a string, not YAML
     return [Node(package='robot_state_publisher', executable='robot_state_publisher',
-                 output='screen', parameters=[{'robot_description': description}])]
+                 output='screen', namespace=NAMESPACE,
+                 parameters=[{'robot_description': description, 'frame_prefix': TF_PREFIX}])]
 
 
 def local_dds_environment(context):
-    """Set DDS to stay on this machine, unless the user set DDS variables of their own."""
+    """
+    Set DDS to stay on this machine, unless the user set DDS variables of their own.
+
+    Also refuses a malformed ``namespace`` at start, with the ROS naming rule it breaks.
+    """
+    check_namespace(NAMESPACE.perform(context))
     return [SetEnvironmentVariable(name, value)
             for name, value in local_dds.default_environment(os.environ).items()]
 
@@ -79,6 +103,7 @@ def driver(can_interface, can_channel, enable_on_start):
     """Return the driver node on ``can_interface`` / ``can_channel``."""
     return Node(
         package=PACKAGE, executable='driver', name='driver', output='screen',
+        namespace=NAMESPACE,
         parameters=[LaunchConfiguration('driver_params'),
                     {'can_interface': can_interface, 'can_channel': can_channel,
                      'jog_units': LaunchConfiguration('jog_units'),
@@ -133,6 +158,10 @@ def generate_launch_description():
     cycle_driver = PythonExpression(["'", hardware, "' != 'sim'"])   # the driver's set-points
     return LaunchDescription([
         DeclareLaunchArgument(
+            'namespace', default_value='',
+            description='namespace of every node, topic, service and action (a second arm: '
+                        'arm2); TF frames are prefixed with it'),
+        DeclareLaunchArgument(
             'sim', default_value='true', choices=['true', 'false'],
             description='true: the MuJoCo bridge stands in for the arm; false: a real driver'),
         DeclareLaunchArgument(
@@ -172,17 +201,29 @@ def generate_launch_description():
         DeclareLaunchArgument(
             'planner_params', default_value=config_file('planner.yaml'),
             description='parameter file of the planner'),
+        DeclareLaunchArgument(
+            'markers_params', default_value=config_file('markers.yaml'),
+            description='parameter file of the markers node (goal, planned path, table, '
+                        'keep-out boxes on /markers)'),
+        DeclareLaunchArgument(
+            'rviz', default_value='false', choices=['true', 'false'],
+            description='true: start RViz (rviz2, where installed) with rviz/mover6.rviz'),
+        DeclareLaunchArgument(
+            'state_publisher_params', default_value=config_file('state_publisher.yaml'),
+            description='parameter file of the state publisher (without robot_state_publisher)'),
         # DDS stays on this machine (the package's Fast DDS profile: UDP on 127.0.0.1, no shared
         # memory) unless the user chose their own DDS setup (a robot network); README, "DDS".
         OpaqueFunction(function=local_dds_environment),
         Node(
             package=PACKAGE, executable='sim_bridge', name='sim_bridge', output='screen',
+            namespace=NAMESPACE,
             condition=IfCondition(with_sim),
             parameters=[LaunchConfiguration('sim_bridge_params'),
                         {'limit_set': limit_set, 'mode': sim_mode}],
             ros_arguments=extra_ros_args('MOVER6_SIM_ARGS')),
         Node(
             package=PACKAGE, executable='controller', name='controller', output='screen',
+            namespace=NAMESPACE,
             parameters=[LaunchConfiguration('controller_params'),
                         {'profile': profile, 'jog_units': jog_units, 'limit_set': limit_set,
                          'state_timeout': ParameterValue(state_timeout, value_type=float),
@@ -190,9 +231,20 @@ def generate_launch_description():
             ros_arguments=extra_ros_args('MOVER6_CONTROLLER_ARGS')),
         Node(
             package=PACKAGE, executable='planner', name='planner', output='screen',
+            namespace=NAMESPACE,
             parameters=[LaunchConfiguration('planner_params'),
                         {'profile': profile, 'limit_set': limit_set}],
             ros_arguments=extra_ros_args('MOVER6_PLANNER_ARGS')),
+        Node(
+            package=PACKAGE, executable='markers', name='markers', output='screen',
+            namespace=NAMESPACE,
+            parameters=[LaunchConfiguration('markers_params'), {'frame_prefix': TF_PREFIX}],
+            ros_arguments=extra_ros_args('MOVER6_MARKERS_ARGS')),
+        Node(
+            package='rviz2', executable='rviz2', name='rviz2', output='screen',
+            condition=IfCondition(LaunchConfiguration('rviz')),
+            arguments=['-d', PathJoinSubstitution([FindPackageShare(PACKAGE), 'rviz',
+                                                   'mover6.rviz'])]),
         OpaqueFunction(function=hardware_nodes),
         OpaqueFunction(function=robot_state_publisher),
     ])

@@ -406,5 +406,54 @@ DRIVER = _table(
       0.1, 50.0),
 )
 
+# The package's own state publisher (nodes/state_publisher_node.py): robot_state_publisher's
+# parameters of the same names, where the ROS install has no robot_state_publisher.
+STATE_PUBLISHER = _table(
+    P('robot_description', 'str', '', '',
+      'URDF text published on /robot_description and used for /tf; empty = the shipped Mover6 '
+      '(config/mover6.urdf); set at start', read_only=True),
+    P('publish_frequency', 'float', 20.0, 'Hz',
+      'largest rate of /tf (one message per /joint_states, at most this often)', 0.1, 1000.0),
+    P('frame_prefix', 'str', '', '',
+      'prefix of every frame id on /tf and /tf_static (e.g. arm1/); set at start',
+      read_only=True),
+)
+
+# The markers node (nodes/markers_node.py): RViz markers of the goal, the planned tool path, the
+# table and the keep-out boxes.
+_PLANNER_COLLISION = {spec.name: spec for spec in _collision_specs('by the planner')}
+MARKERS = _table(
+    P('frame_id', 'str', 'base_link', '', "frame of the markers (the planner's frame_id)"),
+    P('frame_prefix', 'str', '', '',
+      "prefix of the frame (the state publisher's frame_prefix); set at start", read_only=True),
+    P('planner_node', 'str', 'planner', '',
+      'node whose table_margin and keep_out_boxes are shown (followed as they change); empty: '
+      "this node's own; set at start", read_only=True),
+    P('table_size', 'float', 1.0, 'm', 'side of the table slab shown', 0.01, 20.0),
+    _PLANNER_COLLISION['table_margin'],
+    _PLANNER_COLLISION['keep_out_boxes'],
+)
+
+# The recorder (nodes/recorder_node.py): a rosbag2-layout MCAP recording of the stack's topics.
+# The goals: /pose_goal and /path_goal, and their shape topics (the planner's motion and
+# path_motion choices) and /path_goal/joint.
+RECORDED_TOPICS = (
+    ('joint_states', 'JointJog', 'joint_demands', 'pose_goal', 'path_goal')
+    + tuple(f'pose_goal/{m}' for m in PLANNER['motion'].allowed)
+    + tuple(f'path_goal/{m}' for m in PLANNER['path_motion'].allowed + ('joint',))
+    + ('planner/status', 'controller/status', '/tf', '/tf_static', 'diagnostics',
+       'sim_bridge/contacts', 'robot_description', '/parameter_events'))
+RECORDER = _table(
+    P('path', 'str', '', '',
+      'recording folder (must not exist; its folder must be writable); empty = '
+      'rosbag2_<date>-<time> in the working folder, as ros2 bag; set at start', read_only=True),
+    P('topics', 'str', ' '.join(RECORDED_TOPICS), '',
+      'topics to record, separated by spaces (relative names follow the namespace); set at '
+      'start', read_only=True),
+    P('discovery_period', 'float', 0.2, 's',
+      'how often the graph is looked at for the topics not yet recorded', 0.01, 10.0),
+)
+
 NODES = {'planner': PLANNER, 'controller': CONTROLLER, 'sim_bridge': SIM_BRIDGE,
-         'driver': DRIVER}
+         'driver': DRIVER, 'state_publisher': STATE_PUBLISHER, 'markers': MARKERS,
+         'recorder': RECORDER}

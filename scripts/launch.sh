@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# Start the mover6_control nodes (the arm: sim_bridge or the CAN driver; controller, planner) and
-# keep them running until Ctrl-C. Stops all of them on exit, on Ctrl-C / SIGTERM, and as soon as
-# one dies.
+# Start the mover6_control nodes (the arm: sim_bridge or the CAN driver; controller, planner; the
+# state publisher: /robot_description, /tf) and keep them running until Ctrl-C. Stops all of them
+# on exit, on Ctrl-C / SIGTERM, and as soon as one dies.
 #
 # Usage: scripts/launch.sh [--hardware H] [--can-interface I] [--can-channel C] [--no-sim]
-#                          [--profile P] [--jog-units U] [--limit-set L] [--log-dir DIR]
+#                          [--profile P] [--jog-units U] [--limit-set L] [--log-dir DIR] [--rviz]
+#                          [--namespace NS]
 #   --hardware H     what stands for the arm: sim (default: the MuJoCo bridge) | can-sim (the
 #                    CAN-level Mover6 on a pty, can_sim, and the driver on it, enabled at start)
 #                    | can (the driver on a real arm's bus; enable it with its ~/reset, ~/enable)
@@ -19,9 +20,13 @@
 #   --jog-units U    rad_per_s (default) | fraction_of_max (vendor driver; the sim acts as it)
 #   --limit-set L    joint limits of every node: within_90_deg (default) | hardware
 #   --log-dir DIR    also write each node's output to DIR/<node>.log
+#   --rviz           also start RViz (rviz2) with rviz/mover6.rviz: the arm, /tf, /markers
+#   --namespace NS   every node, topic, service and action under NS (a second arm: /arm2), TF
+#                    frames prefixed NS/ (ROS naming rules; a malformed one is refused)
 # Extra ROS arguments per node: MOVER6_SIM_ARGS, MOVER6_DRIVER_ARGS, MOVER6_CONTROLLER_ARGS,
-# MOVER6_PLANNER_ARGS, e.g. MOVER6_CONTROLLER_ARGS="-p t_max:=2.0"; MOVER6_CAN_SIM_ARGS for
-# can_sim's command line (e.g. "--home 0 0.3 0 0 0 0"). Parameter files: config/<node>.yaml.
+# MOVER6_PLANNER_ARGS, MOVER6_STATE_PUBLISHER_ARGS, MOVER6_MARKERS_ARGS, e.g.
+# MOVER6_CONTROLLER_ARGS="-p t_max:=2.0"; MOVER6_CAN_SIM_ARGS for can_sim's command line (e.g.
+# "--home 0 0.3 0 0 0 0"). Parameter files: config/<node>.yaml.
 # With the driver the controller's state_timeout is 0.5 s (the driver publishes at its 20 Hz).
 # launch/mover6.launch.py (ros2 launch) starts the same (test/test_launch_file.py checks).
 #
@@ -41,6 +46,8 @@ profile=continuous
 jog_units=rad_per_s
 limit_set=within_90_deg
 log_dir=''
+rviz=0
+namespace=''
 one_of() {
     # one_of OPTION VALUE CHOICES...: exit 2 unless VALUE is one of CHOICES
     local option=$1 value=$2 choice
@@ -52,6 +59,8 @@ one_of() {
 while [ $# -gt 0 ]; do
     case "$1" in
         --no-sim) with_sim=0 ;;
+        --rviz) rviz=1 ;;
+        --namespace) namespace=${2:-}; shift ;;
         --profile) profile=${2:-}; shift ;;
         --jog-units) jog_units=${2:-}; shift ;;
         --limit-set) limit_set=${2:-}; shift ;;
@@ -59,7 +68,7 @@ while [ $# -gt 0 ]; do
         --hardware) hardware=${2:-}; shift ;;
         --can-interface) can_interface=${2:-}; shift ;;
         --can-channel) can_channel=${2:-}; shift ;;
-        -h | --help) sed -n '2,27p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h | --help) sed -n '2,32p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "launch.sh: unknown argument '$1'" >&2; exit 2 ;;
     esac
     shift
@@ -86,6 +95,10 @@ else
     state_timeout=0.25
     cycle_driver=false
 fi
+if [ "$rviz" = 1 ] && ! command -v rviz2 >/dev/null; then
+    echo 'launch.sh: --rviz: rviz2 is not installed here (it comes with a ROS 2 desktop install)' >&2
+    exit 2
+fi
 # The simulator stands in for the vendor driver when the controller speaks its units.
 sim_mode=rad_per_s
 [ "$jog_units" = fraction_of_max ] && sim_mode=vendor_driver
@@ -99,6 +112,11 @@ prefix=$(python3 -c 'from ament_index_python.packages import get_package_prefix 
 dds=$(python3 -m mover6_control.nodes.local_dds env) || exit 1
 eval "$dds"
 bin="$prefix/lib/mover6_control"
+# The namespace, checked by ROS's naming rules, and its TF frame prefix (/arm1 -> arm1/).
+checked=$(python3 -m mover6_control.nodes.names "$namespace") || exit 2
+read -r namespace tf_prefix <<<"$checked"
+ns_args=()
+[ "$namespace" != / ] && ns_args=(-r "__ns:=$namespace")
 share="$prefix/share/mover6_control/config"
 [ -n "$log_dir" ] && mkdir -p "$log_dir"
 
@@ -137,9 +155,10 @@ start() {
     local params=()
     [ -f "$share/$name.yaml" ] && params=(--params-file "$share/$name.yaml")
     if [ -n "$log_dir" ]; then
-        "$bin/$exe" --ros-args "${params[@]}" "$@" > >(tee "$log_dir/$name.log") 2>&1 &
+        "$bin/$exe" --ros-args "${params[@]}" "${ns_args[@]}" "$@" \
+            > >(tee "$log_dir/$name.log") 2>&1 &
     else
-        "$bin/$exe" --ros-args "${params[@]}" "$@" &
+        "$bin/$exe" --ros-args "${params[@]}" "${ns_args[@]}" "$@" &
     fi
     pids+=($!)
     names+=("$name")
@@ -184,6 +203,19 @@ start controller controller \
     ${MOVER6_CONTROLLER_ARGS:-}
 # shellcheck disable=SC2086
 start planner planner -p "limit_set:=$limit_set" -p "profile:=$profile" ${MOVER6_PLANNER_ARGS:-}
+# /robot_description, /tf and /tf_static for RViz (robot_state_publisher's topics).
+# shellcheck disable=SC2086
+start state_publisher state_publisher -p "frame_prefix:='$tf_prefix'" \
+    ${MOVER6_STATE_PUBLISHER_ARGS:-}
+# The goal, the planned tool path, the table and the keep-out boxes on /markers.
+# shellcheck disable=SC2086
+start markers markers -p "frame_prefix:='$tf_prefix'" ${MOVER6_MARKERS_ARGS:-}
+if [ "$rviz" = 1 ]; then
+    "$(command -v rviz2)" -d "$prefix/share/mover6_control/rviz/mover6.rviz" &
+    pids+=($!)
+    names+=(rviz2)
+    echo "launch.sh: started rviz2 (pid $!)" >&2
+fi
 
 # Wait until any node exits; then stop the rest and report which one it was.
 wait -n "${pids[@]}"

@@ -21,7 +21,10 @@ MODULES = {'sim_bridge': 'sim_bridge.bridge_node',
            'controller': 'mover6_control.nodes.controller_node',
            'planner': 'mover6_control.nodes.planner_node',
            'driver': 'mover6_control.nodes.driver_node',
-           'can_sim': 'sim_bridge.can_sim'}
+           'can_sim': 'sim_bridge.can_sim',
+           'recorder': 'mover6_control.nodes.recorder_node',
+           'state_publisher': 'mover6_control.nodes.state_publisher_node',
+           'markers': 'mover6_control.nodes.markers_node'}
 
 
 def node_command(name):
@@ -130,11 +133,13 @@ class Stack:
     """The three nodes as processes; use as a context manager."""
 
     def __init__(self, log_dir, sim=None, controller=None, planner=None,
-                 names=('sim_bridge', 'controller', 'planner'), driver=None, ros_args=None):
+                 names=('sim_bridge', 'controller', 'planner'), driver=None, ros_args=None,
+                 params=None):
         self.log_dir = str(log_dir)
         self.ros_args = dict(ros_args or {})    # node name -> extra ROS arguments
         self.params = {'sim_bridge': sim or {}, 'controller': controller or {},
                        'planner': planner or {}, 'driver': driver or {}}
+        self.params.update(params or {})        # node name -> parameters, any other node
         self.names = names
         self.nodes = {}
 
@@ -143,7 +148,7 @@ class Stack:
         old = self.nodes.get(name)
         if old is not None and old.alive():
             old.stop()
-        self.nodes[name] = NodeProcess(name, self.log_dir, self.params[name],
+        self.nodes[name] = NodeProcess(name, self.log_dir, self.params.get(name, {}),
                                        ros_args=self.ros_args.get(name, ()))
         return self.nodes[name]
 

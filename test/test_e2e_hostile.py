@@ -78,7 +78,10 @@ def full_name(node_name):
 @pytest.fixture(scope='module')
 def stack(tmp_path_factory):
     """
-    Start sim_bridge, controller and planner, and a driver, as processes for these tests.
+    Start every node of the package as a process for these tests.
+
+    sim_bridge, controller and planner, a driver, the state publisher, the markers node and a
+    recorder (into the log folder).
 
     The driver runs on python-can's virtual bus with no arm behind it, in its own namespace
     (``DRIVER_NS``: its /joint_states must not reach the controller): its parameters and
@@ -86,11 +89,14 @@ def stack(tmp_path_factory):
     answers false after ``request_timeout``: 0.2 s here (2 s by default), a wait and nothing
     more (the answer, not its delay, is what is tried).
     """
-    names = ('sim_bridge', 'controller', 'planner', 'driver')
+    names = ('sim_bridge', 'controller', 'planner', 'driver', 'state_publisher', 'markers',
+             'recorder')
     driver = {'can_interface': 'virtual', 'can_channel': f'hostile_{os.getpid()}',
               'request_timeout': 0.2}
-    with Stack(tmp_path_factory.mktemp('hostile_logs'), names=names, driver=driver,
-               ros_args={'driver': ('-r', f'__ns:={DRIVER_NS}')}) as running:
+    logs = tmp_path_factory.mktemp('hostile_logs')
+    with Stack(logs, names=names, driver=driver,
+               ros_args={'driver': ('-r', f'__ns:={DRIVER_NS}')},
+               params={'recorder': {'path': str(logs / 'recording')}}) as running:
         yield running
 
 

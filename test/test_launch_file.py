@@ -22,7 +22,7 @@ import yaml
 ROOT = os.path.dirname(CONFIG_DIR)
 LAUNCH_FILE = os.path.join(ROOT, 'launch', 'mover6.launch.py')
 LAUNCH_SH = os.path.join(ROOT, 'scripts', 'launch.sh')
-NODES = ('sim_bridge', 'driver', 'controller', 'planner')
+NODES = ('sim_bridge', 'driver', 'controller', 'planner', 'state_publisher', 'markers')
 CHOICES = {'profile': PROFILES, 'jog_units': JOG_UNITS, 'limit_set': LIMIT_SETS}
 # launch.sh's option and choice variable for each launch argument.
 SH_NAMES = {'profile': ('--profile', 'PROFILES'), 'jog_units': ('--jog-units', 'JOG_UNITS'),
@@ -139,7 +139,7 @@ def test_same_choices_and_defaults(tree, name):
         if (node, name) == ('driver', 'limit_set'):
             continue      # alone it clamps to the vendor's limits; the stack passes its own
         values = yaml.safe_load(read(os.path.join(CONFIG_DIR, f'{node}.yaml')))
-        value = values[node]['ros__parameters'].get(name)
+        value = values[f'/**/{node}']['ros__parameters'].get(name)
         assert value in (None, default), f'{node}.yaml has {name}: {value}, default {default}'
 
 
@@ -177,7 +177,7 @@ def test_same_hardware_choice(tree):
     timeouts = next(ast.literal_eval(n.value) for n in tree.body if isinstance(n, ast.Assign)
                     and ast.unparse(n.targets[0]) == 'STATE_TIMEOUT')
     controller = yaml.safe_load(read(os.path.join(CONFIG_DIR, 'controller.yaml')))
-    shipped = controller['controller']['ros__parameters']['state_timeout']
+    shipped = controller['/**/controller']['ros__parameters']['state_timeout']
     assert float(timeouts['sim']) == shipped
     assert timeouts['can_sim'] == timeouts['can'] == '0.5'
     in_sh = re.findall(r'^    state_timeout=(.*)$', read(LAUNCH_SH), re.MULTILINE)

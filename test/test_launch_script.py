@@ -17,6 +17,8 @@ from ros_testing import installed
 pytestmark = pytest.mark.e2e
 
 SCRIPT = os.path.join(os.path.dirname(CONFIG_DIR), 'scripts', 'launch.sh')
+# What a plain launch.sh (the simulator) starts.
+STARTED = {'sim_bridge', 'controller', 'planner', 'state_publisher', 'markers'}
 
 
 def alive(pid):
@@ -45,9 +47,10 @@ def start(tmp_path):
     return proc, log
 
 
-def node_pids(log, count=3, timeout=30.0):
+def node_pids(log, count=None, timeout=30.0):
     """Return {node: pid} from launch.sh's 'started' lines once ``count`` nodes started."""
     found = {}
+    count = len(STARTED) if count is None else count
 
     def enough():
         found.update(re.findall(r'started (\w+) \(pid (\d+)\)', log.read_text()))
@@ -58,11 +61,11 @@ def node_pids(log, count=3, timeout=30.0):
 
 @pytest.mark.skipif(not installed(), reason='needs the built package (./run.sh test)')
 def test_one_node_dying_stops_the_others(tmp_path):
-    """Kill the controller: launch.sh stops the bridge and the planner and exits non-zero."""
+    """Kill the controller: launch.sh stops the other nodes and exits non-zero."""
     proc, log = start(tmp_path)
     try:
         pids = node_pids(log)
-        assert set(pids) == {'sim_bridge', 'controller', 'planner'}
+        assert set(pids) == STARTED
         assert all(alive(p) for p in pids.values())
         os.kill(pids['controller'], signal.SIGKILL)
         assert proc.wait(30) != 0

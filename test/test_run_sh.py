@@ -86,22 +86,23 @@ def sourced_jazzy_env(tmp_path):
     Return an environment that looks like one where ROS 2 Jazzy was sourced.
 
     The ROS is the one this test runs with (the PyPI wheels in the project venv, or a real
-    install), control_msgs included, set out the way a setup.bash does: ROS_DISTRO, the prefix
-    paths, PYTHONPATH, LD_LIBRARY_PATH. mover6_control is not in it.
+    install), control_msgs and tf2_msgs included, set out the way a setup.bash does:
+    ROS_DISTRO, the prefix paths, PYTHONPATH, LD_LIBRARY_PATH. mover6_control is not in it.
     """
     rclpy_site, rclpy_prefix = package_site_and_prefix('rclpy')
     msgs_site, msgs_prefix = package_site_and_prefix('control_msgs')
+    tf_site, tf_prefix = package_site_and_prefix('tf2_msgs')
     colcon_bin = os.path.dirname(subprocess.run(
         ['sh', '-c', 'command -v colcon'], stdout=subprocess.PIPE, text=True,
         check=True).stdout.strip())
     env = base_env(tmp_path)
     env.update({
         'ROS_DISTRO': 'jazzy',
-        'AMENT_PREFIX_PATH': unique([msgs_prefix, rclpy_prefix]),
-        'CMAKE_PREFIX_PATH': unique([msgs_prefix, rclpy_prefix]),
+        'AMENT_PREFIX_PATH': unique([msgs_prefix, tf_prefix, rclpy_prefix]),
+        'CMAKE_PREFIX_PATH': unique([msgs_prefix, tf_prefix, rclpy_prefix]),
         # The libraries next to the ROS Python packages (numpy, mujoco, ...) stand in for the
         # system's Python packages.
-        'PYTHONPATH': unique([msgs_site, rclpy_site, sysconfig.get_paths()['purelib']]),
+        'PYTHONPATH': unique([msgs_site, tf_site, rclpy_site, sysconfig.get_paths()['purelib']]),
         'LD_LIBRARY_PATH': os.environ.get('LD_LIBRARY_PATH', ''),
         'PATH': unique([colcon_bin, env['PATH']]),
         'PYTHON': sys.executable,
@@ -117,7 +118,8 @@ def test_with_a_sourced_jazzy_it_uses_that_install(tmp_path):
     The sourced-ROS path, set up for real in tmp_path (about 15 s).
 
     run.sh finds the sourced Jazzy, makes a venv on top of it that installs nothing ROS, builds
-    only this package (control_msgs comes with the sourced install), and its exec runs inside.
+    only this package (control_msgs and tf2_msgs come with the sourced install), and its exec
+    runs inside.
     """
     pytest.importorskip('rclpy')
     pytest.importorskip('control_msgs')
@@ -127,7 +129,7 @@ def test_with_a_sourced_jazzy_it_uses_that_install(tmp_path):
     done = run_sh(['exec', 'python', '-c', probe], env, tmp_path, timeout=240)
     assert done.returncode == 0, done.stderr
     assert 'using the sourced ROS 2 jazzy install' in done.stderr
-    assert 'colcon build (.)' in done.stderr       # not control_msgs: the sourced one has it
+    assert 'colcon build (.)' in done.stderr       # no interfaces: the sourced install has them
     rclpy_file, mover6_file = done.stdout.split()
     assert rclpy_file.startswith(rclpy_site + os.sep)
     assert mover6_file.startswith(str(tmp_path / 'ws' / 'install') + os.sep)

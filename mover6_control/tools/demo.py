@@ -9,8 +9,9 @@ move, a spline through via poses and a joint move home, then three goals that mu
 one at the table surface (the tool would go into the table: a collision), one out of reach and
 one reachable only outside the joint limits (the closest pose inside them is printed). Goals
 are written as the goal CLI reads them (X Y Z A B C, A B C relative to the home orientation, as
-the Mover6 report). Records /joint_states and writes a report folder: plots of
-what ran, an animation of the arm and a metrics table (Markdown and JSON). Exits 0 only when
+the Mover6 report). Records the run (``./run.sh record``'s recorder: a rosbag2 MCAP folder in the
+report folder) and makes the report from that recording, as ``./run.sh report BAG`` does: plots
+of what ran, an animation of the arm and a metrics table (Markdown and JSON). Exits 0 only when
 every move arrived within tolerance, each refusal was refused for its reason and the simulator
 reported no contact (/sim_bridge/contacts).
 """
@@ -26,6 +27,7 @@ from typing import Callable, Optional, Sequence
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.control.status import MotionResult
+from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk_batch
 from mover6_control.nodes.qos import STATUS_QOS
@@ -33,6 +35,7 @@ from mover6_control.resources import CONFIG_DIR
 from mover6_control.tools.goal_cli import GoalClient
 from mover6_control.tools.goal_convention import (EXIT_REFUSED, format_numbers, format_outcome,
                                                   poses_from_numbers)
+from mover6_control.tools.record import check_bag_path, default_path
 import numpy as np
 import rclpy
 from sensor_msgs.msg import JointState
@@ -142,6 +145,19 @@ def start_stack(log_dir: str, env: dict, hardware: str = 'sim') -> subprocess.Po
            '--jog-units', STACK_JOG_UNITS[hardware]]
     return subprocess.Popen(cmd, env=env, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def start_recorder(bag: str, log_dir: str, env: dict) -> subprocess.Popen:
+    """Start the recorder node writing ``bag`` (its output in log_dir/recorder.log)."""
+    from mover6_control.tools.record import recorder_command
+    log = open(os.path.join(log_dir, 'recorder.log'), 'w')
+    return subprocess.Popen(recorder_command(bag), env=env, start_new_session=True,
+                            stdout=log, stderr=subprocess.STDOUT)
+
+
+def bag_size(bag: str) -> int:
+    """Return the size [bytes] of the files of recording ``bag``."""
+    return sum(os.path.getsize(os.path.join(bag, f)) for f in os.listdir(bag))
 
 
 def stop_stack(proc: subprocess.Popen) -> None:
@@ -307,6 +323,11 @@ def main(argv: Optional[list[str]] = None) -> int:
     parser.add_argument('--quick', action='store_true',
                         help="only the Mover6 report's linear example and a refused goal")
     parser.add_argument('--no-render', action='store_true', help='skip the animation')
+    parser.add_argument('--record', default=None,
+                        help='the recording (rosbag2 MCAP folder, must not exist; default '
+                             'REPORT/rosbag2_<date>-<time>): the report is made from it')
+    parser.add_argument('--no-record', action='store_true',
+                        help='no recording: the report is made from what the demo saw')
     parser.add_argument('--hardware', default='sim', choices=STACKS,
                         help='the arm: sim (the MuJoCo bridge, default) or can-sim (the '
                         'driver on the CAN-level Mover6, over a pty)')
@@ -314,7 +335,16 @@ def main(argv: Optional[list[str]] = None) -> int:
     showcase = CAN_SHOWCASE if args.hardware == 'can-sim' else SHOWCASE
     steps = (showcase[0], showcase[-2]) if args.quick else showcase
     report_dir = os.path.abspath(args.report)
-    os.makedirs(os.path.join(report_dir, 'logs'), exist_ok=True)
+    bag = None
+    try:    # a recording path that cannot be written stops the demo before anything starts
+        if args.record and not args.no_record:
+            bag = check_bag_path(args.record)
+        os.makedirs(os.path.join(report_dir, 'logs'), exist_ok=True)
+        if not args.record and not args.no_record:
+            bag = check_bag_path(os.path.join(report_dir, default_path()))
+    except InvalidInputError as err:
+        print(f'demo: {err}; nothing started', file=sys.stderr)
+        return 2
     env = dict(os.environ)
     env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
@@ -324,6 +354,10 @@ def main(argv: Optional[list[str]] = None) -> int:
     t_start = time.monotonic()
     say(f'starting {STACKS[args.hardware]}, controller and planner (ROS_DOMAIN_ID='
         f'{env.get("ROS_DOMAIN_ID", "0")}, logs in {report_dir}/logs)')
+    bag_recorder = None
+    if bag:
+        say(f'recording into {bag}')
+        bag_recorder = start_recorder(bag, os.path.join(report_dir, 'logs'), env)
     stack = start_stack(os.path.join(report_dir, 'logs'), env, args.hardware)
     rows = []
     contacts = None
@@ -343,13 +377,23 @@ def main(argv: Optional[list[str]] = None) -> int:
     finally:
         client.destroy_node()
         rclpy.try_shutdown()
+        if bag_recorder is not None:
+            stop_stack(bag_recorder)   # first: the file is finished while the nodes still run
         stop_stack(stack)
-    files = write_report(report_dir, rows, arm)
+    if bag and os.path.isfile(os.path.join(bag, 'metadata.yaml')):
+        from mover6_control.tools.report import make_report
+        say(f'report from the recording {bag} ({bag_size(bag) / 1e6:.2f} MB)')
+        _, files = make_report(bag, report_dir, arm, render=not args.no_render, say=say)
+    else:
+        if bag:
+            say(f'the recording {bag} was not finished (see logs/recorder.log): the report is '
+                'made from what the demo saw')
+        files = write_report(report_dir, rows, arm)
+        if not args.no_render:
+            gif = render_animation(report_dir, rows, arm)
+            if gif:
+                files.append(gif)
     files += write_profile_comparison(report_dir, arm)
-    if not args.no_render:
-        gif = render_animation(report_dir, rows, arm)
-        if gif:
-            files.append(gif)
     ok = passed(rows, steps)
     if args.hardware != 'sim':
         say('simulator contacts: not reported through the driver (the CAN-level arm has no '

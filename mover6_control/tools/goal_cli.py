@@ -45,6 +45,7 @@ from mover6_control.control.profiles import PROFILES
 from mover6_control.control.status import (FINAL_RESULTS, MotionResult, PlannerResult, State,
                                            StatusKey)
 from mover6_control.errors import Mover6Error
+from mover6_control.nodes.names import namespace_from
 from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_error
@@ -357,6 +358,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help='seconds to wait for the motion to finish (default 60)')
     common.add_argument('--frame', default='base_link', help='frame of the goal (base_link)')
     common.add_argument('--quiet', action='store_true', help='print only the result line')
+    common.add_argument('--namespace', default='',
+                        help='the namespace of the stack to talk to (e.g. /arm1; default none)')
     common.add_argument('--profile', choices=PROFILES,
                         help="the controller's law for this goal only (default: its profile "
                              'parameter, which does not change)')
@@ -481,6 +484,11 @@ def main(args: Optional[list[str]] = None) -> None:
     if '--ros-args' in argv:
         idx = argv.index('--ros-args')
         argv, ros_args = argv[:idx], argv[idx:]
+    namespace, argv = namespace_from(argv)
+    if namespace is None:             # refused with the naming rule it breaks
+        sys.exit(EXIT_REFUSED)
+    if namespace != '/':        # every topic, service and action of the CLI follows it
+        ros_args = (ros_args or ['--ros-args']) + ['-r', f'__ns:={namespace}']
     rclpy.init(args=['goal'] + ros_args)
     client = None
     code = EXIT_FAILED

@@ -1,0 +1,111 @@
+"""
+The package's own robot state publisher: /robot_description, /tf and /tf_static for RViz.
+
+What ``robot_state_publisher`` does, for installs that have none (the PyPI wheels): publishes
+the URDF (parameter ``robot_description``, empty = the shipped config/mover6.urdf) on
+/robot_description (std_msgs/String, transient local), the fixed joints once on /tf_static
+(tf2_msgs/TFMessage, transient local) and, for every measured /joint_states, the transform of
+each moving joint the message names on /tf (stamped with the message's stamp, at most
+``publish_frequency`` times a second), every frame id with ``frame_prefix``. The launchers start
+the real robot_state_publisher where the ROS install has it, this node otherwise.
+
+The transforms come from ``kinematics.urdf_tree`` (the URDF's own tree, every link); a test
+checks the flange's chain against the package's forward kinematics.
+"""
+
+import os
+
+from geometry_msgs.msg import TransformStamped
+from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.rotations import matrix_to_quaternion
+from mover6_control.kinematics.urdf_tree import fixed_transforms, moving_transforms, parse_urdf
+from mover6_control.nodes import shutdown
+from mover6_control.nodes.params import declare
+from mover6_control.nodes.qos import LATCHED_QOS
+from mover6_control.parameters import STATE_PUBLISHER
+from mover6_control.resources import CONFIG_DIR
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
+
+SHIPPED_URDF = os.path.join(CONFIG_DIR, 'mover6.urdf')
+
+
+def make_transform_stamped(T, parent, child, stamp, prefix=''):
+    """Return the ``TransformStamped`` of ``T`` (4, 4) from ``parent`` to ``child``."""
+    msg = TransformStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = prefix + parent
+    msg.child_frame_id = prefix + child
+    t = msg.transform.translation
+    t.x, t.y, t.z = (float(v) for v in T[:3, 3])
+    r = msg.transform.rotation
+    r.x, r.y, r.z, r.w = (float(v) for v in matrix_to_quaternion(T[:3, :3]))
+    return msg
+
+
+def shipped_description():
+    """Return the text of the shipped URDF (config/mover6.urdf)."""
+    with open(SHIPPED_URDF) as f:
+        return f.read()
+
+
+class StatePublisherNode(Node):
+    """Publish the robot description and its transforms; see the module docstring."""
+
+    def __init__(self, **kwargs):
+        super().__init__('state_publisher', **kwargs)
+        declare(self, STATE_PUBLISHER)
+        self.description = self.get_parameter('robot_description').value or shipped_description()
+        self.tree = parse_urdf(self.description)
+        self.prefix = self.get_parameter('frame_prefix').value
+        self.last_publish = None
+        self.published = 0
+        self.pub_description = self.create_publisher(String, 'robot_description', LATCHED_QOS)
+        self.pub_static = self.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)
+        self.pub_tf = self.create_publisher(TFMessage, '/tf', 100)
+        self.pub_description.publish(String(data=self.description))
+        now = self.get_clock().now().to_msg()
+        self.pub_static.publish(TFMessage(transforms=[
+            make_transform_stamped(T, j.parent, j.child, now, self.prefix)
+            for j, T in fixed_transforms(self.tree)]))
+        # Raw: a message is deserialized only when /tf is due (at most publish_frequency), not
+        # at the 100 Hz of /joint_states (the planner reads its states the same way).
+        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10, raw=True)
+        self.get_logger().info(
+            f'{self.tree.name}: {len(self.tree.moving)} moving and {len(self.tree.fixed)} fixed '
+            f'joints from {self.tree.root}')
+
+    def on_joint_states(self, data):
+        """Publish /tf for the joints a message names (at most ``publish_frequency`` a second)."""
+        now = self.get_clock().now()
+        period = 1.0 / self.get_parameter('publish_frequency').value
+        if self.last_publish is not None and (now - self.last_publish).nanoseconds < period * 1e9:
+            return
+        msg = deserialize_message(data, JointState)
+        if len(msg.position) != len(msg.name):
+            return              # robot_state_publisher, too, drops such a message
+        positions = dict(zip(msg.name, msg.position))
+        stamp = msg.header.stamp
+        if stamp.sec == 0 and stamp.nanosec == 0:
+            stamp = now.to_msg()
+        transforms = [make_transform_stamped(T, j.parent, j.child, stamp, self.prefix)
+                      for j, T in moving_transforms(self.tree, positions)]
+        if transforms:
+            self.pub_tf.publish(TFMessage(transforms=transforms))
+            self.last_publish = now
+            self.published += 1
+
+
+def main(args=None):
+    """Run the state publisher until Ctrl-C (a bad description stops it with the reason)."""
+    try:
+        shutdown.run_node(StatePublisherNode, args)
+    except InvalidInputError as err:
+        raise SystemExit(f'state_publisher: {err}')
+
+
+if __name__ == '__main__':
+    main()
