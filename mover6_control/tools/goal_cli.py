@@ -45,11 +45,11 @@ from mover6_control.control.profiles import PROFILES
 from mover6_control.control.status import (FINAL_RESULTS, MotionResult, PlannerResult, State,
                                            StatusKey)
 from mover6_control.errors import Mover6Error
-from mover6_control.nodes.names import namespace_from
 from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_error
 from mover6_control.nodes import conversions
+from mover6_control.nodes.names import namespace_from
 from mover6_control.nodes.qos import STATUS_READER_QOS
 from mover6_control.tools.goal_convention import (EXIT_ARRIVED, EXIT_FAILED, EXIT_NO_NODES,
                                                   EXIT_REFUSED, format_outcome, Outcome,
