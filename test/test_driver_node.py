@@ -84,10 +84,11 @@ def rig():
     rclpy.init(context=context)
     # The simulated modules share this process (and its interpreter lock) with rclpy and the
     # executor: starting the nodes can starve them for a few cycles, which a real module never
-    # is. The 3-cycle fault itself is tested in test_hw_driver.py and end to end.
+    # is. The 3-cycle fault itself is tested in test_hw_driver.py and end to end. No real-time
+    # priority here: it would raise every thread of the test process.
     driver = DriverNode(context=context, namespace=namespace, parameter_overrides=[
         Parameter('can_interface', value='virtual'), Parameter('can_channel', value=channel),
-        Parameter('silent_cycles', value=40)])
+        Parameter('silent_cycles', value=40), Parameter('cycle_priority', value=0)])
     operator = Operator(context, namespace)
     executor = MultiThreadedExecutor(num_threads=4, context=context)
     executor.add_node(driver)
@@ -164,3 +165,64 @@ def test_set_zero_is_guarded_and_parameters_are_checked(rig):
     assert wait_for(lambda: arm.modules[3].digital_out == 0x03)
     result = driver.set_parameters([Parameter('gripper', value='wide')])[0]
     assert not result.successful
+
+
+def hostile_jogs():
+    """Return (JointJog, the reason it must be refused for) pairs."""
+    def jog(names, velocities, **fields):
+        msg = conversions.make_joint_jog(names, [0.0] * len(names))
+        msg.velocities = velocities
+        for name, value in fields.items():
+            setattr(msg, name, value)
+        return msg
+    zeros = [0.0] * 6
+    return [
+        (JointJog(), 'empty'),
+        (jog([], []), 'empty'),
+        (jog(NAMES, zeros[:5]), 'length'),
+        (jog(NAMES, zeros + [0.0]), 'length'),
+        (jog(NAMES[:5], []), 'length'),
+        (jog(['joint1', 'joint1'], [0.1, 0.1]), 'names'),
+        (jog(['joint1', 'jointX'], [0.1, 0.1]), 'unknown_joint'),
+        (jog(['x' * 10000], [0.1]), 'unknown_joint'),
+        (jog(NAMES, [math.nan] + zeros[1:]), 'non_finite'),
+        (jog(NAMES, [math.inf] + zeros[1:]), 'non_finite'),
+        (jog(NAMES, zeros[:5] + [-math.inf]), 'non_finite'),
+        (jog(NAMES, [1e30] + zeros[1:]), 'out_of_range'),
+        (jog(NAMES, [-1.7e308] + zeros[1:]), 'out_of_range'),
+        (jog(NAMES, zeros, displacements=[0.1] * 6), 'displacements'),
+    ]
+
+
+def test_hostile_jointjogs_are_refused_by_reason_and_the_arm_holds(rig):
+    driver, operator, arm = rig
+    assert operator.call('reset').success
+    reply = operator.call('enable')
+    assert reply.success, reply.message
+    assert wait_for(lambda: operator.bus_status().get('state') == 'enabled')
+    start = operator.q()
+    cases = hostile_jogs()
+    expected = {}
+    for i, (msg, reason) in enumerate(cases, start=1):      # one at a time: none lost on DDS
+        operator.jog_pub.publish(msg)
+        expected[reason] = expected.get(reason, 0) + 1
+        line = ', '.join(f'{name} {count}' for name, count in sorted(expected.items()))
+        assert wait_for(lambda: operator.bus_status().get('jog_refused') == str(i), 10.0), \
+            (reason, operator.bus_status())
+        assert operator.bus_status()['jog_refused_by'] == line, operator.bus_status()
+    # A flood of valid zero commands: taken (one per cycle counts), the rest superseded.
+    flood = conversions.make_joint_jog(NAMES, [0.0] * 6)
+    for _ in range(300):
+        operator.jog_pub.publish(flood)
+    assert wait_for(lambda: int(operator.bus_status().get('jog_superseded', '0')) > 0
+                    and operator.bus_status().get('state') == 'enabled')
+    # Nothing moved, the node still answers and streams.
+    n = len(operator.states)
+    assert wait_for(lambda: len(operator.states) > n + 5)
+    assert all(abs(a - b) < 1e-3 for a, b in zip(operator.q(), start))
+    assert operator.call('enable').success
+    # A speed between one and two times the maximum is clipped to it (counted), not refused.
+    fast = conversions.make_joint_jog(NAMES, [0.0] * 6)
+    fast.velocities = [1.5 * driver.max_speed[0]] + [0.0] * 5
+    qd, clipped = driver.jog_velocities(fast)
+    assert clipped == 1 and qd[0] == pytest.approx(1.5 * driver.max_speed[0])

@@ -14,10 +14,21 @@ frames dropped and refused), at ``diagnostics_rate`` and at once on every change
 The work is ``mover6_control.hardware.driver.ArmDriver`` on its own control thread (the cycle);
 the node converts messages and publishes. The control thread never waits on DDS: it hands each
 cycle's report to a publisher thread (a DDS write can block for hundreds of milliseconds, see
-controller_node.py). A refused JointJog changes nothing: the previous command ages out after
-``command_timeout`` and the arm holds.
+controller_node.py). With ``cycle_priority`` (default 50) it runs at SCHED_FIFO where the system
+allows it, the node's other threads just below (``mover6_control.realtime``, as the controller's
+``tick_priority``), and the process hands the interpreter lock over every ``SWITCH_INTERVAL``
+so the cycle thread never waits long for it.
+
+A refused JointJog changes nothing: the previous command ages out after ``command_timeout`` and
+the arm holds. Refused are: displacements, no names, unequal lengths, a name
+twice, an unknown name, a non-finite value, a fraction beyond [-1, 1] (fraction_of_max) or a
+speed beyond ``JOG_REFUSE_FACTOR`` times the joint's maximum (rad_per_s; a speed between one
+and that many times its maximum is clipped to it and counted). /diagnostics counts the JointJogs
+received, refused (by reason), clipped and superseded (replaced before a cycle used them: a
+flood), with the last refusal's reason.
 """
 
+import sys
 import threading
 
 from control_msgs.msg import JointJog
@@ -40,6 +51,10 @@ from std_srvs.srv import Trigger
 GRIPPER_BITS = {'off': 0x00, 'open': 0x03, 'closed': 0x02}
 """Joint 4's outputs: bit 0 'gripper open', bit 1 'gripper enabled' (the vendor's CPRMover6)."""
 GRIPPER_JOINT, OUTPUTS_JOINT = 4, 1
+JOG_REFUSE_FACTOR = 2.0
+"""rad_per_s: a JointJog faster than this many times a joint's maximum speed is refused."""
+SWITCH_INTERVAL = 0.0005
+"""[s] the interpreter lock's switch interval in the driver's process (Python's default 5 ms)."""
 LEVELS = {'fault': 'ERROR', 'error': 'ERROR', 'disconnected': 'WARN', 'connected': 'WARN',
           'enabled': 'OK', 'referenced': 'OK'}
 
@@ -59,10 +74,16 @@ class DriverNode(Node):
         self.driver = ArmDriver(
             bus, joints, cycle=p['cycle'], command_timeout=p['command_timeout'],
             max_lag=p['max_lag'], silent_cycles=p['silent_cycles'], limit_set=p['limit_set'],
-            firmware=firmware, on_cycle=self.on_cycle)
+            firmware=firmware, on_cycle=self.on_cycle, priority=p['cycle_priority'])
         self.names = self.driver.names
         self.refused = 0
+        self.refused_by = {}          # reason -> JointJogs refused for it
         self.last_refusal = ''
+        self.jogs = 0                 # JointJogs received
+        self.clipped = 0
+        self.superseded = 0           # replaced before a cycle took them
+        self._jog_pending = False
+        self._scheduling_logged = False
         self._latest = None
         self._seen = None
         self._last_diag = None
@@ -108,27 +129,61 @@ class DriverNode(Node):
 
     def on_jog(self, msg):
         """Command the velocities of a JointJog, or refuse it with the reason on /diagnostics."""
+        self.jogs += 1
         try:
-            if len(msg.displacements):
-                raise InvalidInputError('JointJog displacements are not supported: send '
-                                        'velocities')
-            names, values = joint_jog_from_msg(msg)
-            unknown = [n for n in names if n not in self.names]
-            if unknown:
-                raise InvalidInputError(f'JointJog names unknown joints {unknown}; the arm has '
-                                        f'{list(self.names)}')
-            qd = [0.0] * len(self.names)
-            override = self.get_parameter('speed_override').value
-            for name, value in zip(names, values):
-                i = self.names.index(name)
-                qd[i] = float(value) if self.jog_units == 'rad_per_s' else \
-                    float(value) * self.max_speed[i] * override
-            self.driver.set_velocity(qd)
-        except InvalidInputError as err:
+            qd, clipped = self.jog_velocities(msg)
+        except JogRefused as err:
             self.refused += 1
-            self.last_refusal = str(err)
-            self.get_logger().warning(f'JointJog refused: {err}')
+            self.refused_by[err.reason] = self.refused_by.get(err.reason, 0) + 1
+            self.last_refusal = str(err)[:200]
+            self.get_logger().warning(f'JointJog refused: {self.last_refusal}',
+                                      throttle_duration_sec=1.0)
             self._notify()
+            return
+        self.clipped += clipped
+        if self._jog_pending:
+            self.superseded += 1
+        self._jog_pending = True
+        self.driver.set_velocity(qd)
+
+    def jog_velocities(self, msg):
+        """Return (joint velocities [rad/s] in driver order, joints clipped); raise JogRefused."""
+        if len(msg.displacements):
+            raise JogRefused('displacements', 'JointJog displacements are not supported: send '
+                             'velocities')
+        if not len(msg.joint_names):
+            raise JogRefused('empty', 'JointJog names no joints')
+        if len(msg.velocities) != len(msg.joint_names):
+            raise JogRefused('length', f'JointJog has {len(msg.joint_names)} joint names but '
+                             f'{len(msg.velocities)} velocities')
+        try:
+            names, values = joint_jog_from_msg(msg)
+        except InvalidInputError as err:
+            reason = 'non_finite' if 'non-finite' in str(err) else 'names'
+            raise JogRefused(reason, str(err)) from None
+        unknown = [n for n in names if n not in self.names]
+        if unknown:
+            raise JogRefused('unknown_joint', f'JointJog names unknown joints {unknown[:6]}; '
+                             f'the arm has {list(self.names)}')
+        qd = [0.0] * len(self.names)
+        clipped = 0
+        override = self.get_parameter('speed_override').value
+        for name, value in zip(names, values):
+            i = self.names.index(name)
+            top = self.max_speed[i]
+            if self.jog_units == 'fraction_of_max':
+                if abs(value) > 1.0 + 1e-9:
+                    raise JogRefused('out_of_range', f'JointJog {name} at {value:.6g} is no '
+                                     'fraction of its maximum speed (fraction_of_max: -1..1)')
+                qd[i] = float(value) * top * override
+            else:
+                if abs(value) > JOG_REFUSE_FACTOR * top:
+                    raise JogRefused('out_of_range', f'JointJog {name} at {value:.6g} rad/s is '
+                                     f'beyond {JOG_REFUSE_FACTOR:g} x its maximum speed '
+                                     f'{top:.4f} rad/s')
+                clipped += abs(value) > top
+                qd[i] = float(value)
+        return qd, clipped
 
     # --- services ---
 
@@ -164,6 +219,7 @@ class DriverNode(Node):
 
     def on_cycle(self, report):
         """Take one cycle's report (control thread: hand it over, never wait on DDS)."""
+        self._jog_pending = False
         with self._wake:
             self._latest = report
             self._wake.notify()
@@ -182,6 +238,9 @@ class DriverNode(Node):
                     return
                 report, self._latest = self._latest, None
                 force, self._diag_now = self._diag_now, False
+            if not self._scheduling_logged and report is not None:
+                self._scheduling_logged = True
+                self.get_logger().info(f'cycle thread: {self.driver.scheduling}')
             if report is not None:
                 self._seen = report
                 if all(j.replies for j in report.joints):
@@ -192,7 +251,8 @@ class DriverNode(Node):
                 self._maybe_diagnostics(self._seen, force)
 
     def _maybe_diagnostics(self, report, force=False):
-        key = (report.state, report.hold, tuple(j.state for j in report.joints), self.refused)
+        key = (report.state, report.hold, tuple(j.state for j in report.joints), self.refused,
+               report.frames_bad)
         period = 1.0 / self.get_parameter('diagnostics_rate').value
         last = self._last_diag
         if not force and last is not None and last[0] == key and \
@@ -206,7 +266,11 @@ class DriverNode(Node):
                 'state': report.state, 'hold': report.hold, 'cycle_period': report.period,
                 'frames_dropped': report.frames_dropped, 'frames_bad': report.frames_bad,
                 'tx_errors': report.tx_errors, 'bus_error': report.bus_error,
-                'jog_refused': self.refused, 'last_refusal': self.last_refusal}))
+                'bad_frames': counts(report.bad_frames), 'last_bad_frame': report.last_bad_frame,
+                'jog_received': self.jogs, 'jog_refused': self.refused,
+                'jog_refused_by': counts(sorted(self.refused_by.items())),
+                'jog_clipped': self.clipped, 'jog_superseded': self.superseded,
+                'last_refusal': self.last_refusal, 'scheduling': self.driver.scheduling}))
         for j in report.joints:
             msg.status.append(make_status(
                 f'driver: {j.name}', LEVELS[j.state], j.state, {
@@ -225,8 +289,22 @@ class DriverNode(Node):
         super().destroy_node()
 
 
+class JogRefused(InvalidInputError):
+    """A JointJog the driver does not take; ``reason`` is its short name on /diagnostics."""
+
+    def __init__(self, reason, message):
+        super().__init__(message)
+        self.reason = reason
+
+
+def counts(pairs):
+    """Return ``(name, count)`` pairs as one line, 'name count, ...' ('' for none)."""
+    return ', '.join(f'{name} {count}' for name, count in pairs)
+
+
 def main(args=None):
     """Run the driver node until Ctrl-C, SIGTERM or shutdown; every module is disabled then."""
+    sys.setswitchinterval(SWITCH_INTERVAL)
     shutdown.run_node(DriverNode, args, lambda: MultiThreadedExecutor(num_threads=4))
 
 

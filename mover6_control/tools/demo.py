@@ -24,6 +24,7 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticStatus
+from mover6_control.control.commands import JOG_UNITS
 from mover6_control.control.status import MotionResult
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk_batch
@@ -96,8 +97,6 @@ JOINT_TOLERANCE = 0.01     # [rad] the demo's pass mark for the final joint erro
 # The arm behind the stack (scripts/launch.sh --hardware): what each choice starts.
 STACKS = {'sim': 'sim_bridge', 'can-sim': 'can_sim (the CAN-level Mover6) with the driver'}
 LIMIT_SET = {'sim': 'within_90_deg', 'can-sim': 'hardware'}
-# The ROS standard units on both (launch.sh tells the controller the driver has a cycle).
-STACK_JOG_UNITS = {'sim': 'rad_per_s', 'can-sim': 'rad_per_s'}
 
 
 class Recorder:
@@ -133,11 +132,10 @@ class Recorder:
         return t[mask] - t0, np.asarray(self.q)[mask], np.asarray(self.qd)[mask]
 
 
-def start_stack(log_dir, env, hardware='sim'):
+def start_stack(log_dir, env, hardware='sim', jog_units='rad_per_s'):
     """Start scripts/launch.sh (the arm, controller, planner) in its own process group."""
     cmd = ['bash', os.path.join(ROOT, 'scripts', 'launch.sh'), '--log-dir', log_dir,
-           '--hardware', hardware, '--limit-set', LIMIT_SET[hardware],
-           '--jog-units', STACK_JOG_UNITS[hardware]]
+           '--hardware', hardware, '--limit-set', LIMIT_SET[hardware], '--jog-units', jog_units]
     return subprocess.Popen(cmd, env=env, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
@@ -307,6 +305,10 @@ def main(argv=None):
     parser.add_argument('--hardware', default='sim', choices=STACKS,
                         help='the arm: sim (the MuJoCo bridge, default) or can-sim (the '
                         'driver on the CAN-level Mover6, over a pty)')
+    parser.add_argument('--jog-units', default='rad_per_s', choices=JOG_UNITS,
+                        help="the controller's /JointJog units: rad_per_s (default) or "
+                        "fraction_of_max (the vendor driver's; the sim, or the driver, acts on "
+                        'them)')
     args = parser.parse_args(argv)
     showcase = CAN_SHOWCASE if args.hardware == 'can-sim' else SHOWCASE
     steps = (showcase[0], showcase[-2]) if args.quick else showcase
@@ -321,7 +323,7 @@ def main(argv=None):
     t_start = time.monotonic()
     say(f'starting {STACKS[args.hardware]}, controller and planner (ROS_DOMAIN_ID='
         f'{env.get("ROS_DOMAIN_ID", "0")}, logs in {report_dir}/logs)')
-    stack = start_stack(os.path.join(report_dir, 'logs'), env, args.hardware)
+    stack = start_stack(os.path.join(report_dir, 'logs'), env, args.hardware, args.jog_units)
     rows = []
     contacts = None
     arm = mover6(LIMIT_SET[args.hardware])
