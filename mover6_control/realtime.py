@@ -7,8 +7,10 @@ controller manager raises its update thread. In Python the timed thread also nee
 interpreter lock: when another thread of the process holds it (the executor, a publisher) and
 waits for a CPU behind the machine's other processes, the timed thread waits with it. So every
 other thread of the process runs at SCHED_FIFO ``priority - 1`` (at least 1); threads started
-later inherit their creator's policy. Where the system refuses it (no CAP_SYS_NICE, no rtprio
-limit) nothing changes and the caller is told why, to say so once and go on.
+later inherit their creator's policy, processes started from any of them do not
+(SCHED_RESET_ON_FORK: a child runs at normal priority). Where the system refuses it (no
+CAP_SYS_NICE, no rtprio limit) nothing changes and the caller is told why, to say so once and go
+on.
 """
 
 from __future__ import annotations
@@ -35,11 +37,12 @@ def run_at_priority(priority: int) -> tuple[bool, str]:
     below = max(MIN_PRIORITY, priority - 1)
     me = threading.get_native_id()
     others = [int(t) for t in os.listdir('/proc/self/task') if int(t) != me]
+    policy = os.SCHED_FIFO | getattr(os, 'SCHED_RESET_ON_FORK', 0)
     try:
-        os.sched_setscheduler(me, os.SCHED_FIFO, os.sched_param(priority))
+        os.sched_setscheduler(me, policy, os.sched_param(priority))
         for tid in others:
             try:
-                os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(below))
+                os.sched_setscheduler(tid, policy, os.sched_param(below))
             except ProcessLookupError:      # a thread that ended meanwhile
                 pass
     except (OSError, AttributeError) as err:
@@ -53,6 +56,6 @@ def run_at_priority(priority: int) -> tuple[bool, str]:
 def scheduling_of_thread() -> tuple[str, int]:
     """Return the calling thread's scheduling policy ('fifo', 'other', ...) and priority."""
     me = threading.get_native_id()
-    policy = os.sched_getscheduler(me)
+    policy = os.sched_getscheduler(me) & ~getattr(os, 'SCHED_RESET_ON_FORK', 0)
     names = {os.SCHED_FIFO: 'fifo', os.SCHED_OTHER: 'other', os.SCHED_RR: 'rr'}
     return names.get(policy, str(policy)), os.sched_getparam(me).sched_priority

@@ -50,3 +50,17 @@ def test_the_timed_thread_runs_fifo_and_the_others_just_below_or_the_refusal_say
         assert 'SCHED_FIFO priority 20' in message
     else:
         assert 'refused' in message and out['timed'][0] == 'other'
+
+
+def test_a_process_started_from_a_fifo_thread_runs_at_normal_priority():
+    main = "out['main'] = scheduling_of_thread()"
+    child = CHILD.replace(main, main + """
+import subprocess, sys
+probe = 'import os; print(os.sched_getscheduler(0))'
+out['child'] = subprocess.run([sys.executable, '-c', probe], capture_output=True,
+                              text=True).stdout.strip()""")
+    done = subprocess.run([sys.executable, '-c', child], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    assert int(out['child']) == 0           # SCHED_OTHER

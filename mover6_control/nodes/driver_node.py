@@ -16,8 +16,13 @@ the node converts messages and publishes. The control thread never waits on DDS:
 cycle's report to a publisher thread (a DDS write can block for hundreds of milliseconds, see
 controller_node.py). With ``cycle_priority`` (default 50) it runs at SCHED_FIFO where the system
 allows it, the node's other threads just below (``mover6_control.realtime``, as the controller's
-``tick_priority``), and the process hands the interpreter lock over every ``SWITCH_INTERVAL``
-so the cycle thread never waits long for it.
+``tick_priority``). The cycle is Python and needs the interpreter lock, so the rest of the
+process keeps it short: the lock changes hands every ``SWITCH_INTERVAL``, what was loaded at
+start is frozen out of the garbage collector (a full collection held the lock for 25-45 ms),
+/JointJog and the parameters are served by a single-threaded executor (the multi-threaded one
+delayed a JointJog by 27 ms on average) and the services, which wait for the modules, by a
+node (``driver_services``, no parameters) and executor of their own. Measured with
+``./run.sh bench driver``.
 
 A refused JointJog changes nothing: the previous command ages out after ``command_timeout`` and
 the arm holds. Refused are: displacements, no names, unequal lengths, a name
@@ -28,6 +33,7 @@ received, refused (by reason), clipped and superseded (replaced before a cycle u
 flood), with the last refusal's reason.
 """
 
+import gc
 import sys
 import threading
 
@@ -42,8 +48,7 @@ from mover6_control.nodes.conversions import (joint_jog_from_msg, make_joint_sta
                                               make_status)
 from mover6_control.nodes.params import declare
 from mover6_control.parameters import DRIVER
-from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -93,9 +98,21 @@ class DriverNode(Node):
         self.pub_states = self.create_publisher(JointState, 'joint_states', 10)
         self.pub_diag = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
         self.create_subscription(JointJog, 'JointJog', self.on_jog, 10)
-        group = ReentrantCallbackGroup()
+        # The services wait for the modules (seconds; referencing minutes): they are served by a
+        # node and executor of their own, so the node's single-threaded executor never waits
+        # and /JointJog arrives within a millisecond (a multi-threaded executor for everything
+        # took 27 ms on average, its threads churning the interpreter lock the cycle needs).
+        self._service_node = Node(f'{self.get_name()}_services', namespace=self.get_namespace(),
+                                  context=self.context, start_parameter_services=False,
+                                  use_global_arguments=False)
+        base = self.get_fully_qualified_name()
         for kind in ('reset', 'enable', 'disable', 'reference', 'set_zero'):
-            self.create_service(Trigger, f'~/{kind}', self._service(kind), callback_group=group)
+            self._service_node.create_service(Trigger, f'{base}/{kind}', self._service(kind))
+        self._service_executor = MultiThreadedExecutor(num_threads=2, context=self.context)
+        self._service_executor.add_node(self._service_node)
+        self._service_thread = threading.Thread(target=self._serve, name='driver_services',
+                                                daemon=True)
+        self._service_thread.start()
         self._apply_outputs(p['gripper'], p['digital_outputs'])
         self._publisher = threading.Thread(target=self._publish_loop, name='driver_publish',
                                            daemon=True)
@@ -186,6 +203,12 @@ class DriverNode(Node):
         return qd, clipped
 
     # --- services ---
+
+    def _serve(self):
+        try:
+            self._service_executor.spin()
+        except Exception:  # noqa: B902 - the context shut down: the node is closing
+            pass
 
     def _service(self, kind):
         def callback(request, response):
@@ -286,6 +309,9 @@ class DriverNode(Node):
             self._closing = True
             self._wake.notify()
         self._publisher.join(timeout=5.0)
+        self._service_executor.shutdown(timeout_sec=5.0)
+        self._service_thread.join(timeout=5.0)
+        self._service_node.destroy_node()
         super().destroy_node()
 
 
@@ -305,7 +331,9 @@ def counts(pairs):
 def main(args=None):
     """Run the driver node until Ctrl-C, SIGTERM or shutdown; every module is disabled then."""
     sys.setswitchinterval(SWITCH_INTERVAL)
-    shutdown.run_node(DriverNode, args, lambda: MultiThreadedExecutor(num_threads=4))
+    gc.collect()
+    gc.freeze()            # what is loaded now is never scanned again: no long full collections
+    shutdown.run_node(DriverNode, args, SingleThreadedExecutor)
 
 
 if __name__ == '__main__':
