@@ -2,10 +2,10 @@
 Timing of the real-arm driver (issue 23): its cycle on the wire, and JointJog-to-frame latency.
 
 Set-up: the driver node in its own process, on the CPR USB2CAN framing over a pty, exactly as on
-``/dev/ttyUSB0``; behind the pty, in this process, the CAN-level Mover6 (``sim_bridge.can_sim``:
-six simulated modules on the MuJoCo arm), which timestamps every frame it decodes. This process
-also plays the controller: it publishes /JointJog at 100 Hz, as the controller node does (the
-controller and the planner themselves do not run here).
+``/dev/ttyUSB0``; behind the pty, in a process of its own without ROS (``--wire``), the CAN-level
+Mover6 (``sim_bridge.can_sim``: six simulated modules on the MuJoCo arm), which timestamps every
+frame it decodes. This process plays the controller: it publishes /JointJog at 100 Hz, as the
+controller node does (the controller and the planner themselves do not run here).
 
 - Cycle period error [ms]: the time between two consecutive set-point frames of joint 1 as they
   arrive at the modules, minus the driver's ``cycle`` (50 ms): p50, p99, max of its magnitude,
@@ -18,18 +18,25 @@ controller and the planner themselves do not run here).
   time at the start of every ``ArmDriver.step``, recorded by ``--probe``): the cycle itself,
   without the serial write and the pty.
 
-The wire side (the modules, the JointJog publisher) runs at SCHED_FIFO 60 where allowed, above
-the driver's default ``cycle_priority`` 50, so that its own delays do not count as the driver's.
+The wire side (the modules on the pty, in a process of their own without ROS) runs at SCHED_FIFO
+60 where allowed, above the driver's default ``cycle_priority`` 50, so that its own delays do
+not count as the driver's; this process publishes the JointJog at normal priority, as a
+controller does by default. The wire figures include the pty's own kernel work (a kernel
+worker at normal priority moves the bytes), which no priority of ours covers.
+
 Variants, one after the other in the same run: the driver's defaults, ``cycle_priority`` 0
 (normal scheduling), and both while ``CHURN`` short-lived ROS processes join the graph, a few at
-a time (issue 22, item 4: the cycle keeps its period while processes join). The load average is
-printed and stored: the machine is shared.
+a time (issue 22, item 4: the cycle keeps its period while processes join; ``bench_churn``'s
+joining processes, started by a helper process). The load average is printed and stored: the
+machine is shared.
 
 Run: ``python -m bench.bench_driver [--quick] [--variant NAME]`` (``./run.sh bench driver``);
 writes bench/results/driver.json.
 """
 
+import json
 import os
+import subprocess
 import sys
 import tempfile
 import threading
@@ -75,22 +82,36 @@ class Wire:
                     self.setpoints.append((now, joint, command.position))
             return receive(can_id, data, now)
         self.server.arm.receive = recorded
-        self.thread = threading.Thread(target=self.run, daemon=True)
-        self.scheduling = ''
 
-    def run(self):
-        """Serve the pty at real-time priority where allowed (the instrument, not the subject)."""
-        try:
-            from mover6_control.realtime import run_at_priority
-        except ImportError:                   # a tree before the driver's cycle_priority
-            self.scheduling = 'normal (no mover6_control.realtime)'
-        else:
-            self.scheduling = run_at_priority(WIRE_PRIORITY)[1]
-        self.server.run()
 
-    def joint1(self, since=0.0):
-        with self.lock:
-            return [(t, pos) for t, j, pos in self.setpoints if j == 1 and t >= since]
+def wire_main(argv):
+    """Serve the arm on pty link ``argv[0]`` until SIGTERM; save joint 1's set-points."""
+    import signal
+    try:
+        from mover6_control.realtime import run_at_priority
+    except ImportError:                   # a tree before the driver's cycle_priority
+        scheduling = 'normal (no mover6_control.realtime)'
+    else:
+        scheduling = run_at_priority(WIRE_PRIORITY)[1]
+    wire = Wire(argv[0])
+
+    def stop(*_):
+        wire.server.running = False
+    signal.signal(signal.SIGTERM, stop)
+    print('ready', flush=True)
+    try:
+        wire.server.run()
+    finally:
+        wire.server.close()
+        np.save(argv[1], np.array([(t, pos) for t, j, pos in wire.setpoints if j == 1]))
+        print(json.dumps({'scheduling': scheduling}), flush=True)
+
+
+def wait_ready(proc, timeout=60.0):
+    """Wait until ``proc`` prints its first line ('ready'); return False if it does not."""
+    import select
+    ready, _, _ = select.select([proc.stdout], [], [], timeout)
+    return bool(ready) and proc.stdout.readline().strip() == 'ready'
 
 
 def call(node, client, timeout=30.0):
@@ -103,13 +124,11 @@ def call(node, client, timeout=30.0):
     return (result.success, result.message) if result else (False, 'no answer')
 
 
-def jog_for(node, pub, velocity, seconds, tick=None):
+def jog_for(node, pub, velocity, seconds):
     """Publish JointJog at 100 Hz for ``seconds``; return when the first one was published."""
     first = None
     end = time.monotonic() + seconds
     while time.monotonic() < end:
-        if tick is not None:
-            tick()
         msg = make_joint_jog(NAMES, [velocity, 0, 0, 0, 0, 0])
         if first is None:
             first = time.monotonic()
@@ -131,8 +150,15 @@ def stats(values, quantiles):
 def run_variant(name, params, churn, trials, tmp):
     """Run one variant: a fresh wire and driver; return its figures."""
     link = os.path.join(tmp, f'{name}-can')
-    wire = Wire(link)
-    wire.thread.start()
+    wire_log = os.path.join(tmp, f'{name}_wire.npy')
+    # The modules in a process of their own, without ROS: nothing of the publisher's DDS (nor
+    # its interpreter lock) delays a frame's arrival time.
+    wire = subprocess.Popen([sys.executable, '-m', 'bench.bench_driver', '--wire', link,
+                             wire_log], cwd=ROOT, stdout=subprocess.PIPE, text=True)
+    if not wait_ready(wire):
+        wire.kill()
+        print(f'{name}: the wire process did not start', file=sys.stderr)
+        return None
     namespace = f'bench_driver_{name}_{os.getpid()}'
     probe = os.path.join(tmp, f'{name}_cycles.npy')
     cmd = [sys.executable, '-m', 'bench.bench_driver', '--probe', probe, '--ros-args', '-r',
@@ -145,19 +171,15 @@ def run_variant(name, params, churn, trials, tmp):
     node = rclpy.create_node('bench_driver', namespace=namespace)
     pub = node.create_publisher(JointJog, 'JointJog', 10)
     clients = {k: node.create_client(Trigger, f'driver/{k}') for k in ('reset', 'enable')}
-    joining = Churn(f'/{namespace}/bench_status', churn, tmp) if churn else None
-    if joining is None:
-        tick = None
-    else:
-        # Each joining process waits for this status (transient local) and leaves.
+    joining = None
+    if churn:
+        # Each joining process waits for this status (transient local) and leaves. They are
+        # started by a process of their own: a fork of this one would hold up the wire.
         status_pub = node.create_publisher(DiagnosticStatus, 'bench_status', STATUS_QOS)
         status_pub.publish(DiagnosticStatus(name='bench_driver', message='churn'))
-        due = [0.0]
-
-        def tick():
-            if time.monotonic() >= due[0]:
-                due[0] = time.monotonic() + 0.1
-                joining.step()
+        joining = subprocess.Popen(
+            [sys.executable, '-m', 'bench.bench_driver', '--churn', f'/{namespace}/bench_status',
+             str(churn), tmp], cwd=ROOT, stdout=subprocess.PIPE, text=True)
     try:
         for kind in ('reset', 'enable'):
             ok, message = call(node, clients[kind])
@@ -167,26 +189,30 @@ def run_variant(name, params, churn, trials, tmp):
         latencies, publications = [], []
         t_start = time.monotonic()                   # the driver runs: measure from here
         for _ in range(trials):
-            jog_for(node, pub, 0.0, 0.4, tick)       # at rest, set-points steady
-            t_pub = jog_for(node, pub, 0.2, 0.15, tick)
+            jog_for(node, pub, 0.0, 0.4)             # at rest, set-points steady
+            t_pub = jog_for(node, pub, 0.2, 0.15)
             publications.append(t_pub)
-            jog_for(node, pub, 0.0, 0.1, tick)
-            frames = wire.joint1(since=t_pub - 0.2)
-            before = [pos for t, pos in frames if t < t_pub]
-            moved = [t for t, pos in frames if t >= t_pub and before and pos != before[-1]]
-            if moved:
-                latencies.append(moved[0] - t_pub)
+            jog_for(node, pub, 0.0, 0.1)
         t_end = time.monotonic()
-        times = [t for t, _ in wire.joint1(since=t_start)]
     finally:
+        churned = {}
         if joining is not None:
-            joining.stop()
+            joining.terminate()
+            out, _ = joining.communicate(timeout=60)
+            churned = json.loads(out.strip().splitlines()[-1]) if out.strip() else {}
         node.destroy_node()
         rclpy.try_shutdown()
         driver.stop()
-        wire.server.running = False
-        wire.thread.join(timeout=10.0)
-        wire.server.close()
+        wire.terminate()
+        out, _ = wire.communicate(timeout=30)
+    wire_scheduling = json.loads(out.strip().splitlines()[-1])['scheduling']
+    frames = [(t, pos) for t, pos in np.load(wire_log)]
+    for t_pub in publications:
+        before = [pos for t, pos in frames if t_pub - 0.2 <= t < t_pub]
+        moved = [t for t, pos in frames if t >= t_pub and before and pos != before[-1]]
+        if moved:
+            latencies.append(moved[0] - t_pub)
+    times = [t for t, _ in frames if t_start <= t <= t_end]
     cycles = np.load(probe) if os.path.exists(probe) else np.array([])
     cycles = cycles[(cycles >= t_start) & (cycles <= t_end)]
     jogs_path = probe.replace('.npy', '_jogs.npy')
@@ -206,10 +232,10 @@ def run_variant(name, params, churn, trials, tmp):
             'jointjog_to_frame_ms': stats(latencies, (50, 95)) if latencies else None,
             'jointjog_to_driver_callback_ms': stats(to_node, (50, 95)) if to_node else None,
             'missed_trials': trials - len(latencies),
-            'churn_exit_codes': joining.exit_codes if joining is not None else [],
-            'churn_left': joining.left if joining is not None else 0,
+            'churn_exit_codes': churned.get('exit_codes', []),
+            'churn_not_started': churned.get('left', 0),
             'driver_scheduling': scheduling[0] if scheduling else 'not logged',
-            'wire_scheduling': wire.scheduling}
+            'wire_scheduling': wire_scheduling}
 
 
 def probe_main(argv):
@@ -239,10 +265,28 @@ def probe_main(argv):
         np.save(argv[0].replace('.npy', '_jogs.npy'), np.array(jogs))
 
 
+def churn_main(argv):
+    """Start ``argv[1]`` processes that join and leave on status topic ``argv[0]``; report."""
+    import signal
+    joining = Churn(argv[0], int(argv[1]), argv[2])
+    stop = []
+    signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
+    while not stop and joining.step():
+        time.sleep(0.1)
+    joining.stop()
+    print(json.dumps({'exit_codes': joining.exit_codes, 'left': joining.left}), flush=True)
+
+
 def main(argv):
     """Run the benchmark; return the exit code."""
     if argv[:1] == ['--probe']:
         probe_main(argv[1:])
+        return 0
+    if argv[:1] == ['--wire']:
+        wire_main(argv[1:])
+        return 0
+    if argv[:1] == ['--churn']:
+        churn_main(argv[1:])
         return 0
     quick = '--quick' in argv
     trials = 8 if quick else 30

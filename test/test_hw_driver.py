@@ -402,3 +402,42 @@ def test_the_control_thread_reports_its_scheduling():
         assert driver.scheduling == 'normal scheduling (priority 0)'
     finally:
         driver.close()
+
+
+def test_the_driver_on_a_pty_drops_what_the_wire_and_the_bus_bring_wrong():
+    """Hand-written serial bytes: truncated, garbage, wrong DLC, unknown ID, then good replies."""
+    import fcntl
+    import os
+    from mover6_control.hardware.usb2can import encode_serial_frame, Usb2CanBus
+    master, slave = os.openpty()
+    fcntl.fcntl(master, fcntl.F_SETFL, fcntl.fcntl(master, fcntl.F_GETFL) | os.O_NONBLOCK)
+    driver = ArmDriver(Usb2CanBus(os.ttyname(slave)), JOINTS)
+    try:
+        good = [encode_serial_frame(p.reply_id(n), p.encode_reply(0x1C, 50 + n, 0, 0))
+                for n in range(1, 7)]
+        wire = (good[0][:6] + b'\xff\x00\x13'                       # cut short, garbage
+                + encode_serial_frame(0x11, p.encode_reply(0x1C, 9999, 0, 0)[:5])   # DLC 5
+                + encode_serial_frame(0x7F, p.encode_reply(0x1C, 9999, 0, 0))       # no module
+                + b''.join(good))
+        os.write(master, wire)
+        t, report = 100.0, None
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline:
+            t += driver.cycle
+            report = driver.step(t)
+            try:
+                os.read(master, 4096)                     # the set-points: nobody needs them
+            except BlockingIOError:
+                pass
+            if all(j.replies for j in report.joints):
+                break
+            time.sleep(0.01)
+        assert all(j.replies == 1 for j in report.joints), report
+        assert report.frames_dropped >= 1                 # the serial reader's
+        assert dict(report.bad_frames) == {'wrong_length': 1, 'unknown_id': 1}
+        assert [JOINTS[i].to_ticks(j.q) for i, j in enumerate(report.joints)] == \
+            [JOINTS[i].from_wire(51 + i) for i in range(6)]
+    finally:
+        driver.close()
+        os.close(slave)
+        os.close(master)
