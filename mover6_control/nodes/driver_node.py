@@ -34,6 +34,7 @@ flood), with the last refusal's reason.
 """
 
 import gc
+import re
 import sys
 import threading
 
@@ -261,17 +262,34 @@ class DriverNode(Node):
                     return
                 report, self._latest = self._latest, None
                 force, self._diag_now = self._diag_now, False
-            if not self._scheduling_logged and report is not None:
-                self._scheduling_logged = True
-                self.get_logger().info(f'cycle thread: {self.driver.scheduling}')
-            if report is not None:
-                self._seen = report
-                if all(j.replies for j in report.joints):
-                    self.pub_states.publish(make_joint_state(
-                        self.names, [j.q for j in report.joints],
-                        [j.qd for j in report.joints], stamp=self.get_clock().now().to_msg()))
-            if self._seen is not None:
-                self._maybe_diagnostics(self._seen, force)
+            try:
+                self._publish(report, force)
+            except Exception as err:  # noqa: B902 - the next cycle's report is published again
+                self.get_logger().error(f'publishing failed: {type(err).__name__}: {err}',
+                                        throttle_duration_sec=1.0)
+
+    def _publish(self, report, force):
+        """Publish one cycle's report (``None``: only /diagnostics, e.g. on a refusal)."""
+        if not self._scheduling_logged and report is not None:
+            self._scheduling_logged = True
+            self.get_logger().info(f'cycle thread: {self.driver.scheduling}')
+        if report is not None and (self._seen is None or
+                                   report.state != self._seen.state or
+                                   hold_kind(report.hold) != hold_kind(self._seen.hold)):
+            # Each change of the arm's state is logged once, with why it holds.
+            text = f'arm {report.state}' + (f': holds, {report.hold}' if report.hold else '')
+            if report.state in ('error', 'fault'):
+                self.get_logger().warning(text)
+            else:
+                self.get_logger().info(text)
+        if report is not None:
+            self._seen = report
+            if all(j.replies for j in report.joints):
+                self.pub_states.publish(make_joint_state(
+                    self.names, [j.q for j in report.joints],
+                    [j.qd for j in report.joints], stamp=self.get_clock().now().to_msg()))
+        if self._seen is not None:
+            self._maybe_diagnostics(self._seen, force)
 
     def _maybe_diagnostics(self, report, force=False):
         key = (report.state, report.hold, tuple(j.state for j in report.joints), self.refused,
@@ -321,6 +339,11 @@ class JogRefused(InvalidInputError):
     def __init__(self, reason, message):
         super().__init__(message)
         self.reason = reason
+
+
+def hold_kind(hold):
+    """Return why the arm holds without the counts that change every cycle."""
+    return re.sub(r'\d+ cycles', 'N cycles', hold)
 
 
 def counts(pairs):
