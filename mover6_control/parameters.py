@@ -367,6 +367,10 @@ DRIVER = _table(
       10000, 1000000, read_only=True),
     P('cycle', 'float', 0.05, 's',
       'driver cycle: one set-point per module per cycle (the vendor: 50 ms)', 0.005, 0.5),
+    P('cycle_priority', 'int', 50, '',
+      "real-time priority (SCHED_FIFO 1 to 99) of the cycle thread, the node's other threads "
+      'one below; 0 = off (normal scheduling); refused without the right (logged once, normal '
+      'scheduling then); set at start', 0, 99, read_only=True),
     P('command_timeout', 'float', 0.2, 's',
       'a JointJog older than this stops the arm: the set-points hold', 0.01, 5.0),
     P('jog_units', 'str', 'rad_per_s', '',

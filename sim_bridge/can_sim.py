@@ -5,7 +5,11 @@ The CAN-level Mover6 (``sim_bridge.can_arm``) on a wire: a python-can bus or a s
 the CPR USB2CAN adapter's serial framing (11-byte frames, ``mover6_control.hardware.usb2can``),
 links its device to ``--link`` and answers there as the arm's six motor modules: a driver opens
 that path exactly as it opens ``/dev/ttyUSB0`` on the real arm. It runs until SIGINT or
-SIGTERM, then removes the link and the control socket. No ROS here.
+SIGTERM, then removes the link and the control socket. No ROS here. It runs at SCHED_FIFO
+``--priority`` (60) where the system allows it: the modules it stands for never wait for a CPU,
+and on a loaded machine a simulator at normal priority missed the driver's set-points for longer
+than its three-cycle silence limit, which latched a fault that held the arm for the rest of the
+run.
 
 Control channel, for tests and for trying faults by hand: a unix stream socket (``--control``,
 default the link's path plus ``.control``) taking one command per line and answering each with
@@ -43,10 +47,13 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.hardware import protocol, usb2can
 from mover6_control.hardware.scaling import JOINTS_YAML, load_joints
 from mover6_control.kinematics.arm import LIMIT_SETS, mover6
+from mover6_control.realtime import run_at_priority
 import numpy as np
 from sim_bridge.can_arm import CanArm, ModuleTiming
 
 COMMAND_IDS = tuple(protocol.command_id(j) for j in protocol.JOINTS)
+SIM_PRIORITY = 60
+"""can_sim's SCHED_FIFO priority by default: the modules it stands for are hardware."""
 
 
 def build_arm(limit_set: str = 'hardware', joints_file: str = JOINTS_YAML,
@@ -297,6 +304,10 @@ def parse_args(argv: Optional[list[str]]) -> argparse.Namespace:
                         help='[s] without a set-point before 0x08 (default: %(default)s)')
     parser.add_argument('--lag-limit', type=float, default=ModuleTiming.lag_limit,
                         help='[rad] position lag before 0x10 (default: %(default)s)')
+    parser.add_argument('--priority', type=int, default=SIM_PRIORITY,
+                        help='SCHED_FIFO priority of the simulated modules where the system '
+                        'allows it, 0 = normal scheduling (default: %(default)s, above the '
+                        "driver's cycle_priority: real modules never wait for a CPU)")
     parser.add_argument('--send', nargs='+', metavar=('PATH', 'WORD'),
                         help='send one control command to a running can_sim and print the '
                         'answer, e.g. --send /tmp/mover6-can.control status')
@@ -329,6 +340,9 @@ def main(argv: Optional[list[str]] = None) -> int:
 
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
+    if args.priority > 0:
+        ok, message = run_at_priority(args.priority)
+        print(f'can_sim: {message if ok else "normal scheduling: " + message}', flush=True)
     print(f'can_sim: ready on {args.link} ({server.pty.device}), control {server.control_path}',
           flush=True)
     try:

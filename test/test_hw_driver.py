@@ -339,3 +339,105 @@ def test_the_control_thread_runs_the_cycle_on_the_real_clock():
         stop.set()
         server.join()
         modules.bus.shutdown()
+
+
+def send_raw(r, **kwargs):
+    """Put one frame on the bus as a foreign sender (another node, a broken adapter)."""
+    r.modules.bus.send(can.Message(**kwargs))
+
+
+def test_foreign_and_malformed_frames_are_dropped_by_reason(rig):
+    r = rig(positions={1: 50})
+    r.enable()
+    good = p.encode_reply(0x00, 50, 0, 0)
+    send_raw(r, arbitration_id=0x7F1, is_extended_id=False, data=good)        # unknown ID
+    send_raw(r, arbitration_id=0x71, is_extended_id=False, data=good)         # module 7
+    send_raw(r, arbitration_id=0x11, is_extended_id=True, data=good)          # extended
+    send_raw(r, arbitration_id=0x11, is_extended_id=False, is_remote_frame=True, dlc=8)
+    send_raw(r, arbitration_id=0x11, is_extended_id=False, data=good[:5])     # DLC 5
+    send_raw(r, arbitration_id=0x10, is_extended_id=False,                    # another master
+             data=p.encode_setpoint(99999, 0, 0))
+    report = r.run()
+    assert dict(report.bad_frames) == {'unknown_id': 2, 'extended_id': 1, 'wrong_length': 1,
+                                       'remote_or_error_frame': 1,
+                                       'command_of_another_master': 1}
+    assert report.frames_bad == 6
+    assert 'command_of_another_master: id 0x10 dlc 8' in report.last_bad_frame
+    assert report.state == 'enabled' and report.hold == ''
+    assert report.joints[0].q == pytest.approx(JOINTS[0].to_rad(50))
+    assert r.modules.setpoints(1)[-1] == 50                 # nothing moved
+
+
+def test_a_reply_that_jumps_is_dropped_and_the_setpoint_never_follows(rig):
+    r = rig(positions={2: 1000})
+    r.enable()
+    jump = 1000 + int(0.5 * abs(JOINTS[1].ticks_per_rad))           # 0.5 rad in one cycle
+    for _ in range(2):
+        send_raw(r, arbitration_id=p.reply_id(2), is_extended_id=False,
+                 data=p.encode_reply(0x00, jump, 0, 0))
+        report = r.run()
+        assert report.joints[1].q == pytest.approx(JOINTS[1].to_rad(1000))
+    assert dict(report.bad_frames) == {'position_jump': 2}
+    assert set(r.modules.setpoints(2)[-4:]) == {1000}
+    # A module whose every reply jumps: no valid reply, so it goes silent and the arm holds.
+    r.modules.frozen.add(2)
+    r.modules.wire[2] = jump
+    states = [r.run().joints[1].state for _ in range(4)]
+    assert states[-1] == 'fault' and r.driver.report.hold
+    assert set(r.modules.setpoints(2)) <= {0, 1000}           # 0: before the first reply
+    r.enable()                                                # reset: the new position stands
+    assert r.driver.report.state == 'enabled'
+    assert r.modules.setpoints(2)[-1] == jump
+
+
+def test_the_control_thread_reports_its_scheduling():
+    channel = f'driver_test_{next(CHANNELS)}'
+    driver = ArmDriver(can.Bus(interface='virtual', channel=channel), JOINTS)
+    assert driver.scheduling == 'not started'
+    driver.start()
+    try:
+        deadline = time.monotonic() + 30.0
+        while driver.report is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert driver.scheduling == 'normal scheduling (priority 0)'
+    finally:
+        driver.close()
+
+
+def test_the_driver_on_a_pty_drops_what_the_wire_and_the_bus_bring_wrong():
+    """Hand-written serial bytes: truncated, garbage, wrong DLC, unknown ID, then good replies."""
+    import fcntl
+    import os
+    from mover6_control.hardware.usb2can import encode_serial_frame, Usb2CanBus
+    master, slave = os.openpty()
+    fcntl.fcntl(master, fcntl.F_SETFL, fcntl.fcntl(master, fcntl.F_GETFL) | os.O_NONBLOCK)
+    driver = ArmDriver(Usb2CanBus(os.ttyname(slave)), JOINTS)
+    try:
+        good = [encode_serial_frame(p.reply_id(n), p.encode_reply(0x1C, 50 + n, 0, 0))
+                for n in range(1, 7)]
+        wire = (good[0][:6] + b'\xff\x00\x13'                       # cut short, garbage
+                + encode_serial_frame(0x11, p.encode_reply(0x1C, 9999, 0, 0)[:5])   # DLC 5
+                + encode_serial_frame(0x7F, p.encode_reply(0x1C, 9999, 0, 0))       # no module
+                + b''.join(good))
+        os.write(master, wire)
+        t, report = 100.0, None
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline:
+            t += driver.cycle
+            report = driver.step(t)
+            try:
+                os.read(master, 4096)                     # the set-points: nobody needs them
+            except BlockingIOError:
+                pass
+            if all(j.replies for j in report.joints):
+                break
+            time.sleep(0.01)
+        assert all(j.replies == 1 for j in report.joints), report
+        assert report.frames_dropped >= 1                 # the serial reader's
+        assert dict(report.bad_frames) == {'wrong_length': 1, 'unknown_id': 1}
+        assert [JOINTS[i].to_ticks(j.q) for i, j in enumerate(report.joints)] == \
+            [JOINTS[i].from_wire(51 + i) for i in range(6)]
+    finally:
+        driver.close()
+        os.close(slave)
+        os.close(master)

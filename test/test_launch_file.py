@@ -2,10 +2,14 @@
 launch/mover6.launch.py and scripts/launch.sh start the same nodes with the same choices.
 
 The launch file needs the ``launch`` and ``launch_ros`` packages, which this environment may not
-have, so it is read with ``ast``, not imported; launch.sh is read as text. Both must start the
-same executables with the same parameter files, the same per-node overrides and environment
-hooks, and offer the same choices (sim, profile, jog_units, limit_set) with the same defaults,
-which are the package's own constants and the shipped parameter files' values.
+have (launch_ros is not on PyPI), so it is read with ``ast``; launch.sh is read as text. Both
+must start the same executables with the same parameter files, the same per-node overrides and
+environment hooks, and offer the same choices (sim, hardware, profile, jog_units, limit_set)
+with the same defaults, which are the package's own constants and the shipped parameter files'
+values. What the ``hardware`` argument starts is decided at launch time (an OpaqueFunction):
+the last test runs the launch file on stand-ins that record what it builds, and calls that
+function for each choice. What ``ros2 launch`` itself then does with the actions is not tested
+here.
 """
 
 import ast
@@ -196,3 +200,94 @@ def test_robot_state_publisher_only_when_installed(tree):
     # and the nodes of the ``hardware`` argument.
     assert sorted(ast.unparse(keyword(c, 'function')) for c in calls(tree, 'OpaqueFunction')) \
         == ['hardware_nodes', 'local_dds_environment', 'robot_state_publisher']
+
+
+class Recorded:
+    """A stand-in for a launch or launch_ros class: keeps its arguments (test double)."""
+
+    def __init__(self, *args, **kwargs):
+        self.args, self.kwargs = args, kwargs
+
+
+class Configuration(Recorded):
+    """LaunchConfiguration: ``perform`` reads the context's values."""
+
+    def perform(self, context):
+        return context[self.args[0]]
+
+
+class Event:
+    """A process output event: its ``text``."""
+
+    def __init__(self, text):
+        self.text = text
+
+
+def stub_modules():
+    """Return stand-ins for the modules of ``launch`` and ``launch_ros`` the launch file uses."""
+    import types
+    names = {
+        'launch': ['LaunchDescription'],
+        'launch.actions': ['DeclareLaunchArgument', 'ExecuteProcess', 'LogInfo',
+                           'OpaqueFunction', 'RegisterEventHandler', 'SetEnvironmentVariable'],
+        'launch.conditions': ['IfCondition'],
+        'launch.event_handlers': ['OnProcessIO', 'OnShutdown'],
+        'launch.substitutions': ['PathJoinSubstitution', 'PythonExpression'],
+        'launch_ros': [], 'launch_ros.actions': ['Node'],
+        'launch_ros.parameter_descriptions': ['ParameterValue'],
+        'launch_ros.substitutions': ['FindPackageShare'],
+    }
+    modules = {}
+    for module, classes in names.items():
+        modules[module] = types.ModuleType(module)
+        for name in classes:
+            setattr(modules[module], name, type(name, (Recorded,), {}))
+    modules['launch.substitutions'].LaunchConfiguration = Configuration
+    return modules
+
+
+@pytest.fixture(scope='module')
+def launch_module():
+    """Return the launch file executed on stand-ins of launch and launch_ros (not installed)."""
+    import importlib.util
+    import sys
+    with pytest.MonkeyPatch.context() as patch:
+        for name, module in stub_modules().items():
+            patch.setitem(sys.modules, name, module)
+        spec = importlib.util.spec_from_file_location('mover6_launch', LAUNCH_FILE)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        yield module
+
+
+def test_the_hardware_argument_starts_what_launch_sh_starts(launch_module):
+    """hardware:= sim | can | can_sim: nothing more | the driver on the bus | can_sim, then it."""
+    description = launch_module.generate_launch_description()
+    declared = {a.args[0]: a.kwargs for a in description.args[0]
+                if type(a).__name__ == 'DeclareLaunchArgument'}
+    assert [c.replace('_', '-') for c in declared['hardware']['choices']] == \
+        sh_variable('HARDWARE').split()
+    for name, (_, variable) in SH_NAMES.items():
+        assert declared[name]['choices'] == sh_variable(variable).split()
+    context = {'can_interface': 'cpr_usb2can', 'can_channel': '', 'jog_units': 'rad_per_s'}
+    assert launch_module.hardware_nodes({**context, 'hardware': 'sim'}) == []
+    # A real arm: the driver alone, on launch.sh's default channel, not enabled at start.
+    (node,) = launch_module.hardware_nodes({**context, 'hardware': 'can',
+                                            'can_interface': 'socketcan'})
+    assert node.kwargs['executable'] == 'driver'
+    given = node.kwargs['parameters'][1]
+    assert (given['can_interface'], given['can_channel'], given['enable_on_start']) == \
+        ('socketcan', '/dev/ttyUSB0', False)
+    # The CAN-level Mover6 on a pty at the given link, and the driver on it once it is ready.
+    actions = launch_module.hardware_nodes({**context, 'hardware': 'can_sim',
+                                            'can_channel': '/tmp/x/mover6-can'})
+    can_sim, handler = actions
+    assert os.path.basename(can_sim.kwargs['cmd'][0]) == 'can_sim'
+    assert can_sim.kwargs['cmd'][1:3] == ['--link', '/tmp/x/mover6-can']
+    on_output = handler.args[0].kwargs['on_stdout']
+    assert on_output(Event(b'can_sim: starting')) is None
+    (node,) = on_output(Event(b'can_sim: ready on /tmp/x/mover6-can'))
+    given = node.kwargs['parameters'][1]
+    assert (given['can_interface'], given['can_channel'], given['enable_on_start']) == \
+        ('cpr_usb2can', '/tmp/x/mover6-can', True)
+    assert on_output(Event(b'ready')) is None                             # once only

@@ -21,6 +21,20 @@ purpose:
   a silent module is a latched ``fault`` until ``reset``;
 - ``close`` disables every module before the bus is shut down.
 
+What the bus brings that is not a reply of one of the joints' modules is dropped and counted by
+its reason (``ArmReport.bad_frames``), never decoded as a position: an unknown or extended ID, a
+remote or error frame, a reply of the wrong length, a command frame of another master on the
+bus. A well-formed reply whose position jumps further than the joint can have moved since its last
+reply (``max_lag`` plus twice its maximum speed over the time between the two) while the driver
+drives it is dropped too ('position_jump'): the set-point never follows it, and a joint whose
+replies keep jumping goes silent and faults, so the arm holds.
+
+The control thread (``start``) sleeps to absolute deadlines on ``clock`` (an overrun skips, never
+bursts) and, with ``priority`` 1..99, runs at SCHED_FIFO where the system allows it
+(``mover6_control.realtime``, the controller's tick uses the same); the reports it produces go
+to ``on_cycle``, which must hand them over without waiting (the node publishes on a thread of
+its own).
+
 Per joint and for the arm the state is a ``ModuleState``: disconnected (no reply yet), connected
 (replying, motor not enabled), error (a flag other than "motor not enabled"), enabled, referenced
 (enabled and referenced), fault (silent). The arm's state is its worst joint's.
@@ -43,6 +57,7 @@ import can
 from mover6_control.errors import InvalidInputError
 from mover6_control.hardware import protocol as p
 from mover6_control.hardware.scaling import JointScale
+from mover6_control.realtime import run_at_priority
 
 
 class ModuleState(StrEnum):
@@ -95,6 +110,8 @@ class ArmReport:
     frames_bad: int
     tx_errors: int
     bus_error: str
+    bad_frames: tuple[tuple[str, int], ...] = ()
+    last_bad_frame: str = ''
 
 
 class Request:
@@ -161,14 +178,17 @@ class ArmDriver:
     module docstring; ``limit_set`` names the joint limits the set-points are clamped to (always
     within the hardware ones); ``firmware`` names the error-flag table. ``clock`` [s] is only used
     by the control thread (``start``) and by ``request``; ``step`` takes the time as an argument.
-    ``on_cycle``, if given, gets every cycle's ``ArmReport`` on the control thread.
+    ``on_cycle``, if given, gets every cycle's ``ArmReport`` on the control thread. ``priority``
+    (0 = normal scheduling, 1..99 SCHED_FIFO where allowed) is the control thread's;
+    ``scheduling`` says what it got.
     """
 
     def __init__(self, bus: can.BusABC, joints: Sequence[JointScale], *, cycle: float = 0.05,
                  command_timeout: float = 0.2, max_lag: float = 0.2, silent_cycles: int = 3,
                  limit_set: str = 'hardware', firmware: str = 'mover6',
                  clock: Callable[[], float] = time.monotonic,
-                 on_cycle: Optional[Callable[[ArmReport], None]] = None) -> None:
+                 on_cycle: Optional[Callable[[ArmReport], None]] = None,
+                 priority: int = 0) -> None:
         for name, value in (('cycle', cycle), ('command_timeout', command_timeout),
                             ('max_lag', max_lag)):
             if not value > 0.0:
@@ -196,6 +216,10 @@ class ArmDriver:
         self._started = False
         self._report = None
         self._bad = 0
+        self._bad_reasons = {}        # reason -> frames dropped for it
+        self._last_bad = ''
+        self.priority = int(priority)
+        self.scheduling = 'not started'
         self._tx_errors = 0
         self._bus_error = ''
         self._stop = threading.Event()
@@ -313,16 +337,34 @@ class ArmDriver:
                 break
             if msg is None:
                 break
-            try:
-                joint, is_reply = p.joint_of_id(msg.arbitration_id)
-                if not is_reply or joint > len(self._joints):
-                    continue
-                reply = p.decode_reply(bytes(msg.data))
-            except p.ProtocolError:
-                self._bad += 1
+            reason = ''
+            if msg.is_error_frame or msg.is_remote_frame:
+                reason = 'remote_or_error_frame'
+            elif msg.is_extended_id:
+                reason = 'extended_id'
+            else:
+                try:
+                    joint, is_reply = p.joint_of_id(msg.arbitration_id)
+                except p.ProtocolError:
+                    reason = 'unknown_id'
+                else:
+                    if not is_reply:
+                        reason = 'command_of_another_master'
+                    elif joint > len(self._joints):
+                        reason = 'unknown_id'
+            if not reason:
+                try:
+                    reply = p.decode_reply(bytes(msg.data[:msg.dlc]))
+                except p.ProtocolError:
+                    reason = 'wrong_length'
+            if not reason:
+                j = self._joints[joint - 1]
+                ticks = j.scale.from_wire(reply.position)
+                if not self._plausible(j, ticks, now):
+                    reason = 'position_jump'
+            if reason:
+                self._refuse_frame(msg, reason)
                 continue
-            j = self._joints[joint - 1]
-            ticks = j.scale.from_wire(reply.position)
             if j.ticks is not None and j.reply_time is not None and now > j.reply_time:
                 j.qd = j.scale.to_rad(ticks - j.ticks) / (now - j.reply_time)
             j.reply, j.ticks, j.reply_time = reply, ticks, now
@@ -336,6 +378,22 @@ class ArmDriver:
                 j.qd = 0.0
                 if j.silent >= self.silent_cycles:
                     j.fault = True
+
+    def _refuse_frame(self, msg: can.Message, reason: str) -> None:
+        self._bad += 1
+        self._bad_reasons[reason] = self._bad_reasons.get(reason, 0) + 1
+        data = bytes(msg.data[:msg.dlc]).hex(' ')
+        self._last_bad = f'{reason}: id 0x{msg.arbitration_id:X} dlc {msg.dlc} [{data}]'
+
+    def _plausible(self, j: _Joint, ticks: int, now: float) -> bool:
+        """Return False for a reply whose position the joint cannot have reached."""
+        if j.ticks is None or j.reply_time is None:
+            return True
+        if not j.fault and (j.track or j.state() not in FOLLOWING):
+            return True            # not driven: the set-point follows the measured position
+        # Driven, or latched silent (its set-point frozen at the last reading until a reset).
+        reach = self.max_lag + 2.0 * j.scale.max_speed * max(now - j.reply_time, self.cycle)
+        return abs(ticks - j.ticks) <= reach * abs(j.scale.ticks_per_rad) + 2
 
     def _hold_reason(self, busy: set) -> str:
         if busy:
@@ -460,7 +518,9 @@ class ArmDriver:
         return ArmReport(time=now, state=state, hold=hold, joints=tuple(joints), period=period,
                          frames_dropped=int(getattr(self.bus, 'dropped', 0)),
                          frames_bad=self._bad, tx_errors=self._tx_errors,
-                         bus_error=self._bus_error)
+                         bus_error=self._bus_error,
+                         bad_frames=tuple(sorted(self._bad_reasons.items())),
+                         last_bad_frame=self._last_bad)
 
     # --- the control thread ---
 
@@ -473,6 +533,11 @@ class ArmDriver:
         self._thread.start()
 
     def _run(self) -> None:
+        if self.priority > 0:
+            ok, message = run_at_priority(self.priority)
+            self.scheduling = message if ok else f'normal scheduling: {message}'
+        else:
+            self.scheduling = 'normal scheduling (priority 0)'
         next_cycle = self.clock()
         while not self._stop.is_set():
             now = self.clock()

@@ -28,12 +28,12 @@ exits with 1 after the last zero command, so the launcher sees it.
 
 import faulthandler
 import os
-import threading
 import traceback
 
 from mover6_control.control.state_machine import FAULT
 from mover6_control.nodes import conversions
 from mover6_control.nodes.controller_demands import WAIT_FOR_STATES
+from mover6_control.realtime import run_at_priority
 from rclpy.duration import Duration
 
 # A tick this late [s] is logged: the driver (and the sim bridge) halt after 0.2 s without one.
@@ -122,34 +122,18 @@ class TickLoop:
         """
         Run the tick thread at real-time priority ``priority`` (SCHED_FIFO), the rest just below.
 
-        As ros2_control's controller manager does for its update thread; 0: as is. In Python the
-        tick also needs the interpreter lock: when another thread of the node holds it (the
-        demand thread planning, the executor) and waits for a CPU behind the machine's other
-        processes, the tick waits with it. So every other thread of the process (Fast DDS's
-        receive threads too: the joint states) runs at SCHED_FIFO ``priority - 1`` (at least 1).
-        Where the system refuses it (no CAP_SYS_NICE, no rtprio limit), say so once and go on
-        with normal scheduling.
+        ``mover6_control.realtime.run_at_priority`` (the driver's cycle uses it too): as
+        ros2_control's controller manager does for its update thread, the rest of the process
+        just below (in Python the tick also needs the interpreter lock); 0: as is. Where the
+        system refuses it, say so once and go on with normal scheduling.
         """
         if priority <= 0:
             return
-        tick = threading.get_native_id()
-        others = [int(t) for t in os.listdir('/proc/self/task') if int(t) != tick]
-        try:
-            os.sched_setscheduler(tick, os.SCHED_FIFO, os.sched_param(priority))
-            for tid in others:
-                try:
-                    os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(max(1, priority - 1)))
-                except ProcessLookupError:      # a thread that ended meanwhile
-                    pass
-        except (OSError, AttributeError) as err:
-            self.get_logger().warning(
-                f'tick_priority {priority}: real-time scheduling refused ({err}); the tick '
-                'thread runs at normal priority (allow it with an rtprio limit in '
-                '/etc/security/limits.conf or CAP_SYS_NICE)')
-            return
-        self.get_logger().info(f'tick thread at SCHED_FIFO priority {priority}, the '
-                               f'{len(others)} other threads of the process at '
-                               f'{max(1, priority - 1)}')
+        ok, message = run_at_priority(priority)
+        if ok:
+            self.get_logger().info(f'tick thread at {message}')
+        else:
+            self.get_logger().warning(f'tick_priority {priority}: {message}')
 
     def on_tick(self) -> None:
         """Run one control tick: publish the JointJog, and the status when due."""

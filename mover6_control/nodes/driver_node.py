@@ -14,10 +14,28 @@ frames dropped and refused), at ``diagnostics_rate`` and at once on every change
 The work is ``mover6_control.hardware.driver.ArmDriver`` on its own control thread (the cycle);
 the node converts messages and publishes. The control thread never waits on DDS: it hands each
 cycle's report to a publisher thread (a DDS write can block for hundreds of milliseconds, see
-controller_node.py). A refused JointJog changes nothing: the previous command ages out after
-``command_timeout`` and the arm holds.
+controller_node.py). With ``cycle_priority`` (default 50) it runs at SCHED_FIFO where the system
+allows it, the node's other threads just below (``mover6_control.realtime``, as the controller's
+``tick_priority``). The cycle is Python and needs the interpreter lock, so the rest of the
+process keeps it short: the lock changes hands every ``SWITCH_INTERVAL``, what was loaded at
+start is frozen out of the garbage collector (a full collection held the lock for 25-45 ms),
+/JointJog and the parameters are served by a single-threaded executor (the multi-threaded one
+delayed a JointJog by 27 ms on average) and the services, which wait for the modules, by a
+node (``driver_services``, no parameters) and executor of their own. Measured with
+``./run.sh bench driver``.
+
+A refused JointJog changes nothing: the previous command ages out after ``command_timeout`` and
+the arm holds. Refused are: displacements, no names, unequal lengths, a name
+twice, an unknown name, a non-finite value, a fraction beyond [-1, 1] (fraction_of_max) or a
+speed beyond ``JOG_REFUSE_FACTOR`` times the joint's maximum (rad_per_s; a speed between one
+and that many times its maximum is clipped to it and counted). /diagnostics counts the JointJogs
+received, refused (by reason), clipped and superseded (replaced before a cycle used them: a
+flood), with the last refusal's reason.
 """
 
+import gc
+import re
+import sys
 import threading
 
 from control_msgs.msg import JointJog
@@ -31,8 +49,7 @@ from mover6_control.nodes.conversions import (joint_jog_from_msg, make_joint_sta
                                               make_status)
 from mover6_control.nodes.params import declare
 from mover6_control.parameters import DRIVER
-from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -40,6 +57,10 @@ from std_srvs.srv import Trigger
 GRIPPER_BITS = {'off': 0x00, 'open': 0x03, 'closed': 0x02}
 """Joint 4's outputs: bit 0 'gripper open', bit 1 'gripper enabled' (the vendor's CPRMover6)."""
 GRIPPER_JOINT, OUTPUTS_JOINT = 4, 1
+JOG_REFUSE_FACTOR = 2.0
+"""rad_per_s: a JointJog faster than this many times a joint's maximum speed is refused."""
+SWITCH_INTERVAL = 0.0005
+"""[s] the interpreter lock's switch interval in the driver's process (Python's default 5 ms)."""
 LEVELS = {'fault': 'ERROR', 'error': 'ERROR', 'disconnected': 'WARN', 'connected': 'WARN',
           'enabled': 'OK', 'referenced': 'OK'}
 
@@ -59,10 +80,16 @@ class DriverNode(Node):
         self.driver = ArmDriver(
             bus, joints, cycle=p['cycle'], command_timeout=p['command_timeout'],
             max_lag=p['max_lag'], silent_cycles=p['silent_cycles'], limit_set=p['limit_set'],
-            firmware=firmware, on_cycle=self.on_cycle)
+            firmware=firmware, on_cycle=self.on_cycle, priority=p['cycle_priority'])
         self.names = self.driver.names
         self.refused = 0
+        self.refused_by = {}          # reason -> JointJogs refused for it
         self.last_refusal = ''
+        self.jogs = 0                 # JointJogs received
+        self.clipped = 0
+        self.superseded = 0           # replaced before a cycle took them
+        self._jog_pending = False
+        self._scheduling_logged = False
         self._latest = None
         self._seen = None
         self._last_diag = None
@@ -72,9 +99,21 @@ class DriverNode(Node):
         self.pub_states = self.create_publisher(JointState, 'joint_states', 10)
         self.pub_diag = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
         self.create_subscription(JointJog, 'JointJog', self.on_jog, 10)
-        group = ReentrantCallbackGroup()
+        # The services wait for the modules (seconds; referencing minutes): they are served by a
+        # node and executor of their own, so the node's single-threaded executor never waits
+        # and /JointJog arrives within a millisecond (a multi-threaded executor for everything
+        # took 27 ms on average, its threads churning the interpreter lock the cycle needs).
+        self._service_node = Node(f'{self.get_name()}_services', namespace=self.get_namespace(),
+                                  context=self.context, start_parameter_services=False,
+                                  use_global_arguments=False)
+        base = self.get_fully_qualified_name()
         for kind in ('reset', 'enable', 'disable', 'reference', 'set_zero'):
-            self.create_service(Trigger, f'~/{kind}', self._service(kind), callback_group=group)
+            self._service_node.create_service(Trigger, f'{base}/{kind}', self._service(kind))
+        self._service_executor = MultiThreadedExecutor(num_threads=2, context=self.context)
+        self._service_executor.add_node(self._service_node)
+        self._service_thread = threading.Thread(target=self._serve, name='driver_services',
+                                                daemon=True)
+        self._service_thread.start()
         self._apply_outputs(p['gripper'], p['digital_outputs'])
         self._publisher = threading.Thread(target=self._publish_loop, name='driver_publish',
                                            daemon=True)
@@ -108,29 +147,69 @@ class DriverNode(Node):
 
     def on_jog(self, msg):
         """Command the velocities of a JointJog, or refuse it with the reason on /diagnostics."""
+        self.jogs += 1
         try:
-            if len(msg.displacements):
-                raise InvalidInputError('JointJog displacements are not supported: send '
-                                        'velocities')
-            names, values = joint_jog_from_msg(msg)
-            unknown = [n for n in names if n not in self.names]
-            if unknown:
-                raise InvalidInputError(f'JointJog names unknown joints {unknown}; the arm has '
-                                        f'{list(self.names)}')
-            qd = [0.0] * len(self.names)
-            override = self.get_parameter('speed_override').value
-            for name, value in zip(names, values):
-                i = self.names.index(name)
-                qd[i] = float(value) if self.jog_units == 'rad_per_s' else \
-                    float(value) * self.max_speed[i] * override
-            self.driver.set_velocity(qd)
-        except InvalidInputError as err:
+            qd, clipped = self.jog_velocities(msg)
+        except JogRefused as err:
             self.refused += 1
-            self.last_refusal = str(err)
-            self.get_logger().warning(f'JointJog refused: {err}')
+            self.refused_by[err.reason] = self.refused_by.get(err.reason, 0) + 1
+            self.last_refusal = str(err)[:200]
+            self.get_logger().warning(f'JointJog refused: {self.last_refusal}',
+                                      throttle_duration_sec=1.0)
             self._notify()
+            return
+        self.clipped += clipped
+        if self._jog_pending:
+            self.superseded += 1
+        self._jog_pending = True
+        self.driver.set_velocity(qd)
+
+    def jog_velocities(self, msg):
+        """Return (joint velocities [rad/s] in driver order, joints clipped); raise JogRefused."""
+        if len(msg.displacements):
+            raise JogRefused('displacements', 'JointJog displacements are not supported: send '
+                             'velocities')
+        if not len(msg.joint_names):
+            raise JogRefused('empty', 'JointJog names no joints')
+        if len(msg.velocities) != len(msg.joint_names):
+            raise JogRefused('length', f'JointJog has {len(msg.joint_names)} joint names but '
+                             f'{len(msg.velocities)} velocities')
+        try:
+            names, values = joint_jog_from_msg(msg)
+        except InvalidInputError as err:
+            reason = 'non_finite' if 'non-finite' in str(err) else 'names'
+            raise JogRefused(reason, str(err)) from None
+        unknown = [n for n in names if n not in self.names]
+        if unknown:
+            raise JogRefused('unknown_joint', f'JointJog names unknown joints {unknown[:6]}; '
+                             f'the arm has {list(self.names)}')
+        qd = [0.0] * len(self.names)
+        clipped = 0
+        override = self.get_parameter('speed_override').value
+        for name, value in zip(names, values):
+            i = self.names.index(name)
+            top = self.max_speed[i]
+            if self.jog_units == 'fraction_of_max':
+                if abs(value) > 1.0 + 1e-9:
+                    raise JogRefused('out_of_range', f'JointJog {name} at {value:.6g} is no '
+                                     'fraction of its maximum speed (fraction_of_max: -1..1)')
+                qd[i] = float(value) * top * override
+            else:
+                if abs(value) > JOG_REFUSE_FACTOR * top:
+                    raise JogRefused('out_of_range', f'JointJog {name} at {value:.6g} rad/s is '
+                                     f'beyond {JOG_REFUSE_FACTOR:g} x its maximum speed '
+                                     f'{top:.4f} rad/s')
+                clipped += abs(value) > top
+                qd[i] = float(value)
+        return qd, clipped
 
     # --- services ---
+
+    def _serve(self):
+        try:
+            self._service_executor.spin()
+        except Exception:  # noqa: B902 - the context shut down: the node is closing
+            pass
 
     def _service(self, kind):
         def callback(request, response):
@@ -164,6 +243,7 @@ class DriverNode(Node):
 
     def on_cycle(self, report):
         """Take one cycle's report (control thread: hand it over, never wait on DDS)."""
+        self._jog_pending = False
         with self._wake:
             self._latest = report
             self._wake.notify()
@@ -182,17 +262,38 @@ class DriverNode(Node):
                     return
                 report, self._latest = self._latest, None
                 force, self._diag_now = self._diag_now, False
-            if report is not None:
-                self._seen = report
-                if all(j.replies for j in report.joints):
-                    self.pub_states.publish(make_joint_state(
-                        self.names, [j.q for j in report.joints],
-                        [j.qd for j in report.joints], stamp=self.get_clock().now().to_msg()))
-            if self._seen is not None:
-                self._maybe_diagnostics(self._seen, force)
+            try:
+                self._publish(report, force)
+            except Exception as err:  # noqa: B902 - the next cycle's report is published again
+                self.get_logger().error(f'publishing failed: {type(err).__name__}: {err}',
+                                        throttle_duration_sec=1.0)
+
+    def _publish(self, report, force):
+        """Publish one cycle's report (``None``: only /diagnostics, e.g. on a refusal)."""
+        if not self._scheduling_logged and report is not None:
+            self._scheduling_logged = True
+            self.get_logger().info(f'cycle thread: {self.driver.scheduling}')
+        if report is not None and (self._seen is None or
+                                   report.state != self._seen.state or
+                                   hold_kind(report.hold) != hold_kind(self._seen.hold)):
+            # Each change of the arm's state is logged once, with why it holds.
+            text = f'arm {report.state}' + (f': holds, {report.hold}' if report.hold else '')
+            if report.state in ('error', 'fault'):
+                self.get_logger().warning(text)
+            else:
+                self.get_logger().info(text)
+        if report is not None:
+            self._seen = report
+            if all(j.replies for j in report.joints):
+                self.pub_states.publish(make_joint_state(
+                    self.names, [j.q for j in report.joints],
+                    [j.qd for j in report.joints], stamp=self.get_clock().now().to_msg()))
+        if self._seen is not None:
+            self._maybe_diagnostics(self._seen, force)
 
     def _maybe_diagnostics(self, report, force=False):
-        key = (report.state, report.hold, tuple(j.state for j in report.joints), self.refused)
+        key = (report.state, report.hold, tuple(j.state for j in report.joints), self.refused,
+               report.frames_bad)
         period = 1.0 / self.get_parameter('diagnostics_rate').value
         last = self._last_diag
         if not force and last is not None and last[0] == key and \
@@ -206,7 +307,11 @@ class DriverNode(Node):
                 'state': report.state, 'hold': report.hold, 'cycle_period': report.period,
                 'frames_dropped': report.frames_dropped, 'frames_bad': report.frames_bad,
                 'tx_errors': report.tx_errors, 'bus_error': report.bus_error,
-                'jog_refused': self.refused, 'last_refusal': self.last_refusal}))
+                'bad_frames': counts(report.bad_frames), 'last_bad_frame': report.last_bad_frame,
+                'jog_received': self.jogs, 'jog_refused': self.refused,
+                'jog_refused_by': counts(sorted(self.refused_by.items())),
+                'jog_clipped': self.clipped, 'jog_superseded': self.superseded,
+                'last_refusal': self.last_refusal, 'scheduling': self.driver.scheduling}))
         for j in report.joints:
             msg.status.append(make_status(
                 f'driver: {j.name}', LEVELS[j.state], j.state, {
@@ -222,12 +327,36 @@ class DriverNode(Node):
             self._closing = True
             self._wake.notify()
         self._publisher.join(timeout=5.0)
+        self._service_executor.shutdown(timeout_sec=5.0)
+        self._service_thread.join(timeout=5.0)
+        self._service_node.destroy_node()
         super().destroy_node()
+
+
+class JogRefused(InvalidInputError):
+    """A JointJog the driver does not take; ``reason`` is its short name on /diagnostics."""
+
+    def __init__(self, reason, message):
+        super().__init__(message)
+        self.reason = reason
+
+
+def hold_kind(hold):
+    """Return why the arm holds without the counts that change every cycle."""
+    return re.sub(r'\d+ cycles', 'N cycles', hold)
+
+
+def counts(pairs):
+    """Return ``(name, count)`` pairs as one line, 'name count, ...' ('' for none)."""
+    return ', '.join(f'{name} {count}' for name, count in pairs)
 
 
 def main(args=None):
     """Run the driver node until Ctrl-C, SIGTERM or shutdown; every module is disabled then."""
-    shutdown.run_node(DriverNode, args, lambda: MultiThreadedExecutor(num_threads=4))
+    sys.setswitchinterval(SWITCH_INTERVAL)
+    gc.collect()
+    gc.freeze()            # what is loaded now is never scanned again: no long full collections
+    shutdown.run_node(DriverNode, args, SingleThreadedExecutor)
 
 
 if __name__ == '__main__':

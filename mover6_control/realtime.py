@@ -1,0 +1,61 @@
+"""
+Real-time scheduling for the one thread of a process that keeps time (SCHED_FIFO, where allowed).
+
+The controller's tick thread (``tick_priority``) and the driver's cycle thread
+(``cycle_priority``) both call ``run_at_priority`` from the thread itself, as ros2_control's
+controller manager raises its update thread. In Python the timed thread also needs the
+interpreter lock: when another thread of the process holds it (the executor, a publisher) and
+waits for a CPU behind the machine's other processes, the timed thread waits with it. So every
+other thread of the process runs at SCHED_FIFO ``priority - 1`` (at least 1); threads started
+later inherit their creator's policy, processes started from any of them do not
+(SCHED_RESET_ON_FORK: a child runs at normal priority). Where the system refuses it (no
+CAP_SYS_NICE, no rtprio limit) nothing changes and the caller is told why, to say so once and go
+on.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+
+MIN_PRIORITY, MAX_PRIORITY = 1, 99
+"""The SCHED_FIFO priorities Linux offers; 0 means 'normal scheduling' to the callers."""
+
+
+def run_at_priority(priority: int) -> tuple[bool, str]:
+    """
+    Run the calling thread at SCHED_FIFO ``priority`` (1..99), the process's others just below.
+
+    Return ``(True, what was done)`` or ``(False, why not)``; priority 0 (or less) changes
+    nothing and returns ``(False, 'off')``.
+    """
+    if isinstance(priority, bool) or not isinstance(priority, int):
+        return False, f'priority must be an int in 0..{MAX_PRIORITY}, got {priority!r}'
+    if priority <= 0:
+        return False, 'off'
+    priority = min(priority, MAX_PRIORITY)
+    below = max(MIN_PRIORITY, priority - 1)
+    me = threading.get_native_id()
+    others = [int(t) for t in os.listdir('/proc/self/task') if int(t) != me]
+    policy = os.SCHED_FIFO | getattr(os, 'SCHED_RESET_ON_FORK', 0)
+    try:
+        os.sched_setscheduler(me, policy, os.sched_param(priority))
+        for tid in others:
+            try:
+                os.sched_setscheduler(tid, policy, os.sched_param(below))
+            except ProcessLookupError:      # a thread that ended meanwhile
+                pass
+    except (OSError, AttributeError) as err:
+        return False, (f'real-time scheduling refused ({err}); the thread runs at normal '
+                       'priority (allow it with an rtprio limit in /etc/security/limits.conf or '
+                       'CAP_SYS_NICE)')
+    return True, (f'SCHED_FIFO priority {priority}, the {len(others)} other threads of the '
+                  f'process at {below}')
+
+
+def scheduling_of_thread() -> tuple[str, int]:
+    """Return the calling thread's scheduling policy ('fifo', 'other', ...) and priority."""
+    me = threading.get_native_id()
+    policy = os.sched_getscheduler(me) & ~getattr(os, 'SCHED_RESET_ON_FORK', 0)
+    names = {os.SCHED_FIFO: 'fifo', os.SCHED_OTHER: 'other', os.SCHED_RR: 'rr'}
+    return names.get(policy, str(policy)), os.sched_getparam(me).sched_priority
