@@ -15,6 +15,7 @@ from geometry_msgs.msg import Pose, PoseArray, PoseStamped, TwistStamped
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import matrix_to_quaternion, quaternion_to_matrix
 import numpy as np
+from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray, Header, MultiArrayDimension
@@ -271,8 +272,13 @@ def make_joint_jog(joint_names: Sequence[str], velocities: Sequence[float],
 
 def joint_jog_from_msg(msg: JointJog) -> tuple[list, np.ndarray]:
     """Return ``(names, velocities)`` of a JointJog; raises on length mismatch or non-finite."""
-    names = list(msg.joint_names)
-    velocities = [float(v) for v in msg.velocities]
+    return joint_jog_from_fields(msg.joint_names, msg.velocities)
+
+
+def joint_jog_from_fields(joint_names, joint_velocities):
+    """Return ``(names, velocities)`` of a JointJog's fields (``cdr.JointJogReader``), checked."""
+    names = list(joint_names)
+    velocities = [float(v) for v in joint_velocities]
     if not names:
         raise InvalidInputError('JointJog names no joints')
     if len(velocities) != len(names):
@@ -283,6 +289,41 @@ def joint_jog_from_msg(msg: JointJog) -> tuple[list, np.ndarray]:
     if not all(math.isfinite(v) for v in velocities):
         raise InvalidInputError(f'JointJog has non-finite velocities: {velocities}')
     return names, np.array(velocities)
+
+
+def joint_jog_from_raw(raw, reader):
+    """
+    Return ``(names, velocities)`` of a serialized JointJog, checked as ``joint_jog_from_msg``.
+
+    ``reader`` (a ``cdr.JointJogReader``) reads the fields; a sample it does not read is
+    deserialised by rclpy (raises ``InvalidInputError`` when even that fails).
+    """
+    try:
+        names, _, velocities = reader.read_jog(raw)
+    except ValueError:
+        return joint_jog_from_msg(_deserialize(raw, JointJog))
+    return joint_jog_from_fields(names, velocities)
+
+
+def joint_state_fields_from_raw(raw, reader):
+    """
+    Return ``(names, positions, velocities)`` of a serialized JointState (not checked).
+
+    ``reader`` (a ``cdr.JointStateReader``) reads them; a sample it does not read is
+    deserialised by rclpy (raises ``InvalidInputError`` when even that fails).
+    """
+    try:
+        return reader.read_state(raw)[2:]
+    except ValueError:
+        msg = _deserialize(raw, JointState)
+        return msg.name, msg.position, msg.velocity
+
+
+def _deserialize(raw, msg_type):
+    try:
+        return deserialize_message(raw, msg_type)
+    except Exception as err:  # noqa: B902 - whatever rclpy raises for a malformed sample
+        raise InvalidInputError(f'{msg_type.__name__} sample not readable: {err}') from err
 
 
 # --- jogging: ~/delta_twist_cmds, ~/delta_joint_cmds -----------------------------------------
