@@ -36,7 +36,8 @@ from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import LIMIT_SETS, load_urdf, mover6
-from mover6_control.nodes import conversions, params, shutdown
+from mover6_control.nodes import cdr, conversions, params, shutdown
+from mover6_control.nodes.node_clock import now_ns
 from mover6_control.parameters import SIM_BRIDGE
 import numpy as np
 from rclpy.node import Node
@@ -104,13 +105,18 @@ class SimBridgeNode(Node):
         self._last_reading_time = None
         self._mujoco_warnings = {}
         self._contact_report = None      # (contact_steps, touching) last reported
+        # /joint_states go as bytes (cdr): building and converting a message object per sample
+        # was most of the idle bridge's CPU; /JointJog is read from its bytes likewise.
+        self._state_writer = cdr.JointStateWriter(self.arm.joint_names)
+        self._jog_reader = cdr.JointJogReader()
+        self._last_jog = None            # (names, velocities) of the last command taken
         self.contacts_pub = self.create_publisher(
             DiagnosticStatus, '~/contacts',
             QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self.joint_states_pub = self.create_publisher(JointState, 'joint_states', 10)
         self.clock_pub = (self.create_publisher(Clock, 'clock', 10)
                           if self.publish_clock else None)
-        self.create_subscription(JointJog, 'JointJog', self.on_joint_jog, 10)
+        self.create_subscription(JointJog, 'JointJog', self.on_joint_jog, 10, raw=True)
         self.create_subscription(JointState, '~/reset_to', self.on_reset_to, 10)
         self.create_service(Trigger, '~/reset', self.on_reset)
         self.create_service(SetBool, '~/pause', self.on_pause)
@@ -170,16 +176,29 @@ class SimBridgeNode(Node):
 
     # --- callbacks ---------------------------------------------------------------------------
 
-    def on_joint_jog(self, msg: JointJog) -> None:
-        """Take a /JointJog: validate, clamp, hand to the simulator; log why when rejected."""
+    def on_joint_jog(self, raw: bytes) -> None:
+        """
+        Take a /JointJog (serialized): validate, clamp, hand to the simulator; log rejections.
+
+        The same command as the last one taken (the controller at rest sends zeros every tick)
+        only restarts its timeout, at the sim time the steps due would reach (``_refresh``):
+        the steps run at the next wake-up as they would have, without a wake-up of their own.
+        """
         arrival = time.monotonic()
         try:
-            names, velocities = conversions.joint_jog_from_msg(msg)
+            try:
+                names, _, values = self._jog_reader.read_jog(raw)
+                if (names, values) == self._last_jog and self._refresh(arrival):
+                    return
+            except ValueError:
+                pass                     # conversions reads it (or says why not)
+            names, velocities = conversions.joint_jog_from_raw(raw, self._jog_reader)
             with self.step_lock:
                 self._catch_up()         # the steps due before it came: the command before
                 with self.lock:
                     warnings = self.sim.set_command(names, velocities, self.sim.time)
                     self._pending = (self.sim.command_count, arrival)
+                    self._last_jog = (tuple(names), tuple(velocities.tolist()))
             self._wake.set()             # its first step when due, not at the next publication
         except InvalidInputError as exc:
             self.rejected += 1
@@ -189,6 +208,28 @@ class SimBridgeNode(Node):
         for text in warnings:
             self.get_logger().warning(f'/JointJog speed clamped: {text}',
                                       throttle_duration_sec=1.0)
+
+    def _refresh(self, arrival):
+        """
+        Restart the held command's timeout at ``arrival`` (monotonic [s]); False: not possible.
+
+        The command counts as received at the sim time ``_catch_up`` would reach now, so the
+        steps before it run with the command before (the same velocities, not yet stale) and
+        the ones after with the timeout restarted, exactly as after a new command. Not while
+        paused, unpaced, about to re-anchor, behind by a whole batch, in vendor_driver mode or
+        when the held command would be stale by then: the caller takes it as a new command.
+        """
+        with self.step_lock:
+            anchor, rtf = self._anchor, self.rtf
+            if (self.vendor or self.paused or anchor is None or not rtf > 0.0
+                    or self._reanchor):
+                return False
+            with self.lock:
+                t = self.sim.time
+                n = steps_due(t - anchor[1], arrival - anchor[0], rtf, self.dt, MAX_BATCH)
+                if n >= MAX_BATCH:
+                    return False
+                return self.sim.refresh_command(t + n * self.dt)
 
     def on_reset_to(self, msg: JointState) -> None:
         """Reset to the positions of a JointState (by name; unnamed joints go home)."""
@@ -395,11 +436,14 @@ class SimBridgeNode(Node):
                                                           values))
 
     def _publish_state(self, reading):
-        """Publish a ``JointReading`` on /joint_states."""
-        stamp = (conversions.seconds_to_stamp(reading.time) if self.publish_clock
-                 else self.get_clock().now().to_msg())
-        self.joint_states_pub.publish(conversions.make_joint_state(
-            self.arm.joint_names, reading.q, reading.qd, reading.effort, stamp=stamp))
+        """Publish a ``JointReading`` on /joint_states (sim time stamps with publish_clock)."""
+        if self.publish_clock:
+            stamp = conversions.seconds_to_stamp(reading.time)
+            sec, nanosec = stamp.sec, stamp.nanosec
+        else:
+            sec, nanosec = divmod(now_ns(self.get_clock()), 1_000_000_000)
+        self.joint_states_pub.publish(self._state_writer.serialize(
+            sec, nanosec, reading.q.tolist(), reading.qd.tolist(), reading.effort.tolist()))
 
     def _sync_viewer(self):
         """Show the current state in the viewer (closed viewer: stop syncing)."""

@@ -175,6 +175,10 @@ class Simulator:
         self._contact_flags = self.model.opt.disableflags & ~contact_off
         self._geom_names = [mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, g) or str(g)
                             for g in range(self.model.ngeom)]
+        # MuJoCo's warning kinds (name, index), looked up once: the node asks 100 times a second.
+        self._warning_kinds = [(name, int(kind))
+                               for name, kind in mujoco.mjtWarning.__members__.items()
+                               if int(kind) < len(self.data.warning)]
         self.step_count = 0
         self.command_count = 0       # commands accepted since construction
         self.applied_count = 0       # the last command_count that a physics step used
@@ -227,10 +231,10 @@ class Simulator:
         node reports it rather than let the arm jump silently.
         """
         out = {}
-        for name, kind in mujoco.mjtWarning.__members__.items():
-            i = int(kind)
-            if i < len(self.data.warning) and self.data.warning[i].number > 0:
-                out[name] = int(self.data.warning[i].number)
+        for name, i in self._warning_kinds:
+            number = self.data.warning[i].number
+            if number > 0:
+                out[name] = int(number)
         return out
 
     def state(self) -> JointReading:
@@ -291,6 +295,25 @@ class Simulator:
         self._cmd_time = float(receive_time)
         self.command_count += 1
         return warnings
+
+    def refresh_command(self, receive_time: float) -> bool:
+        """
+        Take the held command again, received at ``receive_time`` [s] (sim clock).
+
+        What ``set_command`` with the same names and velocities does, without redoing it: the
+        command's timeout restarts at ``receive_time``. Returns False and changes nothing in
+        'vendor_driver' mode, without a command, when ``receive_time`` is not finite or before
+        the last command, or when the held command is stale by then (it halted the joints: the
+        caller sets the command anew).
+        """
+        last = self._cmd_time
+        if (self.config.mode == 'vendor_driver' or last is None
+                or not math.isfinite(receive_time) or receive_time < last
+                or receive_time - last > self.config.command_timeout + _EPS):
+            return False
+        self._cmd_time = float(receive_time)
+        self.command_count += 1
+        return True
 
     def halt(self) -> None:
         """Drop the command: zero velocity (also the held command in vendor mode)."""

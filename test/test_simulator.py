@@ -379,3 +379,37 @@ def test_other_physics_steps_keep_the_behaviour():
     lag = _servo_lag(sim)
     q = _drive(sim, v, 0.3)[-1]
     assert np.all(np.abs(q - v * 0.3) <= np.max(np.abs(v)) * 2.0 * lag + 1e-6)
+
+
+def test_refresh_is_the_same_command_again():
+    """refresh_command(t) steps exactly as set_command(same command, t), timeout included."""
+    cfg = SimConfig(command_timeout=0.05)
+    a, b = Simulator(ARM, cfg), Simulator(ARM, cfg)
+    v = 0.1 * VMAX
+    for sim in (a, b):
+        sim.set_command(NAMES, v, sim.time)
+        sim.run_for(0.03)
+    assert a.set_command(NAMES, v, a.time) == []
+    assert b.refresh_command(b.time)
+    for _ in range(60):                     # past the refreshed timeout: both halt alike
+        a.step()
+        b.step()
+        np.testing.assert_array_equal(a.q, b.q)
+        assert a.is_stale() == b.is_stale()
+    assert a.is_stale() and a.command_count == b.command_count
+
+
+def test_refresh_refuses_what_is_not_the_held_command():
+    """No command, a stale one, an earlier or non-finite time, vendor mode: False, unchanged."""
+    sim = Simulator(ARM, SimConfig(command_timeout=0.05))
+    assert not sim.refresh_command(sim.time)             # no command yet
+    sim.set_command(NAMES, np.zeros(6), sim.time)
+    t = sim.time
+    count = sim.command_count
+    for bad in (t - 0.01, t + 0.06, math.nan, math.inf):
+        assert not sim.refresh_command(bad)
+    assert sim.command_count == count
+    assert sim.refresh_command(t + 0.05)
+    vendor = Simulator(ARM, SimConfig(mode='vendor_driver'))
+    vendor.set_command(NAMES, np.zeros(6), vendor.time)
+    assert not vendor.refresh_command(vendor.time)
