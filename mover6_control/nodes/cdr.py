@@ -22,6 +22,7 @@ valid message is never lost and a malformed one is refused with the reason as be
 """
 
 import struct
+from typing import Optional, Sequence
 
 CDR_LE = b'\x00\x01\x00\x00'
 _HEADER = 4                  # the encapsulation header; alignment counts from its end
@@ -121,7 +122,8 @@ class JointStateWriter:
         self._c = [lit for lit in literals if lit is not None]
         self._effort = with_effort
 
-    def serialize(self, sec: int, nanosec: int, q, qd, effort=None) -> bytes:
+    def serialize(self, sec: int, nanosec: int, q: Sequence[float], qd: Sequence[float],
+                  effort: Optional[Sequence[float]] = None) -> bytes:
         """Return the serialized message (``q``, ``qd``, ``effort``: n values each)."""
         c = self._c
         if self._effort:
@@ -152,7 +154,7 @@ class JointJogWriter:
         self._struct, literals = p.build()
         self._c = [lit for lit in literals if lit is not None]
 
-    def serialize(self, sec: int, nanosec: int, velocities) -> bytes:
+    def serialize(self, sec: int, nanosec: int, velocities: Sequence[float]) -> bytes:
         """Return the serialized message with this stamp and ``velocities`` (n values)."""
         c = self._c
         return self._struct.pack(c[0], sec, nanosec, c[1], *velocities, c[2])
@@ -264,7 +266,7 @@ class JointStateReader(_NamedArraysReader):
 
     n_sequences = 2        # position, velocity (effort is not read)
 
-    def read_state(self, raw):
+    def read_state(self, raw: bytes) -> tuple[int, int, tuple, tuple, tuple]:
         """Return ``(sec, nanosec, names, positions, velocities)`` (tuples); ValueError if odd."""
         sec, nanosec, names, (position, velocity) = self.read(raw)
         return sec, nanosec, names, position, velocity
@@ -275,7 +277,7 @@ class JointJogReader(_NamedArraysReader):
 
     n_sequences = 2        # displacements, velocities
 
-    def read_jog(self, raw):
+    def read_jog(self, raw: bytes) -> tuple[tuple, tuple, tuple]:
         """Return ``(names, displacements, velocities)`` (tuples); ValueError if odd."""
         _, _, names, (displacements, velocities) = self.read(raw)
         return names, displacements, velocities

@@ -14,6 +14,7 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped, TwistStamped
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import matrix_to_quaternion, quaternion_to_matrix
+from mover6_control.nodes import cdr
 import numpy as np
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
@@ -275,7 +276,8 @@ def joint_jog_from_msg(msg: JointJog) -> tuple[list, np.ndarray]:
     return joint_jog_from_fields(msg.joint_names, msg.velocities)
 
 
-def joint_jog_from_fields(joint_names, joint_velocities):
+def joint_jog_from_fields(joint_names: Sequence[str],
+                          joint_velocities: Sequence[float]) -> tuple[list[str], list[float]]:
     """Return ``(names, velocities)`` of a JointJog's fields (``cdr.JointJogReader``), checked."""
     names = list(joint_names)
     velocities = [float(v) for v in joint_velocities]
@@ -291,7 +293,8 @@ def joint_jog_from_fields(joint_names, joint_velocities):
     return names, np.array(velocities)
 
 
-def joint_jog_from_raw(raw, reader):
+def joint_jog_from_raw(raw: bytes,
+                       reader: 'cdr.JointJogReader') -> tuple[list[str], list[float]]:
     """
     Return ``(names, velocities)`` of a serialized JointJog, checked as ``joint_jog_from_msg``.
 
@@ -305,7 +308,7 @@ def joint_jog_from_raw(raw, reader):
     return joint_jog_from_fields(names, velocities)
 
 
-def joint_state_fields_from_raw(raw, reader):
+def joint_state_fields_from_raw(raw: bytes, reader: 'cdr.JointStateReader') -> tuple:
     """
     Return ``(names, positions, velocities)`` of a serialized JointState (not checked).
 

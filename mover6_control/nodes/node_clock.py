@@ -9,10 +9,10 @@ other clock, it is ``clock.now()`` as before.
 
 import time
 
-from rclpy.clock import ClockType
+from rclpy.clock import Clock, ClockType
 
 
-def now_ns(clock) -> int:
+def now_ns(clock: Clock) -> int:
     """Return ``clock``'s time [ns] (the same as ``clock.now().nanoseconds``)."""
     if clock.clock_type == ClockType.ROS_TIME and not clock.ros_time_is_active:
         return time.time_ns()
