@@ -22,7 +22,8 @@ from mover6_control.kinematics.arm import mover6  # noqa: E402
 from mover6_control.kinematics.forward import fk  # noqa: E402
 from mover6_control.nodes import conversions  # noqa: E402
 from mover6_control.resources import CONFIG_DIR  # noqa: E402
-from mover6_control.tools.goal_cli import EXIT_ARRIVED, EXIT_REFUSED, pose_from_goal  # noqa: E402
+from mover6_control.tools.goal_convention import (  # noqa: E402
+    EXIT_ARRIVED, EXIT_REFUSED, pose_from_goal)
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 import rclpy  # noqa: E402
