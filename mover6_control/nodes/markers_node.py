@@ -26,7 +26,8 @@ from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk_batch
 from mover6_control.nodes import shutdown
-from mover6_control.nodes.conversions import demands_from_msg, pose_to_matrix
+from mover6_control.nodes.conversions import pose_to_matrix
+from mover6_control.nodes.demand_messages import demands_from_msg
 from mover6_control.nodes.params import declare
 from mover6_control.nodes.qos import LATCHED_QOS
 from mover6_control.parameters import MARKERS
