@@ -28,6 +28,7 @@ LAYER_OF = {
     'mover6_control.tools': 'tools',
     'sim_bridge': 'sim',
     'sim_bridge.bridge_node': 'sim_node',
+    'sim_bridge.bridge_physics': 'sim_node',   # the bridge node's physics thread
 }
 
 # What each layer may import (besides itself and third-party packages).
@@ -170,13 +171,10 @@ def test_the_architecture_page_names_every_module():
 
 # Size limits (issue 19): one concept per module keeps a module short, a node file shorter.
 MODULE_LIMIT = 500         # lines, any module of mover6_control/ or sim_bridge/
-NODE_LIMIT = 300           # lines, a node file: nodes/*.py and the bridge's node
+NODE_LIMIT = 300           # lines, a node file: nodes/*.py and the bridge's node (two files)
 # Files over their limit for now, each with its reason; the test fails when one is back under
 # its limit, so an allowance never outlives its need.
 OVER_LIMIT = {
-    # A node of 430 lines: the simulation loop, the CAN mode, the services and the status in
-    # one file; not split yet (issue 19, item 2).
-    'sim_bridge/bridge_node.py': 'not split yet',
     # The CAN arm driver (501 lines) is reworked on another branch (the driver's own); split
     # there. That branch also owns nodes/driver_node.py, which is within its limit today.
     'mover6_control/hardware/driver.py': "the driver's branch reworks it",
@@ -186,7 +184,7 @@ OVER_LIMIT = {
 def size_limit(path):
     """Return the line limit of a module (``path`` relative to the package root)."""
     node = (path.startswith('mover6_control/nodes/') and not path.endswith('__init__.py')
-            or path == 'sim_bridge/bridge_node.py')
+            or path in ('sim_bridge/bridge_node.py', 'sim_bridge/bridge_physics.py'))
     return NODE_LIMIT if node else MODULE_LIMIT
 
 
@@ -213,6 +211,7 @@ def test_no_module_is_over_its_size_limit():
 def test_the_size_limits_tell_nodes_from_modules():
     assert size_limit('mover6_control/nodes/planner_node.py') == NODE_LIMIT
     assert size_limit('sim_bridge/bridge_node.py') == NODE_LIMIT
+    assert size_limit('sim_bridge/bridge_physics.py') == NODE_LIMIT
     assert size_limit('sim_bridge/simulator.py') == MODULE_LIMIT
     assert size_limit('mover6_control/tools/goal_cli.py') == MODULE_LIMIT
     assert size_limit('mover6_control/motion/time_optimal.py') == MODULE_LIMIT
