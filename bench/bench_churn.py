@@ -211,7 +211,7 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False):
     """
     from control_msgs.msg import JointJog
     from diagnostic_msgs.msg import DiagnosticStatus
-    from mover6_control.nodes import conversions
+    from mover6_control.nodes import conversions, demand_messages
     from mover6_control.nodes.qos import STATUS_QOS
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -299,7 +299,7 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False):
                     break
                 if status.get('state') != 'idle':      # a fault clears with fresh states
                     continue
-                demand_pub.publish(conversions.make_demands(MOTIONS[sent % 2][None, :]))
+                demand_pub.publish(demand_messages.make_demands(MOTIONS[sent % 2][None, :]))
                 sent += 1
                 waiting_for = int(status.get('motion_id', 0)) + 1
                 sent_at = time.monotonic()

@@ -86,7 +86,7 @@ class SourceNode(NodeProcess):
 def bench_node(rate, seconds, log_dir):
     """Start the controller node at ``rate`` [Hz]; return jitter and CPU figures."""
     from control_msgs.msg import JointJog
-    from mover6_control.nodes import conversions
+    from mover6_control.nodes import conversions, demand_messages
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
@@ -133,7 +133,7 @@ def bench_node(rate, seconds, log_dir):
         if len(stamps) < 10:
             raise RuntimeError('controller node did not come up:\n' + node_proc.tail())
         spin_for(0.5)                                     # let it see /joint_states
-        demand_pub.publish(conversions.make_demands(MOTION[:1] * 0.5))
+        demand_pub.publish(demand_messages.make_demands(MOTION[:1] * 0.5))
         spin_for(0.3)
         stamps.clear()
         cpu0, wall0 = proc_cpu_seconds(node_proc.pid), time.monotonic()

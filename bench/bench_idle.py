@@ -68,13 +68,13 @@ class Probe:
     def __init__(self, namespace):
         """Create the node in its own context, with the status readers and the demand writer."""
         from diagnostic_msgs.msg import DiagnosticStatus
-        from mover6_control.nodes import conversions
+        from mover6_control.nodes import conversions, demand_messages
         from mover6_control.nodes.controller_node import STATUS_QOS
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from std_msgs.msg import Float32MultiArray
 
-        self.rclpy, self.conversions = rclpy, conversions
+        self.rclpy, self.demand_messages = rclpy, demand_messages
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node('bench_idle', namespace=namespace, context=self.context)
@@ -124,7 +124,8 @@ class Probe:
                 self.results.append('rejected')
                 self.waiting_for = None
         if self.waiting_for is None and status.get('state') == 'idle':
-            self.demand_pub.publish(self.conversions.make_demands(MOTIONS[self.sent % 2][None]))
+            demand = self.demand_messages.make_demands(MOTIONS[self.sent % 2][None])
+            self.demand_pub.publish(demand)
             self.sent += 1
             self.waiting_for = motion_id + 1
 

@@ -29,7 +29,8 @@ import time
 from bench.output import RESULTS, write_json
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk, fk_batch
-from mover6_control.motion import metrics, paths, time_laws, time_optimal, trajectories
+from mover6_control.motion import (jerk_limited, metrics, paths, spline_trajectories, time_laws,
+                                   time_optimal, trajectories)
 from mover6_control.tools import plots
 import numpy as np
 
@@ -95,13 +96,13 @@ def bench_speed(arm, quick):
         'continuous (TOPP)': lambda: time_optimal.time_parameterize(Q, v, A_MAX),
         'continuous, jerk-limited': lambda: time_optimal.time_parameterize(Q, v, A_MAX,
                                                                            j_max=J_MAX),
-        'cubic spline': lambda: trajectories.cubic_trajectory(Q, v_max=v, a_max=A_MAX),
-        'quintic spline': lambda: trajectories.quintic_trajectory(Q, v_max=v, a_max=A_MAX),
-        'B-spline': lambda: trajectories.bspline_trajectory(Q, v_max=v, a_max=A_MAX),
-        'multi-point trapezoid': lambda: trajectories.multipoint_trapezoidal(Q, v, A_MAX),
+        'cubic spline': lambda: spline_trajectories.cubic_trajectory(Q, v_max=v, a_max=A_MAX),
+        'quintic spline': lambda: spline_trajectories.quintic_trajectory(Q, v_max=v, a_max=A_MAX),
+        'B-spline': lambda: spline_trajectories.bspline_trajectory(Q, v_max=v, a_max=A_MAX),
+        'multi-point trapezoid': lambda: spline_trajectories.multipoint_trapezoidal(Q, v, A_MAX),
         'report stop-at-each': lambda: trajectories.stop_at_each(
             Q, time_laws.trapezoidal, v, A_MAX),
-        'ruckig point-to-point': lambda: trajectories.ruckig_trajectory(
+        'ruckig point-to-point': lambda: jerk_limited.ruckig_trajectory(
             Q[0], Q[-1], v, A_MAX, J_MAX),
     }
     repeats = 1 if quick else 3

@@ -7,7 +7,7 @@ import time
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.control.profiles import PROFILES
-from mover6_control.nodes import conversions, local_dds
+from mover6_control.nodes import conversions, demand_messages, local_dds
 from mover6_control.nodes.controller_node import ControllerNode
 import numpy as np
 import pytest
@@ -97,7 +97,7 @@ def ros():
 def test_arrives_and_reports(ros):
     controller, arm, spin_until = ros
     spin_until(lambda: arm.status().get('state') == 'idle')
-    arm.demand_pub.publish(conversions.make_demands(np.array([GOAL / 2, GOAL])))
+    arm.demand_pub.publish(demand_messages.make_demands(np.array([GOAL / 2, GOAL])))
     # 'arrived' comes inside goal_tolerance; the controller then settles (settle_tolerance,
     # at most settle_time) and goes idle holding a zero command.
     spin_until(lambda: arm.status().get('motion_id') == '1'
@@ -194,7 +194,7 @@ def test_flat_and_bad_demands(ros):
 
 def test_stop_service_decelerates_and_holds(ros):
     controller, arm, spin_until = ros
-    arm.demand_pub.publish(conversions.make_demands(GOAL[None]))
+    arm.demand_pub.publish(demand_messages.make_demands(GOAL[None]))
     spin_until(lambda: arm.status().get('motion_id') == '3'
                and arm.status().get('state') == 'executing')
     spin_until(lambda: np.max(np.abs(arm.qd)) > 0.1)
@@ -208,7 +208,7 @@ def test_stop_service_decelerates_and_holds(ros):
 
 def test_stale_and_incomplete_states_fault_then_recover(ros):
     controller, arm, spin_until = ros
-    arm.demand_pub.publish(conversions.make_demands(GOAL[None]))
+    arm.demand_pub.publish(demand_messages.make_demands(GOAL[None]))
     spin_until(lambda: arm.status().get('motion_id') == '4'
                and np.max(np.abs(arm.qd)) > 0.05)
     arm.publishing = False
@@ -306,7 +306,7 @@ def test_a_blocked_publish_holds_up_neither_states_nor_status(ros):
 
 def labelled(label):
     """Return a one-row demand to GOAL whose first dimension is labelled ``label``."""
-    msg = conversions.make_demands(GOAL[None])
+    msg = demand_messages.make_demands(GOAL[None])
     msg.layout.dim[0].label = label
     return msg
 
@@ -354,7 +354,7 @@ def test_parameters_apply_live(ros):
     spin_until(lambda: arm.status().get('profile') == 'synchronised')
     assert 'pending_parameters' not in arm.status()
     motion = int(arm.status()['motion_id']) + 1
-    arm.demand_pub.publish(conversions.make_demands(np.array([np.zeros(6), GOAL])))
+    arm.demand_pub.publish(demand_messages.make_demands(np.array([np.zeros(6), GOAL])))
     spin_until(lambda: arm.status().get('motion_id') == str(motion)
                and arm.status().get('state') == 'executing')
     assert 'synchronised' in arm.statuses[-1].message
@@ -390,7 +390,7 @@ def test_destroying_the_node_sends_a_zero_command(ros):
     seen = len(arm.statuses)                   # fresh status: other tests may have paused us
     spin_until(lambda: len(arm.statuses) > seen + 1 and arm.status().get('state') == 'idle')
     motion = str(int(arm.status()['motion_id']) + 1)
-    arm.demand_pub.publish(conversions.make_demands((-GOAL)[None]))
+    arm.demand_pub.publish(demand_messages.make_demands((-GOAL)[None]))
     spin_until(lambda: arm.status().get('motion_id') == motion
                and np.max(np.abs(arm.qd)) > 0.05)
     count = len(arm.jogs)
@@ -444,7 +444,7 @@ def test_continuous_demands_never_stall_the_ticks():
         taken = []
         for motion, (start, goal) in enumerate([(np.zeros(6), GOAL), (GOAL / 2, -GOAL / 2)], 1):
             sent = time.monotonic()
-            arm.demand_pub.publish(conversions.make_demands(wavy_path(start, goal)))
+            arm.demand_pub.publish(demand_messages.make_demands(wavy_path(start, goal)))
             taken.append(spin_until(lambda: arm.status().get('motion_id') == str(motion)
                                     and arm.status().get('state') == 'executing') - sent)
             if motion == 1:                       # the second replaces the running first
@@ -491,7 +491,7 @@ def test_a_demand_before_the_first_states_waits_for_them():
     try:
         assert spin_until(lambda: arm.demand_pub.get_subscription_count() > 0
                           and arm.status().get('state') == 'waiting_for_states')
-        arm.demand_pub.publish(conversions.make_demands(GOAL[None], 'early-1'))
+        arm.demand_pub.publish(demand_messages.make_demands(GOAL[None], 'early-1'))
         assert spin_until(lambda: controller.demands.empty(), 10.0)   # taken off the queue
         spin_until(lambda: 'rejected' in arm.status(), 0.2)
         assert 'rejected' not in arm.status(), arm.status()
@@ -501,7 +501,7 @@ def test_a_demand_before_the_first_states_waits_for_them():
         # A demand when no states come at all is refused after the wait, with the reason.
         arm.publishing = False
         assert spin_until(lambda: arm.status().get('state') == 'fault')
-        arm.demand_pub.publish(conversions.make_demands(GOAL[None] / 2, 'early-2'))
+        arm.demand_pub.publish(demand_messages.make_demands(GOAL[None] / 2, 'early-2'))
         assert spin_until(lambda: arm.status().get('rejected_goal_id') == 'early-2')
         assert 'cannot take a demand while fault' in arm.status()['rejected']
     finally:

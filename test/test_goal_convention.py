@@ -13,11 +13,12 @@ from mover6_control.kinematics.ik_closed_form import ik_closed_form
 from mover6_control.kinematics.reachability import check_pose
 from mover6_control.kinematics.rotations import (euler_zyx_near, euler_zyx_to_matrix,
                                                  matrix_to_euler_zyx, pose_from_xyzabc)
-from mover6_control.tools.goal_cli import build_parser, run
+from mover6_control.tools.goal_cli import run
 from mover6_control.tools.goal_convention import (EXIT_ARRIVED, EXIT_NO_NODES, EXIT_REFUSED,
                                                   format_numbers, format_outcome, goal_from_pose,
                                                   home_pose, Outcome, pose_from_goal,
                                                   poses_from_numbers)
+from mover6_control.tools.goal_parser import build_parser
 import numpy as np
 import pytest
 

@@ -13,7 +13,7 @@ os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 from geometry_msgs.msg import PoseStamped  # noqa: E402
 from mover6_control.kinematics.arm import mover6  # noqa: E402
 from mover6_control.kinematics.forward import fk_batch  # noqa: E402
-from mover6_control.nodes import conversions  # noqa: E402
+from mover6_control.nodes import conversions, demand_messages  # noqa: E402
 from mover6_control.nodes.markers_node import MarkersNode  # noqa: E402
 from mover6_control.nodes.qos import LATCHED_QOS  # noqa: E402
 import numpy as np  # noqa: E402
@@ -102,7 +102,7 @@ def test_table_keep_out_goal_and_path():
                                    [0.06, 0.0, 0.0], atol=1e-6)
 
         Q = np.array([[0.0] * 6, [0.1, 0.2, -0.1, 0.0, 0.3, 0.0], [0.2, 0.4, -0.2, 0.1, 0.5, 0.0]])
-        msg = conversions.make_demands(Q, goal_id='7')
+        msg = demand_messages.make_demands(Q, goal_id='7')
         assert wait_until(lambda: h.demands.publish(msg) or h.latest('planned_path'), LIMIT,
                           h.spin)
         path = h.latest('planned_path')[0]

@@ -7,7 +7,7 @@ from mover6_control.control.planners import plan_motion
 from mover6_control.control.profiles import LawConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes import conversions
+from mover6_control.nodes import conversions, demand_messages
 from mover6_control.tools.goal_cli import run
 from mover6_control.tools.goal_convention import EXIT_ARRIVED, EXIT_REFUSED, Outcome
 import numpy as np
@@ -20,7 +20,7 @@ GOAL = np.array([0.3, -0.2, 0.2, 0.1, -0.1, 0.3])
 
 def labelled(label):
     """Return a one-row demand whose first dimension is labelled ``label``."""
-    msg = conversions.make_demands(GOAL[None])
+    msg = demand_messages.make_demands(GOAL[None])
     msg.layout.dim[0].label = label
     return msg
 
@@ -28,11 +28,11 @@ def labelled(label):
 # --- the label -------------------------------------------------------------------------------
 
 def test_make_demands_writes_the_profile_after_the_goal_id():
-    msg = conversions.make_demands(GOAL[None], 'g-1', 'cubic')
+    msg = demand_messages.make_demands(GOAL[None], 'g-1', 'cubic')
     assert msg.layout.dim[0].label == 'waypoints goal g-1 profile cubic'
-    assert conversions.demand_id_from_msg(msg) == 'g-1'
-    assert conversions.demand_profile_from_msg(msg) == 'cubic'
-    np.testing.assert_allclose(conversions.demands_from_msg(msg), GOAL[None], atol=1e-6)
+    assert demand_messages.demand_id_from_msg(msg) == 'g-1'
+    assert demand_messages.demand_profile_from_msg(msg) == 'cubic'
+    np.testing.assert_allclose(demand_messages.demands_from_msg(msg), GOAL[None], atol=1e-6)
 
 
 @pytest.mark.parametrize('label, goal_id, profile', [
@@ -45,21 +45,21 @@ def test_make_demands_writes_the_profile_after_the_goal_id():
 ])
 def test_labels_ros2_topic_pub_can_type(label, goal_id, profile):
     msg = labelled(label)
-    assert conversions.demand_id_from_msg(msg) == goal_id
-    assert conversions.demand_profile_from_msg(msg) == profile
+    assert demand_messages.demand_id_from_msg(msg) == goal_id
+    assert demand_messages.demand_profile_from_msg(msg) == profile
 
 
 def test_a_flat_demand_carries_no_options():
     msg = Float32MultiArray()
     msg.data = [float(v) for v in GOAL]
-    assert conversions.demand_options_from_msg(msg) == {}
+    assert demand_messages.demand_options_from_msg(msg) == {}
 
 
 @pytest.mark.parametrize('label', ['waypoints profile', 'waypoints goal a profile',
                                    'waypoints speed fast', 'waypoints profile cubic profile x'])
 def test_a_malformed_label_is_refused_with_the_grammar(label):
     with pytest.raises(InvalidInputError, match=r'waypoints \[goal <id>\] \[profile <name>\]'):
-        conversions.demand_profile_from_msg(labelled(label))
+        demand_messages.demand_profile_from_msg(labelled(label))
 
 
 def test_goal_frame_carries_a_profile_and_stays_a_frame():

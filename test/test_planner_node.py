@@ -10,7 +10,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_from_xyzabc
-from mover6_control.nodes import conversions
+from mover6_control.nodes import conversions, demand_messages
 from mover6_control.nodes.planner_delivery import RESEND_AFTER, RESENDS
 from mover6_control.nodes.planner_node import PlannerNode
 import numpy as np
@@ -127,8 +127,8 @@ def test_reachable_goal_publishes_layout_and_ok(nodes):
     # The first dimension names the goal the demand is for, as the status does.
     assert values['goal_id'] == '0.000000000-1'
     assert [d.label for d in msg.layout.dim] == ['waypoints goal 0.000000000-1', 'joints']
-    assert conversions.demand_id_from_msg(msg) == values['goal_id']
-    Q = conversions.demands_from_msg(msg)
+    assert demand_messages.demand_id_from_msg(msg) == values['goal_id']
+    Q = demand_messages.demands_from_msg(msg)
     # 20 path poses, plus the wrist turn that leaves the singular home pose.
     assert int(values['waypoints']) == Q.shape[0] >= 20
     assert float(values['path_length']) > 0.0 and float(values['predicted_duration']) > 0.0
@@ -184,7 +184,7 @@ def test_goal_before_any_joint_states_waits_for_them_and_is_planned(nodes):
     assert values['result'] == 'planned' and values['state'] == 'ready'
     assert values['goal_id'] == '0.000000000-1'
     assert spin_until(executor, lambda: len(probe.demands) >= 1)
-    Q = conversions.demands_from_msg(probe.demands[0])
+    Q = demand_messages.demands_from_msg(probe.demands[0])
     assert np.abs(Q[0] - HOME).max() < 1e-6
     assert np.linalg.norm(fk(ARM, Q[-1])[:3, 3] - GOAL[:3, 3]) < 1e-3
     # The planner said it became ready in between.
@@ -256,7 +256,7 @@ def test_path_goal_spline_and_arc(nodes):
         status = answer(executor, probe, n)
         assert status.level == DiagnosticStatus.OK, f'{shape}: {status.message}'
         assert spin_until(executor, lambda: len(probe.demands) > count)
-        Q = conversions.demands_from_msg(probe.demands[-1])
+        Q = demand_messages.demands_from_msg(probe.demands[-1])
         assert np.linalg.norm(fk(ARM, Q[-1])[:3, 3] - goal[:3, 3]) < 1e-3
 
 
@@ -338,7 +338,7 @@ def test_unacknowledged_demand_is_sent_again_then_no_more(nodes):
     goal_id = conversions.status_values(status)['goal_id']
     assert spin_until(executor, lambda: len(probe.demands) == 1 + RESENDS, 10.0)
     for msg in probe.demands:
-        assert conversions.demand_id_from_msg(msg) == goal_id
+        assert demand_messages.demand_id_from_msg(msg) == goal_id
         assert list(msg.data) == list(probe.demands[0].data)
     # Then it gives up, and says so: the goal failed, nothing more within twice the period.
     assert spin_until(executor, lambda: conversions.status_values(
@@ -414,8 +414,8 @@ def test_path_goal_joint_plans_the_via_point_polynomial(nodes):
     values = conversions.status_values(status)
     assert values['motion'] == 'joint' and 'profile' not in values
     assert spin_until(executor, lambda: len(probe.demands) >= 1)
-    Q = conversions.demands_from_msg(probe.demands[-1])
-    assert conversions.demand_profile_from_msg(probe.demands[-1]) == ''
+    Q = demand_messages.demands_from_msg(probe.demands[-1])
+    assert demand_messages.demand_profile_from_msg(probe.demands[-1]) == ''
     assert np.abs(Q[0] - HOME).max() < 1e-6
     assert min(np.linalg.norm(fk(ARM, q)[:3, 3] - via[:3, 3]) for q in Q) < 1e-4
     assert np.linalg.norm(fk(ARM, Q[-1])[:3, 3] - goal[:3, 3]) < 1e-3
@@ -425,7 +425,7 @@ def test_path_goal_joint_plans_the_via_point_polynomial(nodes):
     assert status.level == DiagnosticStatus.ERROR and 'exactly one via pose' in status.message
     assert conversions.status_values(status)['reason'] == 'invalid_goal'
     spin_until(executor, lambda: False, timeout=0.5)
-    assert {conversions.demand_id_from_msg(m) for m in probe.demands} == {values['goal_id']}
+    assert {demand_messages.demand_id_from_msg(m) for m in probe.demands} == {values['goal_id']}
 
 
 def test_a_goals_profile_is_forwarded_with_its_demand(nodes):
@@ -446,7 +446,7 @@ def test_a_goals_profile_is_forwarded_with_its_demand(nodes):
     assert status.level == DiagnosticStatus.ERROR and 'banana' in status.message
     assert conversions.status_values(status)['reason'] == 'invalid_goal'
     spin_until(executor, lambda: False, timeout=0.5)
-    assert {conversions.demand_id_from_msg(m) for m in probe.demands} == {values['goal_id']}
+    assert {demand_messages.demand_id_from_msg(m) for m in probe.demands} == {values['goal_id']}
 
 
 def test_goal_into_the_table_is_refused_for_a_collision_and_the_switch_applies_live(nodes):

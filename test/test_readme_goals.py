@@ -14,8 +14,8 @@ from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.planning.planner_core import plan_path_goal, plan_pose_goal, PlannerSettings
 from mover6_control.planning.via_joint import plan_via_path_goal
-from mover6_control.tools.goal_cli import build_parser
 from mover6_control.tools.goal_convention import poses_from_numbers
+from mover6_control.tools.goal_parser import build_parser
 import numpy as np
 import pytest
 

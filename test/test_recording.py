@@ -22,7 +22,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from geometry_msgs.msg import PoseArray, PoseStamped, TransformStamped  # noqa: E402
 from mcap.reader import make_reader  # noqa: E402
 from mover6_control.errors import InvalidInputError  # noqa: E402
-from mover6_control.nodes import conversions  # noqa: E402
+from mover6_control.nodes import conversions, demand_messages  # noqa: E402
 from mover6_control.nodes.qos import LATCHED_QOS, STATUS_QOS  # noqa: E402
 from mover6_control.nodes.recorder_node import RecorderNode  # noqa: E402
 import numpy as np  # noqa: E402
@@ -75,7 +75,7 @@ def message(topic, k):
     if topic == '/JointJog':
         return conversions.make_joint_jog(NAMES, [0.001 * k] * 6)
     if topic == '/joint_demands':
-        return conversions.make_demands(np.full((3, 6), 0.1 * k), goal_id=str(k))
+        return demand_messages.make_demands(np.full((3, 6), 0.1 * k), goal_id=str(k))
     if topic == '/pose_goal':
         msg = PoseStamped()
         msg.header.frame_id = 'base_link'

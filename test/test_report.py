@@ -11,7 +11,7 @@ the recorded joint states, and write the demo's files.
 from geometry_msgs.msg import PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
-from mover6_control.nodes import conversions
+from mover6_control.nodes import conversions, demand_messages
 from mover6_control.nodes.bag_writer import BagWriter
 from mover6_control.tools.report import make_report, read_recording
 import numpy as np
@@ -51,7 +51,7 @@ def write_story(path):
     put('/pose_goal', goal_msg(T_goal), t0)
     put('/planner/status', conversions.make_status(
         'planner', 'OK', 'planned', {'result': 'planned', 'goal_id': '3'}), t0 + 0.1)
-    put('/joint_demands', conversions.make_demands(Q, goal_id='3'), t0 + 0.11)
+    put('/joint_demands', demand_messages.make_demands(Q, goal_id='3'), t0 + 0.11)
     q_end = Q[-1] - 0.001
     for k in range(101):                           # 100 Hz for 1 s, then held
         q = Q[0] + (q_end - Q[0]) * min(k / 80.0, 1.0)

@@ -17,7 +17,7 @@ import time
 
 from control_msgs.msg import JointJog
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes import conversions
+from mover6_control.nodes import conversions, demand_messages
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -142,7 +142,7 @@ def wait_ready(name, proc, arm):
         if arm.moving():
             return True
         if time.monotonic() - last_demand[0] > 0.5:      # the first may come before a state
-            arm.demands.publish(conversions.make_demands([TARGET]))
+            arm.demands.publish(demand_messages.make_demands([TARGET]))
             last_demand[0] = time.monotonic()
         return False
     return wait_until(moving, 30.0) and proc.alive()

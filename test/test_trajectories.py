@@ -3,6 +3,8 @@
 from hypothesis import example, given, settings
 import hypothesis.strategies as st
 from mover6_control.errors import InvalidInputError
+from mover6_control.motion import jerk_limited as jl
+from mover6_control.motion import spline_trajectories as sp
 from mover6_control.motion import time_laws as tl
 from mover6_control.motion import trajectories as tj
 import numpy as np
@@ -44,7 +46,7 @@ def test_point_to_point_duration_from_limits_is_tight():
 
 
 def test_sample_shapes_and_clamping():
-    traj = tj.cubic_trajectory(Q, v_max=V, a_max=A)
+    traj = sp.cubic_trajectory(Q, v_max=V, a_max=A)
     q, qd, qdd = traj.sample(0.5)
     assert q.shape == qd.shape == qdd.shape == (6,)
     q, qd, qdd = traj.sample(np.array([0.0, 0.5, 1.0]))
@@ -57,7 +59,7 @@ def test_sample_shapes_and_clamping():
         traj.sample(float('nan'))
 
 
-@pytest.mark.parametrize('build', [tj.cubic_trajectory, tj.quintic_trajectory])
+@pytest.mark.parametrize('build', [sp.cubic_trajectory, sp.quintic_trajectory])
 def test_interpolating_splines_pass_through_waypoints_at_their_times(build):
     times = np.array([0.0, 1.5, 2.5, 4.0])
     traj = build(Q, times=times)
@@ -65,12 +67,12 @@ def test_interpolating_splines_pass_through_waypoints_at_their_times(build):
     q, qd, qdd = traj.sample(times)
     assert np.allclose(q, Q, atol=1e-12)
     assert np.allclose(qd[[0, -1]], 0.0, atol=1e-12)
-    if build is tj.quintic_trajectory:
+    if build is sp.quintic_trajectory:
         assert np.allclose(qdd[[0, -1]], 0.0, atol=1e-9)
 
 
-@pytest.mark.parametrize('build', [tj.cubic_trajectory, tj.quintic_trajectory,
-                                   tj.bspline_trajectory])
+@pytest.mark.parametrize('build', [sp.cubic_trajectory, sp.quintic_trajectory,
+                                   sp.bspline_trajectory])
 def test_limit_fitted_splines_keep_and_touch_the_limits(build):
     traj = build(Q, v_max=V, a_max=A)
     _, q, qd, qdd = dense(traj)
@@ -81,13 +83,13 @@ def test_limit_fitted_splines_keep_and_touch_the_limits(build):
 
 
 def test_bspline_stays_in_the_convex_hull_per_joint():
-    traj = tj.bspline_trajectory(Q, duration=5.0)
+    traj = sp.bspline_trajectory(Q, duration=5.0)
     _, q, _, _ = dense(traj)
     assert np.all(q >= Q.min(axis=0) - 1e-12) and np.all(q <= Q.max(axis=0) + 1e-12)
 
 
 def test_multipoint_trapezoid_is_linear_with_parabolic_blends():
-    traj = tj.multipoint_trapezoidal(Q, V, A)
+    traj = sp.multipoint_trapezoidal(Q, V, A)
     t, q, qd, qdd = dense(traj, 20001)
     assert np.allclose(q[[0, -1]], Q[[0, -1]], atol=1e-9)
     assert np.allclose(qd[[0, -1]], 0.0, atol=1e-9)
@@ -117,7 +119,7 @@ def test_stop_at_each_rests_on_every_waypoint():
 def test_ruckig_is_jerk_limited_and_synchronised():
     j = np.full(6, 5.0)
     qd0 = np.array([0.2, -0.1, 0.0, 0.3, 0.0, -0.5])
-    traj = tj.ruckig_trajectory(Q[0], Q[1], V, A, j, qd0=qd0)
+    traj = jl.ruckig_trajectory(Q[0], Q[1], V, A, j, qd0=qd0)
     q, qd, qdd = traj.sample(0.0)
     assert np.allclose(qd, qd0) and np.allclose(qdd, 0.0)
     q, qd, qdd = traj.sample(traj.duration)
@@ -127,7 +129,7 @@ def test_ruckig_is_jerk_limited_and_synchronised():
     assert np.all(np.abs(qd) <= V + 1e-9) and np.all(np.abs(qdd) <= A + 1e-9)
     assert np.all(np.abs(traj.sample_jerk(t)) <= j * (1.0 + 1e-5))
     # Time-optimal: the slowest joint alone cannot do better.
-    alone = [tj.ruckig_trajectory(Q[0, [i]], Q[1, [i]], V[i], A[i], j[i], qd0=qd0[[i]]).duration
+    alone = [jl.ruckig_trajectory(Q[0, [i]], Q[1, [i]], V[i], A[i], j[i], qd0=qd0[[i]]).duration
              for i in range(6)]
     assert traj.duration == pytest.approx(max(alone), rel=1e-6)
 
@@ -143,8 +145,8 @@ def dense_with_breakpoints(traj, n=20001):
 FOUND = [[0.0, 0.0, 0.5], [0.0, 0.0, 1.5], [0.0, 0.0, -1.75]]
 
 
-@pytest.mark.parametrize('build', [tj.cubic_trajectory, tj.quintic_trajectory,
-                                   tj.bspline_trajectory])
+@pytest.mark.parametrize('build', [sp.cubic_trajectory, sp.quintic_trajectory,
+                                   sp.bspline_trajectory])
 @settings(max_examples=25, deadline=None)
 @given(st.lists(st.lists(st.floats(-2.0, 2.0), min_size=3, max_size=3), min_size=2,
                 max_size=8))
@@ -159,8 +161,8 @@ def test_cubic_through_random_waypoints(build, rows):
             build(W, v_max=1.0)
         return
     traj = build(W, v_max=1.0, a_max=2.0)
-    if build is not tj.bspline_trajectory:
-        knots = traj._derivs[0][0].x if build is tj.cubic_trajectory else traj.breakpoints
+    if build is not sp.bspline_trajectory:
+        knots = traj._derivs[0][0].x if build is sp.cubic_trajectory else traj.breakpoints
         assert np.allclose(traj.sample(knots)[0], W, atol=1e-9)
     assert np.allclose(traj.sample([0.0, traj.duration])[0], W[[0, -1]], atol=1e-9)
     _, qd, qdd = dense_with_breakpoints(traj)
@@ -171,9 +173,9 @@ def test_cubic_through_random_waypoints(build, rows):
 
 def test_found_case_peaks_are_exact():
     # The exact peaks behind the limit fit agree with a very fine grid.
-    traj = tj.cubic_trajectory(np.array(FOUND), v_max=1.0, a_max=2.0)
+    traj = sp.cubic_trajectory(np.array(FOUND), v_max=1.0, a_max=2.0)
     _, qd, qdd = dense_with_breakpoints(traj, 400001)
-    pv, pa = tj._peaks(traj)
+    pv, pa = sp._peaks(traj)
     assert np.allclose(pv, np.abs(qd).max(axis=0), rtol=1e-9, atol=1e-12)
     assert np.allclose(pa, np.abs(qdd).max(axis=0), rtol=1e-9, atol=1e-12)
     assert pv.max() == pytest.approx(1.0, rel=1e-8)
@@ -191,28 +193,28 @@ def test_law_peaks_are_not_underestimated(law):
 
 
 @pytest.mark.parametrize('call', [
-    lambda: tj.cubic_trajectory(Q[:1], v_max=V),
-    lambda: tj.cubic_trajectory(np.vstack([Q[:2], Q[1:2]]), v_max=V),
-    lambda: tj.quintic_trajectory(np.where(Q == 0.5, np.nan, Q), v_max=V),
-    lambda: tj.cubic_trajectory(Q, v_max=np.zeros(6)),
-    lambda: tj.cubic_trajectory(Q, v_max=V, a_max=-1.0),
-    lambda: tj.cubic_trajectory(Q),
-    lambda: tj.cubic_trajectory(Q, times=[0.0, 1.0, 1.0, 2.0]),
-    lambda: tj.multipoint_trapezoidal(Q, V, 0.0),
-    lambda: tj.bspline_trajectory(Q, duration=-1.0),
+    lambda: sp.cubic_trajectory(Q[:1], v_max=V),
+    lambda: sp.cubic_trajectory(np.vstack([Q[:2], Q[1:2]]), v_max=V),
+    lambda: sp.quintic_trajectory(np.where(Q == 0.5, np.nan, Q), v_max=V),
+    lambda: sp.cubic_trajectory(Q, v_max=np.zeros(6)),
+    lambda: sp.cubic_trajectory(Q, v_max=V, a_max=-1.0),
+    lambda: sp.cubic_trajectory(Q),
+    lambda: sp.cubic_trajectory(Q, times=[0.0, 1.0, 1.0, 2.0]),
+    lambda: sp.multipoint_trapezoidal(Q, V, 0.0),
+    lambda: sp.bspline_trajectory(Q, duration=-1.0),
     lambda: tj.point_to_point(Q[0], Q[0], tl.cubic(), v_max=V),
     lambda: tj.point_to_point(Q[0], Q[1], tl.cubic()),
     lambda: tj.stop_at_each(Q[:1], tl.cubic(), V),
-    lambda: tj.ruckig_trajectory(Q[0], Q[1], V, A, np.zeros(6)),
-    lambda: tj.ruckig_trajectory(Q[0], Q[1, :3], V, A, A),
+    lambda: jl.ruckig_trajectory(Q[0], Q[1], V, A, np.zeros(6)),
+    lambda: jl.ruckig_trajectory(Q[0], Q[1, :3], V, A, A),
 ])
 def test_bad_input_raises(call):
     with pytest.raises(InvalidInputError):
         call()
 
 
-@pytest.mark.parametrize('build', [tj.cubic_trajectory, tj.quintic_trajectory,
-                                   tj.bspline_trajectory])
+@pytest.mark.parametrize('build', [sp.cubic_trajectory, sp.quintic_trajectory,
+                                   sp.bspline_trajectory])
 def test_long_spline_paths_keep_the_limits_at_every_knot(build):
     # A cubic's acceleration peaks exactly at knots, which a uniform time grid misses.
     W = np.cumsum(np.random.default_rng(2).normal(scale=0.05, size=(300, 6)), axis=0)
@@ -227,8 +229,8 @@ def test_long_spline_paths_keep_the_limits_at_every_knot(build):
 @pytest.mark.parametrize('build', [
     lambda: tj.TimeLawTrajectory(Q[0], Q[1], 2.0, tl.trapezoidal(2.0)),
     lambda: tj.TimeLawTrajectory(Q[0], Q[1], 2.0, tl.quintic()),
-    lambda: tj.ruckig_trajectory(Q[0], Q[1], V, A, 5.0, qd0=np.full(6, 0.1)),
-    lambda: tj.cubic_trajectory(Q, v_max=V, a_max=A),
+    lambda: jl.ruckig_trajectory(Q[0], Q[1], V, A, 5.0, qd0=np.full(6, 0.1)),
+    lambda: sp.cubic_trajectory(Q, v_max=V, a_max=A),
 ])
 def test_state_of_one_tick_is_the_sample(build):
     """``state(t)``, the controller's per-tick path, gives exactly ``sample(t)[:2]``."""

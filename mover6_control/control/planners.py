@@ -22,7 +22,7 @@ from mover6_control.errors import InvalidInputError
 # Imported with this module, not lazily in the first continuous demand's callback: that import
 # (scipy.interpolate; 0.1 s idle, far longer on a loaded machine) held up the controller.
 from mover6_control.motion import time_optimal
-from mover6_control.motion.trajectories import ruckig_trajectory
+from mover6_control.motion.jerk_limited import ruckig_trajectory
 from mover6_control.validation import as_positive
 import numpy as np
 
@@ -140,7 +140,7 @@ def _through_all_plan(q_start, waypoints, velocity_limits, config, qd_start):
     duration = float(trajectory.duration)
     if config.profile in ('cubic_spline', 'quintic_spline'):
         # Interpolating: the knots are the waypoints, spaced as the slowest joint at its limit,
-        # all scaled by one factor (``trajectories._fit_to_limits``).
+        # all scaled by one factor (``spline_trajectories._fit_to_limits``).
         steps = np.max(np.abs(np.diff(path[keep], axis=0)) / velocity_limits, axis=1)
         passes = np.cumsum(steps) * duration / steps.sum()
     else:

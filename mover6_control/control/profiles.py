@@ -12,7 +12,7 @@ A profile turns the start state and the waypoints (N, n) [rad] into a ``MotionPl
   ramps of ``t_blend`` (default ``t_max / 4``); stops at each waypoint. The profile is the one
   of ``motion.time_laws.trapezoidal``.
 - ``jerk_limited``: ruckig, rest to rest per waypoint, within velocity, ``a_max`` and ``j_max``
-  (``motion.trajectories.ruckig_trajectory``).
+  (``motion.jerk_limited.ruckig_trajectory``).
 - ``continuous``: the time-optimal trajectory along the blended path through all waypoints,
   without stopping at each (``motion.time_optimal.time_parameterize``).
 - ``cubic``, ``quintic`` (3-4-5), ``septic`` (4-5-6-7), ``sharp_trapezoid``: the time laws of
@@ -30,9 +30,10 @@ from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.motion import time_laws
+from mover6_control.motion.spline_trajectories import (bspline_trajectory, cubic_trajectory,
+                                                       multipoint_trapezoidal,
+                                                       quintic_trajectory)
 from mover6_control.motion.time_laws import trapezoid_times
-from mover6_control.motion.trajectories import (bspline_trajectory, cubic_trajectory,
-                                                multipoint_trapezoidal, quintic_trajectory)
 from mover6_control.validation import as_positive
 
 # Per waypoint, stopping at each: the time laws of the Jacobians and trajectories report, each

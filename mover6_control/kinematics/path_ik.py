@@ -30,10 +30,10 @@ computed at once (``branch_steps``) and the branch choice is a walk over a small
 table; singular waypoints, numeric fallbacks and steps over the limit take the waypoint-by-
 waypoint way, which gives the same choice.
 
-Failures raise ``UnreachableError`` with ``reason`` in ``errors.REASONS`` and ``details``
-holding 'waypoint', 'position_error' [m], 'orientation_error' [rad], 'closest_q' and
-'closest_pose' (the nearest configuration found inside the joint limits and its pose), plus
-'message'.
+Failures raise ``UnreachableError`` (made in ``kinematics.unreachable``) with ``reason`` in
+``errors.REASONS`` and ``details`` holding 'waypoint', 'position_error' [m],
+'orientation_error' [rad], 'closest_q' and 'closest_pose' (the nearest configuration found
+inside the joint limits and its pose), plus 'message'.
 """
 
 from __future__ import annotations
@@ -42,12 +42,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.kinematics.forward import condition_number, fk, fk_batch, jacobian_batch
+from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.forward import condition_number, fk_batch, jacobian_batch
 from mover6_control.kinematics.ik_closed_form import (nearest_alias, pose_errors_batch,
                                                       solve_candidates, VERIFY_TOL, wrist_geometry)
-from mover6_control.kinematics.ik_numeric import closest_within_limits, DEFAULT_WEIGHTS, ik_numeric
+from mover6_control.kinematics.ik_numeric import DEFAULT_WEIGHTS, ik_numeric
 from mover6_control.kinematics.rotations import ORTHONORMAL_TOL, pose_error
+from mover6_control.kinematics.unreachable import path_failure, unreachable_error
 from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 
@@ -55,7 +56,6 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from mover6_control.kinematics.arm import ArmModel
-    from mover6_control.kinematics.ik_closed_form import WristGeometry
 
 # Finest pose spacing [m], [rad] at which a too-large joint step is still looked into: a
 # continuous branch changes by far less than max_joint_step over it.
@@ -163,55 +163,6 @@ def branch_steps(arm: ArmModel, Q: np.ndarray, valid: np.ndarray) -> np.ndarray:
             far |= (diff > np.pi) & slack[i, :, None, :]
     steps[far | ~valid[1:, None, :]] = np.inf
     return steps
-
-
-def _closest(arm, T, seeds, weights):
-    """Return (q, pose, position error, orientation error) of the closest in-limit config."""
-    res = closest_within_limits(arm, T, seeds, weights=weights)
-    pose = fk(arm, res.q)
-    pos, rot = pose_error(pose, T)
-    return res.q, pose, pos, rot
-
-
-def unreachable_error(arm: ArmModel, T: np.ndarray, q_seed: np.ndarray, waypoint: int,
-                      weights: Sequence[float] = DEFAULT_WEIGHTS,
-                      geometry: WristGeometry | None = None,
-                      what: str = 'the pose') -> UnreachableError:
-    """
-    Return the ``UnreachableError`` for a pose with no solution inside the limits.
-
-    Tells 'joint_limits' (solutions exist outside the limits; the message names the joints)
-    from 'out_of_reach', and finds the closest pose inside the limits. ``what`` is 'waypoint'
-    (the message then names its index) or a noun for the message.
-    """
-    if geometry is not None:
-        Q, ok = solve_candidates(arm, geometry, T[None], q_seed[None], within_limits=False)
-        outside = Q[0][ok[0]]
-    else:
-        res = ik_numeric(arm, T, q_seed, within_limits=False, rng=waypoint)
-        outside = res.q[None] if res.success else np.zeros((0, arm.n_joints))
-    seeds = [q_seed]
-    if len(outside):
-        # The unconstrained solution that needs the least limit violation.
-        over = np.maximum(arm.lower - outside, 0.0) + np.maximum(outside - arm.upper, 0.0)
-        best = outside[np.argmin(over.sum(axis=1))]
-        seeds.append(np.clip(best, arm.lower, arm.upper))
-    q, pose, pos, rot = _closest(arm, T, np.array(seeds), weights)
-    closest = (f'closest pose inside the limits misses it by {pos * 1e3:.1f} mm and '
-               f'{rot:.4f} rad')
-    what = f'waypoint {waypoint}' if what == 'waypoint' else what
-    if len(outside):
-        reason = 'joint_limits'
-        message = (f'{what} is reachable only outside the joint limits ('
-                   + '; '.join(arm.limit_violations(best)) + f'); {closest}')
-    else:
-        reason = 'out_of_reach'
-        message = f'{what} is out of reach; {closest}'
-    details = {'waypoint': int(waypoint), 'position_error': pos, 'orientation_error': rot,
-               'closest_q': q, 'closest_pose': pose, 'message': message}
-    if len(outside):
-        details['q_outside_limits'] = best
-    return UnreachableError(message, reason=reason, details=details)
 
 
 def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
@@ -357,10 +308,10 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
             k = int(k_all[r])
             q_before = q_start_arr if r == 0 else Q_all[r - 1]
             where = f'the way to waypoint {k}' if new_all[r] else f'waypoint {k}'
-            _fail(arm, P_all[r], q_before, k, 'singularity',
-                  f'{where} is near a singularity (Jacobian condition number '
-                  f'{cond[r]:.3g} > {max_condition:.3g}, rising)',
-                  {'condition': float(cond[r]), 'solution_q': Q_all[r].copy()})
+            raise path_failure(arm, P_all[r], q_before, k, 'singularity',
+                               f'{where} is near a singularity (Jacobian condition number '
+                               f'{cond[r]:.3g} > {max_condition:.3g}, rising)',
+                               {'condition': float(cond[r]), 'solution_q': Q_all[r].copy()})
     if stop is not None and stop[0] == 'unreachable':
         k, q_prev = stop[1], stop[3]
         raise unreachable_error(arm, P[k], q_prev, k, weights, geometry, what='waypoint')
@@ -375,16 +326,18 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
             near = near[np.abs(near - q_prev).max(axis=1) <= max_joint_step]
             over = arm.limit_violations(near[0]) if len(near) else []
             if over:
-                _fail(arm, P[k], q_prev, k, 'joint_limits',
-                      f'waypoint {k} continues the path only outside the joint limits ('
-                      + '; '.join(over) + f'); inside them it needs a jump of {step:.3f} rad '
-                      f'in {arm.joint_names[joint]}',
-                      {'joint_step': float(step), 'joint': arm.joint_names[joint],
-                       'jump_q': q, 'q_outside_limits': near[0]})
-        _fail(arm, P[k], q_prev, k, 'discontinuity',
-              f'waypoint {k} needs a jump of {step:.3f} rad in {arm.joint_names[joint]} '
-              f'(limit {max_joint_step:.3f} rad): the continuous branch does not reach it',
-              {'joint_step': float(step), 'joint': arm.joint_names[joint], 'jump_q': q})
+                raise path_failure(
+                    arm, P[k], q_prev, k, 'joint_limits',
+                    f'waypoint {k} continues the path only outside the joint limits ('
+                    + '; '.join(over) + f'); inside them it needs a jump of {step:.3f} rad '
+                    f'in {arm.joint_names[joint]}',
+                    {'joint_step': float(step), 'joint': arm.joint_names[joint],
+                     'jump_q': q, 'q_outside_limits': near[0]})
+        raise path_failure(
+            arm, P[k], q_prev, k, 'discontinuity',
+            f'waypoint {k} needs a jump of {step:.3f} rad in {arm.joint_names[joint]} '
+            f'(limit {max_joint_step:.3f} rad): the continuous branch does not reach it',
+            {'joint_step': float(step), 'joint': arm.joint_names[joint], 'jump_q': q})
     # Every solution was verified when found (closed form to VERIFY_TOL, numeric to the
     # tolerances); the figures are measured again here on the final joint path.
     pos, rot = pose_errors_batch(P_all, fk_batch(arm, Q_all))
@@ -492,13 +445,3 @@ def _condition_numbers(arm, Q):
     sv = np.linalg.svd(jacobian_batch(arm, Q), compute_uv=False)
     with np.errstate(divide='ignore'):
         return np.where(sv[:, -1] > 0.0, sv[:, 0] / sv[:, -1], np.inf)
-
-
-def _fail(arm, T, q_prev, k, reason, message, extra):
-    """Raise ``UnreachableError``; the closest pose is the last one reached continuously."""
-    pose = fk(arm, q_prev)
-    pos, rot = pose_error(pose, T)
-    details = {'waypoint': int(k), 'position_error': pos, 'orientation_error': rot,
-               'closest_q': q_prev, 'closest_pose': pose, 'message': message}
-    details.update(extra)
-    raise UnreachableError(message, reason=reason, details=details)

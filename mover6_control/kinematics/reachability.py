@@ -18,8 +18,9 @@ from mover6_control.kinematics.forward import condition_number, fk
 from mover6_control.kinematics.ik_closed_form import (has_spherical_wrist, ik_closed_form,
                                                       wrist_geometry)
 from mover6_control.kinematics.ik_numeric import DEFAULT_WEIGHTS, ik_numeric
-from mover6_control.kinematics.path_ik import solve_path, unreachable_error, validate_poses
+from mover6_control.kinematics.path_ik import solve_path, validate_poses
 from mover6_control.kinematics.rotations import pose_error, validate_transform
+from mover6_control.kinematics.unreachable import unreachable_error
 import numpy as np
 
 if TYPE_CHECKING:

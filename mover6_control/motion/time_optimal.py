@@ -270,7 +270,7 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
     if j_max is not None and qd_start is not None and np.any(np.asarray(qd_start) != 0.0):
         raise InvalidInputError(
             'time_parameterize: j_max with a moving start (qd_start) is not supported; use '
-            'trajectories.ruckig_trajectory to blend from the current velocity')
+            'jerk_limited.ruckig_trajectory to blend from the current velocity')
     path = blended_path(Q, max_deviation, 'arc' if j_max is None else 'quintic')
     n = path.n_joints
     v = as_positive(v_max, 'v_max', n) * (1.0 - _LIMIT_MARGIN)

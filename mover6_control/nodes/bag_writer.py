@@ -128,7 +128,7 @@ class BagWriter:
         self.topics[name] = {'type': type_name, 'qos': qos, 'channel': channel, 'count': 0}
         return channel
 
-    def write(self, name: str, data: bytes, time_ns: int):
+    def write(self, name: str, data: bytes, time_ns: int) -> None:
         """Write one serialized message of topic ``name`` received at ``time_ns`` [ns]."""
         topic = self.topics[name]
         self._writer.add_message(channel_id=topic['channel'], log_time=time_ns, data=data,
@@ -171,7 +171,7 @@ class BagWriter:
             'ros_distro': 'jazzy',
         }}
 
-    def close(self):
+    def close(self) -> None:
         """
         Finish the MCAP file (summary, index) and write metadata.yaml; only the first call acts.
 

@@ -18,7 +18,7 @@ from typing import Optional
 from mover6_control.control.state_machine import FAULT, WAITING_FOR_STATES
 from mover6_control.control.timed_plan import Timing
 from mover6_control.errors import InvalidInputError, Mover6Error
-from mover6_control.nodes import conversions
+from mover6_control.nodes import demand_messages
 from mover6_control.validation import short_text
 from std_msgs.msg import Float32MultiArray
 
@@ -77,15 +77,15 @@ class DemandThread:
         goal its action gave up waiting for (``withdrawn``) is never started.
         """
         now = self.now()
-        goal_id = conversions.demand_id_from_msg(msg)
+        goal_id = demand_messages.demand_id_from_msg(msg)
         if goal_id and self.goals.known(goal_id):
             # The planner sends a demand again until this status names its goal: take it once.
             self.get_logger().info(f'goal {goal_id}: demand received again; already taken')
             self.publish_status(now)
             return
         try:
-            Q = conversions.demands_from_msg(msg, len(self.joint_names))
-            profile = conversions.demand_profile_from_msg(msg)   # this demand's law only
+            Q = demand_messages.demands_from_msg(msg, len(self.joint_names))
+            profile = demand_messages.demand_profile_from_msg(msg)   # this demand's law only
             with self.lock:
                 waiting = self.core.state in WAIT_FOR_STATES
             if waiting:                          # no valid states yet: wait a moment

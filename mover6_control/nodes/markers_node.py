@@ -18,20 +18,25 @@ node's own ``keep_out_boxes`` and ``table_margin`` stand until the planner answe
 with ``planner_node`` empty).
 """
 
+from typing import Optional, Sequence
+
 from geometry_msgs.msg import Point, PoseArray, PoseStamped
-from mover6_control.collision.geometry import keep_out_boxes
+from mover6_control.collision.geometry import keep_out_boxes, KeepOutBox
 from mover6_control.errors import InvalidInputError, Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk_batch
 from mover6_control.nodes import shutdown
-from mover6_control.nodes.conversions import demands_from_msg, pose_to_matrix
+from mover6_control.nodes.conversions import pose_to_matrix
+from mover6_control.nodes.demand_messages import demands_from_msg
 from mover6_control.nodes.params import declare
 from mover6_control.nodes.qos import LATCHED_QOS
 from mover6_control.parameters import MARKERS
+import numpy as np
 from rcl_interfaces.msg import ParameterEvent
 from rcl_interfaces.srv import GetParameters
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
+from rclpy.task import Future
 from std_msgs.msg import ColorRGBA, Float32MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -43,17 +48,18 @@ COLOURS = {'table': (0.6, 0.5, 0.4, 1.0), 'margin': (0.9, 0.8, 0.2, 0.15),
 AXIS_COLOURS = ((1.0, 0.0, 0.0, 1.0), (0.0, 1.0, 0.0, 1.0), (0.0, 0.0, 1.0, 1.0))
 
 
-def colour(rgba):
+def colour(rgba: Sequence[float]) -> ColorRGBA:
     """Return a ``ColorRGBA``."""
     return ColorRGBA(r=float(rgba[0]), g=float(rgba[1]), b=float(rgba[2]), a=float(rgba[3]))
 
 
-def point(p):
+def point(p: Sequence[float]) -> Point:
     """Return a ``geometry_msgs/Point`` of three numbers."""
     return Point(x=float(p[0]), y=float(p[1]), z=float(p[2]))
 
 
-def box_marker(ns, mid, lower, upper, rgba):
+def box_marker(ns: str, mid: int, lower: Sequence[float], upper: Sequence[float],
+               rgba: Sequence[float]) -> Marker:
     """Return a CUBE marker spanning ``lower`` .. ``upper`` [m] (axis-aligned)."""
     m = Marker(ns=ns, id=mid, type=Marker.CUBE, action=Marker.ADD, color=colour(rgba))
     m.pose.position = point([(lo + hi) / 2.0 for lo, hi in zip(lower, upper)])
@@ -62,7 +68,8 @@ def box_marker(ns, mid, lower, upper, rgba):
     return m
 
 
-def scene_markers(table_size, table_margin, boxes):
+def scene_markers(table_size: float, table_margin: float,
+                  boxes: Sequence[KeepOutBox]) -> list[Marker]:
     """Return the table (slab and margin) and keep-out markers."""
     half = table_size / 2.0
     out = [box_marker('table', 0, (-half, -half, -0.01), (half, half, 0.0), COLOURS['table'])]
@@ -74,7 +81,7 @@ def scene_markers(table_size, table_margin, boxes):
     return out
 
 
-def goal_markers(T_goal, vias=()):
+def goal_markers(T_goal: np.ndarray, vias: Sequence[np.ndarray] = ()) -> list[Marker]:
     """Return the goal's axes (three arrows along its x, y, z) and its via poses (spheres)."""
     out = []
     for k in range(3):
@@ -93,7 +100,7 @@ def goal_markers(T_goal, vias=()):
     return out
 
 
-def path_marker(positions):
+def path_marker(positions: np.ndarray) -> Marker:
     """Return the tool path through ``positions`` (n, 3) [m] as a line strip."""
     m = Marker(ns='planned_path', id=0, type=Marker.LINE_STRIP, action=Marker.ADD,
                color=colour(COLOURS['path']))
@@ -129,7 +136,7 @@ class MarkersNode(Node):
             self.ask_timer = self.create_timer(1.0, self.ask_planner)
         self.publish()
 
-    def ask_planner(self):
+    def ask_planner(self) -> None:
         """Ask the planner for its table margin and keep-out boxes (until it answers)."""
         if self.planner_answered:
             self.ask_timer.cancel()
@@ -139,7 +146,7 @@ class MarkersNode(Node):
         future = self.client.call_async(GetParameters.Request(names=list(FOLLOWED)))
         future.add_done_callback(self.on_planner_answer)
 
-    def on_planner_answer(self, future):
+    def on_planner_answer(self, future: Future) -> None:
         """Take the planner's values and publish."""
         result = future.result()
         if result is None or len(result.values) != len(FOLLOWED):
@@ -147,7 +154,7 @@ class MarkersNode(Node):
         self.planner_answered = True
         self.follow({n: parameter_value_to_python(v) for n, v in zip(FOLLOWED, result.values)})
 
-    def on_event(self, msg):
+    def on_event(self, msg: ParameterEvent) -> None:
         """Follow a change of the planner's table margin or keep-out boxes."""
         if msg.node.lstrip('/') != self.planner_full_name():
             return
@@ -157,26 +164,26 @@ class MarkersNode(Node):
         if changed:
             self.follow(changed)
 
-    def planner_full_name(self):
+    def planner_full_name(self) -> str:
         """Return the planner's node name with this node's namespace (no leading slash)."""
         if self.planner.startswith('/'):
             return self.planner.lstrip('/')
         ns = self.get_namespace().strip('/')
         return f'{ns}/{self.planner}' if ns else self.planner
 
-    def follow(self, values):
+    def follow(self, values: dict[str, object]) -> None:
         """Take the planner's ``values`` (names in ``FOLLOWED``) and publish."""
         for name, value in values.items():
             self.followed[name] = list(value) if name == 'keep_out_boxes' else float(value)
         self.publish()
 
-    def on_pose_goal(self, msg):
+    def on_pose_goal(self, msg: PoseStamped) -> None:
         """Show a pose goal; the path of the goal before is cleared."""
         self.goal = goal_markers(pose_to_matrix(msg.pose))
         self.path = []
         self.publish()
 
-    def on_path_goal(self, msg):
+    def on_path_goal(self, msg: PoseArray) -> None:
         """Show a path goal: its last pose is the goal, the others its via poses."""
         if not msg.poses:
             return
@@ -185,7 +192,7 @@ class MarkersNode(Node):
         self.path = []
         self.publish()
 
-    def on_demands(self, msg):
+    def on_demands(self, msg: Float32MultiArray) -> None:
         """Show the tool path of the demanded waypoints (forward kinematics of each)."""
         try:
             Q = demands_from_msg(msg, self.arm.n_joints)
@@ -194,7 +201,7 @@ class MarkersNode(Node):
         self.path = [path_marker(fk_batch(self.arm, Q)[:, :3, 3])]
         self.publish()
 
-    def markers(self):
+    def markers(self) -> MarkerArray:
         """Return the whole ``MarkerArray`` (a DELETEALL first: no stale marker stays)."""
         try:
             boxes = keep_out_boxes(self.followed['keep_out_boxes'])
@@ -210,12 +217,12 @@ class MarkersNode(Node):
             m.frame_locked = True
         return MarkerArray(markers=items)
 
-    def publish(self):
+    def publish(self) -> None:
         """Publish the markers."""
         self.pub.publish(self.markers())
 
 
-def main(args=None):
+def main(args: Optional[list[str]] = None) -> None:
     """Run the markers node until Ctrl-C."""
     try:
         shutdown.run_node(MarkersNode, args)

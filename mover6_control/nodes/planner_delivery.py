@@ -17,7 +17,7 @@ from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.control.status import PlannerResult
-from mover6_control.nodes import conversions
+from mover6_control.nodes import conversions, demand_messages
 from mover6_control.nodes.planner_thread import POLL
 from mover6_control.planning.planner_core import JointPlan
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -95,7 +95,7 @@ class DemandDelivery:
             self.refuse(motion, 'nobody subscribes to /joint_demands: is the controller running?',
                         'no_controller', {}, goal)
             return
-        msg = conversions.make_demands(plan.q, goal['goal_id'], goal.get('profile', ''))
+        msg = demand_messages.make_demands(plan.q, goal['goal_id'], goal.get('profile', ''))
         now = time.monotonic()
         with self.lock:
             self.unconfirmed[goal['goal_id']] = Unconfirmed(goal, motion, msg, now, 1, now)

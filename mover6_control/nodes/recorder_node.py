@@ -19,6 +19,7 @@ the file is finished and ``metadata.yaml`` written.
 
 import importlib
 import time
+from typing import Optional, Sequence
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.errors import InvalidInputError
@@ -30,18 +31,19 @@ from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.parameters import RECORDER
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.topic_endpoint_info import TopicEndpointInfo
 import yaml
 
 DEPTH = 1000          # messages a subscription may queue while a write is slow
 
 
-def message_class(type_name):
+def message_class(type_name: str) -> type:
     """Return the Python class of ``pkg/msg/Type``."""
     package, kind, name = type_name.split('/')
     return getattr(importlib.import_module(f'{package}.{kind}'), name)
 
 
-def default_path():
+def default_path() -> str:
     """Return ros2 bag's default folder name, ``rosbag2_YYYY_MM_DD-HH_MM_SS``."""
     return time.strftime('rosbag2_%Y_%m_%d-%H_%M_%S')
 
@@ -52,7 +54,7 @@ def _time(duration):
     return {'sec': int(sec), 'nsec': int(nsec)}
 
 
-def qos_dict(qos):
+def qos_dict(qos: QoSProfile) -> dict:
     """Return one offered QoS profile as rosbag2's metadata (version 8) writes it."""
     return {'history': int(qos.history), 'depth': int(qos.depth),
             'reliability': int(qos.reliability), 'durability': int(qos.durability),
@@ -62,7 +64,7 @@ def qos_dict(qos):
             'avoid_ros_namespace_conventions': bool(qos.avoid_ros_namespace_conventions)}
 
 
-def matching_qos(infos):
+def matching_qos(infos: Sequence[TopicEndpointInfo]) -> tuple[QoSProfile, str]:
     """
     Return (QoS, offered_qos_profiles text) that receives from every publisher in ``infos``.
 
@@ -101,7 +103,7 @@ class RecorderNode(Node):
         self.discover()
         self.publish_status()
 
-    def discover(self):
+    def discover(self) -> None:
         """Subscribe every wanted topic that has a publisher now."""
         if self.stopped:
             return
@@ -128,7 +130,7 @@ class RecorderNode(Node):
                 kind, topic, lambda data, topic=topic: self.on_message(topic, data), qos,
                 raw=True)
 
-    def on_message(self, topic, data):
+    def on_message(self, topic: str, data: bytes) -> None:
         """Write one message (its CDR bytes as received)."""
         if self.stopped:
             return
@@ -137,7 +139,7 @@ class RecorderNode(Node):
         except OSError as err:
             self.stop(f'recording stopped: {err}')
 
-    def stop(self, reason):
+    def stop(self, reason: str) -> None:
         """Stop recording for ``reason``: no more subscriptions, the file closed as it can be."""
         if self.stopped:
             return
@@ -154,7 +156,7 @@ class RecorderNode(Node):
                                 f'to {self.bag.path})')
         self.publish_status()
 
-    def publish_status(self):
+    def publish_status(self) -> None:
         """Publish ``~/status``: recording (OK) or stopped (ERROR, with the reason)."""
         values = {'path': self.bag.path, 'messages': self.bag.message_count,
                   'topics': ' '.join(t for t, s in self.subscriptions_by_topic.items() if s)}
@@ -163,7 +165,7 @@ class RecorderNode(Node):
         else:
             self.pub_status.publish(make_status('recorder', 'OK', 'recording', values))
 
-    def destroy_node(self):
+    def destroy_node(self) -> None:
         """Finish the recording (file summary, metadata.yaml), then destroy the node."""
         if not self.stopped:
             try:
@@ -175,7 +177,7 @@ class RecorderNode(Node):
         return super().destroy_node()
 
 
-def main(args=None):
+def main(args: Optional[list[str]] = None) -> None:
     """Record until Ctrl-C; a path that cannot be written stops it at once with the reason."""
     try:
         shutdown.run_node(RecorderNode, args)

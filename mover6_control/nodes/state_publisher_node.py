@@ -14,7 +14,9 @@ checks the flange's chain against the package's forward kinematics.
 """
 
 import os
+from typing import Optional
 
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import matrix_to_quaternion
@@ -24,6 +26,7 @@ from mover6_control.nodes.params import declare
 from mover6_control.nodes.qos import LATCHED_QOS
 from mover6_control.parameters import STATE_PUBLISHER
 from mover6_control.resources import CONFIG_DIR
+import numpy as np
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
@@ -33,7 +36,8 @@ from tf2_msgs.msg import TFMessage
 SHIPPED_URDF = os.path.join(CONFIG_DIR, 'mover6.urdf')
 
 
-def make_transform_stamped(T, parent, child, stamp, prefix=''):
+def make_transform_stamped(T: np.ndarray, parent: str, child: str, stamp: Time,
+                           prefix: str = '') -> TransformStamped:
     """Return the ``TransformStamped`` of ``T`` (4, 4) from ``parent`` to ``child``."""
     msg = TransformStamped()
     msg.header.stamp = stamp
@@ -46,7 +50,7 @@ def make_transform_stamped(T, parent, child, stamp, prefix=''):
     return msg
 
 
-def shipped_description():
+def shipped_description() -> str:
     """Return the text of the shipped URDF (config/mover6.urdf)."""
     with open(SHIPPED_URDF) as f:
         return f.read()
@@ -78,7 +82,7 @@ class StatePublisherNode(Node):
             f'{self.tree.name}: {len(self.tree.moving)} moving and {len(self.tree.fixed)} fixed '
             f'joints from {self.tree.root}')
 
-    def on_joint_states(self, data):
+    def on_joint_states(self, data: bytes) -> None:
         """Publish /tf for the joints a message names (at most ``publish_frequency`` a second)."""
         now = self.get_clock().now()
         period = 1.0 / self.get_parameter('publish_frequency').value
@@ -99,7 +103,7 @@ class StatePublisherNode(Node):
             self.published += 1
 
 
-def main(args=None):
+def main(args: Optional[list[str]] = None) -> None:
     """Run the state publisher until Ctrl-C (a bad description stops it with the reason)."""
     try:
         shutdown.run_node(StatePublisherNode, args)

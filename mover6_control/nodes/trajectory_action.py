@@ -31,27 +31,29 @@ joint name (0: the default, -1: none); the defaults are the controller's ``path_
 ``goal_tolerance`` parameters. A cancel stops the arm with the usual deceleration and the goal
 ends canceled once the arm is at rest. A new goal, or a /joint_demands message, preempts the
 running goal: it is aborted with INVALID_GOAL (as joint_trajectory_controller) and the reason.
+
+How a goal is read (joints by name, points, timing, tolerances) and which code a motion that
+ended gets: ``nodes/trajectory_goal.py``; here the server that runs it.
 """
 
 from typing import Optional, Sequence
 
 from control_msgs.action import FollowJointTrajectory
-from control_msgs.msg import JointTolerance
 from mover6_control.control.motion_plan import MotionPlan
-from mover6_control.control.status import (Cause, FINAL_RESULTS, MotionResult, State, StatusKey,
+from mover6_control.control.status import (FINAL_RESULTS, MotionResult, State, StatusKey,
                                            TIMING_AS_GIVEN)
 from mover6_control.control.timed_plan import Timing
-from mover6_control.errors import InvalidInputError
-from mover6_control.nodes import conversions
+from mover6_control.nodes import demand_messages
+from mover6_control.nodes.trajectory_goal import (ended_code, map_goal, map_timing, Result,
+                                                  tolerances, violations)
 from mover6_control.validation import short_text
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.duration import Duration
 from rclpy.task import Future
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectoryPoint
 
-Result = FollowJointTrajectory.Result
 FEEDBACK_PERIOD = 0.1    # [s]
 # Longest wait [s] for the demand thread to accept or refuse a goal's demand: this, plus
 # ACCEPT_PER_POINT for each point (the continuous law plans 10,000 points for seconds).
@@ -59,102 +61,6 @@ ACCEPT_TIMEOUT = 10.0
 ACCEPT_PER_POINT = 0.005
 # A motion's result counts once the controller has left these states.
 ENDED_AFTER = (State.EXECUTING, State.SETTLING, State.STOPPING)
-
-
-def map_goal(trajectory: JointTrajectory, joint_names: Sequence[str]) -> list:
-    """
-    Return the waypoints (N, n) [rad] of a JointTrajectory in ``joint_names`` order.
-
-    Raises ``ValueError`` with ``(error_code, reason)`` as its arguments when the joints or the
-    points are not usable.
-    """
-    names = list(trajectory.joint_names)
-    if sorted(names) != sorted(joint_names) or len(set(names)) != len(names):
-        raise ValueError(Result.INVALID_JOINTS,
-                         f'the goal names joints {names}; this controller drives exactly '
-                         f'{list(joint_names)} (any order, each once)')
-    if not trajectory.points:
-        raise ValueError(Result.INVALID_GOAL, 'the trajectory has no points')
-    order = [names.index(name) for name in joint_names]
-    rows, last = [], -1.0
-    for k, point in enumerate(trajectory.points):
-        if len(point.positions) != len(names):
-            raise ValueError(Result.INVALID_GOAL, f'point {k} has {len(point.positions)} '
-                                                  f'positions for {len(names)} joints')
-        if point.velocities and len(point.velocities) != len(names):
-            raise ValueError(Result.INVALID_GOAL, f'point {k} has {len(point.velocities)} '
-                                                  f'velocities for {len(names)} joints')
-        t = point.time_from_start.sec + point.time_from_start.nanosec * 1e-9
-        if t < last:
-            raise ValueError(Result.INVALID_GOAL,
-                             f'point {k}: time_from_start {t:.3f} s is before the point before')
-        last = t
-        rows.append([float(point.positions[i]) for i in order])
-    return rows
-
-
-def map_timing(trajectory: JointTrajectory, joint_names: Sequence[str]) -> Timing:
-    """
-    Return the ``Timing`` of a JointTrajectory's points in ``joint_names`` order.
-
-    Raises ``ValueError`` with ``(error_code, reason)`` when velocities or accelerations are
-    given for some points and not others, have the wrong length or are not finite.
-    """
-    names = list(trajectory.joint_names)
-    order = [names.index(name) for name in joint_names]
-    points = list(trajectory.points)
-    times = [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in points]
-    columns = {}
-    for field in ('velocities', 'accelerations'):
-        given = [len(getattr(p, field)) > 0 for p in points]
-        if any(given) and not all(given):
-            raise ValueError(Result.INVALID_GOAL, f'{field} are given for some points and not '
-                                                  f'others: give them for all or none')
-        if not any(given):
-            continue
-        for k, point in enumerate(points):
-            if len(getattr(point, field)) != len(names):
-                raise ValueError(Result.INVALID_GOAL,
-                                 f'point {k} has {len(getattr(point, field))} {field} for '
-                                 f'{len(names)} joints')
-        columns[field] = [[float(getattr(p, field)[i]) for i in order] for p in points]
-    try:
-        return Timing(times, columns.get('velocities'), columns.get('accelerations'))
-    except InvalidInputError as err:
-        raise ValueError(Result.INVALID_GOAL, str(err))
-
-
-def ended_code(values: dict) -> int:
-    """
-    Return the error code of a goal whose motion ended other than arrived, from its status.
-
-    Decided by the controller's ``cause`` (``status.Cause``), never by the words of its reason:
-    not settled within the goal tolerance is GOAL_TOLERANCE_VIOLATED; the path tolerance left,
-    stale states or a stop is PATH_TOLERANCE_VIOLATED.
-    """
-    if values.get(StatusKey.CAUSE) == Cause.GOAL_TOLERANCE:
-        return Result.GOAL_TOLERANCE_VIOLATED
-    return Result.PATH_TOLERANCE_VIOLATED
-
-
-def tolerances(entries: Sequence[JointTolerance], joint_names: Sequence[str],
-               default: float) -> list:
-    """Return the position tolerance per joint [rad] (None: unchecked) from JointTolerance[]."""
-    tol = {name: default for name in joint_names}
-    for entry in entries:
-        if entry.name in tol and entry.position > 0.0:
-            tol[entry.name] = entry.position
-        elif entry.name in tol and entry.position < 0.0:
-            tol[entry.name] = None
-    return [tol[name] for name in joint_names]
-
-
-def violations(error: Sequence[float], tol: Sequence[Optional[float]],
-               joint_names: Sequence[str]) -> str:
-    """Return the words for each joint whose |error| exceeds its tolerance ('' when none)."""
-    return '; '.join(f'{name} off by {abs(e):.4f} rad (tolerance {t:g})'
-                     for name, e, t in zip(joint_names, error, tol)
-                     if t is not None and abs(e) > t)
 
 
 class FollowJointTrajectoryServer:
@@ -217,7 +123,7 @@ class FollowJointTrajectoryServer:
                 mapped['code'] = err.args[0]
                 node.goals.refused(goal_id, short_text(err.args[1]))
                 return None
-            demand = conversions.make_demands(mapped['rows'], goal_id)
+            demand = demand_messages.make_demands(mapped['rows'], goal_id)
             return (demand, mapped['timing']) if mapped['timing'].timed else demand
 
         taken = node.goals.expect(goal_id, node.executor)   # done when taken or refused

@@ -10,6 +10,7 @@ those of a namespaced stack.
 import argparse
 import os
 import sys
+from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.nodes.bag_writer import check_bag_path
@@ -18,7 +19,7 @@ from mover6_control.nodes.recorder_node import default_path
 from mover6_control.parameters import RECORDED_TOPICS
 
 
-def recorder_command(path, topics=(), namespace=''):
+def recorder_command(path: str, topics: Sequence[str] = (), namespace: str = '') -> list[str]:
     """Return the command line of the recorder node writing ``path``."""
     from ament_index_python.packages import get_package_prefix
     exe = os.path.join(get_package_prefix('mover6_control'), 'lib', 'mover6_control',
@@ -31,7 +32,7 @@ def recorder_command(path, topics=(), namespace=''):
     return cmd
 
 
-def main(argv=None):
+def main(argv: Optional[list[str]] = None) -> int:
     """Check the path, then become the recorder."""
     parser = argparse.ArgumentParser(prog='record', description=__doc__.split('\n\n')[0])
     parser.add_argument('topics', nargs='*',

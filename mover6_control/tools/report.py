@@ -15,14 +15,16 @@ import argparse
 import glob
 import os
 import sys
+from typing import Any, Callable, Optional, Sequence
 
 from mover6_control.control.status import FINAL_RESULTS, MotionResult, PlannerResult, State
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.arm import LIMIT_SETS, mover6
+from mover6_control.kinematics.arm import ArmModel, LIMIT_SETS, mover6
 from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.rotations import pose_error
 from mover6_control.motion.metrics import max_deviation_from_polyline
-from mover6_control.nodes.conversions import demand_id_from_msg, demands_from_msg, pose_to_matrix
+from mover6_control.nodes.conversions import pose_to_matrix
+from mover6_control.nodes.demand_messages import demand_id_from_msg, demands_from_msg
 from mover6_control.tools.goal_convention import format_numbers, goal_from_pose
 import numpy as np
 import yaml
@@ -31,8 +33,15 @@ POSE_SHAPES = ('linear', 'parabolic', 'joint')
 PATH_SHAPES = ('spline', 'arc', 'parabolic', 'joint')
 DEFAULT_SHAPE = {'pose_goal': 'linear', 'path_goal': 'spline'}   # the planner's defaults
 
+# A message as mcap_ros2 decodes it: a class it makes from the embedded definition (no ROS).
+Message = Any
+Recorded = list[tuple[float, Message]]          # (receive time [s], message), in that order
+Topics = dict[str, Recorded]                    # topic name without namespace -> messages
+ParameterChange = tuple[float, str, str]        # (t [s], parameter name, new value)
+Goal = tuple[float, str, str, np.ndarray]       # (t [s], kind, shape, poses (k, 4, 4))
 
-def mcap_file(bag):
+
+def mcap_file(bag: str) -> str:
     """Return the .mcap file of recording ``bag`` (its folder, or the file itself)."""
     if os.path.isfile(bag):
         return bag
@@ -47,7 +56,7 @@ def mcap_file(bag):
     return found[0]
 
 
-def read_recording(bag):
+def read_recording(bag: str) -> tuple[Topics, dict[str, int]]:
     """
     Return ``{topic: [(t [s], message)]}`` of a recording, in receive order, and its counts.
 
@@ -67,12 +76,13 @@ def read_recording(bag):
     return topics, {t: len(v) for t, v in raw.items()}
 
 
-def values(status):
+def values(status: Message) -> dict[str, str]:
     """Return the key -> value dict of a DiagnosticStatus."""
     return {kv.key: kv.value for kv in status.values}
 
 
-def goal_shape(topic, t, parameter_changes):
+def goal_shape(topic: str, t: float,
+               parameter_changes: Sequence[ParameterChange]) -> tuple[str, str]:
     """Return the shape of a goal: its topic's, else the planner's parameter at time ``t``."""
     base, _, shape = topic.partition('/')
     if shape:
@@ -85,7 +95,7 @@ def goal_shape(topic, t, parameter_changes):
     return base, value
 
 
-def planner_parameter_changes(topics):
+def planner_parameter_changes(topics: Topics) -> list[ParameterChange]:
     """Return ``[(t, name, value)]`` of the planner's parameter changes (/parameter_events)."""
     out = []
     for t, event in topics.get('parameter_events', []):
@@ -97,7 +107,7 @@ def planner_parameter_changes(topics):
     return out
 
 
-def goals(topics, parameter_changes):
+def goals(topics: Topics, parameter_changes: Sequence[ParameterChange]) -> list[Goal]:
     """Return ``[(t, kind, shape, poses (k, 4, 4))]`` of every goal, in time order."""
     out = []
     for topic, items in topics.items():
@@ -113,7 +123,8 @@ def goals(topics, parameter_changes):
     return sorted(out, key=lambda g: g[0])
 
 
-def joint_samples(topics, names):
+def joint_samples(topics: Topics,
+                  names: Sequence[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return (t (m,), q (m, 6), qd (m, 6)) of /joint_states mapped by name."""
     t, q, qd = [], [], []
     for stamp, msg in topics.get('joint_states', []):
@@ -127,12 +138,13 @@ def joint_samples(topics, names):
     return np.array(t), np.array(q).reshape(-1, len(names)), np.array(qd).reshape(-1, len(names))
 
 
-def first(items, t0, t1, predicate):
+def first(items: Recorded, t0: float, t1: float,
+          predicate: Callable[[Message], bool]) -> Optional[tuple[float, Message]]:
     """Return the first ``(t, msg)`` of ``items`` in [t0, t1) for which ``predicate(msg)``."""
     return next(((t, m) for t, m in items if t0 <= t < t1 and predicate(m)), None)
 
 
-def motion_rows(topics, arm):
+def motion_rows(topics: Topics, arm: ArmModel) -> list[dict]:
     """Return one metrics row per goal of the recording (as the demo's ``run_step`` makes)."""
     changes = planner_parameter_changes(topics)
     all_goals = goals(topics, changes)
@@ -192,7 +204,8 @@ def motion_rows(topics, arm):
     return rows
 
 
-def make_report(bag, report_dir, arm, render=True, say=print):
+def make_report(bag: str, report_dir: str, arm: ArmModel, render: bool = True,
+                say: Callable[[str], None] = print) -> tuple[list[dict], list[str]]:
     """Write the report of recording ``bag`` into ``report_dir``; return (rows, files)."""
     from mover6_control.tools.demo import render_animation, write_report
     topics, counts = read_recording(bag)
@@ -207,7 +220,7 @@ def make_report(bag, report_dir, arm, render=True, say=print):
     return rows, files
 
 
-def main(argv=None):
+def main(argv: Optional[list[str]] = None) -> int:
     """Make the report of a recording; exit 1 when it holds no motion."""
     parser = argparse.ArgumentParser(prog='report', description=__doc__.split('\n\n')[0])
     parser.add_argument('bag', help='the recording: its folder (metadata.yaml) or .mcap file')

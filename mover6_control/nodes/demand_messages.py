@@ -1,0 +1,106 @@
+"""
+The /joint_demands messages: waypoints (N x 6) in a Float32MultiArray, and the label's options.
+
+A demand's first dimension is labelled ``waypoints``, then any of ``goal <id>`` and ``profile
+<name>``: the goal it was planned for and the controller's law for it alone (``make_demands``
+writes them, ``demand_options_from_msg`` reads them back). ``demands_from_msg`` validates and
+raises ``InvalidInputError`` with a reason a person can read, as every ``*_from_msg`` of
+``nodes/conversions.py``.
+"""
+
+from mover6_control.errors import InvalidInputError
+import numpy as np
+from std_msgs.msg import Float32MultiArray, MultiArrayDimension
+
+
+def demands_from_msg(msg: Float32MultiArray, n_joints: int = 6) -> np.ndarray:
+    """
+    Return the waypoints (n, n_joints) [rad] of a Float32MultiArray.
+
+    Accepts the layout ``make_demands`` writes (dim[0] waypoints, dim[1] joints) or a flat
+    array with no layout whose length is a multiple of ``n_joints`` (the Mover6 report's MATLAB
+    and terminal usage).
+    """
+    data = np.asarray(msg.data, dtype=float)
+    dims = list(msg.layout.dim)
+    if data.size == 0:
+        raise InvalidInputError('joint demands are empty')
+    if dims:
+        if len(dims) != 2:
+            raise InvalidInputError(f'joint demands layout must have 2 dims, got {len(dims)}')
+        n, m = dims[0].size, dims[1].size
+        if m != n_joints:
+            raise InvalidInputError(f'joint demands have {m} joints per row, expected {n_joints}')
+        if n * m != data.size - msg.layout.data_offset:
+            raise InvalidInputError(
+                f'joint demands layout says {n} x {m} but data has {data.size} values')
+        data = data[msg.layout.data_offset:]
+    elif data.size % n_joints != 0:
+        raise InvalidInputError(
+            f'joint demands length {data.size} is not a multiple of {n_joints}')
+    if not np.all(np.isfinite(data)):
+        raise InvalidInputError('joint demands have non-finite values')
+    return data.reshape(-1, n_joints)
+
+
+DEMAND_LABEL = 'waypoints'
+DEMAND_ID_MARK = ' goal '
+DEMAND_OPTIONS = ('goal', 'profile')   # the words of a demand label, each with one value
+
+
+def make_demands(Q: np.ndarray, goal_id: str = '', profile: str = '') -> Float32MultiArray:
+    """
+    Build a Float32MultiArray (with layout) from waypoints (n, 6) [rad].
+
+    A ``goal_id`` goes into the first dimension's label, ``waypoints goal <goal_id>``, where
+    ``ros2 topic echo`` shows it; ``demand_id_from_msg`` reads it back. A ``profile`` (the
+    controller's law for this demand only) follows: ``waypoints goal <goal_id> profile cubic``
+    (``demand_profile_from_msg``).
+    """
+    Q = np.asarray(Q, dtype=float)
+    n, m = Q.shape
+    msg = Float32MultiArray()
+    label = DEMAND_LABEL + (DEMAND_ID_MARK + goal_id if goal_id else '')
+    label += f' profile {profile}' if profile else ''
+    msg.layout.dim = [
+        MultiArrayDimension(label=label, size=n, stride=n * m),
+        MultiArrayDimension(label='joints', size=m, stride=m),
+    ]
+    msg.data = [float(x) for x in Q.ravel()]
+    return msg
+
+
+def demand_options_from_msg(msg: Float32MultiArray) -> dict:
+    """
+    Return the options of a demand's label as a dict (``goal``, ``profile``; absent: not given).
+
+    The label is ``waypoints``, then any of ``goal <id>`` and ``profile <name>`` in any order
+    (typable in ``ros2 topic pub``). A demand without layout or with another label carries no
+    options (the Mover6 report's flat arrays). Raises ``InvalidInputError`` for a word without
+    a value, an unknown word or a word given twice.
+    """
+    dims = list(msg.layout.dim)
+    words = (dims[0].label if dims else '').split()
+    if not words or words[0] != DEMAND_LABEL:
+        return {}
+    options = {}
+    for key, value in zip(words[1::2], words[2::2] + [None]):
+        if key not in DEMAND_OPTIONS or value is None or key in options:
+            raise InvalidInputError(
+                f'demand label "{dims[0].label}": expected "waypoints [goal <id>] '
+                f'[profile <name>]"')
+        options[key] = value
+    return options
+
+
+def demand_id_from_msg(msg: Float32MultiArray) -> str:
+    """Return the goal id a demand carries (``make_demands``), '' when it carries none."""
+    try:
+        return demand_options_from_msg(msg).get('goal', '')
+    except InvalidInputError:
+        return ''
+
+
+def demand_profile_from_msg(msg: Float32MultiArray) -> str:
+    """Return the profile a demand asks for, '' for the controller's; raises on a bad label."""
+    return demand_options_from_msg(msg).get('profile', '')
