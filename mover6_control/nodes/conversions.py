@@ -216,20 +216,6 @@ def joint_jog_from_raw(raw: bytes,
     return joint_jog_from_fields(names, velocities)
 
 
-def joint_state_fields_from_raw(raw: bytes, reader: 'cdr.JointStateReader') -> tuple:
-    """
-    Return ``(names, positions, velocities)`` of a serialized JointState (not checked).
-
-    ``reader`` (a ``cdr.JointStateReader``) reads them; a sample it does not read is
-    deserialised by rclpy (raises ``InvalidInputError`` when even that fails).
-    """
-    try:
-        return reader.read_state(raw)[2:]
-    except ValueError:
-        msg = _deserialize(raw, JointState)
-        return msg.name, msg.position, msg.velocity
-
-
 def _deserialize(raw, msg_type):
     try:
         return deserialize_message(raw, msg_type)
