@@ -23,6 +23,8 @@ The variants run one after the other in the same run (``--repeat N``: N times, a
 each with a fresh stack; the environment applies to the controller and the bridge: ``localhost``
 (Fast DDS as rmw_fastrtps sets it up), ``async`` (``RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``)
 and ``rt_prio_50`` (``tick_priority:=50``: the tick thread at SCHED_FIFO 50 where allowed);
+``local_rt50`` is ``local`` with that, ``local_all_rt50`` also the bridge's physics thread
+(``physics_priority:=50``), as a real arm never waits for a CPU;
 ``localhost`` and ``local`` (the default rows) compare the DDS configurations (``VARIANTS``). The
 machine is shared: the load average is printed and stored. Halts are counted from the bridge's
 log between the first motion and the end of the last (the controller stops before the bridge,
@@ -101,18 +103,20 @@ CHURN_TIMEOUT = 30.0         # [s] a churn process that saw no status by then is
 MOTIONS = np.array([[0.5, -0.4, 0.3, 0.4, -0.3, 0.6], [-0.4, 0.3, -0.3, -0.4, 0.4, -0.5]])
 HALT_LINE = '/JointJog command stale: joints halted'
 LOG_STAMP = re.compile(r'^\[\w+\] \[(\d+\.\d+)\]')   # a ROS log line: [LEVEL] [wall time]
-# The rows measured side by side: (name, DDS configuration, environment, controller parameters).
+# The rows measured side by side: (name, DDS configuration, environment, controller parameters,
+# sim bridge parameters).
 # Every process of a row, the churn processes and this benchmark's own included, runs in the
 # row's DDS configuration: ``localhost`` is ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST as before
 # issue 22 (rmw_fastrtps adds shared memory), ``local`` the package's local configuration
 # (``mover6_control.nodes.local_dds``: UDP on 127.0.0.1 only, no shared memory). ``async`` and
 # ``rt_prio_50`` were tried against the 333 ms stall under LOCALHOST and removed none of it
 # (module doc); they stay so that they can be measured again.
-VARIANTS = (('localhost', 'localhost', {}, {}),
-            ('local', 'local', {}, {}),
-            ('local_rt50', 'local', {}, {'tick_priority': 50}),
-            ('async', 'localhost', {'RMW_FASTRTPS_PUBLICATION_MODE': 'ASYNCHRONOUS'}, {}),
-            ('rt_prio_50', 'localhost', {}, {'tick_priority': 50}))
+VARIANTS = (('localhost', 'localhost', {}, {}, {}),
+            ('local', 'local', {}, {}, {}),
+            ('local_rt50', 'local', {}, {'tick_priority': 50}, {}),
+            ('local_all_rt50', 'local', {}, {'tick_priority': 50}, {'physics_priority': 50}),
+            ('async', 'localhost', {'RMW_FASTRTPS_PUBLICATION_MODE': 'ASYNCHRONOUS'}, {}, {}),
+            ('rt_prio_50', 'localhost', {}, {'tick_priority': 50}, {}))
 DEFAULT_VARIANTS = ('localhost', 'local')
 STALL = 0.2                  # [s] a tick gap this long is a stall (the driver halts at 0.2 s)
 
@@ -202,7 +206,7 @@ def log_lines_between(path, line, wall_t0, wall_t1):
     return inside, after
 
 
-def run_variant(name, env_extra, params, total, log_dir, offcpu=False):
+def run_variant(name, env_extra, params, total, log_dir, offcpu=False, bridge_params=None):
     """
     Run the stack with ``env_extra`` for the controller under churn; return the figures.
 
@@ -228,7 +232,7 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False):
     saved = {k: os.environ.get(k) for k in env_extra}
     os.environ.update(env_extra)          # the bridge runs as the controller does
     try:
-        bridge = NodeProcess('sim_bridge', variant_dir, ros_args=ns_args)
+        bridge = NodeProcess('sim_bridge', variant_dir, params=bridge_params, ros_args=ns_args)
     finally:
         for key, value in saved.items():
             if value is None:
@@ -340,7 +344,8 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False):
             longest_waits.append({'ms': round(duration * 1e3, 1), 'thread': thread,
                                   'state': state, 'frames': frames[:6]})
     results = list(motions.values())
-    return {'variant': name, 'env': env_extra, 'params': params, 'seconds': t1 - t0,
+    return {'variant': name, 'env': env_extra, 'params': params,
+            'bridge_params': bridge_params or {}, 'seconds': t1 - t0,
             'ticks': int(len(ticks)),
             'churn_processes': total,
             'churn_saw_status': sum(1 for c in churn.exit_codes if c == 0),
@@ -374,7 +379,7 @@ def dds_environment(dds, environ):
 
 def run_row(name, total, log_dir, offcpu):
     """Run row ``name`` in a process of its own in the row's DDS configuration; return it."""
-    _, dds, _, _ = next(v for v in VARIANTS if v[0] == name)
+    _, dds, _, _, _ = next(v for v in VARIANTS if v[0] == name)
     out = os.path.join(log_dir, f'{name}.json')
     cmd = [sys.executable, '-m', 'bench.bench_churn', '--row', name, str(total), log_dir, out]
     if offcpu:
@@ -388,8 +393,8 @@ def run_row(name, total, log_dir, offcpu):
 
 def row_main(name, total, log_dir, out, offcpu):
     """Run row ``name`` in this process (its DDS configuration set by ``run_row``)."""
-    _, _, env_extra, params = next(v for v in VARIANTS if v[0] == name)
-    row = run_variant(name, env_extra, params, int(total), log_dir, offcpu)
+    _, _, env_extra, params, bridge_params = next(v for v in VARIANTS if v[0] == name)
+    row = run_variant(name, env_extra, params, int(total), log_dir, offcpu, bridge_params)
     with open(out, 'w') as f:
         json.dump(row, f)
     return 0

@@ -343,6 +343,10 @@ SIM_BRIDGE = _table(
     P('publish_clock', 'bool', False, '',
       'publish /clock after every physics step and stamp with sim time; set at start',
       read_only=True),
+    P('physics_priority', 'int', 0, '',
+      "real-time priority (SCHED_FIFO 1 to 99) of the physics thread, the node's other threads "
+      'one below; 0 = off (normal scheduling); refused without the right (logged once); set at '
+      'start', 0, 99, read_only=True),
     P('viewer', 'bool', False, '',
       'open the MuJoCo viewer when a display exists (headless otherwise); set at start',
       read_only=True),

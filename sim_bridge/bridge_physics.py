@@ -16,6 +16,7 @@ import time
 
 from mover6_control.nodes import conversions
 from mover6_control.nodes.node_clock import now_ns
+from mover6_control.realtime import run_at_priority
 from sim_bridge.simulator import steps_due
 
 MAX_BATCH = 200           # physics steps per loop pass before pacing gives up and re-anchors
@@ -27,11 +28,27 @@ class PhysicsLoop:
 
     def _run(self):
         """Run the physics loop; a failure is logged loudly, never lost in a thread."""
+        self._set_physics_priority(self.get_parameter('physics_priority').value)
         try:
             self._loop()
         except Exception as exc:  # noqa: B902 - report whatever stopped the physics
             self.failure = f'{type(exc).__name__}: {exc}'
             self.get_logger().fatal(f'physics thread stopped: {self.failure}')
+
+    def _set_physics_priority(self, priority: int) -> None:
+        """
+        Run this thread at SCHED_FIFO ``priority`` (``physics_priority``), the rest just below.
+
+        ``mover6_control.realtime.run_at_priority``, as the controller's tick and the driver's
+        cycle: under load the simulated arm keeps its pace as a real one does; 0: as is.
+        """
+        if priority <= 0:
+            return
+        ok, message = run_at_priority(priority)
+        if ok:
+            self.get_logger().info(f'physics thread at {message}')
+        else:
+            self.get_logger().warning(f'physics_priority {priority}: {message}')
 
     def _loop(self):
         """

@@ -352,3 +352,47 @@ def test_contacts_are_reported_on_their_topic(harness):
     assert values['first_contact'] == 'table-link6_tool'
     assert 'table-link6_tool' in values['touching']
     assert int(values['contact_steps']) > 0
+
+
+PHYSICS_PRIORITY_CHILD = """
+import json, time
+import rclpy
+from rclpy.parameter import Parameter
+from mover6_control.realtime import scheduling_of_thread
+from sim_bridge.bridge_node import SimBridgeNode
+rclpy.init()
+bridge = SimBridgeNode(parameter_overrides=[Parameter('physics_priority', value=20)])
+deadline = time.monotonic() + 30.0
+tid = bridge.thread.native_id
+path = f'/proc/self/task/{tid}/stat'
+while time.monotonic() < deadline:
+    fields = open(path).read().rsplit(')', 1)[1].split()
+    # Fields 40 and 41 of stat (the 38th and 39th after the name): rt_priority, policy.
+    if int(fields[37]) != 0 or bridge.failure:
+        break
+    time.sleep(0.01)
+print(json.dumps({'rt_priority': int(fields[37]), 'policy': int(fields[38]),
+                  'main': scheduling_of_thread(), 'failure': bridge.failure}))
+bridge.destroy_node()
+rclpy.try_shutdown()
+"""
+
+
+def test_physics_priority_raises_the_physics_thread_or_says_why():
+    """``physics_priority``: the physics thread at SCHED_FIFO, the node's others just below."""
+    import json
+    import os
+    import subprocess
+    import sys
+    # A child process: raising a thread of this process would raise all the test's threads.
+    done = subprocess.run([sys.executable, '-c', PHYSICS_PRIORITY_CHILD], capture_output=True,
+                          text=True, timeout=120, env=dict(os.environ))
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    assert out['failure'] is None
+    if 'physics thread at SCHED_FIFO priority 20' in done.stderr:
+        assert (out['rt_priority'], out['policy']) == (20, os.SCHED_FIFO)
+        assert out['main'] == ['fifo', 19]
+    else:
+        assert 'physics_priority 20: real-time scheduling refused' in done.stderr, done.stderr
+        assert out['rt_priority'] == 0
