@@ -336,7 +336,8 @@ def test_unacknowledged_demand_is_sent_again_then_no_more(nodes):
     give_state(executor, planner, probe, HOME)
     status = send_pose(executor, probe, GOAL)
     goal_id = conversions.status_values(status)['goal_id']
-    assert spin_until(executor, lambda: len(probe.demands) == 1 + RESENDS, 10.0)
+    assert spin_until(executor, lambda: len(probe.demands) == 1 + RESENDS,
+                      30.0 + RESEND_AFTER * RESENDS)
     for msg in probe.demands:
         assert demand_messages.demand_id_from_msg(msg) == goal_id
         assert list(msg.data) == list(probe.demands[0].data)

@@ -31,7 +31,7 @@ LOCKED_PLAN_LIMIT = 0.02
 # Longest wait [s] of a demand that comes before the first joint states (the planner can be
 # quicker at start-up), or in a fault that fresh states clear (a stall at start-up: Fast DDS
 # discovery can hold a process for 0.33 s); then it is refused with the reason. Less than the
-# planner's resend window (RESEND_AFTER * (RESENDS + 1) = 3 s).
+# planner's resend window (RESEND_AFTER * (RESENDS + 1) = 6 s).
 DEMAND_STATE_WAIT = 2.0
 # States in which a demand waits (DEMAND_STATE_WAIT) for valid joint states.
 WAIT_FOR_STATES = (WAITING_FOR_STATES, FAULT)

@@ -28,9 +28,11 @@ CONTROLLER_STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIE
 # [s] a demand no controller acknowledged (by goal id in its status) is sent again after this,
 # at most RESENDS more times; then the goal fails (not_acknowledged). The controller waits for
 # its first states at most controller_demands.DEMAND_STATE_WAIT (2 s) before it answers: less than
-# RESEND_AFTER * (RESENDS + 1).
+# RESEND_AFTER * (RESENDS + 1) = 6 s. The window also covers a controller that the graph did not
+# show yet when the demand first went out (another reader of /joint_demands, a goal client,
+# matched): on a loaded machine its discovery took more than 3 s (a fresh clone's suite).
 RESEND_AFTER = 1.0
-RESENDS = 2
+RESENDS = 5
 
 
 @dataclasses.dataclass
