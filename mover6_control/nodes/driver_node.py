@@ -24,48 +24,40 @@ delayed a JointJog by 27 ms on average) and the services, which wait for the mod
 node (``driver_services``, no parameters) and executor of their own. Measured with
 ``./run.sh bench driver``.
 
-A refused JointJog changes nothing: the previous command ages out after ``command_timeout`` and
-the arm holds. Refused are: displacements, no names, unequal lengths, a name
-twice, an unknown name, a non-finite value, a fraction beyond [-1, 1] (fraction_of_max) or a
-speed beyond ``JOG_REFUSE_FACTOR`` times the joint's maximum (rad_per_s; a speed between one
-and that many times its maximum is clipped to it and counted). /diagnostics counts the JointJogs
-received, refused (by reason), clipped and superseded (replaced before a cycle used them: a
-flood), with the last refusal's reason.
+The node is three parts: this module (parameters, services, the threads), ``driver_jog``
+(/JointJog checked and commanded, or refused: which JointJogs are refused and what is counted)
+and ``driver_publish`` (the publisher thread: /joint_states, /diagnostics and the state log).
 """
 
 import gc
-import re
 import sys
 import threading
+from typing import Optional
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticArray
-from mover6_control.errors import InvalidInputError
 from mover6_control.hardware.bus import open_bus
 from mover6_control.hardware.driver import ArmDriver
 from mover6_control.hardware.scaling import JOINTS_YAML, load_joints
 from mover6_control.nodes import shutdown
-from mover6_control.nodes.conversions import (joint_jog_from_msg, make_joint_state,
-                                              make_status)
+from mover6_control.nodes.driver_jog import JogInput
+from mover6_control.nodes.driver_publish import ReportPublisher
 from mover6_control.nodes.params import declare
 from mover6_control.parameters import DRIVER
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 GRIPPER_BITS = {'off': 0x00, 'open': 0x03, 'closed': 0x02}
 """Joint 4's outputs: bit 0 'gripper open', bit 1 'gripper enabled' (the vendor's CPRMover6)."""
 GRIPPER_JOINT, OUTPUTS_JOINT = 4, 1
-JOG_REFUSE_FACTOR = 2.0
-"""rad_per_s: a JointJog faster than this many times a joint's maximum speed is refused."""
 SWITCH_INTERVAL = 0.0005
 """[s] the interpreter lock's switch interval in the driver's process (Python's default 5 ms)."""
-LEVELS = {'fault': 'ERROR', 'error': 'ERROR', 'disconnected': 'WARN', 'connected': 'WARN',
-          'enabled': 'OK', 'referenced': 'OK'}
 
 
-class DriverNode(Node):
+class DriverNode(JogInput, ReportPublisher, Node):
     """Drive the arm over CAN; see the module docstring."""
 
     def __init__(self, **kwargs):
@@ -126,7 +118,7 @@ class DriverNode(Node):
 
     # --- parameters ---
 
-    def on_parameters_set(self, parameters):
+    def on_parameters_set(self, parameters: list[Parameter]) -> None:
         """Apply the live parameters to the driver (they were checked before they were set)."""
         names = {x.name for x in parameters}
         if 'cycle' in names:
@@ -143,66 +135,6 @@ class DriverNode(Node):
         self.driver.set_outputs(GRIPPER_JOINT, GRIPPER_BITS[gripper])
         self.driver.set_outputs(OUTPUTS_JOINT, outputs)
 
-    # --- /JointJog ---
-
-    def on_jog(self, msg):
-        """Command the velocities of a JointJog, or refuse it with the reason on /diagnostics."""
-        self.jogs += 1
-        try:
-            qd, clipped = self.jog_velocities(msg)
-        except JogRefused as err:
-            self.refused += 1
-            self.refused_by[err.reason] = self.refused_by.get(err.reason, 0) + 1
-            self.last_refusal = str(err)[:200]
-            self.get_logger().warning(f'JointJog refused: {self.last_refusal}',
-                                      throttle_duration_sec=1.0)
-            self._notify()
-            return
-        self.clipped += clipped
-        if self._jog_pending:
-            self.superseded += 1
-        self._jog_pending = True
-        self.driver.set_velocity(qd)
-
-    def jog_velocities(self, msg):
-        """Return (joint velocities [rad/s] in driver order, joints clipped); raise JogRefused."""
-        if len(msg.displacements):
-            raise JogRefused('displacements', 'JointJog displacements are not supported: send '
-                             'velocities')
-        if not len(msg.joint_names):
-            raise JogRefused('empty', 'JointJog names no joints')
-        if len(msg.velocities) != len(msg.joint_names):
-            raise JogRefused('length', f'JointJog has {len(msg.joint_names)} joint names but '
-                             f'{len(msg.velocities)} velocities')
-        try:
-            names, values = joint_jog_from_msg(msg)
-        except InvalidInputError as err:
-            reason = 'non_finite' if 'non-finite' in str(err) else 'names'
-            raise JogRefused(reason, str(err)) from None
-        unknown = [n for n in names if n not in self.names]
-        if unknown:
-            raise JogRefused('unknown_joint', f'JointJog names unknown joints {unknown[:6]}; '
-                             f'the arm has {list(self.names)}')
-        qd = [0.0] * len(self.names)
-        clipped = 0
-        override = self.get_parameter('speed_override').value
-        for name, value in zip(names, values):
-            i = self.names.index(name)
-            top = self.max_speed[i]
-            if self.jog_units == 'fraction_of_max':
-                if abs(value) > 1.0 + 1e-9:
-                    raise JogRefused('out_of_range', f'JointJog {name} at {value:.6g} is no '
-                                     'fraction of its maximum speed (fraction_of_max: -1..1)')
-                qd[i] = float(value) * top * override
-            else:
-                if abs(value) > JOG_REFUSE_FACTOR * top:
-                    raise JogRefused('out_of_range', f'JointJog {name} at {value:.6g} rad/s is '
-                                     f'beyond {JOG_REFUSE_FACTOR:g} x its maximum speed '
-                                     f'{top:.4f} rad/s')
-                clipped += abs(value) > top
-                qd[i] = float(value)
-        return qd, clipped
-
     # --- services ---
 
     def _serve(self):
@@ -217,7 +149,7 @@ class DriverNode(Node):
             return response
         return callback
 
-    def run_request(self, kind):
+    def run_request(self, kind: str) -> tuple[bool, str]:
         """Run one request to the modules; return (success, message) for the service."""
         if kind == 'set_zero' and not self.get_parameter('allow_set_zero').value:
             return False, 'set_zero refused: set the parameter allow_set_zero to true first'
@@ -239,88 +171,7 @@ class DriverNode(Node):
             if not ok:
                 return
 
-    # --- publishing (off the control thread) ---
-
-    def on_cycle(self, report):
-        """Take one cycle's report (control thread: hand it over, never wait on DDS)."""
-        self._jog_pending = False
-        with self._wake:
-            self._latest = report
-            self._wake.notify()
-
-    def _notify(self):
-        with self._wake:
-            self._diag_now = True
-            self._wake.notify()
-
-    def _publish_loop(self):
-        while True:
-            with self._wake:
-                while self._latest is None and not self._diag_now and not self._closing:
-                    self._wake.wait(0.5)
-                if self._closing:
-                    return
-                report, self._latest = self._latest, None
-                force, self._diag_now = self._diag_now, False
-            try:
-                self._publish(report, force)
-            except Exception as err:  # noqa: B902 - the next cycle's report is published again
-                self.get_logger().error(f'publishing failed: {type(err).__name__}: {err}',
-                                        throttle_duration_sec=1.0)
-
-    def _publish(self, report, force):
-        """Publish one cycle's report (``None``: only /diagnostics, e.g. on a refusal)."""
-        if not self._scheduling_logged and report is not None:
-            self._scheduling_logged = True
-            self.get_logger().info(f'cycle thread: {self.driver.scheduling}')
-        if report is not None and (self._seen is None or
-                                   report.state != self._seen.state or
-                                   hold_kind(report.hold) != hold_kind(self._seen.hold)):
-            # Each change of the arm's state is logged once, with why it holds.
-            text = f'arm {report.state}' + (f': holds, {report.hold}' if report.hold else '')
-            if report.state in ('error', 'fault'):
-                self.get_logger().warning(text)
-            else:
-                self.get_logger().info(text)
-        if report is not None:
-            self._seen = report
-            if all(j.replies for j in report.joints):
-                self.pub_states.publish(make_joint_state(
-                    self.names, [j.q for j in report.joints],
-                    [j.qd for j in report.joints], stamp=self.get_clock().now().to_msg()))
-        if self._seen is not None:
-            self._maybe_diagnostics(self._seen, force)
-
-    def _maybe_diagnostics(self, report, force=False):
-        key = (report.state, report.hold, tuple(j.state for j in report.joints), self.refused,
-               report.frames_bad)
-        period = 1.0 / self.get_parameter('diagnostics_rate').value
-        last = self._last_diag
-        if not force and last is not None and last[0] == key and \
-                report.time - last[1] < period:
-            return
-        self._last_diag = (key, report.time)
-        msg = DiagnosticArray()
-        msg.header.stamp = self.get_clock().now().to_msg()
-        msg.status.append(make_status(
-            'driver: bus', LEVELS[report.state], report.hold or f'arm {report.state}', {
-                'state': report.state, 'hold': report.hold, 'cycle_period': report.period,
-                'frames_dropped': report.frames_dropped, 'frames_bad': report.frames_bad,
-                'tx_errors': report.tx_errors, 'bus_error': report.bus_error,
-                'bad_frames': counts(report.bad_frames), 'last_bad_frame': report.last_bad_frame,
-                'jog_received': self.jogs, 'jog_refused': self.refused,
-                'jog_refused_by': counts(sorted(self.refused_by.items())),
-                'jog_clipped': self.clipped, 'jog_superseded': self.superseded,
-                'last_refusal': self.last_refusal, 'scheduling': self.driver.scheduling}))
-        for j in report.joints:
-            msg.status.append(make_status(
-                f'driver: {j.name}', LEVELS[j.state], j.state, {
-                    'state': j.state, 'flags': f'0x{j.flags:02X}',
-                    'flag_names': ' '.join(j.flag_names), 'referenced': j.referenced,
-                    'position': j.q, 'lag': j.lag, 'silent_cycles': j.silent_cycles}))
-        self.pub_diag.publish(msg)
-
-    def destroy_node(self):
+    def destroy_node(self) -> None:
         """Stop the control thread, disable every module, then destroy the node."""
         self.driver.close()
         with self._wake:
@@ -333,25 +184,7 @@ class DriverNode(Node):
         super().destroy_node()
 
 
-class JogRefused(InvalidInputError):
-    """A JointJog the driver does not take; ``reason`` is its short name on /diagnostics."""
-
-    def __init__(self, reason, message):
-        super().__init__(message)
-        self.reason = reason
-
-
-def hold_kind(hold):
-    """Return why the arm holds without the counts that change every cycle."""
-    return re.sub(r'\d+ cycles', 'N cycles', hold)
-
-
-def counts(pairs):
-    """Return ``(name, count)`` pairs as one line, 'name count, ...' ('' for none)."""
-    return ', '.join(f'{name} {count}' for name, count in pairs)
-
-
-def main(args=None):
+def main(args: Optional[list[str]] = None) -> None:
     """Run the driver node until Ctrl-C, SIGTERM or shutdown; every module is disabled then."""
     sys.setswitchinterval(SWITCH_INTERVAL)
     gc.collect()
