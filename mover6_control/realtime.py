@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import threading
+from typing import Any
 
 MIN_PRIORITY, MAX_PRIORITY = 1, 99
 """The SCHED_FIFO priorities Linux offers; 0 means 'normal scheduling' to the callers."""
@@ -51,6 +52,24 @@ def run_at_priority(priority: int) -> tuple[bool, str]:
                        'CAP_SYS_NICE)')
     return True, (f'SCHED_FIFO priority {priority}, the {len(others)} other threads of the '
                   f'process at {below}')
+
+
+def raise_this_thread(priority: int, log: Any, thread: str, parameter: str) -> bool:
+    """
+    ``run_at_priority(priority)`` for a node's timed ``thread``, said once on ``log``.
+
+    ``log`` is the node's logger (``info``, ``warning``); the success names the ``thread``, a
+    refusal the ``parameter`` and why. Priority 0 (or less) does nothing and says nothing.
+    Return whether the thread now runs at real-time priority.
+    """
+    if priority <= 0:
+        return False
+    ok, message = run_at_priority(priority)
+    if ok:
+        log.info(f'{thread} thread at {message}')
+    else:
+        log.warning(f'{parameter} {priority}: {message}')
+    return ok
 
 
 def scheduling_of_thread() -> tuple[str, int]:

@@ -16,7 +16,7 @@ import time
 
 from mover6_control.nodes import conversions
 from mover6_control.nodes.node_clock import now_ns
-from mover6_control.realtime import run_at_priority
+from mover6_control.realtime import raise_this_thread
 from sim_bridge.simulator import steps_due
 
 MAX_BATCH = 200           # physics steps per loop pass before pacing gives up and re-anchors
@@ -39,16 +39,10 @@ class PhysicsLoop:
         """
         Run this thread at SCHED_FIFO ``priority`` (``physics_priority``), the rest just below.
 
-        ``mover6_control.realtime.run_at_priority``, as the controller's tick and the driver's
+        ``mover6_control.realtime.raise_this_thread``, as the controller's tick and the driver's
         cycle: under load the simulated arm keeps its pace as a real one does; 0: as is.
         """
-        if priority <= 0:
-            return
-        ok, message = run_at_priority(priority)
-        if ok:
-            self.get_logger().info(f'physics thread at {message}')
-        else:
-            self.get_logger().warning(f'physics_priority {priority}: {message}')
+        raise_this_thread(priority, self.get_logger(), 'physics', 'physics_priority')
 
     def _loop(self):
         """

@@ -33,7 +33,7 @@ import traceback
 from mover6_control.control.state_machine import FAULT
 from mover6_control.nodes import conversions
 from mover6_control.nodes.controller_demands import WAIT_FOR_STATES
-from mover6_control.realtime import run_at_priority
+from mover6_control.realtime import raise_this_thread
 from rclpy.duration import Duration
 
 # A tick this late [s] is logged: the driver (and the sim bridge) halt after 0.2 s without one.
@@ -122,18 +122,12 @@ class TickLoop:
         """
         Run the tick thread at real-time priority ``priority`` (SCHED_FIFO), the rest just below.
 
-        ``mover6_control.realtime.run_at_priority`` (the driver's cycle uses it too): as
+        ``mover6_control.realtime.raise_this_thread`` (the driver's cycle uses it too): as
         ros2_control's controller manager does for its update thread, the rest of the process
         just below (in Python the tick also needs the interpreter lock); 0: as is. Where the
         system refuses it, say so once and go on with normal scheduling.
         """
-        if priority <= 0:
-            return
-        ok, message = run_at_priority(priority)
-        if ok:
-            self.get_logger().info(f'tick thread at {message}')
-        else:
-            self.get_logger().warning(f'tick_priority {priority}: {message}')
+        raise_this_thread(priority, self.get_logger(), 'tick', 'tick_priority')
 
     def on_tick(self) -> None:
         """Run one control tick: publish the JointJog, and the status when due."""
