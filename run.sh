@@ -317,11 +317,15 @@ case "$cmd" in
             # Without one, as before: discovery on loopback (LOCALHOST) unless the user chose.
             export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
             ensure
-            if private_netns; then
-                log "tests inside a private network namespace (${UNSHARE[*]}): only loopback"
+            if [ "${MOVER6_NETNS:-1}" != 0 ] && private_netns; then
+                log "tests inside a private network namespace (${UNSHARE[*]}): only loopback (MOVER6_NETNS=0: host)"
                 MOVER6_TEST_NETWORK=netns exec "${UNSHARE[@]}" "$ROOT/run.sh" test "$@"
             fi
-            log 'this machine allows no private network namespace: tests on the host network'
+            if [ "${MOVER6_NETNS:-1}" = 0 ]; then
+                log 'MOVER6_NETNS=0: tests on the host network (loopback discovery, LOCALHOST)'
+            else
+                log 'this machine allows no private network namespace: tests on the host network'
+            fi
             export MOVER6_TEST_NETWORK=host
         fi
         pick_domain_id
