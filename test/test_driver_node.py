@@ -164,7 +164,11 @@ def test_bad_jointjog_is_refused_with_the_reason(rig):
         operator.jog_pub.publish(msg)
     assert wait_for(lambda: operator.bus_status().get('jog_refused') == '3')
     assert 'velocities' in operator.bus_status()['last_refusal']
-    assert driver.driver.report is not None and driver.driver.report.state == 'error'
+    # The modules' power-up state (an error until reset), once they have all answered: refused
+    # JointJogs changed nothing.
+    assert wait_for(lambda: driver.driver.report is not None
+                    and driver.driver.report.state != 'disconnected')
+    assert driver.driver.report.state == 'error', driver.driver.report
 
 
 def test_set_zero_is_guarded_and_parameters_are_checked(rig):
