@@ -17,7 +17,6 @@ reported no contact (/sim_bridge/contacts).
 """
 
 import argparse
-import json
 import os
 import signal
 import subprocess
@@ -31,12 +30,14 @@ from mover6_control.control.status import MotionResult
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk_batch
+from mover6_control.motion.metrics import max_deviation_from_polyline
 from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.resources import CONFIG_DIR
 from mover6_control.tools.goal_cli import GoalClient
 from mover6_control.tools.goal_convention import (EXIT_REFUSED, format_numbers, format_outcome,
                                                   poses_from_numbers)
 from mover6_control.tools.record import check_bag_path, default_path
+from mover6_control.tools.report import make_report, write_files
 import numpy as np
 import rclpy
 from sensor_msgs.msg import JointState
@@ -183,12 +184,6 @@ def stop_stack(proc: subprocess.Popen) -> None:
             proc.wait(5.0)
 
 
-def deviation_from_polyline(points: np.ndarray, polyline: np.ndarray) -> float:
-    """Return the largest distance [m] of ``points`` (m, 3) from a polyline (k, 3)."""
-    from mover6_control.motion.metrics import max_deviation_from_polyline
-    return max_deviation_from_polyline(points, polyline)
-
-
 def run_step(client: GoalClient, recorder: Recorder, arm: ArmModel, step: Step,
              say: Callable[[str], None]) -> dict:
     """Run one showcase step; return its metrics row."""
@@ -221,64 +216,8 @@ def run_step(client: GoalClient, recorder: Recorder, arm: ArmModel, step: Step,
         planned = fk_batch(arm, client.last_demands)[:, :3, 3]
         realised = fk_batch(arm, q)[:, :3, 3]
         row['planned_path'] = planned.tolist()
-        row['max_path_deviation'] = deviation_from_polyline(realised, planned)
+        row['max_path_deviation'] = max_deviation_from_polyline(realised, planned)
     return row
-
-
-def write_report(report_dir: str, rows: list[dict], arm: ArmModel) -> list[str]:
-    """Write metrics.json, metrics.md and the plots; return the list of files written."""
-    from mover6_control.tools import plots
-    files = []
-    for row in rows:
-        if 'samples' not in row or not row['samples']['t']:
-            continue
-        s = row['samples']
-        t, q, qd = (np.asarray(s[k]) for k in ('t', 'q', 'qd'))
-        realised = fk_batch(arm, q)[:, :3, 3]
-        base = os.path.join(report_dir, row['motion'])
-        files.append(plots.plot_path_3d(np.asarray(row['planned_path']), realised,
-                                        base + '_path3d.png'))
-        files.append(plots.plot_joint_trajectories(t, q, arm.lower, arm.upper,
-                                                   base + '_joints.png'))
-        files.append(plots.plot_joint_velocities(t, qd, arm.velocity_limits,
-                                                 base + '_velocities.png'))
-    table = [{k: v for k, v in row.items() if k not in ('samples', 'planned_path')}
-             for row in rows]
-    with open(os.path.join(report_dir, 'metrics.json'), 'w') as f:
-        json.dump(table, f, indent=2)
-    lines = ['| motion | goal X Y Z A B C (A B C from home) | result | duration [s] | '
-             'final joint error [rad] | final tool position error [mm] | '
-             'max deviation from planned path [mm] |',
-             '|---|---|---|---|---|---|---|']
-    for row in table:
-        def num(key, scale=1.0, fmt='.4f'):
-            return format(row[key] * scale, fmt) if key in row else '-'
-        result = row['result'] + (f' ({row["reason"]})' if row['result'] == 'refused' else '')
-        lines.append(f'| {row["motion"]} | {row.get("goal", "-")} | {result} | '
-                     f'{num("duration", fmt=".2f")} | '
-                     f'{num("final_joint_error")} | {num("final_position_error", 1e3, ".2f")} | '
-                     f'{num("max_path_deviation", 1e3, ".2f")} |')
-    with open(os.path.join(report_dir, 'metrics.md'), 'w') as f:
-        f.write('\n'.join(lines) + '\n')
-    files += [os.path.join(report_dir, 'metrics.json'), os.path.join(report_dir, 'metrics.md')]
-    return files
-
-
-def render_animation(report_dir: str, rows: list[dict], arm: ArmModel) -> Optional[str]:
-    """Render the recorded motion of every step into one animated GIF; return its path."""
-    if not os.environ.get('DISPLAY'):
-        os.environ.setdefault('MUJOCO_GL', 'egl')   # read when MuJoCo is first imported
-    from sim_bridge import render
-    q = [np.asarray(r['samples']['q']) for r in rows if r.get('samples', {}).get('q')]
-    t = [np.asarray(r['samples']['t']) for r in rows if r.get('samples', {}).get('q')]
-    if not q:
-        return None
-    offset, times = 0.0, []
-    for seg in t:
-        times.append(seg + offset)
-        offset = times[-1][-1] + 0.5
-    return render.save_gif(arm, np.concatenate(times), np.concatenate(q),
-                           os.path.join(report_dir, 'motion.gif'))
 
 
 def passed(rows: list[dict], steps: Sequence[Step]) -> bool:
@@ -397,18 +336,13 @@ def main(argv: Optional[list[str]] = None) -> int:
             stop_stack(bag_recorder)   # first: the file is finished while the nodes still run
         stop_stack(stack)
     if bag and os.path.isfile(os.path.join(bag, 'metadata.yaml')):
-        from mover6_control.tools.report import make_report
         say(f'report from the recording {bag} ({bag_size(bag) / 1e6:.2f} MB)')
         _, files = make_report(bag, report_dir, arm, render=not args.no_render, say=say)
     else:
         if bag:
             say(f'the recording {bag} was not finished (see logs/recorder.log): the report is '
                 'made from what the demo saw')
-        files = write_report(report_dir, rows, arm)
-        if not args.no_render:
-            gif = render_animation(report_dir, rows, arm)
-            if gif:
-                files.append(gif)
+        files = write_files(report_dir, rows, arm, render=not args.no_render)
     files += write_profile_comparison(report_dir, arm)
     ok = passed(rows, steps)
     if args.hardware != 'sim':

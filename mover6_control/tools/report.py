@@ -13,6 +13,7 @@ motion.gif (the arm rendered offscreen) unless ``--no-render``.
 
 import argparse
 import glob
+import json
 import os
 import sys
 from typing import Any, Callable, Optional, Sequence
@@ -204,20 +205,81 @@ def motion_rows(topics: Topics, arm: ArmModel) -> list[dict]:
     return rows
 
 
-def make_report(bag: str, report_dir: str, arm: ArmModel, render: bool = True,
-                say: Callable[[str], None] = print) -> tuple[list[dict], list[str]]:
-    """Write the report of recording ``bag`` into ``report_dir``; return (rows, files)."""
-    from mover6_control.tools.demo import render_animation, write_report
-    topics, counts = read_recording(bag)
-    os.makedirs(report_dir, exist_ok=True)
-    say(f'recording {bag}: ' + ', '.join(f'{t} {n}' for t, n in sorted(counts.items())))
-    rows = motion_rows(topics, arm)
+def write_report(report_dir: str, rows: list[dict], arm: ArmModel) -> list[str]:
+    """Write metrics.json, metrics.md and the plots; return the list of files written."""
+    from mover6_control.tools import plots
+    files = []
+    for row in rows:
+        if 'samples' not in row or not row['samples']['t']:
+            continue
+        s = row['samples']
+        t, q, qd = (np.asarray(s[k]) for k in ('t', 'q', 'qd'))
+        realised = fk_batch(arm, q)[:, :3, 3]
+        base = os.path.join(report_dir, row['motion'])
+        files.append(plots.plot_path_3d(np.asarray(row['planned_path']), realised,
+                                        base + '_path3d.png'))
+        files.append(plots.plot_joint_trajectories(t, q, arm.lower, arm.upper,
+                                                   base + '_joints.png'))
+        files.append(plots.plot_joint_velocities(t, qd, arm.velocity_limits,
+                                                 base + '_velocities.png'))
+    table = [{k: v for k, v in row.items() if k not in ('samples', 'planned_path')}
+             for row in rows]
+    with open(os.path.join(report_dir, 'metrics.json'), 'w') as f:
+        json.dump(table, f, indent=2)
+    lines = ['| motion | goal X Y Z A B C (A B C from home) | result | duration [s] | '
+             'final joint error [rad] | final tool position error [mm] | '
+             'max deviation from planned path [mm] |',
+             '|---|---|---|---|---|---|---|']
+    for row in table:
+        def num(key, scale=1.0, fmt='.4f'):
+            return format(row[key] * scale, fmt) if key in row else '-'
+        result = row['result'] + (f' ({row["reason"]})' if row['result'] == 'refused' else '')
+        lines.append(f'| {row["motion"]} | {row.get("goal", "-")} | {result} | '
+                     f'{num("duration", fmt=".2f")} | '
+                     f'{num("final_joint_error")} | {num("final_position_error", 1e3, ".2f")} | '
+                     f'{num("max_path_deviation", 1e3, ".2f")} |')
+    with open(os.path.join(report_dir, 'metrics.md'), 'w') as f:
+        f.write('\n'.join(lines) + '\n')
+    files += [os.path.join(report_dir, 'metrics.json'), os.path.join(report_dir, 'metrics.md')]
+    return files
+
+
+def render_animation(report_dir: str, rows: list[dict], arm: ArmModel) -> Optional[str]:
+    """Render the recorded motion of every step into one animated GIF; return its path."""
+    if not os.environ.get('DISPLAY'):
+        os.environ.setdefault('MUJOCO_GL', 'egl')   # read when MuJoCo is first imported
+    from sim_bridge import render
+    q = [np.asarray(r['samples']['q']) for r in rows if r.get('samples', {}).get('q')]
+    t = [np.asarray(r['samples']['t']) for r in rows if r.get('samples', {}).get('q')]
+    if not q:
+        return None
+    offset, times = 0.0, []
+    for seg in t:
+        times.append(seg + offset)
+        offset = times[-1][-1] + 0.5
+    return render.save_gif(arm, np.concatenate(times), np.concatenate(q),
+                           os.path.join(report_dir, 'motion.gif'))
+
+
+def write_files(report_dir: str, rows: list[dict], arm: ArmModel,
+                render: bool = True) -> list[str]:
+    """Write the metrics, the plots and (with ``render``) the animation; return the files."""
     files = write_report(report_dir, rows, arm)
     if render:
         gif = render_animation(report_dir, rows, arm)
         if gif:
             files.append(gif)
-    return rows, files
+    return files
+
+
+def make_report(bag: str, report_dir: str, arm: ArmModel, render: bool = True,
+                say: Callable[[str], None] = print) -> tuple[list[dict], list[str]]:
+    """Write the report of recording ``bag`` into ``report_dir``; return (rows, files)."""
+    topics, counts = read_recording(bag)
+    os.makedirs(report_dir, exist_ok=True)
+    say(f'recording {bag}: ' + ', '.join(f'{t} {n}' for t, n in sorted(counts.items())))
+    rows = motion_rows(topics, arm)
+    return rows, write_files(report_dir, rows, arm, render)
 
 
 def main(argv: Optional[list[str]] = None) -> int:
