@@ -330,7 +330,6 @@ case "$cmd" in
         fi
         pick_domain_id
         log "tests in ROS_DOMAIN_ID=$ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE=$ROS_AUTOMATIC_DISCOVERY_RANGE${MOVER6_DDS:+, MOVER6_DDS=$MOVER6_DDS}"
-        log "tests in ROS_DOMAIN_ID=$ROS_DOMAIN_ID"
         # No stale results: a run that wrote none must fail, not pass on the last one's.
         rm -rf "$WS/build/mover6_control/test_results" "$WS/build/mover6_control/pytest.xml"
         (cd "$ROOT" && colcon --log-base "$WS/log" test --base-paths . \
