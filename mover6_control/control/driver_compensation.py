@@ -39,10 +39,6 @@ from mover6_control.control.controller_config import DerivedConfig
 from mover6_control.control.robot import Robot
 import numpy as np
 
-# fraction_of_max, after arrival: readings after a whole-tick pulse starts before the next may.
-PULSE_READINGS = 3
-
-
 class DriverCompensation:
     """
     The pulses and the log of commands sent, for a driver with a cycle (module docstring).
@@ -62,12 +58,14 @@ class DriverCompensation:
         self.active = False
         self._min_speed = None
         self._cycle = self._dt = 0.0
+        self._lag = 0                    # driver cycles until a move shows in the readings
 
     def configure(self, derived: DerivedConfig) -> None:
         """Take the driver's cycle, ticks and control period of ``derived`` (the log stays)."""
         self.active = derived.whole_tick_driver
         self._min_speed = derived.min_speed
         self._cycle, self._dt = derived.config.driver_cycle, derived.dt
+        self._lag = derived.reading_lag
         self._travel_log = deque(self._travel_log, maxlen=derived.log_length)
 
     def end_tick(self, now: float, qd: np.ndarray, n_states: int) -> None:
@@ -93,10 +91,10 @@ class DriverCompensation:
         started = dead & ~pulsing & may_start & (qd != 0.0)
         self._pulse_speed[started] = qd[started]
         self._pulse_until[started] = now + self._cycle + 0.5 * self._dt
-        self._pulse_after[started] = robot.n_states + 2
-        law = ~dead & (qd != 0.0)          # moved by the law: in flight for up to two cycles
+        self._pulse_after[started] = robot.n_states + self._lag
+        law = ~dead & (qd != 0.0)          # moved by the law: in flight one reading longer
         self._pulse_until[law] = -np.inf
-        self._pulse_after[law] = robot.n_states + 3
+        self._pulse_after[law] = robot.n_states + self._lag + 1
         return qd
 
     def in_flight(self, t_states: float) -> np.ndarray:
@@ -108,7 +106,7 @@ class DriverCompensation:
         be on its way; counting from two cycles before the reading came also covers delays of
         up to a cycle (erring towards 'in flight' only delays the arrival).
         """
-        since = t_states - 2.0 * self._cycle
+        since = t_states - self._lag * self._cycle
         start = self._travel
         for t, travel in reversed(self._travel_log):
             start = travel
@@ -138,5 +136,5 @@ class DriverCompensation:
         speed = tick_pulse_command(error, ticks, cycle, vlim)
         self._pulse_speed[start] = speed[start]
         self._pulse_until[start] = now + cycle + 0.5 * self._dt
-        self._pulse_after[start] = robot.n_states + PULSE_READINGS
+        self._pulse_after[start] = robot.n_states + self._lag + 1
         return np.where(pulsing | start, self._pulse_speed, 0.0)

@@ -113,11 +113,6 @@ class MotionTicks:
         if not self._driver.active:
             gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / self._dt)
             return self.robot.command(gain, self._vlim)
-        if self.config.cycle_driver:
-            # A driver with a cycle that integrates the command exactly, in either unit (no
-            # whole ticks, unlike the vendor's): the plain loop, whose gain is far below one
-            # over the readings' lag of two cycles.
-            return self.robot.command(self.config.position_gain, self._vlim)
         return self._driver.tick_pulses(now, self.robot, self._vlim)
 
     def _tick_stopping(self, now):

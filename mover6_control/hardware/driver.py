@@ -422,6 +422,12 @@ class ArmDriver:
         if frozen:
             j.velocity = 0.0
             return
+        if v == 0.0:
+            # At rest the set-point is the whole tick on the wire (nothing sent changes), so
+            # a later move of whole ticks lands on whole ticks, not a rounding away from them.
+            j.setpoint = float(round(j.setpoint))
+            j.velocity = 0.0
+            return
         lo, hi = j.scale.tick_limits(self.limit_set)
         lag = self.max_lag * abs(j.scale.ticks_per_rad)
         target = j.setpoint + v * dt * j.scale.ticks_per_rad
