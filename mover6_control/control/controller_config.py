@@ -45,11 +45,11 @@ class ControllerConfig:
     Mover6's), for the dead-zone compensation and the goal tolerance of at least one tick.
     ``cycle_driver``: the driver behind /JointJog integrates the command into set-points at
     ``driver_cycle`` and reports once per cycle (this package's CAN driver, in either unit), so
-    the same in-flight compensation applies in 'rad_per_s'; 'fraction_of_max' implies it.
-    ``settle_tolerance`` [rad]: after arriving (inside ``goal_tolerance``, result 'arrived')
-    the controller keeps converging until every joint is this close (in 'fraction_of_max':
-    one tick per joint, what the driver resolves) or ``settle_time`` [s] has passed, then
-    holds with a zero command.
+    the same in-flight compensation and whole-tick settling apply in 'rad_per_s';
+    'fraction_of_max' implies it. ``settle_tolerance`` [rad]: after arriving (inside
+    ``goal_tolerance``, result 'arrived') the controller keeps converging until every joint is
+    this close (behind a driver with a cycle: one tick per joint, ``driver_tick_size``, what
+    the driver resolves) or ``settle_time`` [s] has passed, then holds with a zero command.
     """
 
     law: LawConfig = field(default_factory=LawConfig)
