@@ -21,7 +21,7 @@ from mover6_control.hardware.scaling import load_joints
 from mover6_control.kinematics.arm import mover6
 import numpy as np
 import pytest
-from sim_bridge.can_sim import BusServer, build_arm
+from sim_bridge.can_sim import build_arm, BusServer
 
 ARM = mover6()
 _, JOINTS = load_joints()
@@ -96,7 +96,8 @@ class Loop:
 
 
 @pytest.mark.parametrize('jog_units, phase, reading_delay, command_delay',
-                         [('rad_per_s', 0.013, 0.002, 0.001), ('fraction_of_max', 0.047, 0.01, 0.002),
+                         [('rad_per_s', 0.013, 0.002, 0.001),
+                          ('fraction_of_max', 0.047, 0.01, 0.002),
                           ('rad_per_s', 0.001, 0.003, 0.008)])
 def test_every_joint_settles_within_one_tick_of_its_goal(jog_units, phase, reading_delay,
                                                          command_delay):

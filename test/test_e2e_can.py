@@ -149,12 +149,13 @@ def assert_arrived(client, sim, stack, T_goal, label):
     q_js, (q_true, ticks) = client.q.copy(), true_state(sim)
     true_error = ticks - q_goal * TICKS_PER_RAD              # [ticks]
     reading_error = (q_js - q_goal) / TICK                   # [ticks]
+    message = client.controller_status.message
     print(f'{label}: final joint error [ticks] true '
           f'{" ".join(f"{e:+.3f}" for e in true_error)}; /joint_states '
-          f'{" ".join(f"{e:+.3f}" for e in reading_error)}; controller: {client.controller_status.message}')
+          f'{" ".join(f"{e:+.3f}" for e in reading_error)}; controller: {message}')
     report = ('true - goal [ticks]', true_error.round(3).tolist(),
               '/joint_states - goal [ticks]', reading_error.round(3).tolist(),
-              'controller', client.controller_status.message,
+              'controller', message,
               '/JointJog from 0.2 s before arrival on, the non-zero ones',
               [(round(t - t_arrived, 3), [round(x, 6) for x in v]) for t, _, v in client.jogs
                if t > t_arrived - 0.2 and any(v)])

@@ -45,6 +45,7 @@ from mover6_control.control.controller_config import DerivedConfig
 from mover6_control.control.robot import Robot
 import numpy as np
 
+
 class DriverCompensation:
     """
     The pulses and the log of commands sent, for a driver with a cycle (module docstring).
@@ -130,11 +131,12 @@ class DriverCompensation:
         creeps (a low gain: 4-10 ticks off a second after arrival) or oscillates. The driver is
         exact instead: a command held over one cycle boundary moves ``trunc(speed * cycle /
         tick)`` ticks (a ``cycle_driver``: that many and the margin's fraction, which it rounds
-        away as it sends whole ticks). So a joint whose reading is more than half a tick off gets one pulse of the
-        whole number of ticks nearest its error (``commands.tick_pulse_command``), lasting
-        one driver cycle (as ``whole_ticks``), and no new one until a reading shows it landed
-        (``reading_lag`` + 1 readings later; the law's last moves too). Each pulse closes the
-        error to the nearest tick, up to the servo's lag in the reading it was computed from.
+        away as it sends whole ticks). So a joint whose reading is more than half a tick off
+        gets one pulse of the whole number of ticks nearest its error
+        (``commands.tick_pulse_command``), lasting one driver cycle (as ``whole_ticks``), and no
+        new one until a reading shows it landed (``reading_lag`` + 1 readings later; the law's
+        last moves too). Each pulse closes the error to the nearest tick, up to the servo's lag
+        in the reading it was computed from.
         """
         ticks, cycle = robot.encoder_ticks, self._cycle
         error = robot.error
