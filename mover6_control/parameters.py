@@ -263,8 +263,8 @@ CONTROLLER = _table(
     P('settle_timeout', 'float', 3.0, 's', 'give up settling into the goal tolerance after',
       0.01, 600.0),
     P('settle_tolerance', 'float', 0.0001, 'rad',
-      'after arriving, keep converging until every joint is this close (fraction_of_max: one '
-      'tick), then hold with a zero command', 1e-7, 0.5),
+      'after arriving, keep converging until every joint is this close (fraction_of_max or '
+      'cycle_driver: one tick), then hold with a zero command', 1e-7, 0.5),
     P('settle_time', 'float', 1.0, 's',
       'after arriving, converge for at most this long, then hold with a zero command',
       0.0, 60.0),
@@ -285,7 +285,8 @@ CONTROLLER = _table(
       'fraction_of_max: cycle of the vendor driver (20 Hz)', 0.001, 1.0),
     P('cycle_driver', 'bool', False, '',
       'the driver integrates /JointJog into set-points every driver_cycle and reports once a '
-      'cycle (the CAN driver): compensate what is in flight as in fraction_of_max, either unit',
+      'cycle (the CAN driver): compensate what is in flight and settle by whole ticks as in '
+      'fraction_of_max, either unit',
       read_only=True),
     P('limit_set', 'str', 'within_90_deg', '', LIMIT_SET_TEXT, allowed=LIMIT_SETS,
       read_only=True),

@@ -156,6 +156,25 @@ def test_enable_then_velocities_become_setpoints(rig):
     assert r.modules.setpoints(5)[-1] - sp5[-1] >= 2
 
 
+def test_a_resting_setpoint_is_the_tick_sent_so_whole_tick_moves_stay_whole(rig):
+    """J5 moved 0.47 tick, then at rest: a later move of 2.05 ticks sends 2 ticks, not 3."""
+    r = rig()
+    r.enable()
+    tick_rate = JOINTS[4].tick / r.driver.cycle             # [rad/s] one tick per cycle
+    start = r.modules.setpoints(5)[-1]
+    r.driver.set_velocity([0, 0, 0, 0, 0.47 * tick_rate, 0])
+    r.run()
+    assert r.modules.setpoints(5)[-1] == start               # 0.47 tick rounds to none
+    r.driver.set_velocity([0.0] * 6)
+    report = r.run()
+    assert report.joints[4].setpoint == JOINTS[4].to_rad(start - JOINTS[4].offset)
+    r.driver.set_velocity([0, 0, 0, 0, 2.05 * tick_rate, 0])
+    r.run()
+    assert r.modules.setpoints(5)[-1] == start + 2
+    r.driver.set_velocity([0.0] * 6)
+    assert r.run().joints[4].setpoint == JOINTS[4].to_rad(start + 2 - JOINTS[4].offset)
+
+
 def test_command_timeout_holds_within_one_cycle(rig):
     r = rig()
     r.enable()

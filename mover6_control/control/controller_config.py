@@ -21,6 +21,13 @@ from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_
 from mover6_control.validation import as_positive
 import numpy as np
 
+# Driver cycles until a command's move shows in the readings. The vendor's driver reads the
+# encoders and moves at the same cycle: a command taken at one cycle shows two readings later.
+# This package's CAN driver (``cycle_driver``) reads each module's reply at the cycle after the
+# set-point it answers, and a module answers before it moves: one reading later still.
+VENDOR_READING_LAG = 2
+CYCLE_READING_LAG = 3
+
 
 @dataclass(frozen=True)
 class ControllerConfig:
@@ -38,11 +45,11 @@ class ControllerConfig:
     Mover6's), for the dead-zone compensation and the goal tolerance of at least one tick.
     ``cycle_driver``: the driver behind /JointJog integrates the command into set-points at
     ``driver_cycle`` and reports once per cycle (this package's CAN driver, in either unit), so
-    the same in-flight compensation applies in 'rad_per_s'; 'fraction_of_max' implies it.
-    ``settle_tolerance`` [rad]: after arriving (inside ``goal_tolerance``, result 'arrived')
-    the controller keeps converging until every joint is this close (in 'fraction_of_max':
-    one tick per joint, what the driver resolves) or ``settle_time`` [s] has passed, then
-    holds with a zero command.
+    the same in-flight compensation and whole-tick settling apply in 'rad_per_s';
+    'fraction_of_max' implies it. ``settle_tolerance`` [rad]: after arriving (inside
+    ``goal_tolerance``, result 'arrived') the controller keeps converging until every joint is
+    this close (behind a driver with a cycle: one tick per joint, ``driver_tick_size``, what
+    the driver resolves) or ``settle_time`` [s] has passed, then holds with a zero command.
     """
 
     law: LawConfig = field(default_factory=LawConfig)
@@ -112,7 +119,8 @@ class DerivedConfig:
     tick, behind a driver with a cycle); ``velocity_limits`` (n,) [rad/s] what the driver can
     reach at ``speed_override``; ``dt`` [s] the control period; ``ticks`` (n,) [rad] and
     ``min_speed`` (n,) [rad/s] for a driver with a cycle, None otherwise; ``log_length`` how many
-    ticks of commands the in-flight estimate keeps.
+    ticks of commands the in-flight estimate keeps; ``reading_lag`` the driver cycles after which
+    a command's move shows in the readings (``VENDOR_READING_LAG`` or ``CYCLE_READING_LAG``).
     """
 
     config: ControllerConfig
@@ -123,6 +131,7 @@ class DerivedConfig:
     min_speed: Optional[np.ndarray]
     dt: float
     log_length: int
+    reading_lag: int
 
     @property
     def whole_tick_driver(self) -> bool:
@@ -162,6 +171,7 @@ def derive_config(arm: ArmModel, config: ControllerConfig) -> DerivedConfig:
                 f'speed_override')
         tol = np.maximum(tol, ticks)
         settle_tol = ticks.copy()      # what the driver resolves: one tick per joint
-    log_length = int(np.ceil(4.0 * config.driver_cycle * config.rate)) + 2
+    lag = CYCLE_READING_LAG if config.cycle_driver else VENDOR_READING_LAG
+    log_length = int(np.ceil((lag + 2) * config.driver_cycle * config.rate)) + 2
     return DerivedConfig(config, tol, settle_tol, vlim, ticks, min_speed, 1.0 / config.rate,
-                         log_length)
+                         log_length, lag)

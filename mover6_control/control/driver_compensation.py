@@ -5,21 +5,27 @@ The compensation of a driver with a cycle: whole-tick pulses and the motion stil
 whole encoder ticks per cycle (``driver_tick_size``, ``driver_cycle``), so a joint commanded
 under one tick per cycle does not move at all (J5/J6: about 7 deg/s), and its position is only
 known to a tick. Three things make the arm arrive anyway (``DriverCompensation``, used by
-``controller_core.ControllerCore`` for 'fraction_of_max' and for a ``cycle_driver``):
+``controller_core.ControllerCore`` for 'fraction_of_max' and for a ``cycle_driver``, whose
+readings are whole ticks too and which integrates a command held over one cycle boundary into
+exactly that many ticks, since it keeps a resting set-point on the whole tick it sends):
 
 - dead-zone compensation (``commands.dead_zone_command``): a joint whose command is below
   ``min_jog_speed`` gets exactly that speed towards its error while the error exceeds half a
-  tick, zero inside. Its readings lag the driver by up to two cycles, so such a joint moves in
-  pulses: one driver cycle long (one tick), started on a fresh reading, then no new pulse until
-  a reading that shows the pulse (two readings later; three after the law itself moved the
-  joint). It never overshoots by what is still in flight, so it settles instead of oscillating.
+  tick, zero inside. Its readings lag the driver by ``reading_lag`` cycles (the vendor's: two;
+  a ``cycle_driver``: three, as it reads each reply at the cycle after the set-point it
+  answers), so such a joint moves in pulses: one driver cycle long (one tick), started on a
+  fresh reading, then no new pulse until a reading that shows the pulse (``reading_lag``
+  readings later; one more after the law itself moved the joint). It never overshoots by what
+  is still in flight, so it settles instead of oscillating.
 - the goal tolerance of each joint is ``max(goal_tolerance, one tick)`` (reported in the
   status as ``goal_tolerance``), and the arm has arrived only when both the reading and the
-  reading minus what was commanded since (from two cycles before it came: maybe in flight) are
+  reading minus what was commanded since (from ``reading_lag`` cycles before it came: maybe in
+  flight) are
   within it, so a joint still moving does not arrive on a stale reading and then drift out.
 - after arrival (settling to one tick) each joint more than half a tick off gets one pulse of
   the whole number of ticks nearest its error (``commands.tick_pulse_command``: the
-  driver truncates the speed to exactly that), then none until a reading shows it landed; so
+  driver truncates the speed to exactly that), then none until a reading shows it landed
+  (``reading_lag`` + 1 readings later); so
   every joint ends on the tick nearest its goal (a closed loop on the lagging readings crept:
   4-10 ticks off a second after arrival).
 
@@ -38,9 +44,6 @@ from mover6_control.control.commands import dead_zone_command, tick_pulse_comman
 from mover6_control.control.controller_config import DerivedConfig
 from mover6_control.control.robot import Robot
 import numpy as np
-
-# fraction_of_max, after arrival: readings after a whole-tick pulse starts before the next may.
-PULSE_READINGS = 3
 
 
 class DriverCompensation:
@@ -62,12 +65,14 @@ class DriverCompensation:
         self.active = False
         self._min_speed = None
         self._cycle = self._dt = 0.0
+        self._lag = 0                    # driver cycles until a move shows in the readings
 
     def configure(self, derived: DerivedConfig) -> None:
         """Take the driver's cycle, ticks and control period of ``derived`` (the log stays)."""
         self.active = derived.whole_tick_driver
         self._min_speed = derived.min_speed
         self._cycle, self._dt = derived.config.driver_cycle, derived.dt
+        self._lag = derived.reading_lag
         self._travel_log = deque(self._travel_log, maxlen=derived.log_length)
 
     def end_tick(self, now: float, qd: np.ndarray, n_states: int) -> None:
@@ -93,22 +98,24 @@ class DriverCompensation:
         started = dead & ~pulsing & may_start & (qd != 0.0)
         self._pulse_speed[started] = qd[started]
         self._pulse_until[started] = now + self._cycle + 0.5 * self._dt
-        self._pulse_after[started] = robot.n_states + 2
-        law = ~dead & (qd != 0.0)          # moved by the law: in flight for up to two cycles
+        self._pulse_after[started] = robot.n_states + self._lag
+        law = ~dead & (qd != 0.0)          # moved by the law: in flight one reading longer
         self._pulse_until[law] = -np.inf
-        self._pulse_after[law] = robot.n_states + 3
+        self._pulse_after[law] = robot.n_states + self._lag + 1
         return qd
 
     def in_flight(self, t_states: float) -> np.ndarray:
         """
         Return the motion (n,) [rad] commanded that the reading at ``t_states`` cannot show yet.
 
-        The driver applies the command it holds at its cycle and the reading of that cycle is
-        taken before the move, so what was commanded from one cycle before that cycle may still
-        be on its way; counting from two cycles before the reading came also covers delays of
-        up to a cycle (erring towards 'in flight' only delays the arrival).
+        The vendor's driver applies the command it holds at its cycle and the reading of that
+        cycle is taken before the move, so what was commanded from one cycle before that cycle
+        may still be on its way; counting from ``reading_lag`` cycles before the reading came
+        (two; three for a ``cycle_driver``, whose reading of a cycle is the reply to the
+        set-point of the cycle before) also covers delays of up to a cycle (erring towards 'in
+        flight' only delays the arrival).
         """
-        since = t_states - 2.0 * self._cycle
+        since = t_states - self._lag * self._cycle
         start = self._travel
         for t, travel in reversed(self._travel_log):
             start = travel
@@ -120,14 +127,16 @@ class DriverCompensation:
         """
         Return the command that moves each joint onto the tick nearest its goal (n,) [rad/s].
 
-        The readings lag the driver by up to two cycles, so a closed loop on them either creeps
-        (a low gain: 4-10 ticks off a second after arrival) or oscillates. The driver is exact
-        instead: a command held over one cycle boundary moves ``trunc(speed * cycle / tick)``
-        ticks. So a joint whose reading is more than half a tick off gets one pulse of the
-        whole number of ticks nearest its error (``commands.tick_pulse_command``), lasting
-        one driver cycle (as ``whole_ticks``), and no new one until a reading shows it landed
-        (``PULSE_READINGS`` readings later; the law's last moves too). Each pulse closes the
-        error to the nearest tick, up to the servo's lag in the reading it was computed from.
+        The readings lag the driver by ``reading_lag`` cycles, so a closed loop on them either
+        creeps (a low gain: 4-10 ticks off a second after arrival) or oscillates. The driver is
+        exact instead: a command held over one cycle boundary moves ``trunc(speed * cycle /
+        tick)`` ticks (a ``cycle_driver``: that many and the margin's fraction, which it rounds
+        away as it sends whole ticks). So a joint whose reading is more than half a tick off
+        gets one pulse of the whole number of ticks nearest its error
+        (``commands.tick_pulse_command``), lasting one driver cycle (as ``whole_ticks``), and no
+        new one until a reading shows it landed (``reading_lag`` + 1 readings later; the law's
+        last moves too). Each pulse closes the error to the nearest tick, up to the servo's lag
+        in the reading it was computed from.
         """
         ticks, cycle = robot.encoder_ticks, self._cycle
         error = robot.error
@@ -138,5 +147,5 @@ class DriverCompensation:
         speed = tick_pulse_command(error, ticks, cycle, vlim)
         self._pulse_speed[start] = speed[start]
         self._pulse_until[start] = now + cycle + 0.5 * self._dt
-        self._pulse_after[start] = robot.n_states + PULSE_READINGS
+        self._pulse_after[start] = robot.n_states + self._lag + 1
         return np.where(pulsing | start, self._pulse_speed, 0.0)

@@ -106,18 +106,15 @@ class MotionTicks:
 
         rad_per_s: the closed loop with a gain of at least ``FINE_GAIN_PER_TICK`` per control
         period (the readings are fresh), so the error falls from the goal tolerance to the
-        settle tolerance in a fraction of a second without overshoot. A ``cycle_driver`` (the
-        CAN driver, either unit): the plain loop. fraction_of_max on the vendor's driver: the
-        whole-tick pulses of ``DriverCompensation.tick_pulses``.
+        settle tolerance in a fraction of a second without overshoot. Behind a driver with a
+        cycle (fraction_of_max on the vendor's driver, or a ``cycle_driver``: the CAN driver,
+        either unit): the whole-tick pulses of ``DriverCompensation.tick_pulses``, since the
+        readings are whole ticks two or three cycles old (the plain loop on them crept, and
+        limit-cycled a wrist joint by a tick).
         """
         if not self._driver.active:
             gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / self._dt)
             return self.robot.command(gain, self._vlim)
-        if self.config.cycle_driver:
-            # A driver with a cycle that integrates the command exactly, in either unit (no
-            # whole ticks, unlike the vendor's): the plain loop, whose gain is far below one
-            # over the readings' lag of two cycles.
-            return self.robot.command(self.config.position_gain, self._vlim)
         return self._driver.tick_pulses(now, self.robot, self._vlim)
 
     def _tick_stopping(self, now):

@@ -16,7 +16,7 @@ import re
 from typing import Iterable, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
-from mover6_control.hardware.driver import ArmReport, ModuleState
+from mover6_control.hardware.driver_state import ArmReport, ModuleState
 from mover6_control.nodes.conversions import make_joint_state, make_status
 
 LEVELS = {ModuleState.FAULT: 'ERROR', ModuleState.ERROR: 'ERROR',

@@ -1,0 +1,138 @@
+"""
+The state of the arm driver: each joint's record and state machine, the arm's, and the reports.
+
+Per joint and for the arm the state is a ``ModuleState``: disconnected (no reply yet), connected
+(replying, motor not enabled), error (a flag other than "motor not enabled"), enabled, referenced
+(enabled and referenced), fault (silent). The arm's state is its worst joint's (``ARM_ORDER``).
+``JointRecord`` is what the driver (``hardware.driver.ArmDriver``) keeps of one joint between
+cycles; ``hold_reason`` says why the arm may not move; ``joint_report`` and ``arm_state`` make
+the cycle's ``ArmReport``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import Optional, Sequence
+
+from mover6_control.hardware import protocol as p
+from mover6_control.hardware.scaling import JointScale
+
+
+class ModuleState(StrEnum):
+    """The state of a joint's motor module, and of the arm (its worst joint's)."""
+
+    DISCONNECTED = 'disconnected'
+    CONNECTED = 'connected'
+    ERROR = 'error'
+    ENABLED = 'enabled'
+    REFERENCED = 'referenced'
+    FAULT = 'fault'
+
+
+S = ModuleState
+# Worst first: the arm takes the first of these that any joint is in.
+ARM_ORDER = (S.FAULT, S.DISCONNECTED, S.ERROR, S.CONNECTED, S.ENABLED, S.REFERENCED)
+# The states in which a module follows its set-points.
+FOLLOWING = (S.ENABLED, S.REFERENCED)
+
+
+@dataclass(frozen=True)
+class JointReport:
+    """One joint at one cycle: ``q`` [rad], ``qd`` [rad/s], ``lag`` = set-point - q [rad]."""
+
+    name: str
+    state: str
+    q: float
+    qd: float
+    setpoint: float
+    lag: float
+    flags: int
+    flag_names: tuple[str, ...]
+    referenced: bool
+    silent_cycles: int
+    replies: int
+
+
+@dataclass(frozen=True)
+class ArmReport:
+    """The arm at one cycle; ``hold`` is why it does not move ('' when it may)."""
+
+    time: float
+    state: str
+    hold: str
+    joints: tuple[JointReport, ...]
+    period: float
+    frames_dropped: int
+    frames_bad: int
+    tx_errors: int
+    bus_error: str
+    bad_frames: tuple[tuple[str, int], ...] = ()
+    last_bad_frame: str = ''
+
+
+class JointRecord:
+    """The driver's mutable record of one joint (control thread only, under the lock)."""
+
+    def __init__(self, scale: JointScale) -> None:
+        self.scale = scale
+        self.reply: Optional[p.Reply] = None
+        self.reply_time: Optional[float] = None
+        self.replies = 0
+        self.ticks: Optional[int] = None          # measured, offset removed
+        self.qd = 0.0
+        self.setpoint: Optional[float] = None     # [ticks, float]
+        self.velocity = 0.0        # commanded, [rad/s]
+        self.silent = 0
+        self.fault = False
+        self.track = True          # set-point follows the measured position
+        self.counter = 0
+        self.outputs = 0
+
+    def state(self) -> ModuleState:
+        """Return the joint's state from its latest reply (and a latched fault)."""
+        if self.fault:
+            return S.FAULT
+        if self.reply is None:
+            return S.DISCONNECTED
+        flags = self.reply.error_flags
+        if flags & ~0x04:
+            return S.ERROR
+        if flags & 0x04:
+            return S.CONNECTED
+        return S.REFERENCED if self.reply.referenced else S.ENABLED
+
+
+def hold_reason(joints: Sequence[JointRecord], busy: set, firmware: str) -> str:
+    """Return why the arm must hold ('' when it may move); ``busy``: joints referencing."""
+    if busy:
+        return f'joints {sorted(busy)}: referencing or setting zero'
+    for j in joints:
+        state = j.state()
+        if state == S.FAULT:
+            return f'{j.scale.name}: module silent for {j.silent} cycles'
+        if state == S.DISCONNECTED:
+            return f'{j.scale.name}: no reply from its module yet'
+        if state == S.ERROR:
+            names = ', '.join(p.flag_names(j.reply.error_flags & ~0x04, firmware))
+            return f'{j.scale.name}: error flags {names}'
+        if state == S.CONNECTED:
+            return f'{j.scale.name}: motor not enabled'
+    return ''
+
+
+def joint_report(j: JointRecord, firmware: str) -> JointReport:
+    """Return the report of joint ``j`` now (NaN positions before its first reply)."""
+    q = j.scale.to_rad(j.ticks) if j.ticks is not None else float('nan')
+    sp = j.scale.to_rad(j.setpoint) if j.setpoint is not None else q
+    flags = j.reply.error_flags if j.reply is not None else 0
+    return JointReport(
+        name=j.scale.name, state=j.state(), q=q, qd=j.qd, setpoint=sp, lag=sp - q,
+        flags=flags, flag_names=p.flag_names(flags, firmware),
+        referenced=bool(j.reply and j.reply.referenced), silent_cycles=j.silent,
+        replies=j.replies)
+
+
+def arm_state(joints: Sequence[JointReport]) -> ModuleState:
+    """Return the arm's state: the worst of its joints' (``ARM_ORDER``)."""
+    return next(s for s in ARM_ORDER if any(r.state == s for r in joints))
