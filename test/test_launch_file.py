@@ -139,6 +139,10 @@ def test_same_choices_and_defaults(launch_module, name):
     assert f'{option})' in read(LAUNCH_SH)
     default = declared['default_value']
     assert default == sh_variable(name) == CONTROLLER[name].default
+    # launch.sh --help (its leading comment) names every choice and the default.
+    help_text = re.search(rf'^#   {option} .*?(?=^#   --)', read(LAUNCH_SH), re.M | re.S).group(0)
+    assert [c for c in CHOICES[name] if not re.search(rf'\b{c}\b', help_text)] == []
+    assert f'{default} (default' in help_text
     for node in NODES:
         if (node, name) == ('driver', 'limit_set'):
             continue      # alone it clamps to the vendor's limits; the stack passes its own
