@@ -51,8 +51,6 @@ import mujoco
 import numpy as np
 from sim_bridge.model import build_model, joint_dof_addresses, joint_qpos_addresses, ModelOptions
 
-
-
 _EPS = 1e-9
 _LIMIT_APPROACH = 5.0    # physics steps over which a joint may close its gap to a limit
 

@@ -7,9 +7,10 @@ must start the same executables with the same parameter files, the same per-node
 environment hooks, and offer the same choices (sim, hardware, profile, jog_units, limit_set)
 with the same defaults, which are the package's own constants and the shipped parameter files'
 values (the launch file takes those of profile, jog_units and limit_set from the controller's
-parameter table, so they are read from the launch file executed on stand-ins). What the ``hardware`` argument starts is decided at launch time (an OpaqueFunction):
-the last test runs the launch file on stand-ins that record what it builds, and calls that
-function for each choice. What ``ros2 launch`` itself then does with the actions is not tested
+parameter table, so they are read from the launch file executed on stand-ins). What the
+``hardware`` argument starts is decided at launch time (an OpaqueFunction): the last test runs
+the launch file on stand-ins that record what it builds, and calls that function for each
+choice. What ``ros2 launch`` itself then does with the actions is not tested
 here.
 """
 

@@ -15,7 +15,7 @@ from mover6_control.collision.checker import CollisionSettings
 from mover6_control.collision.geometry import ToolVolume
 from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.profiles import (LawConfig, PROFILE_FAMILIES, STOP_AT_EACH_PROFILES,
-                                              THROUGH_ALL_PROFILES)
+                                             THROUGH_ALL_PROFILES)
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 from mover6_control.parameters import (check_value, CONTROLLER, JOG_UNITS, LIMIT_SETS, NODES,

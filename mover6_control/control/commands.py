@@ -22,7 +22,6 @@ from mover6_control.validation import as_positive
 import numpy as np
 
 
-
 # --- limits ---------------------------------------------------------------------------------
 
 def common_scale(qd: np.ndarray, velocity_limits: np.ndarray) -> float:

@@ -43,7 +43,7 @@ from mover6_control.control.commands import guard_position_limits, to_jog_units
 from mover6_control.control.controller_config import ControllerConfig, derive_config
 from mover6_control.control.demand_intake import DemandIntake
 from mover6_control.control.driver_compensation import DriverCompensation
-from mover6_control.control.jogging import Jogging
+from mover6_control.control.jogging import Jogging, JogSession
 from mover6_control.control.motion_plan import MotionPlan, plan_stop
 from mover6_control.control.motion_ticks import MotionTicks
 from mover6_control.control.robot import Robot
@@ -93,15 +93,10 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
         self._arrived_at = None          # [s] when the running motion arrived (None: not yet)
         self._timing = ''                # timed_plan.plan_demand's note on the latest motion
         self._changed = True
-        self._jog = None                 # latest servo command (control.servo), None: none
-        self._jog_state = None           # servo state kept between ticks
-        self._jog_kind = ''              # 'free', 'slowed', 'halted', 'stale': status changes
-        self._jog_values = {}            # jogging figures for the status
-        self._jog_refused = ''           # why the latest jog command was refused ('' taken)
+        self.jog_session = JogSession()  # jogging's own state (control.jogging)
         # A callable(plan) that raises on a colliding motion (collision_guard.CollisionGuard);
         # the node sets it. None: no collision check.
         self.collision_guard = None
-        self._servo_vetoed = (None, None, None)   # (servo config, guard, the two combined)
         self.tick_failures = 0           # ticks in a row that raised (a fault each)
 
     def _apply(self, derived):
