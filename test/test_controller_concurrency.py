@@ -83,7 +83,7 @@ def test_a_tick_clearing_the_reference_during_prepare_demand_changes_nothing():
     core.tick(DT)
     assert core.state == sm.EXECUTING and core._ref is not None
     core.clear_after_next_read = True
-    pending = core.prepare_demand(DT, [[0.3, 0.0, 0.0, 0.0, 0.0, 0.0]])
+    pending = core.prepare_demand(DT, [[0.3, 0.0, 0.0, 0.0, 0.0, 0.0]], core.snapshot())
     assert core._ref is None                          # the race happened
     motion = core.commit_demand(pending)
     assert motion == 2 and core.state == sm.EXECUTING

@@ -306,7 +306,7 @@ def test_prepared_demand_commits_later_without_a_jump():
     sim.tick()
     send_demand(core, sim.t, [GOAL])
     sim.run_until(lambda o: sim.t > 0.8)
-    pending = core.prepare_demand(sim.t, [-GOAL])
+    pending = core.prepare_demand(sim.t, [-GOAL], core.snapshot())
     assert core.motion_id == 1 and core.plan is not pending.plan   # nothing changed yet
     for _ in range(5):                                               # ticks while planning
         sim.tick()
@@ -327,7 +327,7 @@ def test_prepared_demand_replans_when_the_motion_ended_meanwhile():
     sim.tick()
     send_demand(core, sim.t, [GOAL])
     sim.run_until(lambda o: sim.t > core.plan.duration - 0.05)
-    pending = core.prepare_demand(sim.t, [np.zeros(6)])
+    pending = core.prepare_demand(sim.t, [np.zeros(6)], core.snapshot())
     assert core.is_current(pending)
     sim.run_until(lambda o: o.state == sm.IDLE)
     assert not core.is_current(pending)          # a node prepares it again, without its lock
@@ -340,18 +340,18 @@ def test_prepared_demand_replans_when_the_motion_ended_meanwhile():
 def test_prepared_demand_is_stale_once_another_motion_started():
     core, sim = make('trapezoidal')
     sim.tick()
-    pending = core.prepare_demand(sim.t, [GOAL])
+    pending = core.prepare_demand(sim.t, [GOAL], core.snapshot())
     assert core.is_current(pending)
     send_demand(core, sim.t, [-GOAL])            # another demand got in first
     assert not core.is_current(pending)
     assert core.commit_demand(pending) == 2
-    assert core.is_current(core.prepare_demand(sim.t, [np.zeros(6)]))
+    assert core.is_current(core.prepare_demand(sim.t, [np.zeros(6)], core.snapshot()))
 
 
 def test_prepared_demand_is_refused_after_a_fault():
     core, sim = make()
     sim.tick()
-    pending = core.prepare_demand(sim.t, [GOAL])
+    pending = core.prepare_demand(sim.t, [GOAL], core.snapshot())
     sim.report = False
     sim.run_until(lambda o: o.state == sm.FAULT)
     with pytest.raises(InvalidInputError, match='fault'):

@@ -78,8 +78,7 @@ class DemandIntake:
         return Snapshot(state, ref if moving else (q, None), moving, self._motion_id,
                         self._message)
 
-    def prepare_demand(self, now: float, waypoints: np.ndarray,
-                       snapshot: Optional[Snapshot] = None,
+    def prepare_demand(self, now: float, waypoints: np.ndarray, snapshot: Snapshot,
                        demand_id: str = '', timing: Optional[Timing] = None,
                        profile: str = '') -> PendingDemand:
         """
@@ -88,18 +87,16 @@ class DemandIntake:
         Reads nothing of the controller but ``snapshot`` (and the constant arm and config), so
         a node calls it without holding its lock while the ticks go on (planning the continuous
         law takes tens of milliseconds), with a snapshot taken under the lock, then
-        ``commit_demand`` under the lock. Without ``snapshot`` it takes one itself (the caller
-        then holds the lock). Raises ``InvalidInputError`` (nothing changed) when the demand is
-        empty, has the wrong shape, non-finite values or values outside the joint limits, when
-        the controller cannot take a demand (no joint states, fault, stopping), when the motion
-        collides, and for an unknown ``profile``. With
-        ``timing`` (a goal's ``time_from_start`` and velocities) the plan follows it where it can
+        ``commit_demand`` under the lock. Raises ``InvalidInputError`` (nothing changed) when
+        the demand is empty, has the wrong shape, non-finite values or values outside the joint
+        limits, when the controller cannot take a demand (no joint states, fault, stopping),
+        when the motion collides, and for an unknown ``profile``. With ``timing`` (a goal's
+        ``time_from_start`` and velocities) the plan follows it where it can
         (``timed_plan.plan_demand``; its note goes to the status as ``timing``). ``profile``
         times this demand only (``law_for``).
         """
         config = self.config       # read once, before the limits it comes with (_apply)
         vlim = self._vlim
-        snapshot = self.snapshot() if snapshot is None else snapshot
         Q = self.check_demand(waypoints)
         self._check_accepts(snapshot.state, snapshot.message)
         q_start, qd_start = snapshot.start
