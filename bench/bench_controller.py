@@ -1,9 +1,10 @@
 """
 Speed of the controller (issue 5): per-tick compute time of the control law, and node jitter.
 
-Part 1, in this process without ROS: ``ControllerCore.on_joint_states`` + ``tick`` per profile
-against a simulated arm, many motions in a row: median and p99 of one tick [us], and the time to
-plan a demand [ms] (done in the demand callback, not in the tick). Goal: tick p99 < 1 ms.
+Part 1, in this process without ROS: ``ControllerCore.on_named_joint_states`` + ``tick`` per
+profile against a simulated arm, many motions in a row: median and p99 of one tick [us], and the
+time to check, plan and start a demand [ms] (the calls of the node's demand thread, not in the
+tick). Goal: tick p99 < 1 ms.
 
 Part 2, over DDS: the controller node in its own process at 100 Hz and 500 Hz while it executes
 a motion (this process plays the arm: integrates /JointJog, publishes /joint_states at 50 Hz).
@@ -41,17 +42,19 @@ def bench_compute(profile, n_ticks):
     q, t, k = np.zeros(6), 0.0, 0
     tick_times, plan_times = [], []
     clock = time.perf_counter
-    core.on_joint_states(t, q)
+    names = core.robot.joint_names
+    core.on_named_joint_states(t, names, q)
     core.tick(t)
     for _ in range(n_ticks):
         if core.state == 'idle':
             goal = MOTION[k % len(MOTION)] if k % 2 == 0 else MOTION[::-1]
             k += 1
             t0 = clock()
-            core.on_demands(t, np.atleast_2d(goal))
+            Q = core.check_demand(np.atleast_2d(goal))    # as the node's demand thread
+            core.commit_demand(core.prepare_demand(t, Q, core.snapshot()))
             plan_times.append(clock() - t0)
         t0 = clock()
-        core.on_joint_states(t, q)
+        core.on_named_joint_states(t, names, q)
         out = core.tick(t)
         tick_times.append(clock() - t0)
         q = q + out.qd * DT

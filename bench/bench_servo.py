@@ -1,8 +1,8 @@
 """
 Speed of jogging (issue 15): per-tick compute of the servo, and twist-to-JointJog latency.
 
-Part 1, in this process without ROS: ``ControllerCore.on_joint_states`` + ``on_twist`` +
-``tick`` while jogging a simulated arm along a line (twist mode, base frame), back and forth, and
+Part 1, in this process without ROS: ``ControllerCore.on_named_joint_states`` + ``on_twist``
++ ``tick`` while jogging a simulated arm along a line (twist mode, base frame), back and forth, and
 again near the wrist singularity (where the slow-down looks ahead: more kinematics per tick), and
 in joint mode: median and p99 of one tick [us]. Goal: p99 < 1 ms.
 
@@ -43,7 +43,8 @@ def bench_compute(case, n_ticks):
     core = ControllerCore(arm, ControllerConfig())
     q0 = Q_NEAR_WRIST if case == 'near singularity' else Q_AWAY
     q, t = q0.copy(), 0.0
-    core.on_joint_states(t, q)
+    names = core.robot.joint_names
+    core.on_named_joint_states(t, names, q)
     core.tick(t)
     column = jacobian(arm, q0)[:, 4] * 0.05
     clock = time.perf_counter
@@ -51,7 +52,7 @@ def bench_compute(case, n_ticks):
     for k in range(n_ticks):
         sign = 1.0 if (k // 100) % 2 == 0 else -1.0           # back and forth, 1 s each way
         t0 = clock()
-        core.on_joint_states(t, q)
+        core.on_named_joint_states(t, names, q)
         if case == 'line':
             core.on_twist(t, t, [0.02 * sign, 0.0, 0.0], [0.0, 0.0, 0.0])
         elif case == 'near singularity':

@@ -22,8 +22,9 @@ runs the driver on ``can_interface`` / ``can_channel`` (default the CPR USB2CAN 
 /dev/ttyUSB0), not enabled: call its ~/reset and ~/enable. With the driver the controller's
 state_timeout is 0.5 s (the driver publishes /joint_states at its 20 Hz cycle).
 
-``profile``, ``jog_units`` and ``limit_set`` override the parameter files (their defaults are the
-shipped files' values). With ``jog_units:=fraction_of_max`` the simulator runs as the vendor
+``profile``, ``jog_units`` and ``limit_set`` override the parameter files; their choices and
+defaults are the controller's parameter table's (``mover6_control.parameters``), whose defaults
+are the shipped files' values. With ``jog_units:=fraction_of_max`` the simulator runs as the vendor
 driver (mode vendor_driver). Extra ROS arguments per node, as for scripts/launch.sh, come from
 the environment variables MOVER6_SIM_ARGS, MOVER6_CONTROLLER_ARGS and MOVER6_PLANNER_ARGS.
 """
@@ -45,9 +46,11 @@ from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
 from mover6_control.nodes import local_dds
 from mover6_control.nodes.names import check_namespace
+from mover6_control.parameters import CONTROLLER
 
 PACKAGE = 'mover6_control'
-STATE_TIMEOUT = {'sim': '0.25', 'can_sim': '0.5', 'can': '0.5'}   # [s] of the controller
+# [s] the controller's state timeout: its parameter's on the simulator, 0.5 s behind the driver.
+STATE_TIMEOUT = {'sim': str(CONTROLLER['state_timeout'].default), 'can_sim': '0.5', 'can': '0.5'}
 # Every node in the ``namespace`` argument; TF frames prefixed with it (/arm1 -> arm1/).
 NAMESPACE = LaunchConfiguration('namespace')
 TF_PREFIX = PythonExpression(["(lambda n: n + '/' if n else '')('", NAMESPACE, "'.strip('/'))"])
@@ -144,6 +147,14 @@ def hardware_nodes(context):
                                                                 on_stdout=on_output))]
 
 
+def parameter_argument(name, description):
+    """Return the launch argument of controller parameter ``name``: its choices, default first."""
+    spec = CONTROLLER[name]
+    choices = [spec.default] + [choice for choice in spec.allowed if choice != spec.default]
+    return DeclareLaunchArgument(name, default_value=spec.default, choices=choices,
+                                 description=description)
+
+
 def generate_launch_description():
     """Declare the arguments and the nodes."""
     sim = LaunchConfiguration('sim')
@@ -179,19 +190,12 @@ def generate_launch_description():
         DeclareLaunchArgument(
             'driver_params', default_value=config_file('driver.yaml'),
             description='parameter file of the driver'),
-        DeclareLaunchArgument(
-            'profile', default_value='continuous',
-            choices=['continuous', 'synchronised', 'trapezoidal', 'jerk_limited', 'cubic',
-                     'quintic', 'septic', 'sharp_trapezoid', 'cubic_spline', 'quintic_spline',
-                     'bspline', 'multi_trapezoid'],
-            description='controller velocity profile'),
-        DeclareLaunchArgument(
-            'jog_units', default_value='rad_per_s', choices=['rad_per_s', 'fraction_of_max'],
-            description='JointJog units: rad_per_s (ROS standard) or fraction_of_max (the '
-                        'vendor cpr driver; the simulator then runs as that driver)'),
-        DeclareLaunchArgument(
-            'limit_set', default_value='within_90_deg', choices=['within_90_deg', 'hardware'],
-            description='joint limits of every node: within_90_deg or hardware (vendor)'),
+        parameter_argument('profile', 'controller velocity profile'),
+        parameter_argument('jog_units', 'JointJog units: rad_per_s (ROS standard) or '
+                                        'fraction_of_max (the vendor cpr driver; the simulator '
+                                        'then runs as that driver)'),
+        parameter_argument('limit_set', 'joint limits of every node: within_90_deg or hardware '
+                                        '(vendor)'),
         DeclareLaunchArgument(
             'sim_bridge_params', default_value=config_file('sim_bridge.yaml'),
             description='parameter file of sim_bridge'),

@@ -7,9 +7,11 @@ the allowed values in the descriptor, ``ros2 param describe`` shows them) and re
 ``check_value`` refuses; ``config/<node>.yaml``, the README's Parameters table and the defaults of
 the core's settings dataclasses are checked against them by the tests.
 
-ROS-free and in the base layer: the allowed values are written out here (the tests check that
-they are the core's ``PROFILES``, ``POSE_MOTIONS``, ``LIMIT_SETS`` ... and that the Mover6's
-encoder ticks are ``MOVER6_TICK_SIZE``).
+ROS-free and in the base layer, so every layer can import it: the tables of allowed values are
+defined here once (``PROFILES``, ``LIMIT_SETS``, ``JOG_UNITS``, ``TOOL_SHAPES``, ``POSE_MOTIONS``,
+``PATH_MOTIONS``, ``SIM_MODES``) and the core imports them from here (a test checks that the core
+takes every one of them); the Mover6's encoder ticks are written out (a test checks that they
+are ``MOVER6_TICK_SIZE``).
 """
 
 from dataclasses import dataclass
@@ -148,6 +150,7 @@ def _table(*specs):
 
 P = ParameterSpec
 PI = math.pi
+# The joint limits of the arm model (kinematics.arm.mover6).
 LIMIT_SETS = ('within_90_deg', 'hardware')
 LIMIT_SET_TEXT = ('joint limits: within_90_deg (every joint in [-pi/2, pi/2], the limits of the '
                   "Mover6 report) or hardware (the vendor's limits); set at start")
@@ -156,7 +159,8 @@ LIMIT_SET_TEXT = ('joint limits: within_90_deg (every joint in [-pi/2, pi/2], th
 MOVER6_TICKS = (8.260740495997393e-06, 8.260740495997393e-06, 8.260740495997393e-06,
                 8.742382548559054e-06, 0.006135923151542565, 0.006135923151542565)
 
-# The controller's velocity laws (control.profiles.PROFILES; a test checks they agree).
+# The controller's profiles: every time law a motion can be timed by (their laws:
+# control.profiles).
 PROFILES = ('synchronised', 'trapezoidal', 'jerk_limited', 'continuous',
             'cubic', 'quintic', 'septic', 'sharp_trapezoid',
             'cubic_spline', 'quintic_spline', 'bspline', 'multi_trapezoid')
@@ -167,8 +171,16 @@ PROFILE_TEXT = (
     'quintic (3-4-5), septic (4-5-6-7), sharp_trapezoid; through all waypoints within them: '
     'cubic_spline, quintic_spline, bspline, multi_trapezoid')
 
+# JointJog velocities: ROS's rad/s, or fractions of each joint's maximum speed (the vendor driver).
+JOG_UNITS = ('rad_per_s', 'fraction_of_max')
+# The shapes of a pose goal's and a path goal's motion (planning.planner_core).
+POSE_MOTIONS = ('linear', 'parabolic', 'joint')
+PATH_MOTIONS = ('spline', 'arc', 'parabolic')
+# What the simulator behaves as (sim_bridge.simulator): a rad/s driver or the vendor's driver.
+SIM_MODES = ('rad_per_s', 'vendor_driver')
+
 # The collision check of the planner and the controller (mover6_control.collision): the same
-# parameters on both nodes.
+# parameters on both nodes. The tool volumes on the flange (collision.geometry.ToolVolume).
 TOOL_SHAPES = ('capsule', 'box', 'none')
 
 
@@ -199,10 +211,10 @@ def _collision_specs(who):
 
 PLANNER = _table(
     P('motion', 'str', 'linear', '', 'shape of /pose_goal moves',
-      allowed=('linear', 'parabolic', 'joint')),
+      allowed=POSE_MOTIONS),
     P('path_motion', 'str', 'spline', '',
       'shape of /path_goal moves (through the via poses; parabolic: one via pose, the peak)',
-      allowed=('spline', 'arc', 'parabolic')),
+      allowed=PATH_MOTIONS),
     P('n_waypoints', 'int', 20, '',
       'poses sampled along a Cartesian path (when max_step and max_angle_step are 0)', 2, 10000),
     P('max_step', 'float', 0.0, 'm',
@@ -273,7 +285,7 @@ CONTROLLER = _table(
     P('jog_units', 'str', 'rad_per_s', '',
       'JointJog velocities: rad_per_s (ROS standard) or fraction_of_max (the vendor driver: '
       "fractions of each joint's maximum speed); set at start: it must match the driver's "
-      'units, fixed while the driver runs', allowed=('rad_per_s', 'fraction_of_max'),
+      'units, fixed while the driver runs', allowed=JOG_UNITS,
       read_only=True),
     P('speed_override', 'float', 0.25, '',
       'fraction_of_max: speed override of the vendor driver', 0.01, 1.0),
@@ -329,7 +341,7 @@ SIM_BRIDGE = _table(
     P('mode', 'str', 'rad_per_s', '',
       'JointJog units and driver behaviour: rad_per_s (ROS standard) or vendor_driver (behaves '
       'like the vendor driver: fractions, 20 Hz cycle, whole encoder ticks); set at start',
-      allowed=('rad_per_s', 'vendor_driver'), read_only=True),
+      allowed=SIM_MODES, read_only=True),
     P('speed_override', 'float', 0.25, '',
       'vendor_driver: speed = fraction * max speed * speed_override; set at start: the '
       'simulator is built with it', 0.01, 1.0, read_only=True),
@@ -381,7 +393,7 @@ DRIVER = _table(
     P('jog_units', 'str', 'rad_per_s', '',
       'JointJog velocities: rad_per_s (ROS standard) or fraction_of_max (the vendor driver: '
       "fractions of each joint's maximum speed times speed_override); set at start",
-      allowed=('rad_per_s', 'fraction_of_max'), read_only=True),
+      allowed=JOG_UNITS, read_only=True),
     P('speed_override', 'float', 0.25, '',
       "fraction_of_max: the vendor driver's speed override", 0.01, 1.0),
     P('enable_on_start', 'bool', False, '',

@@ -46,12 +46,10 @@ import math
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
+from mover6_control.parameters import SIM_MODES   # what the simulator behaves as
 import mujoco
 import numpy as np
 from sim_bridge.model import build_model, joint_dof_addresses, joint_qpos_addresses, ModelOptions
-
-MODES = ('rad_per_s', 'vendor_driver')
-
 
 _EPS = 1e-9
 _LIMIT_APPROACH = 5.0    # physics steps over which a joint may close its gap to a limit
@@ -71,8 +69,8 @@ class SimConfig:
 
     def __post_init__(self):
         """Check the mode and every number."""
-        if self.mode not in MODES:
-            raise InvalidInputError(f'unknown mode "{self.mode}", expected one of {MODES}')
+        if self.mode not in SIM_MODES:
+            raise InvalidInputError(f'unknown mode "{self.mode}", expected one of {SIM_MODES}')
         if not (math.isfinite(self.command_timeout) and self.command_timeout > 0.0):
             raise InvalidInputError(
                 f'command_timeout must be positive, got {self.command_timeout}')

@@ -9,6 +9,7 @@ checker with MuJoCo's contacts in the simulator.
 import os
 import re
 
+from core_testing import send_demand, send_states
 from mover6_control.collision.checker import CollisionChecker, CollisionSettings, densify
 from mover6_control.collision.geometry import (build_geometry, keep_out_boxes, ToolVolume)
 from mover6_control.control.collision_guard import CollisionGuard, plan_samples
@@ -202,21 +203,21 @@ def test_the_controller_refuses_a_colliding_demand_with_the_reason():
     """A demand sent directly is checked as the law moves it; the table goal is refused."""
     core = ControllerCore(ARM)
     core.collision_guard = CollisionGuard(ARM)
-    core.on_joint_states(0.0, HOME, np.zeros(6))
+    send_states(core, 0.0, HOME, np.zeros(6))
     core.tick(0.0)
     q_table = ik_closed_form(ARM, table_goal(), within_limits=True)[0]
     with pytest.raises(InvalidInputError, match='collision: link6 tool is .* into the table'):
-        core.on_demands(0.01, np.stack([HOME, q_table]), 'g1')
+        send_demand(core, 0.01, np.stack([HOME, q_table]), 'g1')
     assert core.status().values['rejected'].startswith('collision: link6 tool')
     # Both ends clear, the motion between them through the base: refused as well.
-    core.on_joint_states(0.02, THROUGH_BASE[0], np.zeros(6))
+    send_states(core, 0.02, THROUGH_BASE[0], np.zeros(6))
     core.tick(0.02)
     with pytest.raises(InvalidInputError, match='collision: link6 tool and base'):
-        core.on_demands(0.03, THROUGH_BASE, 'g2')
+        send_demand(core, 0.03, THROUGH_BASE, 'g2')
     # A free demand is taken.
-    core.on_joint_states(0.04, HOME, np.zeros(6))
+    send_states(core, 0.04, HOME, np.zeros(6))
     core.tick(0.04)
-    assert core.on_demands(0.05, np.array([[0.2, 0.1, -0.1, 0.0, 0.3, 0.0]]), 'g3') >= 1
+    assert send_demand(core, 0.05, np.array([[0.2, 0.1, -0.1, 0.0, 0.3, 0.0]]), 'g3') >= 1
 
 
 def test_plan_samples_cover_the_whole_motion_within_the_step():

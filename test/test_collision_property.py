@@ -9,6 +9,7 @@ same shapes (``Simulator.contact_steps``) must stay at zero. Paths the checker r
 counted too, so the property is not met by finding nothing free.
 """
 
+from core_testing import send_demand, send_states
 from mover6_control.collision.checker import CollisionChecker
 from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.state_machine import IDLE
@@ -29,12 +30,12 @@ def run_on_simulator(sim, start, waypoints, max_time=30.0):
     per_tick = int(round(1.0 / RATE / sim.config.physics_dt))
     t = sim.time
     reading = sim.state()
-    core.on_joint_states(t, reading.q, reading.qd)
+    send_states(core, t, reading.q, reading.qd)
     core.tick(t)
-    core.on_demands(t, waypoints)
+    send_demand(core, t, waypoints)
     while sim.time - t < max_time:
         reading = sim.state()
-        core.on_joint_states(sim.time, reading.q, reading.qd)
+        send_states(core, sim.time, reading.q, reading.qd)
         out = core.tick(sim.time)
         if out.state == IDLE:
             break

@@ -18,6 +18,7 @@ demand thread, which takes a ``snapshot`` under the lock, plans from it without 
 import random
 import threading
 
+from core_testing import send_demand, send_states, send_states_lacking
 from mover6_control.control import state_machine as sm
 from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.controller_core import ControllerCore
@@ -76,13 +77,13 @@ def test_a_tick_clearing_the_reference_during_prepare_demand_changes_nothing():
     # the demand dropped with no status.
     core = RacingCore(ARM, ControllerConfig(law=LawConfig(profile='synchronised')))
     q = np.zeros(6)
-    core.on_joint_states(0.0, q)
+    send_states(core, 0.0, q)
     core.tick(0.0)
-    core.on_demands(0.0, [[0.2, 0.1, 0.0, 0.0, 0.0, 0.0]])
+    send_demand(core, 0.0, [[0.2, 0.1, 0.0, 0.0, 0.0, 0.0]])
     core.tick(DT)
     assert core.state == sm.EXECUTING and core._ref is not None
     core.clear_after_next_read = True
-    pending = core.prepare_demand(DT, [[0.3, 0.0, 0.0, 0.0, 0.0, 0.0]])
+    pending = core.prepare_demand(DT, [[0.3, 0.0, 0.0, 0.0, 0.0, 0.0]], core.snapshot())
     assert core._ref is None                          # the race happened
     motion = core.commit_demand(pending)
     assert motion == 2 and core.state == sm.EXECUTING
@@ -172,9 +173,9 @@ class Harness:
         r = self.rng.random()
         with self.lock:
             if r < 0.75:
-                self.core.on_joint_states(self.now, self.q + self.rng.gauss(0, 1e-4))
+                send_states(self.core, self.now, self.q + self.rng.gauss(0, 1e-4))
             elif r < 0.8:
-                self.core.on_invalid_states(self.now, 'joint5 missing')
+                send_states_lacking(self.core, self.now, 'joint5')
             elif r < 0.85:
                 self.now += 0.3                      # states go stale
             elif r < 0.93:

@@ -2,6 +2,7 @@
 
 import importlib.util
 
+from core_testing import send_demand, send_states, send_states_lacking
 from hypothesis import given, settings
 import hypothesis.strategies as st
 from mover6_control.control import state_machine as sm
@@ -34,7 +35,7 @@ class Sim:
 
     def tick(self):
         if self.report:
-            self.core.on_joint_states(self.t, self.q)
+            send_states(self.core, self.t, self.q)
         out = self.core.tick(self.t)
         self.log.append((self.t, out.state, out.qd.copy()))
         if self.follow:
@@ -61,8 +62,8 @@ def test_waits_for_states_and_commands_zero():
     out = core.tick(0.0)
     assert out.state == sm.WAITING_FOR_STATES and not np.any(out.qd)
     with pytest.raises(InvalidInputError, match='waiting_for_states'):
-        core.on_demands(0.0, GOAL[None])
-    core.on_invalid_states(0.0, 'joint_states lacks joints [joint6]')
+        send_demand(core, 0.0, GOAL[None])
+    send_states_lacking(core, 0.0, 'joint6')
     assert core.tick(0.0).state == sm.WAITING_FOR_STATES
     assert 'joint6' in core.status().message
     sim.tick()
@@ -74,7 +75,7 @@ def test_every_profile_arrives_with_explicit_zero(profile):
     core, sim = make(profile)
     sim.tick()
     Q = np.array([[0.2, 0.1, 0.0, 0.1, 0.0, 0.2], GOAL])
-    assert core.on_demands(sim.t, Q) == 1
+    assert send_demand(core, sim.t, Q) == 1
     out = sim.run_until(lambda o: o.state == sm.IDLE)
     assert not np.any(out.qd)                      # the tick entering idle sends zeros
     status = core.status()
@@ -85,7 +86,7 @@ def test_every_profile_arrives_with_explicit_zero(profile):
     np.testing.assert_allclose(sim.q, GOAL, atol=0.002)
     speeds = np.array([qd for _, _, qd in sim.log])
     assert np.all(np.abs(speeds) <= core.arm.velocity_limits * (1 + 1e-9))
-    assert core.on_demands(sim.t, GOAL[None]) == 2
+    assert send_demand(core, sim.t, GOAL[None]) == 2
 
 
 @settings(max_examples=15, deadline=None)
@@ -96,7 +97,7 @@ def test_synchronised_joints_finish_within_one_tick(q0, q1):
                           ControllerConfig(law=LawConfig(profile='synchronised')))
     sim = Sim(core, q0)
     sim.tick()
-    core.on_demands(sim.t, [q1])
+    send_demand(core, sim.t, [q1])
     sim.run_until(lambda o: o.state != sm.EXECUTING)
     speeds = np.abs(np.array([qd for _, state, qd in sim.log if state == sm.EXECUTING]))
     moving = np.abs(np.subtract(q1, q0)) > 0.01
@@ -111,7 +112,7 @@ def test_trapezoid_peak_and_final_position_are_eq16_to_19():
     core, sim = make('trapezoidal', law={'t_max': 1.0}, position_gain=0.0)
     sim.tick()
     delta = np.array([0.3, -0.15, 0.0, 0.2, -0.1, 0.3])
-    core.on_demands(sim.t, [delta])
+    send_demand(core, sim.t, [delta])
     sim.run_until(lambda o: o.state == sm.IDLE)
     speeds = np.array([qd for _, _, qd in sim.log])
     v_max = np.abs(delta) / (1.0 - 0.25)                          # eq. 16, t_blend = t_max / 4
@@ -122,7 +123,7 @@ def test_trapezoid_peak_and_final_position_are_eq16_to_19():
 def test_closed_loop_removes_drift():
     core, sim = make('trapezoidal', law={'t_max': 3.0}, position_gain=2.0)
     sim.tick()
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     worst = 0.0
     while core.state == sm.EXECUTING:
         sim.q[1] += 0.0005                       # a joint slipping at 0.05 rad/s while moving
@@ -137,7 +138,7 @@ def test_closed_loop_removes_drift():
 def test_stale_states_fault_within_one_tick_and_recover():
     core, sim = make('trapezoidal', state_timeout=0.25)
     sim.tick()
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     sim.run_until(lambda o: sim.t > 0.5)
     last = sim.t - DT
     sim.report = False                                            # the arm stops reporting
@@ -149,7 +150,7 @@ def test_stale_states_fault_within_one_tick_and_recover():
     assert 'stale' in status.message
     assert not np.any(sim.tick().qd)                              # holds at zero
     with pytest.raises(InvalidInputError, match='fault'):
-        core.on_demands(sim.t, [GOAL])
+        send_demand(core, sim.t, [GOAL])
     sim.report = True
     out = sim.tick()
     assert out.state == sm.IDLE and not np.any(out.qd)
@@ -158,9 +159,9 @@ def test_stale_states_fault_within_one_tick_and_recover():
 def test_invalid_states_fault_at_the_next_tick():
     core, sim = make()
     sim.tick()
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     sim.run_until(lambda o: sim.t > 0.3)
-    core.on_invalid_states(sim.t, 'joint_states lacks joints [joint4]')
+    send_states_lacking(core, sim.t, 'joint4')
     sim.report = False
     out = sim.tick()
     assert out.state == sm.FAULT and not np.any(out.qd)
@@ -177,18 +178,18 @@ def test_invalid_states_fault_at_the_next_tick():
 def test_bad_demands_leave_the_running_motion(bad, reason):
     core, sim = make()
     sim.tick()
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     sim.run_until(lambda o: sim.t > 0.3)
     plan = core.plan
     with pytest.raises(InvalidInputError, match=reason):
-        core.on_demands(sim.t, bad)
+        send_demand(core, sim.t, bad)
     assert core.plan is plan and core.motion_id == 1 and core.state == sm.EXECUTING
 
 
 def test_flat_demand_is_accepted():
     core, sim = make()
     sim.tick()
-    assert core.on_demands(sim.t, np.concatenate([GOAL, GOAL])) == 1
+    assert send_demand(core, sim.t, np.concatenate([GOAL, GOAL])) == 1
     assert core.status().values['waypoints'] == 2
 
 
@@ -197,11 +198,11 @@ def test_preemption_does_not_jump(profile):
     law = {'a_max': 1.0, 'j_max': 20.0}
     core, sim = make(profile, law=law)
     sim.tick()
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     sim.run_until(lambda o: sim.t > 0.8)
     before = sim.log[-1][2]
     assert np.max(np.abs(before)) > 0.2                           # really moving
-    core.on_demands(sim.t, [-GOAL])
+    send_demand(core, sim.t, [-GOAL])
     after = sim.tick().qd
     assert core.state == sm.EXECUTING and core.motion_id == 2
     assert np.max(np.abs(after - before)) <= 2 * law['a_max'] * DT
@@ -212,13 +213,13 @@ def test_preemption_does_not_jump(profile):
 def test_stop_decelerates_keeps_direction_and_holds():
     core, sim = make('trapezoidal', law={'a_max': 2.0})
     sim.tick()
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     sim.run_until(lambda o: sim.t > 0.8)
     before = sim.log[-1][2]
     ok, _ = core.request_stop(sim.t)
     assert ok and core.state == sm.STOPPING
     with pytest.raises(InvalidInputError, match='stopping'):
-        core.on_demands(sim.t, [GOAL])
+        send_demand(core, sim.t, [GOAL])
     out = sim.run_until(lambda o: o.state == sm.IDLE)
     assert not np.any(out.qd)
     ramp = np.array([qd for _, state, qd in sim.log if state == sm.STOPPING])
@@ -234,7 +235,7 @@ def test_arm_that_does_not_move_aborts_and_stops():
     core, sim = make('trapezoidal', path_tolerance=0.05)
     sim.follow = False
     sim.tick()
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     out = sim.run_until(lambda o: o.state == sm.IDLE)
     assert not np.any(out.qd)
     status = core.status()
@@ -246,7 +247,7 @@ def test_arm_that_does_not_move_aborts_and_stops():
 def test_settle_timeout_reports_aborted():
     core, sim = make('trapezoidal', settle_timeout=0.3, position_gain=0.0)
     sim.tick()
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     sim.run_until(lambda o: sim.t > core.plan.duration - 0.1)
     sim.q[0] += 0.1                                               # pushed off the goal
     sim.run_until(lambda o: o.state == sm.IDLE)
@@ -260,7 +261,7 @@ def test_never_commands_further_past_a_limit():
     core = ControllerCore(arm, ControllerConfig(law=LawConfig(profile='trapezoidal')))
     sim = Sim(core, q0=[0.0, 0.0, 0.0, 0.0, 0.0, arm.upper[5] + 0.02])
     sim.tick()
-    core.on_demands(sim.t, [[0.3, 0, 0, 0, 0, arm.upper[5]]])
+    send_demand(core, sim.t, [[0.3, 0, 0, 0, 0, arm.upper[5]]])
     for _ in range(200):
         q6 = sim.q[5]
         out = sim.tick()
@@ -271,7 +272,7 @@ def test_never_commands_further_past_a_limit():
 def test_fraction_of_max_units_and_limits():
     core, sim = make('trapezoidal', jog_units='fraction_of_max', speed_override=0.25)
     sim.tick()
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     sim.run_until(lambda o: sim.t > 1.0)
     out = core.tick(sim.t)
     vlim = core.arm.velocity_limits
@@ -303,9 +304,9 @@ def test_bad_config_is_rejected():
 def test_prepared_demand_commits_later_without_a_jump():
     core, sim = make('jerk_limited', law={'a_max': 1.0, 'j_max': 20.0})
     sim.tick()
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     sim.run_until(lambda o: sim.t > 0.8)
-    pending = core.prepare_demand(sim.t, [-GOAL])
+    pending = core.prepare_demand(sim.t, [-GOAL], core.snapshot())
     assert core.motion_id == 1 and core.plan is not pending.plan   # nothing changed yet
     for _ in range(5):                                               # ticks while planning
         sim.tick()
@@ -324,9 +325,9 @@ def test_prepared_demand_commits_later_without_a_jump():
 def test_prepared_demand_replans_when_the_motion_ended_meanwhile():
     core, sim = make('trapezoidal')
     sim.tick()
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     sim.run_until(lambda o: sim.t > core.plan.duration - 0.05)
-    pending = core.prepare_demand(sim.t, [np.zeros(6)])
+    pending = core.prepare_demand(sim.t, [np.zeros(6)], core.snapshot())
     assert core.is_current(pending)
     sim.run_until(lambda o: o.state == sm.IDLE)
     assert not core.is_current(pending)          # a node prepares it again, without its lock
@@ -339,18 +340,18 @@ def test_prepared_demand_replans_when_the_motion_ended_meanwhile():
 def test_prepared_demand_is_stale_once_another_motion_started():
     core, sim = make('trapezoidal')
     sim.tick()
-    pending = core.prepare_demand(sim.t, [GOAL])
+    pending = core.prepare_demand(sim.t, [GOAL], core.snapshot())
     assert core.is_current(pending)
-    core.on_demands(sim.t, [-GOAL])              # another demand got in first
+    send_demand(core, sim.t, [-GOAL])            # another demand got in first
     assert not core.is_current(pending)
     assert core.commit_demand(pending) == 2
-    assert core.is_current(core.prepare_demand(sim.t, [np.zeros(6)]))
+    assert core.is_current(core.prepare_demand(sim.t, [np.zeros(6)], core.snapshot()))
 
 
 def test_prepared_demand_is_refused_after_a_fault():
     core, sim = make()
     sim.tick()
-    pending = core.prepare_demand(sim.t, [GOAL])
+    pending = core.prepare_demand(sim.t, [GOAL], core.snapshot())
     sim.report = False
     sim.run_until(lambda o: o.state == sm.FAULT)
     with pytest.raises(InvalidInputError, match='fault'):
@@ -373,9 +374,9 @@ def test_arrival_waits_for_a_lagging_arm_and_it_stays_within_tolerance(profile):
     goal = np.array([0.3, -0.2, 0.25, 0.1, -0.15, 0.2])
     q, t = np.zeros(6), 0.0
     pipeline = [np.zeros(6), np.zeros(6)]    # commands on their way to the joints
-    core.on_joint_states(t, q, np.zeros(6))
+    send_states(core, t, q, np.zeros(6))
     core.tick(t)
-    core.on_demands(t, goal[None])
+    send_demand(core, t, goal[None])
     arrived_at = None
     for _ in range(3000):
         t += dt
@@ -383,7 +384,7 @@ def test_arrival_waits_for_a_lagging_arm_and_it_stays_within_tolerance(profile):
         pipeline.append(out.qd.copy())
         qd = pipeline.pop(0)      # the arm moves at the speed commanded two ticks ago
         q = q + qd * dt
-        core.on_joint_states(t, q, qd)
+        send_states(core, t, q, qd)
         if arrived_at is None and core.status().values.get('result') == 'arrived':
             arrived_at = t
         if arrived_at is not None:
@@ -403,14 +404,14 @@ def test_reconfigure_when_idle_applies_at_once():
     assert values['profile'] == 'synchronised' and values['rate'] == '50'
     assert values['goal_tolerance'].split() == ['0.004000'] * 6
     assert 'pending_parameters' not in values
-    core.on_demands(sim.t, GOAL)
+    send_demand(core, sim.t, GOAL)
     assert core.plan is not None and 'synchronised' in core.status().message
 
 
 def test_reconfigure_during_a_motion_applies_when_it_ends():
     core, sim = make('trapezoidal')
     sim.run_until(lambda out: out.state == sm.IDLE)
-    core.on_demands(sim.t, GOAL)
+    send_demand(core, sim.t, GOAL)
     sim.tick()
     new = ControllerConfig(law=LawConfig(profile='synchronised'))
     assert core.reconfigure(new) is False

@@ -2,6 +2,7 @@
 
 from dataclasses import replace
 
+from core_testing import send_demand, send_states
 from mover6_control.control import jogging
 from mover6_control.control import state_machine as sm
 from mover6_control.control.collision_guard import CollisionGuard
@@ -28,7 +29,7 @@ class Sim:
 
     def tick(self, jog=None):
         """Report the states, send ``jog(core, t)`` if given, tick, integrate."""
-        self.core.on_joint_states(self.t, self.q)
+        send_states(self.core, self.t, self.q)
         if jog is not None:
             jog(self.core, self.t)
         out = self.core.tick(self.t)
@@ -79,7 +80,7 @@ def test_joint_jog_by_name():
 
 def test_jogging_is_refused_while_a_motion_executes():
     core, sim = make()
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     sim.tick()
     with pytest.raises(InvalidInputError, match='jogging refused while executing'):
         twist_x(core, sim.t)
@@ -100,7 +101,7 @@ def test_a_demand_while_jogging_takes_over_without_a_velocity_jump():
         sim.tick(lambda c, t: c.on_joint_jog(t, t, ['joint1', 'joint3'], [0.3, -0.2]))
     before = sim.log[-1][2]
     assert np.max(np.abs(before)) > 0.15
-    core.on_demands(sim.t, [GOAL])
+    send_demand(core, sim.t, [GOAL])
     after = sim.tick().qd
     assert core.state == sm.EXECUTING
     assert np.max(np.abs(after - before)) <= 2 * core.config.law.a_max * DT

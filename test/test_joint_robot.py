@@ -183,7 +183,8 @@ def test_joint_carries_limits_tolerance_and_encoder_tick():
         Joint('j', -1.0, 1.0, 1.0, goal_tolerance=0.0)
     with pytest.raises(InvalidInputError):
         Joint('j', -1.0, 1.0, 1.0, encoder_tick=-1e-5)
-    assert Joint('j', -1.0, 1.0, 1.0, q=0.0005, demand=0.0, goal_tolerance=0.001).arrived
+    joint = Joint('j', -1.0, 1.0, 1.0, q=0.0005, demand=0.0, goal_tolerance=0.001)
+    assert joint.distance_to_go == -0.0005 and joint.direction == -1.0
 
 
 def test_robot_follows_the_plan_it_is_given_and_commands_through_the_law():

@@ -6,9 +6,11 @@ have (launch_ros is not on PyPI), so it is read with ``ast``; launch.sh is read 
 must start the same executables with the same parameter files, the same per-node overrides and
 environment hooks, and offer the same choices (sim, hardware, profile, jog_units, limit_set)
 with the same defaults, which are the package's own constants and the shipped parameter files'
-values. What the ``hardware`` argument starts is decided at launch time (an OpaqueFunction):
-the last test runs the launch file on stand-ins that record what it builds, and calls that
-function for each choice. What ``ros2 launch`` itself then does with the actions is not tested
+values (the launch file takes those of profile, jog_units and limit_set from the controller's
+parameter table, so they are read from the launch file executed on stand-ins). What the
+``hardware`` argument starts is decided at launch time (an OpaqueFunction): the last test runs
+the launch file on stand-ins that record what it builds, and calls that function for each
+choice. What ``ros2 launch`` itself then does with the actions is not tested
 here.
 """
 
@@ -16,9 +18,7 @@ import ast
 import os
 import re
 
-from mover6_control.control.commands import JOG_UNITS
-from mover6_control.control.profiles import PROFILES
-from mover6_control.kinematics.arm import LIMIT_SETS
+from mover6_control.parameters import CONTROLLER, JOG_UNITS, LIMIT_SETS, PROFILES
 from mover6_control.resources import CONFIG_DIR
 import pytest
 import yaml
@@ -57,8 +57,9 @@ def keyword(call, name):
 
 
 def launch_arguments(tree):
-    """Return {name: DeclareLaunchArgument call} of the launch file."""
-    return {ast.literal_eval(c.args[0]): c for c in calls(tree, 'DeclareLaunchArgument')}
+    """Return {name: DeclareLaunchArgument call} of the launch file's arguments named literally."""
+    return {c.args[0].value: c for c in calls(tree, 'DeclareLaunchArgument')
+            if isinstance(c.args[0], ast.Constant)}
 
 
 def launch_nodes(tree):
@@ -129,16 +130,20 @@ def test_same_overrides_and_environment_hooks(tree):
 
 
 @pytest.mark.parametrize('name', CHOICES)
-def test_same_choices_and_defaults(tree, name):
+def test_same_choices_and_defaults(launch_module, name):
     """profile, jog_units, limit_set: the package's choices, the parameter files' defaults."""
-    call = launch_arguments(tree)[name]
+    declared = declared_arguments(launch_module)[name]
     option, variable = SH_NAMES[name]
-    choices = ast.literal_eval(keyword(call, 'choices'))
+    choices = declared['choices']
     assert sorted(choices) == sorted(CHOICES[name])
     assert sorted(sh_variable(variable).split()) == sorted(CHOICES[name])
     assert f'{option})' in read(LAUNCH_SH)
-    default = ast.literal_eval(keyword(call, 'default_value'))
-    assert default == sh_variable(name)
+    default = declared['default_value']
+    assert default == sh_variable(name) == CONTROLLER[name].default
+    # launch.sh --help (its leading comment) names every choice and the default.
+    help_text = re.search(rf'^#   {option} .*?(?=^#   --)', read(LAUNCH_SH), re.M | re.S).group(0)
+    assert [c for c in CHOICES[name] if not re.search(rf'\b{c}\b', help_text)] == []
+    assert f'{default} (default' in help_text
     for node in NODES:
         if (node, name) == ('driver', 'limit_set'):
             continue      # alone it clamps to the vendor's limits; the stack passes its own
@@ -167,7 +172,7 @@ def test_same_sim_choice(tree):
     assert guarded == ['driver']
 
 
-def test_same_hardware_choice(tree):
+def test_same_hardware_choice(tree, launch_module):
     """hardware:=sim|can_sim|can is launch.sh's --hardware sim|can-sim|can, default sim."""
     call = launch_arguments(tree)['hardware']
     choices = ast.literal_eval(keyword(call, 'choices'))
@@ -178,8 +183,7 @@ def test_same_hardware_choice(tree):
     for option in ('--hardware)', '--can-interface)', '--can-channel)'):
         assert option in read(LAUNCH_SH)
     # The controller's state timeout: the shipped file's on the simulator, 0.5 s on the driver.
-    timeouts = next(ast.literal_eval(n.value) for n in tree.body if isinstance(n, ast.Assign)
-                    and ast.unparse(n.targets[0]) == 'STATE_TIMEOUT')
+    timeouts = launch_module.STATE_TIMEOUT
     controller = yaml.safe_load(read(os.path.join(CONFIG_DIR, 'controller.yaml')))
     shipped = controller['/**/controller']['ros__parameters']['state_timeout']
     assert float(timeouts['sim']) == shipped
@@ -260,11 +264,16 @@ def launch_module():
         yield module
 
 
+def declared_arguments(launch_module):
+    """Return {name: keyword arguments} of the launch file's DeclareLaunchArgument actions."""
+    description = launch_module.generate_launch_description()
+    return {a.args[0]: a.kwargs for a in description.args[0]
+            if type(a).__name__ == 'DeclareLaunchArgument'}
+
+
 def test_the_hardware_argument_starts_what_launch_sh_starts(launch_module):
     """hardware:= sim | can | can_sim: nothing more | the driver on the bus | can_sim, then it."""
-    description = launch_module.generate_launch_description()
-    declared = {a.args[0]: a.kwargs for a in description.args[0]
-                if type(a).__name__ == 'DeclareLaunchArgument'}
+    declared = declared_arguments(launch_module)
     assert [c.replace('_', '-') for c in declared['hardware']['choices']] == \
         sh_variable('HARDWARE').split()
     for name, (_, variable) in SH_NAMES.items():

@@ -79,15 +79,6 @@ def test_every_reason_code_is_in_the_one_table():
     assert codes - set(REASONS) == set()
 
 
-# Tables the base layer's parameter tables repeat because the base may import nothing of this
-# project (a test in test_parameters.py checks that each copy equals its home); to be given
-# one home when parameters.py is reworked (issue 19, item 3).
-KNOWN_COPIES = {'LIMIT_SETS': ['mover6_control/kinematics/arm.py', 'mover6_control/parameters.py'],
-                'PROFILES': ['mover6_control/control/profiles.py', 'mover6_control/parameters.py'],
-                'TOOL_SHAPES': ['mover6_control/collision/geometry.py',
-                                'mover6_control/parameters.py']}
-
-
 def test_no_constant_table_is_defined_twice():
     """A top-level UPPER_CASE name is defined in one product module; others import it."""
     homes = {}
@@ -95,4 +86,4 @@ def test_no_constant_table_is_defined_twice():
         if kind == 'name' and name.isupper():
             homes.setdefault(name, set()).add(path.replace(os.sep, '/'))
     twice = {name: sorted(paths) for name, paths in homes.items() if len(paths) > 1}
-    assert twice == KNOWN_COPIES
+    assert twice == {}

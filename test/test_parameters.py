@@ -12,18 +12,19 @@ import os
 import re
 
 from mover6_control.collision.checker import CollisionSettings
-from mover6_control.collision.geometry import TOOL_SHAPES, ToolVolume
-from mover6_control.control.commands import JOG_UNITS
+from mover6_control.collision.geometry import ToolVolume
 from mover6_control.control.controller_config import ControllerConfig
-from mover6_control.control.profiles import LawConfig, PROFILES
+from mover6_control.control.profiles import (LawConfig, PROFILE_FAMILIES, STOP_AT_EACH_PROFILES,
+                                             THROUGH_ALL_PROFILES)
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.arm import LIMIT_SETS, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
-from mover6_control.parameters import (check_value, CONTROLLER, NODES, ParameterSpec, PLANNER,
-                                       SIM_BRIDGE)
-from mover6_control.planning.planner_core import PATH_MOTIONS, PlannerSettings, POSE_MOTIONS
+from mover6_control.kinematics.arm import mover6, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
+from mover6_control.parameters import (check_value, CONTROLLER, JOG_UNITS, LIMIT_SETS, NODES,
+                                       ParameterSpec, PATH_MOTIONS, PLANNER, POSE_MOTIONS,
+                                       PROFILES, SIM_BRIDGE, SIM_MODES, TOOL_SHAPES)
+from mover6_control.planning.planner_core import PlannerSettings
 import pytest
 from sim_bridge.model import ModelOptions
-from sim_bridge.simulator import MODES, SimConfig
+from sim_bridge.simulator import SimConfig
 import yaml
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -78,12 +79,12 @@ def test_the_law_defaults_to_what_the_node_runs():
 
 
 def test_allowed_values_are_the_core_names():
-    """The allowed strings are exactly the names the core accepts."""
+    """The allowed strings are the tables the core takes its names from, and it takes each."""
     assert PLANNER['motion'].allowed == POSE_MOTIONS
     assert PLANNER['path_motion'].allowed == PATH_MOTIONS
-    assert set(CONTROLLER['profile'].allowed) == set(PROFILES)
+    assert CONTROLLER['profile'].allowed == PROFILES
     assert CONTROLLER['jog_units'].allowed == JOG_UNITS
-    assert SIM_BRIDGE['mode'].allowed == MODES
+    assert SIM_BRIDGE['mode'].allowed == SIM_MODES
     for table in NODES.values():
         if 'limit_set' in table:        # the nodes with an arm model's limits
             assert table['limit_set'].allowed == LIMIT_SETS
@@ -92,6 +93,25 @@ def test_allowed_values_are_the_core_names():
         'state_publisher', 'markers', 'recorder'}
     for table in (PLANNER, CONTROLLER):
         assert table['tool_shape'].allowed == TOOL_SHAPES
+    # Each name has its meaning in the core (the core imports these tables from parameters).
+    for profile in PROFILES:
+        assert LawConfig(profile=profile).profile == profile
+    assert set(PROFILES) == ({'synchronised', 'trapezoidal', 'jerk_limited', 'continuous'}
+                             | set(STOP_AT_EACH_PROFILES) | set(THROUGH_ALL_PROFILES))
+    assert sorted(sum(PROFILE_FAMILIES.values(), ())) == sorted(PROFILES)
+    for limit_set in LIMIT_SETS:
+        assert mover6(limit_set).n_joints == 6
+    for units in JOG_UNITS:
+        assert ControllerConfig(jog_units=units).jog_units == units
+    for shape in TOOL_SHAPES:
+        assert ToolVolume(shape).shape == shape
+    for mode in SIM_MODES:
+        assert SimConfig(mode=mode).mode == mode
+    for refused in (lambda: LawConfig(profile='banana'), lambda: mover6('banana'),
+                    lambda: ControllerConfig(jog_units='banana'), lambda: ToolVolume('banana'),
+                    lambda: SimConfig(mode='banana')):
+        with pytest.raises(InvalidInputError, match='banana'):
+            refused()
 
 
 def test_mover6_driver_constants_are_the_arms():
@@ -111,6 +131,58 @@ def test_config_file_matches_the_table(node):
         check_value(table[name], value)
         default = table[name].default
         assert (tuple(value) if isinstance(value, list) else value) == default, name
+
+
+def yaml_comments(path):
+    """
+    Return {parameter: its comment} of a parameter file.
+
+    A parameter's comment is the one on its line, the comment lines indented under it that
+    follow it (and a comment on a continued value's line), and the comment lines right above it.
+    """
+    out, above, current = {}, [], None
+    with open(path) as f:
+        lines = f.read().splitlines()
+    for line in lines:
+        entry = re.match(r'^    (\w+):\s*(?:[^#]*?)(?:\s+#\s?(.*))?$', line)
+        comment = re.match(r'^(\s*)#\s?(.*)$', line)
+        if entry:
+            current = entry.group(1)
+            out[current] = ' '.join(above + [entry.group(2) or ''])
+            above = []
+        elif comment and current and len(comment.group(1)) > 4:
+            out[current] += ' ' + comment.group(2)
+        elif comment:
+            above.append(comment.group(2))
+            current = None
+        elif line.strip() and current and '#' in line:
+            out[current] += ' ' + line.split('#', 1)[1]
+        else:
+            above = []
+    return out
+
+
+@pytest.mark.lint
+@pytest.mark.parametrize('node', sorted(NODES))
+def test_config_file_comments_agree_with_the_table(node):
+    """
+    config/<node>.yaml's comments: each parameter's unit in brackets and every allowed value.
+
+    The table is the source (``parameters``); a file's comments may say more, never otherwise.
+    """
+    comments = yaml_comments(os.path.join(ROOT, 'config', f'{node}.yaml'))
+    units = {spec.unit for table in NODES.values() for spec in table.values()} - {''}
+    assert set(comments) == set(NODES[node])
+    for name, spec in NODES[node].items():
+        text = comments[name]
+        assert text.strip(), f'{name} has no comment'
+        if spec.unit:
+            assert f'[{spec.unit}]' in text, f'{name}: unit [{spec.unit}] missing: {text}'
+        else:
+            wrong = [unit for unit in units if f'[{unit}]' in text]
+            assert not wrong, f'{name} has no unit, its comment says {wrong}: {text}'
+        missing = [value for value in spec.allowed if not re.search(rf'\b{value}\b', text)]
+        assert not missing, f'{name}: the comment does not name {missing}: {text}'
 
 
 def readme_parameters_section():

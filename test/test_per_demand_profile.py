@@ -1,5 +1,6 @@
 """A demand's own profile: its label, its motion only (node tests: test_controller_node.py)."""
 
+from core_testing import send_demand, send_states
 from geometry_msgs.msg import PoseStamped
 from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.controller_core import ControllerCore
@@ -130,7 +131,7 @@ def test_goal_command_refuses_an_unknown_profile(capsys):
 
 def started_core(profile='trapezoidal'):
     core = ControllerCore(ARM, ControllerConfig(law=LawConfig(profile=profile)))
-    core.on_joint_states(0.0, np.zeros(6))
+    send_states(core, 0.0, np.zeros(6))
     core.tick(0.0)
     return core
 
@@ -138,7 +139,7 @@ def started_core(profile='trapezoidal'):
 def test_a_demands_profile_times_that_motion_and_leaves_the_configuration():
     core = started_core('trapezoidal')
     config = core.config
-    core.on_demands(0.0, GOAL[None], 'g', profile='quintic')
+    send_demand(core, 0.0, GOAL[None], 'g', profile='quintic')
     assert core.config is config and core.config.law.profile == 'trapezoidal'
     expected = plan_motion(LawConfig(profile='quintic'), np.zeros(6), GOAL[None],
                            ARM.velocity_limits)
@@ -148,15 +149,15 @@ def test_a_demands_profile_times_that_motion_and_leaves_the_configuration():
     assert values['motion_profile'] == 'quintic'         # the law of this motion
     assert 'quintic' in core.status().message
     # The next demand without a profile is timed by the parameter's law again.
-    core.on_demands(0.1, (GOAL / 2)[None], 'h')
+    send_demand(core, 0.1, (GOAL / 2)[None], 'h')
     assert core.status().values['motion_profile'] == 'trapezoidal'
 
 
 def test_an_unknown_profile_is_refused_with_the_reason_and_the_motion_kept():
     core = started_core()
-    motion = core.on_demands(0.0, GOAL[None], 'g')
+    motion = send_demand(core, 0.0, GOAL[None], 'g')
     with pytest.raises(InvalidInputError, match='profile must be one of'):
-        core.on_demands(0.1, (GOAL / 2)[None], 'bad', profile='banana')
+        send_demand(core, 0.1, (GOAL / 2)[None], 'bad', profile='banana')
     assert core.motion_id == motion
     values = core.status().values
     assert values['rejected_goal_id'] == 'bad' and 'banana' in values['rejected']

@@ -2,6 +2,7 @@
 
 import re
 
+from core_testing import send_demand, send_states
 from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.planners import predicted_duration
@@ -28,9 +29,9 @@ def report_linear_example():
 def controller_plan_duration(profile, q_start, waypoints, demand_profile=''):
     """Return the duration [s] the controller core announces when given ``waypoints``."""
     core = ControllerCore(ARM, ControllerConfig(law=LawConfig(profile=profile)))
-    core.on_joint_states(0.0, q_start)
+    send_states(core, 0.0, q_start)
     core.tick(0.0)
-    core.on_demands(0.0, waypoints, profile=demand_profile)
+    send_demand(core, 0.0, waypoints, profile=demand_profile)
     return float(re.search(r'([0-9.]+) s$', core.status().message).group(1))
 
 

@@ -7,6 +7,7 @@ most 0.2 mrad in 'rad_per_s' and at most one encoder tick per joint in 'fraction
 the command is zero once the controller is idle again.
 """
 
+from core_testing import send_demand, send_states
 from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.profiles import LawConfig
@@ -37,7 +38,7 @@ def settled_errors(profile, jog_units, goals=GOALS):
         reading = sim.state()
         if reading.time != last_reading:
             last_reading = reading.time
-            core.on_joint_states(sim.time, reading.q, reading.qd)
+            send_states(core, sim.time, reading.q, reading.qd)
         out = core.tick(sim.time)
         assert np.all(np.isfinite(out.qd))
         sim.set_command(NAMES, out.jog, sim.time)
@@ -47,7 +48,7 @@ def settled_errors(profile, jog_units, goals=GOALS):
     while core.state != 'idle':
         step()
     for goal in goals:
-        motion = core.on_demands(sim.time, goal[None, :])
+        motion = send_demand(core, sim.time, goal[None, :])
         while core.status().values.get('result') != 'arrived':
             step()
             assert sim.time < 60.0, core.status().message

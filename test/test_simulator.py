@@ -2,6 +2,7 @@
 
 import math
 
+from core_testing import send_demand, send_states
 from hypothesis import given, settings, strategies as st
 from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.controller_core import ControllerCore
@@ -312,10 +313,10 @@ def test_controller_fraction_of_max_drives_vendor_mode_to_the_goal():
         now = sim.time
         reading = sim.state()
         if reading.time != last_reading:
-            ctl.on_joint_states(now, reading.q, reading.qd)
+            send_states(ctl, now, reading.q, reading.qd)
             last_reading = reading.time
         if not accepted and ctl.state == 'idle':
-            ctl.on_demands(now, goal[None])
+            send_demand(ctl, now, goal[None])
             accepted = True
         out = ctl.tick(now)
         sim.set_command(NAMES, out.jog, now)

@@ -1,5 +1,6 @@
 """The timed plan of FollowJointTrajectory goals: each point at its time_from_start."""
 
+from core_testing import send_demand, send_states
 from mover6_control.control.planners import plan_motion
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.timed_plan import (hermite_coefficients, peak, plan_demand,
@@ -153,12 +154,11 @@ def test_malformed_timing_is_invalid_input():
 def run_core(core, timing, Q, until, dt=0.01):
     """Drive ``core`` (an arm that follows its commands) from rest; return (t, q) per tick."""
     q, t, log = np.zeros(N), 0.0, []
-    core.on_joint_states(t, q)
+    send_states(core, t, q)
     core.tick(t)
-    core.on_demands(t, Q) if timing is None else core.commit_demand(
-        core.prepare_demand(t, Q, timing=timing))
+    send_demand(core, t, Q, timing=timing)
     while t < until:
-        core.on_joint_states(t, q)
+        send_states(core, t, q)
         out = core.tick(t)
         log.append((t, q.copy(), core.status().values))
         q = q + out.qd * dt

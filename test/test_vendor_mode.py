@@ -7,6 +7,7 @@ resolve 6.1 mrad and do not move under about 7 deg/s, so without dead-zone compe
 wrist moves never arrive.
 """
 
+from core_testing import send_demand, send_states
 from hypothesis import given, settings
 import hypothesis.strategies as st
 from mover6_control.control.commands import (dead_zone_command, min_jog_speed, TICK_MARGIN,
@@ -58,7 +59,7 @@ class Loop:
                 self.in_transit.append((reading.time + self.reading_delay, reading))
         while self.in_transit and self.in_transit[0][0] <= now + 1e-9:
             reading = self.in_transit.pop(0)[1]
-            self.core.on_joint_states(now, reading.q, reading.qd)
+            send_states(self.core, now, reading.q, reading.qd)
         out = self.core.tick(now)
         assert np.all(np.abs(out.jog) <= 1.0)
         self.sim.run_for(self.command_delay)
@@ -72,7 +73,7 @@ class Loop:
         while self.core.state != 'idle':
             self.step()
             assert self.sim.time < timeout, self.core.status().message
-        motion = self.core.on_demands(self.sim.time, np.atleast_2d(goal))
+        motion = send_demand(self.core, self.sim.time, np.atleast_2d(goal))
         t0 = self.sim.time
         self.jogs = []
         while self.step().state != 'idle':
@@ -162,7 +163,7 @@ def test_goal_tolerance_is_at_least_one_tick_and_reported():
     core = vendor_core(goal_tolerance=0.002)
     np.testing.assert_allclose(core.goal_tolerance, TOL)
     assert core.goal_tolerance[4] == pytest.approx(0.006136, abs=1e-6)
-    core.on_joint_states(0.0, np.zeros(6))
+    send_states(core, 0.0, np.zeros(6))
     core.tick(0.0)
     reported = [float(v) for v in core.status().values['goal_tolerance'].split()]
     np.testing.assert_allclose(reported, TOL, atol=1e-6)

@@ -28,9 +28,9 @@ from dataclasses import dataclass, field
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
+from mover6_control.parameters import TOOL_SHAPES   # the shapes ToolVolume takes
 import numpy as np
 
-TOOL_SHAPES = ('capsule', 'box', 'none')
 TABLE = 'table'
 BASE = 'base'
 TOOL = 'tool'

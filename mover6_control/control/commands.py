@@ -17,10 +17,9 @@ from __future__ import annotations
 from typing import Sequence
 
 from mover6_control.errors import InvalidInputError
+from mover6_control.parameters import JOG_UNITS   # the units to_jog_units takes
 from mover6_control.validation import as_positive
 import numpy as np
-
-JOG_UNITS = ('rad_per_s', 'fraction_of_max')
 
 
 # --- limits ---------------------------------------------------------------------------------

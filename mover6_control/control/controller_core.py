@@ -5,12 +5,13 @@ The controller without ROS: joint states and demands in, one velocity command pe
 with limits, goal tolerance and encoder tick, the measured states, the running ``MotionPlan``
 of the selected velocity law and its reference), the state machine (``state_machine``), which
 decides from what the robot reports, and the safety checks. The node hands /joint_states to the
-robot by name (``on_named_joint_states``, which faults on invalid ones; ``on_joint_states``
-takes them in chain order, ``on_invalid_states`` notes states refused before they reached the
-core) and calls ``on_demands``, ``request_stop`` and ``reset`` from its callbacks
-and ``tick(now)`` from its timer, and publishes what comes back; every tick asks the robot for
-its command (``Robot.command``). Time is always an argument [s], so
-tests drive it with synthetic time and no sleeps.
+robot by name (``on_named_joint_states``, which faults on invalid ones), plans and starts each
+demand in its demand thread (``demand_intake``: ``check_demand``, ``snapshot``,
+``prepare_demand``, ``commit_demand``, or ``reject`` with the reason), calls ``request_stop``
+and ``reset`` from its callbacks and ``tick(now)`` from its tick thread, and publishes what
+comes back; every tick asks the robot for its command (``Robot.command``). Time is always an
+argument [s], so tests drive it with synthetic time and no sleeps (``test/core_testing.py``
+makes the node's calls in one thread).
 
 Safety, per tick: joint states older than ``state_timeout``, or reported incomplete or
 non-finite, give a zero command and the fault state at once; a fresh valid state recovers to
@@ -42,7 +43,7 @@ from mover6_control.control.commands import guard_position_limits, to_jog_units
 from mover6_control.control.controller_config import ControllerConfig, derive_config
 from mover6_control.control.demand_intake import DemandIntake
 from mover6_control.control.driver_compensation import DriverCompensation
-from mover6_control.control.jogging import Jogging
+from mover6_control.control.jogging import Jogging, JogSession
 from mover6_control.control.motion_plan import MotionPlan, plan_stop
 from mover6_control.control.motion_ticks import MotionTicks
 from mover6_control.control.robot import Robot
@@ -92,15 +93,10 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
         self._arrived_at = None          # [s] when the running motion arrived (None: not yet)
         self._timing = ''                # timed_plan.plan_demand's note on the latest motion
         self._changed = True
-        self._jog = None                 # latest servo command (control.servo), None: none
-        self._jog_state = None           # servo state kept between ticks
-        self._jog_kind = ''              # 'free', 'slowed', 'halted', 'stale': status changes
-        self._jog_values = {}            # jogging figures for the status
-        self._jog_refused = ''           # why the latest jog command was refused ('' taken)
+        self.jog_session = JogSession()  # jogging's own state (control.jogging)
         # A callable(plan) that raises on a colliding motion (collision_guard.CollisionGuard);
         # the node sets it. None: no collision check.
         self.collision_guard = None
-        self._servo_vetoed = (None, None, None)   # (servo config, guard, the two combined)
         self.tick_failures = 0           # ticks in a row that raised (a fault each)
 
     def _apply(self, derived):
@@ -162,19 +158,6 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
         """Return the running ``MotionPlan`` (None when none)."""
         return self.robot.plan
 
-    def on_joint_states(self, now: float, q: Sequence[float],
-                        qd: Optional[Sequence[float]] = None) -> None:
-        """
-        Take valid measured positions (n,) [rad] in chain order, received at ``now`` [s].
-
-        The same as ``on_named_joint_states`` with the robot's joint names; raises
-        ``InvalidInputError`` (states unchanged) when ``q`` is not a finite (n,) array.
-        """
-        q = self.arm.check_q(q, 'joint_states position')
-        # Measured velocity, when the states carry one: arrival also asks where the arm is going.
-        qd = None if qd is None else np.nan_to_num(np.asarray(qd, dtype=float), nan=0.0)
-        self.robot.measure(now, self.robot.joint_names, q, qd)
-
     def on_named_joint_states(self, now: float, names: Sequence[str],
                               positions: Sequence[float],
                               velocities: Optional[Sequence[float]] = None) -> None:
@@ -186,10 +169,6 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
         reason (fault).
         """
         self.robot.measure(now, names, positions, velocities)
-
-    def on_invalid_states(self, now: float, reason: str) -> None:
-        """Note joint states rejected at ``now`` [s] (missing joints, non-finite): fault."""
-        self.robot.invalidate(reason)
 
     def request_stop(self, now: float) -> tuple[bool, str]:
         """Decelerate to rest and hold; return ``(True, message)`` or why nothing moved."""

@@ -4,8 +4,8 @@ Demands into the controller: check, plan from a snapshot outside the node's lock
 A node takes a ``Snapshot`` under its lock (``snapshot``), checks and plans the demand from it
 without the lock (``prepare_demand``: planning the continuous profile takes tens of
 milliseconds, the ticks go on), and starts it under the lock (``commit_demand``), which plans
-again only when the controller moved on since the snapshot (``is_current``). ``on_demands`` does
-the three in one thread. A refused demand stays in the status (``reject``) until one is taken.
+again only when the controller moved on since the snapshot (``is_current``). A refused demand
+stays in the status (``reject``) until one is taken.
 
 ``DemandIntake`` is a part of ``controller_core.ControllerCore`` (its state is the core's, set
 in ``ControllerCore.__init__``); it is not used on its own.
@@ -70,24 +70,6 @@ def _and_more(count):
 class DemandIntake:
     """The demand protocol of ``ControllerCore`` (module docstring)."""
 
-    def on_demands(self, now: float, waypoints: np.ndarray, demand_id: str = '',
-                   profile: str = '') -> int:
-        """
-        Accept waypoints (N, n) [rad] at ``now`` [s] and return the new motion id.
-
-        Raises ``InvalidInputError`` (the running motion untouched, the refusal kept in the
-        status until the next accepted demand) when the demand is empty, has the wrong shape,
-        non-finite values or values outside the joint limits, or when the controller cannot
-        take a demand now (no joint states, fault, stopping). The same as
-        ``commit_demand(prepare_demand(now, waypoints, snapshot()))``, in one thread.
-        """
-        try:
-            return self.commit_demand(self.prepare_demand(now, waypoints, self.snapshot(),
-                                                          demand_id, profile=profile))
-        except InvalidInputError as err:
-            self.reject(now, str(err), demand_id)
-            raise
-
     def snapshot(self) -> Snapshot:
         """Return the ``Snapshot`` a demand is planned from (call it under the node's lock)."""
         state, ref = self._state, self.robot.reference          # each read once
@@ -96,8 +78,7 @@ class DemandIntake:
         return Snapshot(state, ref if moving else (q, None), moving, self._motion_id,
                         self._message)
 
-    def prepare_demand(self, now: float, waypoints: np.ndarray,
-                       snapshot: Optional[Snapshot] = None,
+    def prepare_demand(self, now: float, waypoints: np.ndarray, snapshot: Snapshot,
                        demand_id: str = '', timing: Optional[Timing] = None,
                        profile: str = '') -> PendingDemand:
         """
@@ -106,15 +87,16 @@ class DemandIntake:
         Reads nothing of the controller but ``snapshot`` (and the constant arm and config), so
         a node calls it without holding its lock while the ticks go on (planning the continuous
         law takes tens of milliseconds), with a snapshot taken under the lock, then
-        ``commit_demand`` under the lock. Without ``snapshot`` it takes one itself (the caller
-        then holds the lock). Raises as ``on_demands``, and for an unknown ``profile``. With
-        ``timing`` (a goal's ``time_from_start`` and velocities) the plan follows it where it can
+        ``commit_demand`` under the lock. Raises ``InvalidInputError`` (nothing changed) when
+        the demand is empty, has the wrong shape, non-finite values or values outside the joint
+        limits, when the controller cannot take a demand (no joint states, fault, stopping),
+        when the motion collides, and for an unknown ``profile``. With ``timing`` (a goal's
+        ``time_from_start`` and velocities) the plan follows it where it can
         (``timed_plan.plan_demand``; its note goes to the status as ``timing``). ``profile``
         times this demand only (``law_for``).
         """
         config = self.config       # read once, before the limits it comes with (_apply)
         vlim = self._vlim
-        snapshot = self.snapshot() if snapshot is None else snapshot
         Q = self.check_demand(waypoints)
         self._check_accepts(snapshot.state, snapshot.message)
         q_start, qd_start = snapshot.start

@@ -6,20 +6,42 @@ The commands are a flange twist (``on_twist``) or joint velocities (``on_joint_j
 Idle, a fresh command starts jogging; jogging, the next replaces it; it ends, at rest, once the
 command goes stale. While a collision guard is set, the jog's next poses are checked by it too.
 
-``Jogging`` is a part of ``controller_core.ControllerCore`` (its state is the core's, set in
-``ControllerCore.__init__``); it is not used on its own.
+``Jogging`` is a part of ``controller_core.ControllerCore`` (the state it shares with the other
+parts is the core's, set in ``ControllerCore.__init__``); it is not used on its own. What only
+jogging keeps between commands and ticks is its own ``JogSession``
+(``ControllerCore.jog_session``), which the status reads.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
-from typing import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
 from mover6_control.control.servo import (command_age, initial_state, joint_jog_command,
                                           servo_step, TwistCommand)
 from mover6_control.control.status import Cause, MotionResult, StatusKey as K
 from mover6_control.errors import InvalidInputError
+
+
+@dataclass(eq=False)
+class JogSession:
+    """
+    What jogging keeps between commands and ticks.
+
+    ``command``: the latest servo command (``control.servo``; None: none); ``servo_state``: the
+    servo's state between ticks; ``kind``: 'free', 'slowed', 'halted' or 'stale' (a change is a
+    status change); ``values``: the jogging figures for the status; ``refused``: why the latest
+    jog command was refused ('' once one is taken); ``vetoed``: (servo config, collision guard,
+    the two combined), made again only when either changes.
+    """
+
+    command: Optional[object] = None
+    servo_state: Optional[object] = None
+    kind: str = ''
+    values: dict = field(default_factory=dict)
+    refused: str = ''
+    vetoed: tuple = (None, None, None)
 
 
 class Jogging:
@@ -58,40 +80,42 @@ class Jogging:
         except InvalidInputError as err:
             self.note_jog_refused(str(err))
             raise
-        self._jog = command
-        if self._jog_refused:
-            self._jog_refused, self._changed = '', True
+        session = self.jog_session
+        session.command = command
+        if session.refused:
+            session.refused, self._changed = '', True
         if self._state == sm.IDLE:
-            self._jog_state = initial_state(self.arm)
-            self._jog_kind = ''
+            session.servo_state = initial_state(self.arm)
+            session.kind = ''
             self._result = {}
             self._set(sm.JOG, 'OK', 'jogging')
 
     def note_jog_refused(self, reason: str) -> None:
         """Keep why a jog command was refused (status: ``jog_refused``) until one is taken."""
-        if self._jog_refused != reason:     # a stream of the same refusal: one status change
-            self._jog_refused, self._changed = reason, True
+        session = self.jog_session
+        if session.refused != reason:     # a stream of the same refusal: one status change
+            session.refused, self._changed = reason, True
 
     def _tick_jogging(self, now):
         """Return this tick's jogging command; back to idle once stale and at rest."""
-        q = self.robot.q
+        q, session = self.robot.q, self.jog_session
         servo, guard = self.config.servo, self.collision_guard
         if guard is not None and servo.veto is None:     # the jog's next poses are checked too
-            if self._servo_vetoed[0] is not servo or self._servo_vetoed[1] is not guard:
-                self._servo_vetoed = (servo, guard, replace(servo, veto=guard.veto))
-            servo = self._servo_vetoed[2]
-        out = servo_step(self.arm, servo, self._jog_state, self._jog, q, now,
+            if session.vetoed[0] is not servo or session.vetoed[1] is not guard:
+                session.vetoed = (servo, guard, replace(servo, veto=guard.veto))
+            servo = session.vetoed[2]
+        out = servo_step(self.arm, servo, session.servo_state, session.command, q, now,
                          self._dt, self._vlim)
-        self._jog_state = out.state
+        session.servo_state = out.state
         self.robot.reference = (q, out.qd)      # a demand now starts from the jog's velocity
         kind = ('stale' if out.stale else 'halted' if out.halted
                 else 'slowed' if out.scale < 1.0 else 'free')
-        self._jog_values = {K.JOG_REASON: out.reason, K.JOG_CONDITION: f'{out.condition:.2f}',
-                            K.JOG_SCALE: f'{out.scale:.3f}'}
+        session.values = {K.JOG_REASON: out.reason, K.JOG_CONDITION: f'{out.condition:.2f}',
+                          K.JOG_SCALE: f'{out.scale:.3f}'}
         self._message = f'jogging: {out.reason}' if out.reason else 'jogging'
         self._level = 'OK' if kind in ('free', 'stale') else 'WARN'
-        if kind != self._jog_kind:
-            self._jog_kind, self._changed = kind, True
+        if kind != session.kind:
+            session.kind, self._changed = kind, True
         if out.stale and out.at_rest:
             self._result = {K.RESULT: MotionResult.JOG_STOPPED, K.CAUSE: Cause.JOG_ENDED,
                             K.REASON: out.reason}

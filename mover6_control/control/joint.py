@@ -7,14 +7,15 @@ the move and a velocity, and computes the sign of the move and the trapezoidal v
 (position, velocity, acceleration), its goal tolerance and, for the vendor driver, its encoder
 tick; and fixes the report's sign at zero distance (a division by zero there: here a joint at
 its demand has direction 0). The report's trapezoidal velocity is the controller's trapezoidal
-profile (``motion_plan.trapezoid_segment``, the law of ``motion.time_laws``), not a copy here.
-``control.robot.Robot`` holds the joints of the arm the controller drives and hands out
-``Joint`` values of its present state.
+profile (``motion_plan.trapezoid_segment``, the law of ``motion.time_laws``), not a copy here;
+so are its measurement, demand and arrival: ``Robot.measure``, ``Robot.give``, and the
+controller's settling (``motion_ticks``). ``control.robot.Robot`` holds the joints of the arm
+the controller drives and hands out ``Joint`` values of its present state.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 import math
 from typing import Optional
 
@@ -65,32 +66,6 @@ class Joint:
         for field in ('q', 'qd', 'demand', 'q_initial'):
             if not math.isfinite(getattr(self, field)):
                 raise InvalidInputError(f'joint {self.name}: {field} is not finite')
-
-    def with_measurement(self, q: float, qd: float = 0.0) -> Joint:
-        """Return a copy with a new measured position [rad] and velocity [rad/s]."""
-        return replace(self, q=float(q), qd=float(qd))
-
-    def with_demand(self, demand: float) -> Joint:
-        """
-        Return a copy sent to ``demand`` [rad], remembering the present position as the start.
-
-        Raises ``InvalidInputError`` when the demand is outside the joint's limits.
-        """
-        demand = float(demand)
-        if not self.within_limits(demand):
-            raise InvalidInputError(
-                f'joint {self.name}: demand {demand:.4f} rad outside '
-                f'[{self.lower:.4f}, {self.upper:.4f}]')
-        return replace(self, demand=demand, q_initial=self.q)
-
-    def within_limits(self, q: float, tol: float = 1e-9) -> bool:
-        """Return True when ``q`` [rad] is inside the limits, with ``tol`` [rad]."""
-        return self.lower - tol <= q <= self.upper + tol
-
-    @property
-    def arrived(self) -> bool:
-        """Return True when the measured position is within the goal tolerance of the demand."""
-        return abs(self.distance_to_go) <= self.goal_tolerance
 
     @property
     def distance_to_go(self) -> float:

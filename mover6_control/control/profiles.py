@@ -34,6 +34,7 @@ from mover6_control.motion.spline_trajectories import (bspline_trajectory, cubic
                                                        multipoint_trapezoidal,
                                                        quintic_trajectory)
 from mover6_control.motion.time_laws import trapezoid_times
+from mover6_control.parameters import PROFILES   # the names; their laws are planned here
 from mover6_control.validation import as_positive
 
 # Per waypoint, stopping at each: the time laws of the Jacobians and trajectories report, each
@@ -49,9 +50,6 @@ THROUGH_ALL_PROFILES = {
     'bspline': lambda Q, v, a: bspline_trajectory(Q, v_max=v, a_max=a),
     'multi_trapezoid': lambda Q, v, a: multipoint_trapezoidal(Q, v, a),
 }
-PROFILES = ('synchronised', 'trapezoidal', 'jerk_limited', 'continuous',
-            'cubic', 'quintic', 'septic', 'sharp_trapezoid',
-            'cubic_spline', 'quintic_spline', 'bspline', 'multi_trapezoid')
 # The families the report's figure compares (``tools.plots.profile_comparison``).
 PROFILE_FAMILIES = {
     'stop at each waypoint': ('synchronised', 'trapezoidal', 'jerk_limited', 'cubic', 'quintic',

@@ -224,10 +224,6 @@ class Robot:
             raise InvalidInputError('joint_states has non-finite values')
         return q, qd
 
-    def invalidate(self, reason: str) -> None:
-        """Note that the latest states were refused for ``reason`` (they are invalid now)."""
-        self.invalid_reason = str(reason)
-
     @property
     def measured(self) -> bool:
         """Return True once valid states came (since the last ``forget_states``)."""

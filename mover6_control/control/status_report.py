@@ -58,8 +58,9 @@ class StatusReport:
             values[K.MOTION_PROFILE] = self._motion_profile
         values.update(self._result)
         values.update(self._rejection)
+        jog = self.jog_session
         if self._state == sm.JOGGING:
-            values.update(self._jog_values)
-        if self._jog_refused:
-            values[K.JOG_REFUSED] = self._jog_refused
+            values.update(jog.values)
+        if jog.refused:
+            values[K.JOG_REFUSED] = jog.refused
         return Status(self._state, self._level, self._message, values)

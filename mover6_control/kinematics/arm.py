@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 import os
 
 from mover6_control.errors import InvalidInputError
+from mover6_control.parameters import LIMIT_SETS   # the limit sets mover6() takes
 from mover6_control.resources import CONFIG_DIR
 import numpy as np
 
@@ -206,7 +207,6 @@ MOVER6_HARDWARE_LIMITS_DEG = {
     'upper': [130.0, 60.0, 75.0, 140.0, 60.0, 120.0],
     'velocity': [30.0, 30.0, 30.0, 30.0, 40.0, 100.0],
 }
-LIMIT_SETS = ('within_90_deg', 'hardware')
 
 # The vendor driver (cpr_robot, CPRMover6.cpp) moves whole encoder ticks once per cycle. One tick
 # of each joint [rad] is 2 pi / (gear ratio * ticks per motor turn); the cycle is 50 ms (20 Hz).

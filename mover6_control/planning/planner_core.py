@@ -19,13 +19,12 @@ from mover6_control.kinematics.path_ik import solve_path
 from mover6_control.kinematics.reachability import check_pose
 from mover6_control.kinematics.rotations import pose_error, validate_transform
 from mover6_control.motion import paths
+from mover6_control.parameters import PATH_MOTIONS, POSE_MOTIONS   # the shapes planned here
 import numpy as np
 
 if TYPE_CHECKING:
     from mover6_control.kinematics.arm import ArmModel
 
-POSE_MOTIONS = ('linear', 'parabolic', 'joint')
-PATH_MOTIONS = ('spline', 'arc', 'parabolic')
 # Path shapes that take exactly one via pose ('joint': /path_goal/joint, ``planning.via_joint``).
 ONE_VIA_SHAPES = ('arc', 'parabolic', 'joint')
 # Most via poses a path goal may have. Each is checked on its own (IK, reachability: milliseconds
