@@ -14,6 +14,7 @@ joint: 8.3e-6 rad for J1-J4, 6.1e-3 rad for J5 and J6.
 import itertools
 
 import can
+from core_testing import send_demand, send_states
 from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.controller_core import ControllerCore
 from mover6_control.hardware.driver import ArmDriver
@@ -66,7 +67,7 @@ class Loop:
                     qd = np.array([j.qd for j in report.joints])
                     self.readings.append((self.t + self.reading_delay, (q, qd)))
             while self.readings and self.readings[0][0] <= self.t + 1e-9:
-                self.core.on_joint_states(self.t, *self.readings.pop(0)[1])
+                send_states(self.core, self.t, *self.readings.pop(0)[1])
             if self.t >= self.next_tick - 1e-9:
                 self.next_tick += CONTROL
                 jog = self.core.tick(self.t).jog
@@ -108,7 +109,7 @@ def test_every_joint_settles_within_one_tick_of_its_goal(jog_units, phase, readi
         loop.run(0.3)
         assert loop.core.state == 'idle', loop.core.status().message
         for goal in GOALS:
-            motion = loop.core.on_demands(loop.t, goal[None, :])
+            motion = send_demand(loop.core, loop.t, goal[None, :])
             start = loop.t
             while loop.core.status().values.get('result') != 'arrived':
                 loop.run(CONTROL)
