@@ -6,7 +6,6 @@ directly. The shapes are the simulator's own (one geometry), so the last tests c
 checker with MuJoCo's contacts in the simulator.
 """
 
-import os
 import re
 
 from mover6_control.collision.checker import CollisionChecker, CollisionSettings, densify
@@ -21,10 +20,9 @@ from mover6_control.planning.planner_core import (collision_refusal, plan_path_g
                                                   plan_pose_goal, PlannerSettings)
 import numpy as np
 import pytest
+from readme_goals import goal_argv, plan_readme_goal, readme_goal_lines
 from sim_bridge.simulator import Simulator
-from test_readme_goals import goal_argv, plan_readme_goal, readme_goal_lines
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ARM = mover6('within_90_deg')
 HOME = np.zeros(6)
 CHECKER = CollisionChecker(ARM)

@@ -6,64 +6,11 @@ parser and pose conversion, and planned from q = 0 (where every start-up begins)
 core with the planner node's defaults, under the default limits (within_90_deg).
 """
 
-import os
-import shlex
-
 from mover6_control.errors import UnreachableError
 from mover6_control.kinematics.arm import mover6
-from mover6_control.kinematics.forward import fk
-from mover6_control.planning.planner_core import plan_path_goal, plan_pose_goal, PlannerSettings
-from mover6_control.planning.via_joint import plan_via_path_goal
-from mover6_control.tools.goal_convention import poses_from_numbers
-from mover6_control.tools.goal_parser import build_parser
 import numpy as np
 import pytest
-
-README = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'README.md')
-ARM = mover6('within_90_deg')
-HOME = np.zeros(6)
-# The planner node's defaults (config/planner.yaml): the shape of /pose_goal and /path_goal.
-DEFAULT_MOTION = 'linear'
-DEFAULT_PATH_MOTION = 'spline'
-
-
-def readme_goal_lines():
-    """Return the ``./run.sh goal ...`` lines of the README's "Sending goals" section."""
-    with open(README, encoding='utf-8') as f:
-        text = f.read()
-    section = text.split('## Sending goals', 1)[1].split('\n## ', 1)[0]
-    return [line.split('#', 1)[0].strip() for line in section.splitlines()
-            if line.startswith('./run.sh goal ')]
-
-
-def goal_argv(line):
-    """Return the goal command's arguments of a README line, in its plain form made explicit."""
-    argv = shlex.split(line)[2:]
-    if argv and argv[0] not in ('pose', 'path', 'joints', 'stop'):
-        argv = ['pose'] + argv     # the plain form: goal X Y Z A B C
-    return argv
-
-
-def plan_readme_goal(argv, q_start=HOME, arm=ARM):
-    """Plan a parsed README goal as the goal command and the planner node would, for ``arm``."""
-    args = build_parser().parse_args(argv)
-    if args.command == 'pose':
-        T_goal = poses_from_numbers(args.numbers, args.quat, arm, args.absolute)[0]
-        if args.peak_height is not None:
-            # As GoalClient.send_pose: the peak pose, above the mid-point of the present tool
-            # position and the goal, on /path_goal/parabolic.
-            T_peak = fk(arm, q_start)
-            T_peak[:3, 3] = (0.5 * (T_peak[:3, 3] + T_goal[:3, 3])
-                             + np.array([0.0, 0.0, args.peak_height]))
-            return plan_path_goal(arm, q_start, T_peak[None], T_goal, 'parabolic',
-                                  PlannerSettings())
-        return plan_pose_goal(arm, q_start, T_goal, args.motion or DEFAULT_MOTION,
-                              PlannerSettings())
-    targets = poses_from_numbers(args.via + args.numbers, args.quat, arm, args.absolute)
-    if args.shape == 'joint':       # /path_goal/joint: the via-point joint move
-        return plan_via_path_goal(arm, q_start, targets[:-1], targets[-1], PlannerSettings())
-    return plan_path_goal(arm, q_start, targets[:-1], targets[-1],
-                          args.shape or DEFAULT_PATH_MOTION, PlannerSettings())
+from readme_goals import ARM, goal_argv, HOME, plan_readme_goal, readme_goal_lines
 
 
 def test_the_readme_has_the_goal_lines():
