@@ -305,7 +305,7 @@ case "$cmd" in
     test)
         # Inside a private network namespace (only loopback) when the machine allows one: then
         # nothing a test sends can reach another process or machine, and the tests run the
-        # package's local DDS configuration (test/test_local_dds.py checks that they did).
+        # package's local DDS configuration (test/e2e/test_local_dds.py checks that they did).
         if [ "${MOVER6_TEST_NETWORK:-}" = netns ]; then
             only_loopback || { log 'MOVER6_TEST_NETWORK=netns, but interfaces other than lo exist'; exit 1; }
             ip link set lo up

@@ -1,10 +1,10 @@
 """
 Start the mover6_control nodes: the arm (sim_bridge, or the CAN driver), controller, planner.
 
-The same nodes, parameter files and choices as scripts/launch.sh (test/test_launch_file.py keeps
-the two in step), plus robot_state_publisher with config/mover6.urdf when that package is
-installed, else the package's own state_publisher (as launch.sh), the markers node, and RViz
-with rviz/mover6.rviz on ``rviz:=true``:
+The same nodes, parameter files and choices as scripts/launch.sh
+(test/unit/launch/test_launch_file.py keeps the two in step), plus robot_state_publisher with
+config/mover6.urdf when that package is installed, else the package's own state_publisher (as
+launch.sh), the markers node, and RViz with rviz/mover6.rviz on ``rviz:=true``:
 
     ros2 launch mover6_control mover6.launch.py
     ros2 launch mover6_control mover6.launch.py sim:=false jog_units:=fraction_of_max

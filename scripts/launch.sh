@@ -28,7 +28,7 @@
 # MOVER6_CONTROLLER_ARGS="-p t_max:=2.0"; MOVER6_CAN_SIM_ARGS for can_sim's command line (e.g.
 # "--home 0 0.3 0 0 0 0"). Parameter files: config/<node>.yaml.
 # With the driver the controller's state_timeout is 0.5 s (the driver publishes at its 20 Hz).
-# launch/mover6.launch.py (ros2 launch) starts the same (test/test_launch_file.py checks).
+# launch/mover6.launch.py (ros2 launch) starts the same (test/unit/launch/test_launch_file.py checks).
 #
 # Needs an environment where the package is built and sourced (./run.sh launch does that).
 set -uo pipefail

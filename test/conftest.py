@@ -49,35 +49,34 @@ def pytest_terminal_summary(terminalreporter):
         terminalreporter.write_line(pytest_report_header(None))
 
 
-# Tiers (./run.sh test -m unit | node | e2e | lint): a test module marked e2e starts processes;
-# one that holds rclpy or ROS messages spins nodes in this process (node); the checks of the
-# source itself (style, layers, one home) are lint; everything else tests the ROS-free core.
-LINT_MODULES = {'test_flake8', 'test_pep257', 'test_layers', 'test_core_is_ros_free',
-                'test_one_home', 'test_status_schema'}
-# Modules that start processes without the e2e marker on each test (run.sh in a sandbox).
-PROCESS_MODULES = {'test_run_sh'}
+# Tiers (./run.sh test -m unit | node | e2e | lint, or a folder: ./run.sh test test/unit): a
+# test's folder is its tier. unit/<layer>/ tests the ROS-free core layer by layer; node/ spins
+# real rclpy nodes (or ROS messages) in this process; e2e/ starts processes; lint/ and
+# architecture/ check the source itself (style; layers and schema), both marked lint. A test
+# marked with a tier itself keeps it (a file whose tests span tiers sits with most of them).
+TIER_MARKERS = {'unit': ('unit',), 'node': ('node',), 'e2e': ('e2e',), 'lint': ('lint',),
+                'architecture': ('lint', 'architecture')}
+TEST_DIR = os.path.dirname(os.path.abspath(__file__))
 
 
-def _uses_ros(module):
-    for value in vars(module).values():
-        name = getattr(value, '__module__', None) or getattr(value, '__name__', '') or ''
-        if isinstance(name, str) and (name.split('.')[0] == 'rclpy' or '_msgs.' in name
-                                      or '_srvs.' in name or name.startswith('ros_testing')):
-            return True
-    return False
+def tier_of(path):
+    """Return the tier folder of a test file (its first folder below test/)."""
+    folder = os.path.relpath(str(path), TEST_DIR).split(os.sep)[0]
+    if folder not in TIER_MARKERS:
+        raise ValueError(f'{path}: a test belongs in a tier folder of test/ '
+                         f'({", ".join(TIER_MARKERS)})')
+    return folder
 
 
 def pytest_collection_modifyitems(config, items):
-    """Mark every test with its tier (unit, node, e2e, lint) unless it is marked already."""
+    """Mark every test with its folder's tier (unit, node, e2e, lint) unless marked already."""
     import pytest
-    tiers = {}
     for item in items:
         if any(item.get_closest_marker(t) for t in ('e2e', 'node', 'lint', 'unit')):
             continue
-        module = item.module
-        if module not in tiers:
-            short = module.__name__.rsplit('.', 1)[-1]
-            tiers[module] = ('lint' if short in LINT_MODULES
-                             else 'e2e' if short in PROCESS_MODULES
-                             else 'node' if _uses_ros(module) else 'unit')
-        item.add_marker(getattr(pytest.mark, tiers[module]))
+        try:
+            tier = tier_of(item.path)
+        except ValueError as err:
+            raise pytest.UsageError(str(err)) from None
+        for marker in TIER_MARKERS[tier]:
+            item.add_marker(getattr(pytest.mark, marker))

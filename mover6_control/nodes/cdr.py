@@ -13,7 +13,7 @@ The layout is the one rmw_fastrtps writes and reads (XCDR1): a 4-byte encapsulat
 (``00 01``: little endian, ``00 00``: big endian, then two option bytes), then the fields in
 order, each primitive aligned to its own size counted from the end of that header; a string is
 a uint32 length that counts its terminating NUL, the bytes, the NUL; a sequence is a uint32
-count, then the elements. ``test/test_cdr.py`` checks the bytes against rclpy's own
+count, then the elements. ``test/node/test_cdr.py`` checks the bytes against rclpy's own
 ``serialize_message`` and the readings against ``deserialize_message``.
 
 A reader raises ``ValueError`` on anything it does not expect (another layout, a truncated

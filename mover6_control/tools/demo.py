@@ -104,7 +104,7 @@ JOINT_TOLERANCE = 0.01     # [rad] the demo's pass mark for the final joint erro
 # priority: on a loaded machine (load 10-15 on two cores) replies came more than the driver's
 # three cycles late, the driver latched the module as silent (a fault, until ~/reset) and every
 # later move failed on its tracking error. The demo gives the simulated arm the end-to-end tests'
-# allowances (test/test_e2e_can.py): 10 cycles of silence, a 1 s module watchdog, states up to
+# allowances (test/e2e/test_e2e_can.py): 10 cycles of silence, a 1 s module watchdog, states up to
 # 1 s old. A real arm keeps the defaults.
 CAN_SIM_ALLOWANCES = {'MOVER6_DRIVER_ARGS': '-p silent_cycles:=10',
                       'MOVER6_CAN_SIM_ARGS': '--watchdog-timeout 1.0',

@@ -9,8 +9,7 @@ import ast
 import os
 
 from mover6_control.errors import REASONS
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from source_tree import ROOT
 
 
 def definitions():

@@ -9,8 +9,7 @@ import numpy as np
 from PIL import Image
 import pytest
 from sim_bridge.render import resample
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from source_tree import ROOT
 
 
 def test_resample_interpolates_at_the_frame_rate():

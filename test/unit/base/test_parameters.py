@@ -25,9 +25,9 @@ from mover6_control.planning.planner_core import PlannerSettings
 import pytest
 from sim_bridge.model import ModelOptions
 from sim_bridge.simulator import SimConfig
+from source_tree import ROOT
 import yaml
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 # (dataclass, field, table, parameter): each dataclass default that a parameter sets.
 DATACLASS_DEFAULTS = (

@@ -1,8 +1,8 @@
 """
 FK, Jacobian, rates and statics against the source documents' numbers.
 
-FK against the Mover6 report's analytic H matrices, joint rates against the miniBOT report and
-statics against the Jacobians and trajectories report.
+FK against the Mover6 report's analytic H matrices and the miniBOT report's question 1a, joint
+rates against the miniBOT report and statics against the Jacobians and trajectories report.
 """
 
 from hypothesis import given, settings
@@ -13,6 +13,7 @@ from mover6_control.kinematics.forward import (condition_number, fk, fk_and_jaco
                                                fk_frames, fk_frames_batch, jacobian,
                                                jacobian_batch, joint_rates, joint_torques,
                                                manipulability)
+from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -71,6 +72,16 @@ def test_fk_matches_mover6_report_analytic_example():
 @given(Q6)
 def test_fk_matches_mover6_report_analytic_everywhere(q):
     np.testing.assert_allclose(fk(mover6(), q), mover6_report_h06(q), atol=URDF_PI_TOL)
+
+
+def test_minibot_fk_matches_minibot_report_question_1a():
+    # the miniBOT report: FK of [0, 90, 0, 0, -90, 0] deg is (277.5, 0, 564) mm, ZYX Euler (180, 0,
+    # 0).
+    T = fk(minibot(), np.radians([0.0, 90.0, 0.0, 0.0, -90.0, 0.0]))
+    np.testing.assert_allclose(T[:3, 3], [0.2775, 0.0, 0.564], atol=1e-12)
+    np.testing.assert_allclose(T[:3, :3], np.diag([1.0, -1.0, -1.0]), atol=1e-12)
+    a, b, c = matrix_to_euler_zyx(T[:3, :3])
+    assert abs(abs(a) + abs(c) - np.pi) < 1e-9 and abs(b) < 1e-9
 
 
 def test_batched_fk_equals_single_fk():

@@ -12,8 +12,8 @@ import ast
 import os
 
 import pytest
+from source_tree import ROOT
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 # Layer of a module, by the longest matching dotted prefix.
 LAYER_OF = {

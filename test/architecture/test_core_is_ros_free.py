@@ -16,8 +16,8 @@ import subprocess
 import sys
 
 import pytest
+from source_tree import ROOT
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGES = ('mover6_control', 'sim_bridge')
 ROS_SIDE = ('mover6_control.nodes', 'mover6_control.tools', 'sim_bridge.bridge_node',
             'sim_bridge.bridge_physics')

@@ -11,10 +11,10 @@ import ast
 import os
 
 import pytest
+from source_tree import ROOT
 
 pytestmark = pytest.mark.lint
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 FOLDERS = ('mover6_control/nodes', 'mover6_control/tools', 'sim_bridge')
 # Files typed on the branch that owns them, left out until it merges (none now).
 NOT_YET = set()

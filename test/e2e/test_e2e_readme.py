@@ -15,9 +15,9 @@ from mover6_control.resources import CONFIG_DIR
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import pytest
+from readme_goals import goal_argv, readme_goal_lines
 from ros_testing import ready_client, Stack
 from std_srvs.srv import Trigger
-from test_readme_goals import goal_argv, readme_goal_lines
 
 pytestmark = pytest.mark.e2e
 

@@ -11,11 +11,10 @@ Only inside a private network namespace (./run.sh test): the churn processes run
 configuration as the nodes.
 """
 
-import os
 import socket
 import sys
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from source_tree import ROOT
 sys.path.insert(0, ROOT)
 from bench import bench_churn  # noqa: E402, I100
 import pytest  # noqa: E402

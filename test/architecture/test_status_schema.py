@@ -12,8 +12,8 @@ from control_msgs.action import FollowJointTrajectory
 from mover6_control.control import state_machine as sm
 from mover6_control.control.status import Cause, FINAL_RESULTS, MotionResult, State, StatusKey
 from mover6_control.nodes.trajectory_goal import ended_code
+from source_tree import ROOT
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 Result = FollowJointTrajectory.Result
 WORDS = {str(v) for v in (*State, *MotionResult)}
 

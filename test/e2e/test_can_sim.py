@@ -46,6 +46,7 @@ def setpoint_all(bus, arm_positions, counter=0):
                              is_extended_id=False))
 
 
+@pytest.mark.unit     # in this process; the others start can_sim
 def test_the_arm_answers_on_a_virtual_bus():
     channel = f'can_sim_test_{uuid.uuid4().hex}'
     arm = build_arm()

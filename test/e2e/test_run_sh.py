@@ -10,8 +10,8 @@ import sys
 import sysconfig
 
 import pytest
+from source_tree import ROOT
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RUN_SH = os.path.join(ROOT, 'run.sh')
 
 # A Python 3.12 as far as run.sh can tell: it reports its version, cannot import rclpy, and

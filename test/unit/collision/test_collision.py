@@ -6,7 +6,6 @@ directly. The shapes are the simulator's own (one geometry), so the last tests c
 checker with MuJoCo's contacts in the simulator.
 """
 
-import os
 import re
 
 from core_testing import send_demand, send_states
@@ -22,10 +21,9 @@ from mover6_control.planning.planner_core import (collision_refusal, plan_path_g
                                                   plan_pose_goal, PlannerSettings)
 import numpy as np
 import pytest
+from readme_goals import goal_argv, plan_readme_goal, readme_goal_lines
 from sim_bridge.simulator import Simulator
-from test_readme_goals import goal_argv, plan_readme_goal, readme_goal_lines
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ARM = mover6('within_90_deg')
 HOME = np.zeros(6)
 CHECKER = CollisionChecker(ARM)

@@ -22,12 +22,12 @@ import numpy as np
 import pytest
 import rclpy
 from ros_testing import installed, Stack, wait_until
+from source_tree import ROOT
 
 pytestmark = pytest.mark.e2e
 
 ARM = mover6()
 GOAL = pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0)
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # [s] the planner's wait for states: the bridge and the controller start after the goal, and a
 # loaded machine can take many seconds for that (the default is 5 s).
 STATE_WAIT = 60.0

@@ -8,7 +8,6 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import (CONFIG_DIR, dh_link_transform, from_dh, load_dh_yaml,
                                            load_urdf, minibot, mover6)
 from mover6_control.kinematics.forward import fk
-from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 import numpy as np
 import pytest
 
@@ -28,16 +27,6 @@ def _dh_product(a, alpha, d, offset, q):
                           [0.0, sa, ca, di],
                           [0.0, 0.0, 0.0, 1.0]])
     return T
-
-
-def test_minibot_fk_matches_minibot_report_question_1a():
-    # the miniBOT report: FK of [0, 90, 0, 0, -90, 0] deg is (277.5, 0, 564) mm, ZYX Euler (180, 0,
-    # 0).
-    T = fk(minibot(), np.radians([0.0, 90.0, 0.0, 0.0, -90.0, 0.0]))
-    np.testing.assert_allclose(T[:3, 3], [0.2775, 0.0, 0.564], atol=1e-12)
-    np.testing.assert_allclose(T[:3, :3], np.diag([1.0, -1.0, -1.0]), atol=1e-12)
-    a, b, c = matrix_to_euler_zyx(T[:3, :3])
-    assert abs(abs(a) + abs(c) - np.pi) < 1e-9 and abs(b) < 1e-9
 
 
 def test_minibot_config_is_the_minibot_report_table():
