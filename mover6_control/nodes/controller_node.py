@@ -27,7 +27,8 @@ a command under one encoder tick per cycle would leave standing, and widen the g
 one tick.
 
 Three threads: the executor's (the callbacks, this module), the tick thread
-(``controller_ticks``) and the demand thread (``controller_demands``). The lock rule: the core
+(``controller_ticks``) and the demand thread (``controller_demands``), which has a large demand
+planned in a process of its own (``plan_worker``). The lock rule: the core
 (``core.state``, ``core.collision_guard``, ``core.config`` ...) and the goal ledger are read and
 changed only under ``lock``; nothing slow happens under it, and nothing is published under it.
 """
@@ -51,6 +52,7 @@ from mover6_control.nodes.controller_demands import DemandThread
 from mover6_control.nodes.controller_ticks import TickLoop
 from mover6_control.nodes.goal_ledger import GoalLedger
 from mover6_control.nodes.params import config_from_parameters
+from mover6_control.nodes.plan_worker import PlanWorker
 from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from mover6_control.parameters import CONTROLLER
@@ -95,6 +97,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.pending_logged = False      # 'applies to the next motion' said, not yet applied
         self.last_q = None               # the latest valid joint positions, for the action
         self.demands = queue.SimpleQueue()   # /joint_demands messages not yet taken; None: end
+        self.plan_worker = PlanWorker()      # the planning process of large demands
 
         self.jog_pub = self.create_publisher(JointJog, 'JointJog', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'controller/status',
@@ -241,6 +244,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.destroyed = True
         self.running = False
         self.demands.put(None)
+        self.plan_worker.close()    # a demand planned there is refused: its thread can end
         self.has_states.set()       # a demand waiting for states stops waiting
         self.goals.close()          # an action goal waiting for its demand stops waiting
         self.trajectory_server.destroy()
