@@ -209,7 +209,7 @@ def main(argv=None):
     runs, alive = result['runs'], result['alive_to_the_end']
     print(f'\n{args.points}-point FollowJointTrajectory goals; tick gaps from the /JointJog '
           f'stamps (period {1e3 / RATE:g} ms), late = gap > {LATE * 1e3:g} ms; the '
-          f'controller\'s max_tick_gap before the first goal '
+          f"controller's max_tick_gap before the first goal "
           f'{result["max_tick_gap_before_s"] * 1e3:.1f} ms')
     print(f'{"goal":>4} {"taken [s]":>9} {"largest gap taking":>18} {"late":>5} '
           f'{"p99 err":>8} {"largest gap whole":>17} {"late":>5} {"status max gap":>14} '

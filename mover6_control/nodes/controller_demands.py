@@ -144,9 +144,10 @@ class DemandThread:
         """
         Start ``pending`` if it still fits, or on the ``last`` attempt; return its motion id.
 
-        Call it under the lock. Returns None when it must be planned again. Raises ``NotAcceptingError`` when the state now takes no demand, and
-        ``InvalidInputError`` when its goal was withdrawn or when the controller moved on
-        meanwhile on the last attempt of a ``slow`` plan (it is never planned under the lock).
+        Call it under the lock. Returns None when it must be planned again. Raises
+        ``NotAcceptingError`` when the state now takes no demand, and ``InvalidInputError``
+        when its goal was withdrawn or when the controller moved on meanwhile on the last
+        attempt of a ``slow`` plan (it is never planned under the lock).
         """
         if goal_id and self.goals.withdrawn(goal_id):
             raise InvalidInputError(f'goal {goal_id}: its sender stopped waiting')

@@ -22,11 +22,13 @@ No ROS here and none in the worker: it imports the core's planning only.
 """
 
 import multiprocessing
+from multiprocessing.connection import Connection
 import pickle
 import signal
 import threading
 from typing import Callable, Optional
 
+from mover6_control.control.demand_intake import PlanJob
 from mover6_control.errors import Mover6Error
 
 # [s] longest planning of a demand, plus PER_POINT per waypoint (10,000 waypoints: 45 s; the
@@ -47,7 +49,7 @@ class PlanWorkerError(Mover6Error):
     """The planning process could not plan the demand (died, too slow, closed): the reason."""
 
 
-def serve(conn) -> None:
+def serve(conn: Connection) -> None:
     """
     Run jobs from ``conn`` until it closes: the worker process's main loop.
 
@@ -56,8 +58,7 @@ def serve(conn) -> None:
     ``('raise', exception)`` when it raised (``('error', text)`` when that does not pickle).
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)     # the controller ends it, by pid
-    import mover6_control.control.demand_intake  # noqa: F401 - loaded before the first job
-    conn.send_bytes(READY)
+    conn.send_bytes(READY)      # the planning modules are loaded (this module imports them)
     while True:
         try:
             job, guard = pickle.loads(conn.recv_bytes())
@@ -121,11 +122,11 @@ class PlanWorker:
         self.restarts += 1
         self._start()
 
-    def job_timeout(self, job) -> float:
+    def job_timeout(self, job: PlanJob) -> float:
         """Return the longest planning [s] of ``job`` (``timeout`` + ``per_point`` each)."""
         return self.timeout + self.per_point * len(job.waypoints)
 
-    def __call__(self, job, guard=None) -> tuple:
+    def __call__(self, job: PlanJob, guard: Optional[Callable] = None) -> tuple:
         """
         Return ``job.run(guard)`` made in the worker process; raise as it raises there.
 
