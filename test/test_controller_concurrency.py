@@ -256,8 +256,8 @@ class DemandHarness(DemandThread):
     The node's parts a ``DemandThread`` uses, around a real core; the clock is ``self.t``.
 
     ``tick()`` is the tick thread's step (the core's tick, then ``has_states`` as
-    ``controller_ticks.on_tick`` sets it); ``plan_worker`` plans and calls ``during_plan``
-    meanwhile (what the ticks do while a large demand is planned).
+    ``controller_ticks.on_tick`` sets it); ``plan_worker`` plans here and runs
+    ``plan_worker.during`` first (what the ticks do while a large demand is planned).
     """
 
     def __init__(self):
@@ -267,7 +267,7 @@ class DemandHarness(DemandThread):
         self.has_states = threading.Event()
         self.joint_names = list(ARM.joint_names)
         self.t = 0.0
-        self.during_plan = None
+        self.plan_worker = DuringPlan()
         self.logged = []
 
     def now(self):
@@ -294,9 +294,20 @@ class DemandHarness(DemandThread):
         (self.has_states.clear if out.state in WAIT_FOR_STATES else self.has_states.set)()
         return out.state
 
-    def plan_worker(self, job, guard):
-        if self.during_plan is not None:
-            during, self.during_plan = self.during_plan, None
+
+
+class DuringPlan:
+    """The planning process's part in ``DemandHarness``: runs ``during`` once, then plans."""
+
+    def __init__(self):
+        self.during = None
+
+    def ready(self):
+        return True
+
+    def __call__(self, job, guard):
+        if self.during is not None:
+            during, self.during = self.during, None
             during()
         return job.run(guard)
 
@@ -318,7 +329,7 @@ def test_a_fault_that_clears_while_a_demand_is_planned_does_not_refuse_it():
             pass
         timer = threading.Timer(0.3, lambda: [h.tick() for _ in range(3)])
         timer.start()                                   # fresh states again, 0.3 s later
-    h.during_plan = stale_then_back
+    h.plan_worker.during = stale_then_back
     Q = np.linspace(0.0, 0.3, WORKER_POINTS)[:, None] * np.ones(6)
     h.take_demand(make_demands(Q, 'large-1'))
     assert h.core.state == sm.EXECUTING, h.logged

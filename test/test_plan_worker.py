@@ -13,6 +13,7 @@ test of ``PlanWorker``.
 
 import os
 import pickle
+import signal
 import threading
 import time
 
@@ -126,6 +127,30 @@ def test_a_dying_worker_refuses_the_job_and_the_next_is_planned(worker):
     assert worker.process.pid != first and worker.process.is_alive()
     plan, _ = worker(job(smooth(20)), GUARD)
     same_plan(plan, job(smooth(20)).run(GUARD)[0])
+
+
+def test_ready_says_whether_the_worker_is_up():
+    """ready() never waits: False while the worker starts, True once up; a dead one restarts."""
+    planner = PlanWorker()
+    try:
+        assert wait_ready(planner)
+        first = planner.process.pid
+        os.kill(first, signal.SIGKILL)
+        planner.process.join(10.0)
+        assert not planner.ready()                  # dead: started again, not up yet
+        assert planner.process.pid != first
+        assert wait_ready(planner)
+    finally:
+        planner.close()
+    assert not planner.ready()
+
+
+def wait_ready(planner, timeout=60.0):
+    """Return once ``planner.ready()`` (True), or False after ``timeout`` [s]."""
+    deadline = time.monotonic() + timeout
+    while not planner.ready() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return planner.ready()
 
 
 def test_a_job_longer_than_the_timeout_is_refused_and_the_next_is_planned():

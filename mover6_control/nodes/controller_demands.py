@@ -42,7 +42,8 @@ DEMAND_ROUNDS = DEMAND_ATTEMPTS + 3
 # planning it here holds the interpreter lock that the tick needs. Measured (continuous law,
 # load 24, CPU of this process per demand): 22 waypoints 8 ms here, 0.8 ms through the worker,
 # 100: 15 / 0.9 ms, 1,000: 149 / 2.7 ms, at about the same wall time. Below it a demand stays
-# here: the worker may still be starting (seconds) when the planner's first demand comes.
+# here, and so does every demand while the worker starts (seconds, at the node's start): the
+# planner's first demand must not wait for it.
 WORKER_POINTS = 100
 
 
@@ -79,7 +80,8 @@ class DemandThread:
 
         The one concurrency rule (docs/architecture.md, "Threads"): a snapshot of the core is
         taken under the lock, the plan is made from it without the lock (the ticks go on; a
-        demand of ``WORKER_POINTS`` waypoints or more in the planning process, ``plan_worker``),
+        demand of ``WORKER_POINTS`` waypoints or more in the planning process once it is up,
+        ``plan_worker``),
         and it is committed under the lock only if the snapshot is still current; otherwise it
         is planned again from a new snapshot (the last attempt re-plans under the lock, unless
         the plans take longer than ``LOCKED_PLAN_LIMIT``: then it is refused). The waypoints
@@ -99,7 +101,8 @@ class DemandThread:
             Q = demand_messages.demands_from_msg(msg, len(self.joint_names))
             profile = demand_messages.demand_profile_from_msg(msg)   # this demand's law only
             Q = self.core.check_demand(Q)       # the arm's limits only: no lock needed
-            planner = self.plan_worker if len(Q) >= WORKER_POINTS else None
+            planner = (self.plan_worker if len(Q) >= WORKER_POINTS and self.plan_worker.ready()
+                       else None)
             until = None        # [s, monotonic] end of this demand's wait for valid states
             motion_id, attempt = None, 0
             for _ in range(DEMAND_ROUNDS):

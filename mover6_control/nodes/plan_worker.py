@@ -14,9 +14,12 @@ arrays, so taking it back is short), and an exception the job raises there is ra
 A worker that dies, or that takes longer than ``timeout + per_point`` per waypoint, raises
 ``PlanWorkerError`` with the reason (the controller refuses the demand with it, and goes on) and
 is started again for the next demand. One job at a time, in the order they come (the demand
-thread's). ``close`` ends the worker (SIGTERM, then SIGKILL); a job waiting for it then raises.
-The worker ignores SIGINT (Ctrl-C reaches the whole process group: the controller ends it) and
-ends by itself when the controller's end of its pipe closes (the controller died).
+thread's). ``close`` ends the worker (SIGKILL: it keeps nothing); a job waiting for it then
+raises. The worker ignores SIGINT and SIGTERM (a terminal's Ctrl-C and a launcher's SIGTERM
+reach the whole process group: the controller ends it, after its last zero command) once it
+runs (a Ctrl-C in its first second, while it loads numpy, ends it with a traceback; the
+controller is not affected), and it ends by itself when the controller's end of its pipe closes
+(the controller died).
 
 No ROS here and none in the worker: it imports the core's planning only.
 """
@@ -40,7 +43,7 @@ PER_POINT = 0.004
 # before its first job's timeout counts.
 START_TIMEOUT = 30.0
 READY = b'ready'
-# [s] how long ``close`` waits for the worker after SIGTERM before SIGKILL.
+# [s] how long ``close`` waits for the worker to be gone after SIGKILL.
 CLOSE_WAIT = 2.0
 PROTOCOL = pickle.HIGHEST_PROTOCOL
 
@@ -57,7 +60,8 @@ def serve(conn: Connection) -> None:
     the answer ``pickle(('plan', job.run(guard)))``, or
     ``('raise', exception)`` when it raised (``('error', text)`` when that does not pickle).
     """
-    signal.signal(signal.SIGINT, signal.SIG_IGN)     # the controller ends it, by pid
+    for signum in (signal.SIGINT, signal.SIGTERM):   # the controller ends it, by pid
+        signal.signal(signum, signal.SIG_IGN)
     conn.send_bytes(READY)      # the planning modules are loaded (this module imports them)
     while True:
         try:
@@ -121,6 +125,28 @@ class PlanWorker:
             conn.close()
         self.restarts += 1
         self._start()
+
+    def ready(self) -> bool:
+        """
+        Return whether the worker is up (it said ``READY``), without waiting.
+
+        A worker that died is started again (it is not ready then). While it starts (seconds
+        at the node's start, on a loaded machine) the controller plans in its own process.
+        """
+        with self._busy:
+            with self._state:
+                process, conn = self.process, self._conn
+                if self.closed:
+                    return False
+            if process is None or not process.is_alive():
+                self._restart()
+                return False
+            if not self._ready:
+                try:
+                    self._ready = conn.poll(0) and conn.recv_bytes() == READY
+                except (EOFError, OSError):
+                    return False
+            return self._ready
 
     def job_timeout(self, job: PlanJob) -> float:
         """Return the longest planning [s] of ``job`` (``timeout`` + ``per_point`` each)."""
@@ -192,12 +218,9 @@ class PlanWorker:
 
 
 def _end(process) -> Optional[int]:
-    """End ``process`` (SIGTERM, then SIGKILL after ``CLOSE_WAIT``); return its exit code."""
+    """End ``process`` (SIGKILL: it ignores SIGTERM); return its exit code."""
     if process is None:
         return None
-    if process.is_alive():
-        process.terminate()
-        process.join(CLOSE_WAIT)
     if process.is_alive():
         process.kill()
         process.join(CLOSE_WAIT)
