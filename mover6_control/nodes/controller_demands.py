@@ -43,8 +43,10 @@ DEMAND_ROUNDS = DEMAND_ATTEMPTS + 3
 # load 24, CPU of this process per demand): 22 waypoints 8 ms here, 0.8 ms through the worker,
 # 100: 15 / 0.9 ms, 1,000: 149 / 2.7 ms, at about the same wall time. Below it a demand stays
 # here, and so does every demand while the worker starts (seconds, at the node's start): the
-# planner's first demand must not wait for it.
+# planner's first demand must not wait for it; but one of WORKER_WAIT_POINTS or more waits (it
+# takes seconds to plan anyway: here it would stall the tick from the start).
 WORKER_POINTS = 100
+WORKER_WAIT_POINTS = 1000
 
 
 class DemandThread:
@@ -101,8 +103,8 @@ class DemandThread:
             Q = demand_messages.demands_from_msg(msg, len(self.joint_names))
             profile = demand_messages.demand_profile_from_msg(msg)   # this demand's law only
             Q = self.core.check_demand(Q)       # the arm's limits only: no lock needed
-            planner = (self.plan_worker if len(Q) >= WORKER_POINTS and self.plan_worker.ready()
-                       else None)
+            planner = (self.plan_worker if len(Q) >= WORKER_WAIT_POINTS or (
+                len(Q) >= WORKER_POINTS and self.plan_worker.ready()) else None)
             until = None        # [s, monotonic] end of this demand's wait for valid states
             motion_id, attempt = None, 0
             for _ in range(DEMAND_ROUNDS):
