@@ -295,7 +295,6 @@ class DemandHarness(DemandThread):
         return out.state
 
 
-
 class DuringPlan:
     """The planning process's part in ``DemandHarness``: runs ``during`` once, then plans."""
 
