@@ -185,7 +185,7 @@ def run_goals(points, goals, log_dir, watchdog=0.0, timeout=240.0):
     finally:
         if probe is not None:
             probe.close()
-        for n in nodes.values():
+        for n in reversed(list(nodes.values())):   # the controller first: no stale fault
             n.stop()
     return {'runs': runs, 'alive_to_the_end': alive, 'max_tick_gap_before_s': before}
 
