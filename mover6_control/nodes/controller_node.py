@@ -288,8 +288,8 @@ def main(args: Optional[list[str]] = None) -> None:
     context valid until ``destroy_node()`` has sent it, and ignores any further signal meanwhile.
     """
     # The tick thread gets the interpreter 0.5 ms after its deadline, not 5 ms (the period error
-    # p99 well under a millisecond at 100 Hz, bench/bench_controller.py); and what is loaded now
-    # is never scanned again: a full collection while a 10,000-point goal is read held it 0.2 s.
+    # p99 well under a millisecond at 100 Hz, bench/bench_controller.py); what is loaded now is
+    # never scanned again by a full collection (one holds it; a 10,000-point goal makes 40,000).
     sys.setswitchinterval(0.0005)
     gc.collect()
     gc.freeze()
