@@ -12,7 +12,9 @@ figures per goal, from the /JointJog header stamps (the tick's start on the node
   the period error p99 |period - 10 ms| [ms];
 - ``whole``: the same from the send to the result;
 - the goal's duration from send to commit [s], its result, and the controller's own
-  ``max_tick_gap`` (status) at the end.
+  ``max_tick_gap`` (status) at the end;
+- ``faults``: the controller's statuses in fault from the send to the result (each once, with
+  its message: '/joint_states stale' was the tick's own starvation).
 
 ``--watchdog S`` sets ``MOVER6_TICK_WATCHDOG`` in the controller: a tick later than S dumps every
 thread's stack to its log (printed at the end: what held the tick up). The load average is
@@ -75,9 +77,9 @@ class Probe:
                                       context=self.context)
         self.status = {}
         self.stamps = []
-        self.node.create_subscription(
-            DiagnosticStatus, 'controller/status',
-            lambda m: self.status.update(conversions.status_values(m)), STATUS_QOS)
+        self.faults = []         # the messages of statuses in fault
+        self.node.create_subscription(DiagnosticStatus, 'controller/status', self.on_status,
+                                      STATUS_QOS)
         self.node.create_subscription(
             JointJog, 'JointJog',
             lambda m: self.stamps.append(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9),
@@ -86,6 +88,12 @@ class Probe:
                                    'controller/follow_joint_trajectory')
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
+
+    def on_status(self, msg):
+        """Keep the latest status values; note a status in fault."""
+        self.status.update(self.conversions.status_values(msg))
+        if self.status.get('state') == 'fault' and msg.message not in self.faults:
+            self.faults.append(msg.message)
 
     def spin_until(self, predicate, timeout):
         """Spin until ``predicate()`` holds or ``timeout`` [s] passed; return it."""
@@ -108,6 +116,7 @@ class Probe:
         goal = self.goal(rows)
         sent_ids = int(self.status.get('motion_id', 0))
         self.stamps.clear()
+        self.faults.clear()
         t0 = time.monotonic()
         send = self.action.send_goal_async(goal)
         # Taken: the status shows a new motion (the goal committed) or a refusal.
@@ -128,7 +137,8 @@ class Probe:
                 'whole_s': time.monotonic() - t0,
                 'result_code': None if result is None else int(result[0]),
                 'result': None if result is None else result[1],
-                'max_tick_gap_status_s': float(self.status.get('max_tick_gap', 'nan'))}
+                'max_tick_gap_status_s': float(self.status.get('max_tick_gap', 'nan')),
+                'faults': list(self.faults)}
 
     def close(self):
         """Destroy the node and its context."""
@@ -138,27 +148,19 @@ class Probe:
         self.rclpy.try_shutdown(context=self.context)
 
 
-def main(argv=None):
-    """Start the bridge and the controller, send the goals; print, write large_goal.json."""
+def run_goals(points, goals, log_dir, watchdog=0.0, timeout=240.0):
+    """
+    Start the bridge and the controller, send ``goals`` goals of ``points`` points one by one.
+
+    Return ``{'runs': [figures per goal], 'alive_to_the_end': {node: bool},
+    'max_tick_gap_before_s': the controller's max_tick_gap before the first goal}``.
+    """
     from ros_testing import NodeProcess
 
-    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('--quick', action='store_true', help='one goal')
-    parser.add_argument('--points', type=int, default=10000)
-    parser.add_argument('--goals', type=int, default=3)
-    parser.add_argument('--repeat', type=int, default=1, help='(ignored: goals)')
-    parser.add_argument('--watchdog', type=float, default=0.0,
-                        help='MOVER6_TICK_WATCHDOG of the controller [s] (0: off)')
-    args = parser.parse_args(argv)
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    goals = 1 if args.quick else args.goals
     namespace = f'bench_large_goal_{os.getpid()}'
-    log_dir = tempfile.mkdtemp(prefix='bench_large_goal_')
-    load = os.getloadavg()
-    print(f'load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} CPUs; '
-          f'logs in {log_dir}', flush=True)
-    if args.watchdog > 0.0:
-        os.environ['MOVER6_TICK_WATCHDOG'] = str(args.watchdog)
+    if watchdog > 0.0:
+        os.environ['MOVER6_TICK_WATCHDOG'] = str(watchdog)
     nodes = {}
     probe = None
     runs = []
@@ -171,9 +173,10 @@ def main(argv=None):
                                 and probe.action.server_is_ready(), 60.0):
             raise RuntimeError('the stack did not come up within 60 s:\n'
                                + '\n'.join(n.tail() for n in nodes.values()))
-        rows = smooth(args.points)
+        before = float(probe.status.get('max_tick_gap', 'nan'))
+        rows = smooth(points)
         for i in range(goals):
-            run = probe.run(rows, timeout=240.0)
+            run = probe.run(rows, timeout=timeout)
             run['load_average'] = list(os.getloadavg())
             runs.append(run)
             print(run, flush=True)
@@ -182,27 +185,53 @@ def main(argv=None):
     finally:
         if probe is not None:
             probe.close()
-        for n in nodes.values():
+        for n in reversed(list(nodes.values())):   # the controller first: no stale fault
             n.stop()
+    return {'runs': runs, 'alive_to_the_end': alive, 'max_tick_gap_before_s': before}
+
+
+def main(argv=None):
+    """Start the bridge and the controller, send the goals; print, write large_goal.json."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--quick', action='store_true', help='one goal')
+    parser.add_argument('--points', type=int, default=10000)
+    parser.add_argument('--goals', type=int, default=3)
+    parser.add_argument('--repeat', type=int, default=1, help='(ignored: goals)')
+    parser.add_argument('--watchdog', type=float, default=0.0,
+                        help='MOVER6_TICK_WATCHDOG of the controller [s] (0: off)')
+    args = parser.parse_args(argv)
+    goals = 1 if args.quick else args.goals
+    log_dir = tempfile.mkdtemp(prefix='bench_large_goal_')
+    load = os.getloadavg()
+    print(f'load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} CPUs; '
+          f'logs in {log_dir}', flush=True)
+    result = run_goals(args.points, goals, log_dir, args.watchdog)
+    runs, alive = result['runs'], result['alive_to_the_end']
     print(f'\n{args.points}-point FollowJointTrajectory goals; tick gaps from the /JointJog '
-          f'stamps (period {1e3 / RATE:g} ms), late = gap > {LATE * 1e3:g} ms')
+          f'stamps (period {1e3 / RATE:g} ms), late = gap > {LATE * 1e3:g} ms; the '
+          f"controller's max_tick_gap before the first goal "
+          f'{result["max_tick_gap_before_s"] * 1e3:.1f} ms')
     print(f'{"goal":>4} {"taken [s]":>9} {"largest gap taking":>18} {"late":>5} '
           f'{"p99 err":>8} {"largest gap whole":>17} {"late":>5} {"status max gap":>14} '
-          f'{"result":>7} {"load":>5}')
+          f'{"result":>7} {"faults":>6} {"load":>5}')
     for i, run in enumerate(runs):
         a, b = run['taking'], run['whole']
         print(f'{i + 1:>4} {run["taken_after_s"]:9.2f} {a.get("largest_gap_ms", 0):15.1f} ms '
               f'{a.get("late_ticks", 0):5d} {a.get("period_error_p99_ms", 0):8.2f} '
               f'{b.get("largest_gap_ms", 0):14.1f} ms {b.get("late_ticks", 0):5d} '
               f'{run["max_tick_gap_status_s"] * 1e3:11.1f} ms {str(run["result_code"]):>7} '
-              f'{run["load_average"][0]:5.2f}')
+              f'{len(run["faults"]):6d} {run["load_average"][0]:5.2f}')
+    for i, run in enumerate(runs):
+        for message in run['faults']:
+            print(f'goal {i + 1}: fault: {message}')
     if args.watchdog > 0.0:
         with open(os.path.join(log_dir, 'controller.log')) as f:
             text = f.read()
         print(f'\ncontroller log (watchdog {args.watchdog:g} s):\n{text[-20000:]}')
     write_json('large_goal', {'points': args.points, 'goals': goals, 'cpus': os.cpu_count(),
                               'load_average_at_start': list(load), 'runs': runs,
-                              'alive_to_the_end': alive})
+                              'alive_to_the_end': alive,
+                              'max_tick_gap_before_s': result['max_tick_gap_before_s']})
     return 0 if all(alive.values()) else 1
 
 

@@ -7,6 +7,12 @@ milliseconds, the ticks go on), and starts it under the lock (``commit_demand``)
 again only when the controller moved on since the snapshot (``is_current``). A refused demand
 stays in the status (``reject``) until one is taken.
 
+The planning itself is a ``PlanJob`` (its inputs, read from the snapshot and the config, and
+``run``: the plan and the collision check): the node may run it elsewhere (``prepare_demand``'s
+``planner``: a process of its own for a large demand) and gets the same plan. A demand refused
+for the controller's state raises ``NotAcceptingError``, so the node can tell it from a bad
+demand (it waits for fresh states and asks again: the refusal names the state it is in then).
+
 ``DemandIntake`` is a part of ``controller_core.ControllerCore`` (its state is the core's, set
 in ``ControllerCore.__init__``); it is not used on its own.
 """
@@ -14,7 +20,7 @@ in ``ControllerCore.__init__``); it is not used on its own.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Optional
+from typing import Callable, Optional
 
 from mover6_control.control import state_machine as sm
 from mover6_control.control.controller_config import ControllerConfig
@@ -44,6 +50,52 @@ class Snapshot:
     moving: bool
     motion_id: int
     message: str = ''
+
+
+class NotAcceptingError(InvalidInputError):
+    """The controller cannot take a demand in its state (``state``); the reason names it."""
+
+    def __init__(self, state: str, message: str):
+        """Say that no demand is taken while ``state`` (``message``: the state's reason)."""
+        super().__init__(f'cannot take a demand while {state}: {message}')
+        self.state = state
+
+
+@dataclass(frozen=True, eq=False)
+class PlanJob:
+    """
+    What a demand's plan is made from, and ``run`` to make it (``timed_plan.plan_demand``).
+
+    Only values (the law, the start, the checked waypoints, the limits): it reads nothing of
+    the controller, so it runs the same in another thread or process (it pickles).
+    """
+
+    law: LawConfig
+    q_start: np.ndarray
+    waypoints: np.ndarray
+    velocity_limits: np.ndarray
+    qd_start: Optional[np.ndarray]
+    timing: Optional[Timing]
+    lower: np.ndarray
+    upper: np.ndarray
+
+    def run(self, guard: Optional[Callable[[MotionPlan], None]] = None) -> tuple[MotionPlan, str]:
+        """
+        Return ``(plan, note)`` as ``plan_demand`` does, once ``guard(plan)`` let it pass.
+
+        ``guard`` is the controller's collision check (None: none); it raises
+        ``InvalidInputError`` for a motion that collides.
+        """
+        plan, note = plan_demand(self.law, self.q_start, self.waypoints, self.velocity_limits,
+                                 self.qd_start, self.timing, self.lower, self.upper)
+        if guard is not None:
+            guard(plan)
+        return plan, note
+
+
+# Runs a PlanJob with the controller's collision guard: ``planner(job, guard)`` returns what
+# ``job.run(guard)`` returns, or raises as it does (``prepare_demand``'s ``planner``).
+Planner = Callable[[PlanJob, Optional[Callable[[MotionPlan], None]]], tuple[MotionPlan, str]]
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,7 +132,7 @@ class DemandIntake:
 
     def prepare_demand(self, now: float, waypoints: np.ndarray, snapshot: Snapshot,
                        demand_id: str = '', timing: Optional[Timing] = None,
-                       profile: str = '') -> PendingDemand:
+                       profile: str = '', planner: Optional[Planner] = None) -> PendingDemand:
         """
         Check a demand and plan it from ``snapshot``; return a ``PendingDemand``.
 
@@ -93,7 +145,9 @@ class DemandIntake:
         when the motion collides, and for an unknown ``profile``. With ``timing`` (a goal's
         ``time_from_start`` and velocities) the plan follows it where it can
         (``timed_plan.plan_demand``; its note goes to the status as ``timing``). ``profile``
-        times this demand only (``law_for``).
+        times this demand only (``law_for``). ``planner(job, guard)`` makes the plan of the
+        ``PlanJob`` (default: ``job.run(guard)`` here; a node may run it in another process).
+        Raises ``NotAcceptingError`` when the snapshot's state takes no demand.
         """
         config = self.config       # read once, before the limits it comes with (_apply)
         vlim = self._vlim
@@ -103,11 +157,10 @@ class DemandIntake:
         if q_start is None:
             raise InvalidInputError(f'cannot take a demand while {snapshot.state}: no joint '
                                     f'states yet')
-        plan, note = plan_demand(self.law_for(profile, config), q_start, Q, vlim, qd_start,
-                                 timing, self.arm.lower, self.arm.upper)
-        guard = self.collision_guard
-        if guard is not None:
-            guard(plan)         # raises InvalidInputError: the motion collides
+        job = PlanJob(self.law_for(profile, config), q_start, Q, vlim, qd_start, timing,
+                      self.arm.lower, self.arm.upper)
+        guard = self.collision_guard    # raises InvalidInputError: the motion collides
+        plan, note = job.run(guard) if planner is None else planner(job, guard)
         return PendingDemand(now, Q, plan, snapshot.moving, snapshot.motion_id, demand_id,
                              config, timing, note, profile)
 
@@ -165,12 +218,10 @@ class DemandIntake:
         self._check_accepts(self._state)
         plan, note = pending.plan, pending.timing_note
         if not self.is_current(pending):
-            snapshot = self.snapshot()
-            plan, note = plan_demand(self.law_for(pending.profile), snapshot.start[0],
-                                     pending.waypoints, self._vlim, snapshot.start[1],
-                                     pending.timing, self.arm.lower, self.arm.upper)
-            if self.collision_guard is not None:
-                self.collision_guard(plan)      # the new plan is checked as the first was
+            q_start, qd_start = self.snapshot().start
+            plan, note = PlanJob(self.law_for(pending.profile), q_start, pending.waypoints,
+                                 self._vlim, qd_start, pending.timing, self.arm.lower,
+                                 self.arm.upper).run(self.collision_guard)   # checked as before
         self._timing = note
         self.robot.give(plan, pending.now if start is None else start)
         self._motion_id += 1
@@ -203,7 +254,12 @@ class DemandIntake:
                            K.REJECTED_GOAL_ID: str(demand_id)}
         self._changed = True
 
+    def refusal(self) -> Optional[NotAcceptingError]:
+        """Return why no demand is taken in the state now (None: one is); under the lock."""
+        if self._state in sm.ACCEPTS_DEMANDS:
+            return None
+        return NotAcceptingError(self._state, self._message)
+
     def _check_accepts(self, state, message=None):
         if state not in sm.ACCEPTS_DEMANDS:
-            message = self._message if message is None else message
-            raise InvalidInputError(f'cannot take a demand while {state}: {message}')
+            raise NotAcceptingError(state, self._message if message is None else message)

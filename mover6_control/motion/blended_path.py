@@ -42,6 +42,7 @@ _FALLING = tuple(_frozen([np.prod(np.arange(j - k + 1, j + 1)) if j >= k else 0.
                           for j in range(6)]) for k in range(4))
 # BlendedPath segment kinds, as codes for batch evaluation.
 _KIND_CODE = {'line': 0, 'arc': 1, 'quintic': 2}
+_KIND_NAME = {code: kind for kind, code in _KIND_CODE.items()}
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,6 +81,39 @@ class BlendedPath:
         object.__setattr__(self, '_code', code)
         object.__setattr__(self, '_stacks', stacks)
         object.__setattr__(self, '_radius', radius)
+
+    def __getstate__(self) -> dict:
+        """
+        Return the path as a few arrays, for pickling (a plan made in another process).
+
+        Pickled as it is, a path of 10,000 waypoints is 30,000 small objects, and unpickling
+        them is one call that holds the interpreter lock for a tenth of a second (the
+        controller's tick waits); the lines and arcs are their stacked rows instead, and only
+        the quintics (jerk limits, few) keep their parameters.
+        """
+        quintics = {i: self.params[i] for i, kind in enumerate(self.kinds) if kind == 'quintic'}
+        return {'code': self._code, 'stacks': self._stacks, 'radius': self._radius,
+                'quintics': quintics, 'starts': self.starts, 'stops': self.stops,
+                'waypoints': self.waypoints, 'waypoint_s': self.waypoint_s}
+
+    def __setstate__(self, state: dict) -> None:
+        """Rebuild the path from ``__getstate__``'s arrays (the same values, bit for bit)."""
+        kinds = tuple(_KIND_NAME[c] for c in state['code'].tolist())
+        stacks, radius, quintics = state['stacks'], state['radius'], state['quintics']
+        params = []
+        for i, kind in enumerate(kinds):        # Python steps: the tick gets the lock between
+            if kind == 'line':
+                params.append((stacks['p'][i], stacks['u'][i]))
+            elif kind == 'arc':
+                params.append((stacks['c'][i], radius[i], stacks['x'][i], stacks['y'][i]))
+            else:
+                params.append(quintics[i])
+        for name, value in (('kinds', kinds), ('params', tuple(params)),
+                            ('starts', state['starts']), ('stops', state['stops']),
+                            ('waypoints', state['waypoints']),
+                            ('waypoint_s', state['waypoint_s']), ('_code', state['code']),
+                            ('_stacks', stacks), ('_radius', radius)):
+            object.__setattr__(self, name, value)
 
     @property
     def length(self) -> float:

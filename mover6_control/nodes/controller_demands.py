@@ -15,6 +15,7 @@ in ``ControllerNode.__init__``); it is not used on its own.
 import time
 from typing import Optional
 
+from mover6_control.control.demand_intake import NotAcceptingError, PendingDemand
 from mover6_control.control.state_machine import FAULT, WAITING_FOR_STATES
 from mover6_control.control.timed_plan import Timing
 from mover6_control.errors import InvalidInputError, Mover6Error
@@ -35,6 +36,17 @@ LOCKED_PLAN_LIMIT = 0.02
 DEMAND_STATE_WAIT = 2.0
 # States in which a demand waits (DEMAND_STATE_WAIT) for valid joint states.
 WAIT_FOR_STATES = (WAITING_FOR_STATES, FAULT)
+# Rounds of one demand's taking at most: DEMAND_ATTEMPTS plans, and waits for the state.
+DEMAND_ROUNDS = DEMAND_ATTEMPTS + 3
+# A demand of this many waypoints or more is planned in the planning process (plan_worker):
+# planning it here holds the interpreter lock that the tick needs. Measured (continuous law,
+# load 24, CPU of this process per demand): 22 waypoints 8 ms here, 0.8 ms through the worker,
+# 100: 15 / 0.9 ms, 1,000: 149 / 2.7 ms, at about the same wall time. Below it a demand stays
+# here, and so does every demand while the worker starts (seconds, at the node's start): the
+# planner's first demand must not wait for it; but one of WORKER_WAIT_POINTS or more waits (it
+# takes seconds to plan anyway: here it would stall the tick from the start).
+WORKER_POINTS = 100
+WORKER_WAIT_POINTS = 1000
 
 
 class DemandThread:
@@ -69,12 +81,16 @@ class DemandThread:
         Accept waypoints or say why not: every demand ends accepted or refused with a reason.
 
         The one concurrency rule (docs/architecture.md, "Threads"): a snapshot of the core is
-        taken under the lock, the plan is made from it without the lock (the ticks go on), and
-        it is committed under the lock only if the snapshot is still current; otherwise it is
-        planned again from a new snapshot (the last attempt re-plans under the lock, unless the
-        plans take longer than ``LOCKED_PLAN_LIMIT``: then it is refused). The waypoints are
-        checked before the first snapshot (a refusal names the state the snapshot saw), and a
-        goal its action gave up waiting for (``withdrawn``) is never started.
+        taken under the lock, the plan is made from it without the lock (the ticks go on; a
+        demand of ``WORKER_POINTS`` waypoints or more in the planning process once it is up,
+        ``plan_worker``),
+        and it is committed under the lock only if the snapshot is still current; otherwise it
+        is planned again from a new snapshot (the last attempt re-plans under the lock, unless
+        the plans take longer than ``LOCKED_PLAN_LIMIT``: then it is refused). The waypoints
+        are checked first. In a state that takes no demand it waits for valid states
+        (``DEMAND_STATE_WAIT``) and tries again; a refusal for the state names the state the
+        controller is in when it refuses (``refuse_for_state``). A goal its action gave up
+        waiting for (``withdrawn``) is never started.
         """
         now = self.now()
         goal_id = demand_messages.demand_id_from_msg(msg)
@@ -86,34 +102,34 @@ class DemandThread:
         try:
             Q = demand_messages.demands_from_msg(msg, len(self.joint_names))
             profile = demand_messages.demand_profile_from_msg(msg)   # this demand's law only
-            with self.lock:
-                waiting = self.core.state in WAIT_FOR_STATES
-            if waiting:                          # no valid states yet: wait a moment
-                self.has_states.wait(DEMAND_STATE_WAIT)
-                now = self.now()
             Q = self.core.check_demand(Q)       # the arm's limits only: no lock needed
-            for attempt in range(DEMAND_ATTEMPTS):
+            planner = (self.plan_worker if len(Q) >= WORKER_WAIT_POINTS or (
+                len(Q) >= WORKER_POINTS and self.plan_worker.ready()) else None)
+            until = None        # [s, monotonic] end of this demand's wait for valid states
+            motion_id, attempt = None, 0
+            for _ in range(DEMAND_ROUNDS):
+                until = self.wait_for_states(until)
+                now = self.now()
                 with self.lock:
                     snapshot = self.core.snapshot()
                 started = time.monotonic()
-                pending = self.core.prepare_demand(now, Q, snapshot, goal_id, timing=timing,
-                                                   profile=profile)
-                slow = time.monotonic() - started > LOCKED_PLAN_LIMIT
-                with self.lock:
-                    if goal_id and self.goals.withdrawn(goal_id):
-                        raise InvalidInputError(f'goal {goal_id}: its sender stopped waiting')
-                    current = self.core.is_current(pending)
-                    if not current and slow and attempt + 1 == DEMAND_ATTEMPTS:
-                        raise InvalidInputError(
-                            f'the controller moved on while this demand was planned, '
-                            f'{DEMAND_ATTEMPTS} times; send it again')
-                    if attempt + 1 == DEMAND_ATTEMPTS or current:
-                        # From rest the plan starts now, not when its (long) planning began.
-                        start = pending.now if pending.moving else self.now()
-                        motion_id = self.core.commit_demand(pending, start)
-                        self.goals.started(motion_id, goal_id, start)
-                        break
-                now = self.now()
+                try:
+                    pending = self.core.prepare_demand(now, Q, snapshot, goal_id, timing=timing,
+                                                       profile=profile, planner=planner)
+                    slow = time.monotonic() - started > LOCKED_PLAN_LIMIT
+                    attempt += 1
+                    with self.lock:
+                        motion_id = self.commit_if_current(pending, goal_id, slow,
+                                                           attempt >= DEMAND_ATTEMPTS)
+                except NotAcceptingError:
+                    until = self.refuse_for_state(until)   # returns when it may try again
+                    continue
+                if motion_id is not None:
+                    break
+            if motion_id is None:
+                self.refuse_for_state(time.monotonic())
+                raise InvalidInputError('the controller moved on while this demand was planned, '
+                                        f'{DEMAND_ATTEMPTS} times; send it again')
         except Exception as err:  # noqa: B902 - no demand is dropped without a status
             reason = str(err) if isinstance(err, Mover6Error) else f'{type(err).__name__}: {err}'
             reason = short_text(reason)   # hostile demands quote little
@@ -127,3 +143,64 @@ class DemandThread:
         self.get_logger().info(f'motion {motion_id}: {len(Q)} waypoint(s) accepted'
                                + (f' (goal {goal_id})' if goal_id else ''))
         self.publish_status(now)
+
+    def commit_if_current(self, pending: PendingDemand, goal_id: str, slow: bool,
+                          last: bool) -> Optional[int]:
+        """
+        Start ``pending`` if it still fits, or on the ``last`` attempt; return its motion id.
+
+        Call it under the lock. Returns None when it must be planned again. Raises
+        ``NotAcceptingError`` when the state now takes no demand, and ``InvalidInputError``
+        when its goal was withdrawn or when the controller moved on meanwhile on the last
+        attempt of a ``slow`` plan (it is never planned under the lock).
+        """
+        if goal_id and self.goals.withdrawn(goal_id):
+            raise InvalidInputError(f'goal {goal_id}: its sender stopped waiting')
+        refusal = self.core.refusal()
+        if refusal is not None:
+            raise refusal
+        current = self.core.is_current(pending)
+        if not current and slow and last:
+            raise InvalidInputError(f'the controller moved on while this demand was planned, '
+                                    f'{DEMAND_ATTEMPTS} times; send it again')
+        if not (current or last):
+            return None
+        # From rest the plan starts now, not when its (long) planning began.
+        start = pending.now if pending.moving else self.now()
+        motion_id = self.core.commit_demand(pending, start)
+        self.goals.started(motion_id, goal_id, start)
+        return motion_id
+
+    def wait_for_states(self, until: Optional[float]) -> Optional[float]:
+        """
+        Wait while the core has no valid joint states, until ``until`` (monotonic) at most.
+
+        ``until`` None: the wait starts now (``DEMAND_STATE_WAIT``); returns the end of the
+        wait (None when there was none to wait for).
+        """
+        with self.lock:
+            waiting = self.core.state in WAIT_FOR_STATES
+        if waiting:                          # no valid states yet: wait a moment
+            until = time.monotonic() + DEMAND_STATE_WAIT if until is None else until
+            self.has_states.wait(max(0.0, until - time.monotonic()))
+        return until
+
+    def refuse_for_state(self, until: Optional[float]) -> Optional[float]:
+        """
+        After the state took no demand: return to try again, or raise why not in the state now.
+
+        It tries again when the state takes demands by now (a fault cleared meanwhile), or
+        when it waits for valid joint states and the wait (``until``, monotonic; None: from
+        now, ``DEMAND_STATE_WAIT``) has not ended: it returns the end of that wait. Otherwise it
+        raises the ``NotAcceptingError`` of the state the controller is in now, never of the
+        state it was in when the demand was planned.
+        """
+        with self.lock:
+            refusal = self.core.refusal()
+        if refusal is None:
+            return until
+        if refusal.state in WAIT_FOR_STATES:
+            until = time.monotonic() + DEMAND_STATE_WAIT if until is None else until
+            if time.monotonic() < until:
+                return until
+        raise refusal

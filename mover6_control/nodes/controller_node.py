@@ -27,11 +27,12 @@ a command under one encoder tick per cycle would leave standing, and widen the g
 one tick.
 
 Three threads: the executor's (the callbacks, this module), the tick thread
-(``controller_ticks``) and the demand thread (``controller_demands``). The lock rule: the core
-(``core.state``, ``core.collision_guard``, ``core.config`` ...) and the goal ledger are read and
-changed only under ``lock``; nothing slow happens under it, and nothing is published under it.
+(``controller_ticks``) and the demand thread (``controller_demands``: a large demand is planned
+in a process, ``plan_worker``). The lock rule: the core (``core.state``, ``core.config`` ...)
+and the goal ledger are read and changed only under ``lock``; nothing slow, nothing published.
 """
 
+import gc
 import queue
 import sys
 import threading
@@ -51,6 +52,7 @@ from mover6_control.nodes.controller_demands import DemandThread
 from mover6_control.nodes.controller_ticks import TickLoop
 from mover6_control.nodes.goal_ledger import GoalLedger
 from mover6_control.nodes.params import config_from_parameters
+from mover6_control.nodes.plan_worker import PlanWorker
 from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from mover6_control.parameters import CONTROLLER
@@ -95,6 +97,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.pending_logged = False      # 'applies to the next motion' said, not yet applied
         self.last_q = None               # the latest valid joint positions, for the action
         self.demands = queue.SimpleQueue()   # /joint_demands messages not yet taken; None: end
+        self.plan_worker = PlanWorker()      # the planning process of large demands
 
         self.jog_pub = self.create_publisher(JointJog, 'JointJog', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'controller/status',
@@ -241,6 +244,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.destroyed = True
         self.running = False
         self.demands.put(None)
+        self.plan_worker.close()    # a demand planned there is refused: its thread can end
         self.has_states.set()       # a demand waiting for states stops waiting
         self.goals.close()          # an action goal waiting for its demand stops waiting
         self.trajectory_server.destroy()
@@ -283,10 +287,12 @@ def main(args: Optional[list[str]] = None) -> None:
     zero (and the vendor driver keeps the last command forever); ``shutdown.run_node`` keeps the
     context valid until ``destroy_node()`` has sent it, and ignores any further signal meanwhile.
     """
-    # The tick thread must get the interpreter promptly when its deadline comes, not after the
-    # default 5 ms switch interval while the executor thread runs Python: this keeps the period
-    # error p99 well under a millisecond at 100 Hz (bench/bench_controller.py).
+    # The tick thread gets the interpreter 0.5 ms after its deadline, not 5 ms (the period error
+    # p99 well under a millisecond at 100 Hz, bench/bench_controller.py); what is loaded now is
+    # never scanned again by a full collection (one holds it; a 10,000-point goal makes 40,000).
     sys.setswitchinterval(0.0005)
+    gc.collect()
+    gc.freeze()
     shutdown.run_node(ControllerNode, args)
 
 

@@ -26,6 +26,9 @@ from mover6_control.control.profiles import LawConfig
 from mover6_control.control.robot import Robot
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
+from mover6_control.nodes.controller_demands import DemandThread, WAIT_FOR_STATES, WORKER_POINTS
+from mover6_control.nodes.demand_messages import make_demands
+from mover6_control.nodes.goal_ledger import GoalLedger
 import numpy as np
 import pytest
 
@@ -247,3 +250,95 @@ def test_real_threads_keep_the_invariants():
         t.join()
     assert not errors, errors
     assert h.accepted + h.refused > 20
+
+
+class DemandHarness(DemandThread):
+    """
+    The node's parts a ``DemandThread`` uses, around a real core; the clock is ``self.t``.
+
+    ``tick()`` is the tick thread's step (the core's tick, then ``has_states`` as
+    ``controller_ticks.on_tick`` sets it); ``plan_worker`` plans here and runs
+    ``plan_worker.during`` first (what the ticks do while a large demand is planned).
+    """
+
+    def __init__(self):
+        self.lock = threading.RLock()
+        self.core = ControllerCore(ARM, ControllerConfig())
+        self.goals = GoalLedger(self.lock)
+        self.has_states = threading.Event()
+        self.joint_names = list(ARM.joint_names)
+        self.t = 0.0
+        self.plan_worker = DuringPlan()
+        self.logged = []
+
+    def now(self):
+        return self.t
+
+    def get_logger(self):
+        harness = self
+
+        class Logger:
+            def info(self, text):
+                harness.logged.append(text)
+            warning = info
+        return Logger()
+
+    def publish_status(self, now, **kwargs):
+        pass
+
+    def tick(self, states=True):
+        with self.lock:
+            self.t += DT
+            if states:
+                self.core.on_joint_states(self.t, np.zeros(6))
+            out = self.core.tick(self.t)
+        (self.has_states.clear if out.state in WAIT_FOR_STATES else self.has_states.set)()
+        return out.state
+
+
+class DuringPlan:
+    """The planning process's part in ``DemandHarness``: runs ``during`` once, then plans."""
+
+    def __init__(self):
+        self.during = None
+
+    def ready(self):
+        return True
+
+    def __call__(self, job, guard):
+        if self.during is not None:
+            during, self.during = self.during, None
+            during()
+        return job.run(guard)
+
+
+def test_a_fault_that_clears_while_a_demand_is_planned_does_not_refuse_it():
+    """
+    The states went stale while a large demand was planned, and came back: it is taken.
+
+    Before, the commit refused it ('cannot take a demand while fault: /joint_states stale'),
+    naming a fault that cleared a tick later (issue 21, item 6). Now the demand waits for valid
+    states (DEMAND_STATE_WAIT) and is planned again; refused only if the fault stays, and then
+    for the state the controller is in when it refuses.
+    """
+    h = DemandHarness()
+    assert h.tick() == sm.IDLE
+
+    def stale_then_back():
+        while h.tick(states=False) != sm.FAULT:       # states stale: fault
+            pass
+        timer = threading.Timer(0.3, lambda: [h.tick() for _ in range(3)])
+        timer.start()                                   # fresh states again, 0.3 s later
+    h.plan_worker.during = stale_then_back
+    Q = np.linspace(0.0, 0.3, WORKER_POINTS)[:, None] * np.ones(6)
+    h.take_demand(make_demands(Q, 'large-1'))
+    assert h.core.state == sm.EXECUTING, h.logged
+    assert h.goals.withdraw('large-1') == 1, h.logged
+    assert 'rejected' not in h.core.status().values
+
+    # The fault stays: refused after the wait, naming the fault it is in then.
+    while h.tick(states=False) != sm.FAULT:
+        pass
+    h.take_demand(make_demands(Q[::-1], 'large-2'))
+    reason = h.goals.withdraw('large-2')
+    assert reason.startswith('cannot take a demand while fault: /joint_states stale'), reason
