@@ -20,12 +20,12 @@ as ``ros2 topic echo`` does), waits for one message and exits. Figures:
 - motions sent, arrived, and ended otherwise (aborted, fault, stopped).
 
 The variants run one after the other in the same run (``--repeat N``: N times, alternately),
-each with a fresh stack; the environment applies to the controller and the bridge: ``localhost``
-(Fast DDS as rmw_fastrtps sets it up), ``async`` (``RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``)
-and ``rt_prio_50`` (``tick_priority:=50``: the tick thread at SCHED_FIFO 50 where allowed);
-``local_rt50`` is ``local`` with that, ``local_all_rt50`` also the bridge's physics thread
-(``physics_priority:=50``), as a real arm never waits for a CPU;
-``localhost`` and ``local`` (the default rows) compare the DDS configurations (``VARIANTS``). The
+each with a fresh stack; the environment applies to the controller and the bridge. The default
+rows: ``local``, the product's local configuration as it ships (UDP on 127.0.0.1, the tick and
+the physics thread at SCHED_FIFO 50 where allowed), and ``localhost``, the product before issue
+22 (Fast DDS as rmw_fastrtps sets it up under LOCALHOST, both threads at normal scheduling).
+Others (``VARIANTS``): ``local_prio0``, ``localhost_prio50`` (one of the two changes each) and
+``async`` (``RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``). The
 machine is shared: the load average is printed and stored. Halts are counted from the bridge's
 log between the first motion and the end of the last (the controller stops before the bridge,
 so the bridge halts once more at teardown: reported apart).
@@ -63,9 +63,10 @@ own stack comes from ``MOVER6_TICK_WATCHDOG``):
   and drops shared memory: the package's local configuration (issue 22), the ``local`` rows;
 - the shorter gaps (20-150 ms, ``ticks_over_30ms``) are the process waiting for a CPU on a
   loaded machine (two cores, load 4-11 during these runs; the watchdog then finds the tick
-  thread anywhere in its Python code). ``rt_prio_50`` narrows them (period error p50 and p99)
-  but cannot remove them: the real-time tick thread still needs the interpreter lock, which a
-  preempted normal-priority thread of the node may hold. The stall warning is logged from the
+  thread anywhere in its Python code). ``tick_priority`` alone narrowed them (period error p50
+  and p99) but could not remove them: the real-time tick thread still needs the interpreter
+  lock, which a preempted normal-priority thread of the node may hold (so the node's other
+  threads now run one below the tick). The stall warning is logged from the
   tick thread (rclpy's throttled logger inspects the caller's source file, and /rosout is a DDS
   write): in one run the tick that logged a 72 ms gap began a 360 ms gap itself, its log line
   stamped 350 ms after the tick started.
@@ -108,15 +109,18 @@ LOG_STAMP = re.compile(r'^\[\w+\] \[(\d+\.\d+)\]')   # a ROS log line: [LEVEL] [
 # Every process of a row, the churn processes and this benchmark's own included, runs in the
 # row's DDS configuration: ``localhost`` is ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST as before
 # issue 22 (rmw_fastrtps adds shared memory), ``local`` the package's local configuration
-# (``mover6_control.nodes.local_dds``: UDP on 127.0.0.1 only, no shared memory). ``async`` and
-# ``rt_prio_50`` were tried against the 333 ms stall under LOCALHOST and removed none of it
-# (module doc); they stay so that they can be measured again.
-VARIANTS = (('localhost', 'localhost', {}, {}, {}),
+# (``mover6_control.nodes.local_dds``: UDP on 127.0.0.1 only, no shared memory). Parameters not
+# given are the shipped files' (config/*.yaml): ``local`` is the product as it ships (the tick and
+# the physics thread at SCHED_FIFO 50 where allowed), ``localhost`` the product before issue 22
+# (both at normal scheduling, priority 0); ``local_prio0`` and ``localhost_prio50`` swap one of
+# the two changes. ``async`` was tried against the 333 ms stall under LOCALHOST and removed none
+# of it (module doc); it stays so that it can be measured again.
+NORMAL = ({'tick_priority': 0}, {'physics_priority': 0})
+VARIANTS = (('localhost', 'localhost', {}, *NORMAL),
             ('local', 'local', {}, {}, {}),
-            ('local_rt50', 'local', {}, {'tick_priority': 50}, {}),
-            ('local_all_rt50', 'local', {}, {'tick_priority': 50}, {'physics_priority': 50}),
-            ('async', 'localhost', {'RMW_FASTRTPS_PUBLICATION_MODE': 'ASYNCHRONOUS'}, {}, {}),
-            ('rt_prio_50', 'localhost', {}, {'tick_priority': 50}, {}))
+            ('local_prio0', 'local', {}, *NORMAL),
+            ('localhost_prio50', 'localhost', {}, {}, {}),
+            ('async', 'localhost', {'RMW_FASTRTPS_PUBLICATION_MODE': 'ASYNCHRONOUS'}, *NORMAL))
 DEFAULT_VARIANTS = ('localhost', 'local')
 STALL = 0.2                  # [s] a tick gap this long is a stall (the driver halts at 0.2 s)
 
@@ -204,6 +208,12 @@ def log_lines_between(path, line, wall_t0, wall_t1):
             elif t > wall_t1:
                 after += 1
     return inside, after
+
+
+def logged(path, line):
+    """Return whether ``line`` appears in the log file ``path``."""
+    with open(path) as f:
+        return any(line in text for text in f)
 
 
 def run_variant(name, env_extra, params, total, log_dir, offcpu=False, bridge_params=None):
@@ -335,6 +345,10 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False, bridge_pa
     halts, halts_after = log_lines_between(bridge.log_path, HALT_LINE, wall_t0, wall_t1)
     stall_lines, _ = log_lines_between(controller_log.name, 'the tick thread stalled', wall_t0,
                                        wall_t1)
+    # What the row ran at: the nodes say once whether their timed thread got SCHED_FIFO.
+    scheduling = {key: logged(path, line) for key, path, line in (
+        ('tick_thread_fifo', controller_log.name, 'tick thread at SCHED_FIFO'),
+        ('physics_thread_fifo', bridge.log_path, 'physics thread at SCHED_FIFO'))}
     longest_waits = []
     if perf is not None:
         with open(os.path.join(variant_dir, 'offcpu.txt'), 'w') as f:
@@ -359,7 +373,7 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False, bridge_pa
             'controller_stall_warnings': stall_lines,
             'jointjog_received_max_gap_ms': float(np.max(np.diff(jog)) * 1e3),
             'bridge_halts': halts, 'bridge_halts_at_teardown': halts_after,
-            'controller_dds_threads': threads, 'offcpu_longest_waits': longest_waits,
+            **scheduling, 'controller_dds_threads': threads, 'offcpu_longest_waits': longest_waits,
             'motions_sent': sent,
             'motions_arrived': results.count('arrived'),
             'motions_not_arrived': len(results) - results.count('arrived'),
@@ -441,7 +455,7 @@ def main(argv=None):
     print(f'{"variant":>10} {"run":>3} {"ticks":>6} {"max gap [ms]":>13} {"err p50 [ms]":>13} '
           f'{"err p99 [ms]":>13} {">30 ms":>7} {f">{STALL * 1e3:.0f} ms":>7} '
           f'{"jog rx max gap [ms]":>20} {"halts":>6} '
-          f'{"motions ok/sent":>16} {"load 1 min":>11}')
+          f'{"motions ok/sent":>16} {"load 1 min":>11} {"FIFO tick/physics":>18}')
     for row in results['variants']:
         print(f'{row["variant"]:>10} {row["repetition"]:3d} {row["ticks"]:6d} '
               f'{row["max_tick_gap_ms"]:13.1f} '
@@ -450,7 +464,9 @@ def main(argv=None):
               f'{row["jointjog_received_max_gap_ms"]:20.1f} '
               f'{row["bridge_halts"]:6d} '
               f'{row["motions_arrived"]:>7d}/{row["motions_sent"]:<8d} '
-              f'{row["load_average_after"][0]:11.2f}')
+              f'{row["load_average_after"][0]:11.2f} '
+              f'{"yes" if row["tick_thread_fifo"] else "no":>14}/'
+              f'{"yes" if row["physics_thread_fifo"] else "no":<3}')
     write_json('churn', results)
 
 

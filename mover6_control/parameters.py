@@ -304,9 +304,10 @@ CONTROLLER = _table(
       read_only=True),
     P('status_rate', 'float', 5.0, 'Hz', 'rate of /controller/status between state changes',
       0.1, 100.0),
-    P('tick_priority', 'int', 0, '',
-      'real-time priority (SCHED_FIFO 1 to 99) of the tick thread; 0 = off (normal '
-      'scheduling); refused without the right (logged once); set at start', 0, 99,
+    P('tick_priority', 'int', 50, '',
+      "real-time priority (SCHED_FIFO 1 to 99) of the tick thread, the node's other threads "
+      "one below (as ros2_control's controller manager); 0 = off (normal scheduling); refused "
+      'without the right (logged once, normal scheduling then); set at start', 0, 99,
       read_only=True),
     P('servo_command_timeout', 'float', 0.1, 's',
       'jogging: a twist or joint jog older than this (by its stamp) decelerates the arm to rest',
@@ -356,9 +357,10 @@ SIM_BRIDGE = _table(
     P('publish_clock', 'bool', False, '',
       'publish /clock after every physics step and stamp with sim time; set at start',
       read_only=True),
-    P('physics_priority', 'int', 0, '',
+    P('physics_priority', 'int', 50, '',
       "real-time priority (SCHED_FIFO 1 to 99) of the physics thread, the node's other threads "
-      'one below; 0 = off (normal scheduling); refused without the right (logged once); set at '
+      'one below (unpaced, real_time_factor 0: normal scheduling); 0 = off (normal '
+      'scheduling); refused without the right (logged once, normal scheduling then); set at '
       'start', 0, 99, read_only=True),
     P('viewer', 'bool', False, '',
       'open the MuJoCo viewer when a display exists (headless otherwise); set at start',

@@ -11,6 +11,12 @@ later inherit their creator's policy, processes started from any of them do not
 (SCHED_RESET_ON_FORK: a child runs at normal priority). Where the system refuses it (no
 CAP_SYS_NICE, no rtprio limit) nothing changes and the caller is told why, to say so once and go
 on.
+
+A SCHED_FIFO thread runs until it blocks: one that never sleeps takes a whole CPU from every
+normal process (the kernel's real-time throttling leaves them 5 %). So each timed thread sleeps
+between its periods even when it runs late (the tick rests a tenth of a period, the
+physics thread after an overrun), and the physics thread runs unpaced (``real_time_factor``
+0, as fast as it can) at normal scheduling (``run_normal``).
 """
 
 from __future__ import annotations
@@ -70,6 +76,12 @@ def raise_this_thread(priority: int, log: Any, thread: str, parameter: str) -> b
     else:
         log.warning(f'{parameter} {priority}: {message}')
     return ok
+
+
+def run_normal() -> None:
+    """Run the calling thread at normal scheduling again (always allowed); the others stay."""
+    policy = os.SCHED_OTHER | getattr(os, 'SCHED_RESET_ON_FORK', 0)
+    os.sched_setscheduler(threading.get_native_id(), policy, os.sched_param(0))
 
 
 def scheduling_of_thread() -> tuple[str, int]:

@@ -16,7 +16,7 @@ import time
 
 from mover6_control.nodes import conversions
 from mover6_control.nodes.node_clock import now_ns
-from mover6_control.realtime import raise_this_thread
+from mover6_control.realtime import raise_this_thread, run_normal
 from sim_bridge.simulator import steps_due
 
 MAX_BATCH = 200           # physics steps per loop pass before pacing gives up and re-anchors
@@ -28,21 +28,38 @@ class PhysicsLoop:
 
     def _run(self):
         """Run the physics loop; a failure is logged loudly, never lost in a thread."""
-        self._set_physics_priority(self.get_parameter('physics_priority').value)
+        self._priority = self.get_parameter('physics_priority').value
+        self._raised = False
         try:
+            self._keep_priority()
             self._loop()
         except Exception as exc:  # noqa: B902 - report whatever stopped the physics
             self.failure = f'{type(exc).__name__}: {exc}'
             self.get_logger().fatal(f'physics thread stopped: {self.failure}')
 
-    def _set_physics_priority(self, priority: int) -> None:
+    def _keep_priority(self):
         """
-        Run this thread at SCHED_FIFO ``priority`` (``physics_priority``), the rest just below.
+        Run this thread at SCHED_FIFO ``physics_priority`` while paced, the rest just below.
 
         ``mover6_control.realtime.raise_this_thread``, as the controller's tick and the driver's
         cycle: under load the simulated arm keeps its pace as a real one does; 0: as is.
+        Unpaced (``real_time_factor`` 0, as fast as it can, which may be set live) the thread
+        never sleeps, so it runs at normal scheduling then. A refusal is said once and not
+        tried again.
         """
-        raise_this_thread(priority, self.get_logger(), 'physics', 'physics_priority')
+        want = self._priority > 0 and self.rtf > 0.0
+        if want == self._raised:
+            return
+        if want:
+            self._raised = raise_this_thread(self._priority, self.get_logger(), 'physics',
+                                             'physics_priority')
+            if not self._raised:
+                self._priority = 0
+        else:
+            run_normal()
+            self._raised = False
+            self.get_logger().info('physics thread at normal scheduling while unpaced '
+                                   '(real_time_factor 0)')
 
     def _loop(self):
         """
@@ -58,6 +75,7 @@ class PhysicsLoop:
         """
         last_view = 0.0
         while not self.stop_event.is_set():
+            self._keep_priority()
             self._wake.clear()
             if self.paused:
                 with self.step_lock:
@@ -65,22 +83,28 @@ class PhysicsLoop:
                 self._wake.wait(0.005)
                 continue
             with self.step_lock:
-                self._catch_up()
+                overran = self._catch_up()
                 due = self._next_wake()
             now = time.monotonic()
             if self.viewer is not None and now - last_view > VIEWER_PERIOD:
                 last_view = now
                 self._sync_viewer()
-            if due is None:
+            if overran and self._raised:
+                time.sleep(self.publish_period)   # behind at real-time priority: rest all the same
+            elif due is None:
                 time.sleep(0)            # let the callbacks in
             elif due > now:
                 self._wake.wait(due - now)
 
     def _catch_up(self):
-        """Run the physics steps due by now at the pace in force (hold ``step_lock``)."""
+        """
+        Run the physics steps due by now at the pace in force (hold ``step_lock``).
+
+        Return whether it overran: paced, a whole batch due (the pace re-anchors).
+        """
         if self.paused:
             self._anchor = None
-            return
+            return False
         now = time.monotonic()
         rtf = self.rtf                   # read once per round: it may be set live
         if self._reanchor:
@@ -94,6 +118,8 @@ class PhysicsLoop:
         if rtf > 0.0 and n == MAX_BATCH:
             self.overruns += 1
             self._anchor = None
+            return True
+        return False
 
     def _next_wake(self):
         """Return the wall time [s] the next step that matters is due; None: now (step_lock)."""

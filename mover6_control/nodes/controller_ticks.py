@@ -28,6 +28,7 @@ exits with 1 after the last zero command, so the launcher sees it.
 
 import faulthandler
 import os
+import time
 import traceback
 
 from mover6_control.control.state_machine import FAULT
@@ -39,6 +40,10 @@ from rclpy.duration import Duration
 # A tick this late [s] is logged: the driver (and the sim bridge) halt after 0.2 s without one.
 TICK_GAP_WARN = 0.05
 WATCHDOG_ENV = 'MOVER6_TICK_WATCHDOG'
+# A tick that is due already when the one before ends still waits this fraction of a period
+# (wall time) first: at real-time priority (tick_priority) a thread that never sleeps would take
+# a whole CPU from every normal process.
+TICK_REST = 0.1
 # Ticks in a row that raised (each a fault with a zero command) after which the tick cannot run
 # at all: the node gives up and its process exits with 1, so the launcher sees it.
 MAX_TICK_FAILURES = 10
@@ -48,7 +53,11 @@ class TickLoop:
     """The tick thread of ``ControllerNode`` (module docstring)."""
 
     def tick_loop(self) -> None:
-        """Call ``on_tick`` every ``1 / rate`` [s] of the node's clock until the node closes."""
+        """
+        Call ``on_tick`` every ``1 / rate`` [s] of the node's clock until the node closes.
+
+        The thread sleeps before every tick, at least ``TICK_REST`` of a period when it is late.
+        """
         self.set_tick_priority(self.get_parameter('tick_priority').value)
         clock = self.get_clock()
         deadline = clock.now()
@@ -60,6 +69,8 @@ class TickLoop:
             if watchdog > 0.0:
                 faulthandler.dump_traceback_later(watchdog + period)   # re-armed each tick
             deadline = deadline + step
+            if clock.now() >= deadline:         # late: rest all the same (real-time priority)
+                time.sleep(period * TICK_REST)
             if not clock.sleep_until(deadline, self.context):
                 deadline = clock.now()          # clock switched (sim time) or shutting down
                 self.last_tick = None           # no gap across the switch
