@@ -136,7 +136,9 @@ def paced_run(rate, duration):
 
 def jog_latency(duration):
     """Return JointJog arrival-to-applied latencies [s] of the node paced at 1.0."""
-    node = SimBridgeNode(parameter_overrides=[Parameter('real_time_factor', value=1.0)])
+    # physics_priority 0: at real-time priority here it would raise this process's threads too.
+    node = SimBridgeNode(parameter_overrides=[Parameter('real_time_factor', value=1.0),
+                                              Parameter('physics_priority', value=0)])
     talker = rclpy.create_node('bench_sim_talker')
     pub = talker.create_publisher(JointJog, 'JointJog', 10)
     executor = SingleThreadedExecutor()

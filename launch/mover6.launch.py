@@ -20,7 +20,10 @@ launch.sh), the markers node, and RViz with rviz/mover6.rviz on ``rviz:=true``:
 (``can_sim``) on a pty and, once it is up, the driver on that pty, enabled at start; ``can``
 runs the driver on ``can_interface`` / ``can_channel`` (default the CPR USB2CAN adapter on
 /dev/ttyUSB0), not enabled: call its ~/reset and ~/enable. With the driver the controller's
-state_timeout is 0.5 s (the driver publishes /joint_states at its 20 Hz cycle).
+state_timeout is 0.5 s (the driver publishes /joint_states at its 20 Hz cycle). The timed threads
+(the controller's tick, the bridge's physics, the driver's cycle) run at SCHED_FIFO 50 where the
+system allows it (``tick_priority``, ``physics_priority``, ``cycle_priority`` in the parameter
+files; without the right each node says so once and runs at normal scheduling).
 
 ``profile``, ``jog_units`` and ``limit_set`` override the parameter files; their choices and
 defaults are the controller's parameter table's (``mover6_control.parameters``), whose defaults

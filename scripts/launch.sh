@@ -28,6 +28,10 @@
 # MOVER6_CONTROLLER_ARGS="-p t_max:=2.0"; MOVER6_CAN_SIM_ARGS for can_sim's command line (e.g.
 # "--home 0 0.3 0 0 0 0"). Parameter files: config/<node>.yaml.
 # With the driver the controller's state_timeout is 0.5 s (the driver publishes at its 20 Hz).
+# The timed threads (the controller's tick, the bridge's physics, the driver's cycle) run at
+# SCHED_FIFO 50 where the system allows it (tick_priority, physics_priority, cycle_priority in
+# the parameter files; without the right each node says so once and runs at normal scheduling;
+# MOVER6_CONTROLLER_ARGS="-p tick_priority:=0" turns one off).
 # launch/mover6.launch.py (ros2 launch) starts the same (test/unit/launch/test_launch_file.py checks).
 #
 # Needs an environment where the package is built and sourced (./run.sh launch does that).

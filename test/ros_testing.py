@@ -8,7 +8,9 @@ test fails.
 """
 
 import contextlib
+import ctypes
 import os
+import resource
 import signal
 import subprocess
 import sys
@@ -25,6 +27,21 @@ MODULES = {'sim_bridge': 'sim_bridge.bridge_node',
            'recorder': 'mover6_control.nodes.recorder_node',
            'state_publisher': 'mover6_control.nodes.state_publisher_node',
            'markers': 'mover6_control.nodes.markers_node'}
+
+
+PR_CAPBSET_DROP, CAP_SYS_NICE = 24, 23       # linux/prctl.h, linux/capability.h
+
+
+def without_the_right():
+    """
+    Take the right to real-time scheduling from a child process (its ``preexec_fn``).
+
+    No rtprio limit and no CAP_SYS_NICE.
+    As root the capability goes from the bounding set, so the program run keeps none of it;
+    elsewhere the limit is enough (the drop fails harmlessly).
+    """
+    resource.setrlimit(resource.RLIMIT_RTPRIO, (0, 0))
+    ctypes.CDLL(None, use_errno=True).prctl(PR_CAPBSET_DROP, CAP_SYS_NICE, 0, 0, 0)
 
 
 def node_command(name):

@@ -68,8 +68,10 @@ def ros(request):
     ns = f'{NS}_{request.node.name.split("[")[0][-20:]}'
     context = rclpy.Context()
     rclpy.init(context=context)
+    # tick_priority 0: a real-time tick here would raise every thread of the test process.
     controller = ControllerNode(context=context, namespace=ns, parameter_overrides=[
-        Parameter('profile', value='trapezoidal'), Parameter('rate', value=100.0)])
+        Parameter('profile', value='trapezoidal'), Parameter('rate', value=100.0),
+        Parameter('tick_priority', value=0)])
     arm = FakeArm(context, namespace=ns, jog_depth=1000)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(controller)

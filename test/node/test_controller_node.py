@@ -24,6 +24,9 @@ from std_srvs.srv import Trigger
 NAMES = [f'joint{i}' for i in range(1, 7)]
 # Our own namespace: another run of these tests (same domain) must not cross-talk with this one.
 NS = f'controller_test_{os.getpid()}'
+# The nodes here run in the test process: a real-time tick (tick_priority, 50 by default) would
+# raise every thread of it, so they run at normal scheduling.
+NORMAL = Parameter('tick_priority', value=0)
 GOAL = np.array([0.3, -0.2, 0.2, 0.1, -0.1, 0.3])
 
 
@@ -73,7 +76,7 @@ def ros():
     context = rclpy.Context()
     rclpy.init(context=context)
     controller = ControllerNode(context=context, namespace=NS, parameter_overrides=[
-        Parameter('profile', value='trapezoidal'), Parameter('rate', value=100.0)])
+        Parameter('profile', value='trapezoidal'), Parameter('rate', value=100.0), NORMAL])
     arm = FakeArm(context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(controller)
@@ -230,7 +233,7 @@ def test_ticks_follow_sim_time():
     context = rclpy.Context()
     rclpy.init(context=context)     # the run's own domain (conftest.py): /clock is global
     controller = ControllerNode(context=context, namespace=NS + '_sim', parameter_overrides=[
-        Parameter('use_sim_time', value=True), Parameter('rate', value=100.0)])
+        Parameter('use_sim_time', value=True), Parameter('rate', value=100.0), NORMAL])
     clock_node = Node('fake_clock', context=context, namespace=NS + '_sim')
     clock_pub = clock_node.create_publisher(Clock, '/clock', 10)
     stamps, sim = [], {'ns': 1000 * 10**9, 'running': True}
@@ -421,7 +424,7 @@ def test_continuous_demands_never_stall_the_ticks():
     rclpy.init(context=context)
     ns = NS + '_continuous'
     controller = ControllerNode(context=context, namespace=ns, parameter_overrides=[
-        Parameter('profile', value='continuous'), Parameter('rate', value=100.0)])
+        Parameter('profile', value='continuous'), Parameter('rate', value=100.0), NORMAL])
     arm = FakeArm(context, namespace=ns, jog_depth=1000)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(controller)
@@ -476,7 +479,8 @@ def test_a_demand_before_the_first_states_waits_for_them():
     context = rclpy.Context()
     rclpy.init(context=context)
     namespace = f'{NS}_early'
-    controller = ControllerNode(context=context, namespace=namespace)
+    controller = ControllerNode(context=context, namespace=namespace,
+                                parameter_overrides=[NORMAL])
     arm = FakeArm(context, namespace=namespace)
     arm.publishing = False
     executor = SingleThreadedExecutor(context=context)

@@ -42,6 +42,9 @@ class Harness:
     """The bridge under test plus a test node that talks to it, on one executor."""
 
     def __init__(self, **params):
+        # physics_priority 0: a real-time physics thread here would raise every thread of the
+        # test process (the priority itself: test_physics_priority_*, in a child process).
+        params.setdefault('physics_priority', 0)
         overrides = [Parameter(k, value=v) for k, v in params.items()]
         self.bridge = SimBridgeNode(parameter_overrides=overrides)
         self.node = rclpy.create_node('sim_bridge_tester')
@@ -368,29 +371,37 @@ path = f'/proc/self/task/{tid}/stat'
 while time.monotonic() < deadline:
     fields = open(path).read().rsplit(')', 1)[1].split()
     # Fields 40 and 41 of stat (the 38th and 39th after the name): rt_priority, policy.
-    if int(fields[37]) != 0 or bridge.failure:
+    if int(fields[37]) != 0 or bridge.failure or bridge.sim.time > 0.1:
         break
     time.sleep(0.01)
 print(json.dumps({'rt_priority': int(fields[37]), 'policy': int(fields[38]),
-                  'main': scheduling_of_thread(), 'failure': bridge.failure}))
+                  'main': scheduling_of_thread(), 'failure': bridge.failure,
+                  'stepped': bridge.sim.time > 0.0}))
 bridge.destroy_node()
 rclpy.try_shutdown()
 """
 
 
-def test_physics_priority_raises_the_physics_thread_or_says_why():
+@pytest.mark.parametrize('right', ['as the run has it', 'taken away'])
+def test_physics_priority_raises_the_physics_thread_or_says_why(right):
     """``physics_priority``: the physics thread at SCHED_FIFO, the node's others just below."""
     import json
     import os
     import subprocess
     import sys
+    from ros_testing import without_the_right
     # A child process: raising a thread of this process would raise all the test's threads.
     done = subprocess.run([sys.executable, '-c', PHYSICS_PRIORITY_CHILD], capture_output=True,
-                          text=True, timeout=120, env=dict(os.environ))
+                          text=True, timeout=120, env=dict(os.environ),
+                          preexec_fn=without_the_right if right == 'taken away' else None)
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout.strip().splitlines()[-1])
     assert out['failure'] is None
-    if 'physics thread at SCHED_FIFO priority 20' in done.stderr:
+    if right == 'taken away':       # one line says why; the physics runs on, normally
+        assert done.stderr.count('physics_priority 20: real-time scheduling refused') == 1, \
+            done.stderr
+        assert out['rt_priority'] == 0 and out['stepped'], out
+    elif 'physics thread at SCHED_FIFO priority 20' in done.stderr:
         assert (out['rt_priority'], out['policy']) == (20, os.SCHED_FIFO)
         assert out['main'] == ['fifo', 19]
     else:

@@ -11,6 +11,7 @@ import sys
 
 from mover6_control.realtime import run_at_priority
 import pytest
+from ros_testing import without_the_right
 
 pytestmark = pytest.mark.unit
 
@@ -64,3 +65,40 @@ out['child'] = subprocess.run([sys.executable, '-c', probe], capture_output=True
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout)
     assert int(out['child']) == 0           # SCHED_OTHER
+
+
+WITHOUT_THE_RIGHT = """
+import json, threading
+from mover6_control.realtime import raise_this_thread, scheduling_of_thread
+lines = []
+class Log:
+    def info(self, text):
+        lines.append(['info', text])
+    def warning(self, text):
+        lines.append(['warning', text])
+out = {}
+def timed():
+    out['raised'] = raise_this_thread(50, Log(), 'tick', 'tick_priority')
+    out['timed'] = scheduling_of_thread()
+thread = threading.Thread(target=timed)
+thread.start()
+thread.join()
+out['main'] = scheduling_of_thread()
+out['lines'] = lines
+print(json.dumps(out))
+"""
+
+
+def test_without_the_right_the_thread_runs_on_and_one_line_says_why():
+    """The fall-back: normal scheduling, one warning naming the parameter, how to allow it."""
+    done = subprocess.run([sys.executable, '-c', WITHOUT_THE_RIGHT], capture_output=True,
+                          text=True, timeout=60, preexec_fn=without_the_right)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    assert out['raised'] is False
+    assert out['timed'] == ['other', 0] and out['main'] == ['other', 0]
+    assert len(out['lines']) == 1, out['lines']
+    level, text = out['lines'][0]
+    assert level == 'warning'
+    assert text.startswith('tick_priority 50: real-time scheduling refused'), text
+    assert 'normal priority' in text and 'rtprio' in text, text
