@@ -122,6 +122,7 @@ VARIANTS = (('localhost', 'localhost', {}, *NORMAL),
             ('localhost_prio50', 'localhost', {}, {}, {}),
             ('async', 'localhost', {'RMW_FASTRTPS_PUBLICATION_MODE': 'ASYNCHRONOUS'}, *NORMAL))
 DEFAULT_VARIANTS = ('localhost', 'local')
+MOTION_LIMIT = 60.0          # [s] a motion whose end no status showed by then did not arrive
 STALL = 0.2                  # [s] a tick gap this long is a stall (the driver halts at 0.2 s)
 
 
@@ -308,6 +309,11 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False, bridge_pa
                 elif (int(status.get('motion_id', 0)) < waiting_for
                       and time.monotonic() - sent_at > 10.0):
                     raise RuntimeError(f'{name}: demand {waiting_for} not taken within 10 s')
+                elif time.monotonic() - sent_at > MOTION_LIMIT:
+                    # No status said it ended (the statuses stopped reaching this process once,
+                    # under LOCALHOST): not arrived, and the row goes on instead of hanging.
+                    motions[waiting_for] = 'no end seen'
+                    waiting_for = None
             if waiting_for is None:
                 if not churning or time.monotonic() - t0 > 600.0:
                     break
