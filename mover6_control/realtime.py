@@ -6,9 +6,9 @@ The controller's tick thread (``tick_priority``) and the driver's cycle thread
 controller manager raises its update thread. In Python the timed thread also needs the
 interpreter lock: when another thread of the process holds it (the executor, a publisher) and
 waits for a CPU behind the machine's other processes, the timed thread waits with it. So every
-other thread of the process runs at SCHED_FIFO ``priority - 1`` (at least 1); threads started
-later inherit their creator's policy, processes started from any of them do not
-(SCHED_RESET_ON_FORK: a child runs at normal priority). Where the system refuses it (no
+other thread of the process runs at SCHED_FIFO ``priority - 1`` (at least 1). Threads and
+processes started later from any of them run at normal priority (SCHED_RESET_ON_FORK holds for
+every new task, threads included). Where the system refuses it (no
 CAP_SYS_NICE, no rtprio limit) nothing changes and the caller is told why, to say so once and go
 on.
 
