@@ -38,7 +38,7 @@ def test_threads_start_after_every_attribute_exists(monkeypatch):
     rclpy.init(context=context)
     try:
         node = ControllerNode(context=context, namespace=NS)
-        assert ran == ['tick', 'demand']
+        assert ran == ['demand', 'tick']     # the tick raises the demand thread with it
         node.running = False
         node.destroy_node()
     finally:
