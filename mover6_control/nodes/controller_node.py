@@ -46,12 +46,12 @@ from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.status import StatusKey
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes import conversions, params, shutdown
+from mover6_control.nodes import cdr, conversions, params, shutdown
 from mover6_control.nodes.controller_demands import DemandThread
 from mover6_control.nodes.controller_ticks import TickLoop
 from mover6_control.nodes.goal_ledger import GoalLedger
 from mover6_control.nodes.params import config_from_parameters
-from mover6_control.nodes.qos import STATUS_QOS
+from mover6_control.nodes.qos import STATUS_QOS, STREAM_READER_QOS
 from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from mover6_control.parameters import CONTROLLER
 from rclpy.duration import Duration
@@ -95,11 +95,13 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.pending_logged = False      # 'applies to the next motion' said, not yet applied
         self.last_q = None               # the latest valid joint positions, for the action
         self.demands = queue.SimpleQueue()   # /joint_demands messages not yet taken; None: end
+        self.states_reader = cdr.JointStateReader()   # /joint_states read and /JointJog
+        self.jog_writer = cdr.JointJogWriter(self.joint_names)   # written as bytes (issue 21)
 
         self.jog_pub = self.create_publisher(JointJog, 'JointJog', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'controller/status',
                                                 STATUS_QOS)
-        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
+        self.create_subscription(JointState, 'joint_states', self.on_joint_states, STREAM_READER_QOS, raw=True)
         self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
         self.create_subscription(TwistStamped, '~/delta_twist_cmds', self.on_twist, 10)
         self.create_subscription(JointJog, '~/delta_joint_cmds', self.on_joint_jog, 10)
@@ -176,19 +178,23 @@ class ControllerNode(TickLoop, DemandThread, Node):
             with self.lock:          # built outside it (it loads the arm's shapes)
                 self.core.collision_guard = guard
 
-    def on_joint_states(self, msg: JointState) -> None:
+    def on_joint_states(self, raw: bytes) -> None:
         """
-        Hand a JointState's names, positions and velocities to the core's robot (by name).
+        Hand a serialized JointState's names, positions and velocities to the core's robot.
 
-        Other joints (a gripper) are ignored; a missing or repeated joint, or a non-finite value,
-        makes the states invalid with that reason: the core faults.
+        Other joints (a gripper) are ignored; a missing or repeated joint, a non-finite value or
+        an unreadable sample makes the states invalid with that reason: the core faults.
         """
         now = self.now()
         try:
+            names, positions, velocities = conversions.joint_state_fields_from_raw(
+                raw, self.states_reader)
             with self.lock:
-                self.core.on_named_joint_states(now, msg.name, msg.position, msg.velocity)
+                self.core.on_named_joint_states(now, names, positions, velocities)
                 self.last_q = self.core.robot.q
         except InvalidInputError as err:
+            with self.lock:
+                self.core.on_invalid_states(now, str(err))
             self.get_logger().warning(f'bad /joint_states: {err}', throttle_duration_sec=1.0)
 
     def on_twist(self, msg: TwistStamped) -> None:
