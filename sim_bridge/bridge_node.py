@@ -115,7 +115,8 @@ class SimBridgeNode(PhysicsLoop, Node):
         self.joint_states_pub = self.create_publisher(JointState, 'joint_states', 10)
         self.clock_pub = (self.create_publisher(Clock, 'clock', 10)
                           if self.publish_clock else None)
-        self.create_subscription(JointJog, 'JointJog', self.on_joint_jog, STREAM_READER_QOS, raw=True)
+        self.create_subscription(JointJog, 'JointJog', self.on_joint_jog, STREAM_READER_QOS,
+                                 raw=True)
         self.create_subscription(JointState, '~/reset_to', self.on_reset_to, 10)
         self.create_service(Trigger, '~/reset', self.on_reset)
         self.create_service(SetBool, '~/pause', self.on_pause)

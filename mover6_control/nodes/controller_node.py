@@ -101,7 +101,8 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.jog_pub = self.create_publisher(JointJog, 'JointJog', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'controller/status',
                                                 STATUS_QOS)
-        self.create_subscription(JointState, 'joint_states', self.on_joint_states, STREAM_READER_QOS, raw=True)
+        self.create_subscription(JointState, 'joint_states', self.on_joint_states,
+                                 STREAM_READER_QOS, raw=True)
         self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
         self.create_subscription(TwistStamped, '~/delta_twist_cmds', self.on_twist, 10)
         self.create_subscription(JointJog, '~/delta_joint_cmds', self.on_joint_jog, 10)
@@ -187,10 +188,9 @@ class ControllerNode(TickLoop, DemandThread, Node):
         """
         now = self.now()
         try:
-            names, positions, velocities = conversions.joint_state_fields_from_raw(
-                raw, self.states_reader)
+            fields = conversions.joint_state_fields_from_raw(raw, self.states_reader)
             with self.lock:
-                self.core.on_named_joint_states(now, names, positions, velocities)
+                self.core.on_named_joint_states(now, *fields)   # names, positions, velocities
                 self.last_q = self.core.robot.q
         except InvalidInputError as err:
             with self.lock:

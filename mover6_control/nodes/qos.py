@@ -15,6 +15,7 @@ a reliable reader would cost every sample an acknowledgement and its writer the 
 (issue 21: the controller's, the bridge's and the planner's Fast DDS event threads went from
 0.5 % of a core each to none). The writers stay reliable, so reliable readers (a recorder,
 robot_state_publisher, the driver) are served as before; a best-effort reader matches either.
+``LATEST_READER_QOS`` is the same for a reader that only keeps the latest sample (the planner).
 """
 
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -24,3 +25,4 @@ STATUS_READER_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_L
 LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 STREAM_READER_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+LATEST_READER_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
