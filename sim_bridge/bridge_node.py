@@ -37,6 +37,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import LIMIT_SETS, load_urdf, mover6
 from mover6_control.nodes import cdr, conversions, params, shutdown
+from mover6_control.nodes.qos import STREAM_READER_QOS
 from mover6_control.parameters import SIM_BRIDGE
 import numpy as np
 from rclpy.node import Node
@@ -114,7 +115,8 @@ class SimBridgeNode(PhysicsLoop, Node):
         self.joint_states_pub = self.create_publisher(JointState, 'joint_states', 10)
         self.clock_pub = (self.create_publisher(Clock, 'clock', 10)
                           if self.publish_clock else None)
-        self.create_subscription(JointJog, 'JointJog', self.on_joint_jog, 10, raw=True)
+        self.create_subscription(JointJog, 'JointJog', self.on_joint_jog, STREAM_READER_QOS,
+                                 raw=True)
         self.create_subscription(JointState, '~/reset_to', self.on_reset_to, 10)
         self.create_service(Trigger, '~/reset', self.on_reset)
         self.create_service(SetBool, '~/pause', self.on_pause)

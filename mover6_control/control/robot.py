@@ -61,6 +61,7 @@ class Robot:
         self.name = str(name)
         self._names = tuple(names)
         self._index = {n: i for i, n in enumerate(names)}
+        self._order_of = (None, None)   # (names of the last states, where each joint is in them)
         for field in _JOINT_FIELDS:
             setattr(self, '_' + field, np.array([getattr(j, field) for j in joints], float))
         self._tick = np.array([np.nan if j.encoder_tick is None else j.encoder_tick
@@ -198,7 +199,6 @@ class Robot:
         self.n_states += 1
 
     def _by_name(self, names, positions, velocities):
-        names = [str(name) for name in names]
         positions = np.asarray(positions, dtype=float).ravel()
         velocities = (np.zeros(0) if velocities is None
                       else np.asarray(velocities, dtype=float).ravel())
@@ -208,6 +208,21 @@ class Robot:
         if len(velocities) and len(velocities) != len(names):
             raise InvalidInputError(
                 f'joint_states has {len(names)} names but {len(velocities)} velocities')
+        # A sender names the same joints every time (100 messages a second): their order is
+        # looked up once per list of names, not per message.
+        names = tuple(names)
+        if names != self._order_of[0]:
+            self._order_of = (names, self._order(names))
+        order = self._order_of[1]
+        q = positions[order]
+        qd = velocities[order] if len(velocities) else np.zeros(self.n_joints)
+        if not (np.isfinite(q).all() and np.isfinite(qd).all()):
+            raise InvalidInputError('joint_states has non-finite values')
+        return q, qd
+
+    def _order(self, names):
+        """Return where each joint of the chain is in ``names``; raise when one is not there."""
+        names = [str(name) for name in names]
         problems = []
         missing = [n for n in self._names if n not in names]
         if missing:
@@ -217,12 +232,7 @@ class Robot:
             problems.append(f'repeats joints {repeated}')
         if problems:
             raise InvalidInputError(f'joint_states {", ".join(problems)} (has {names})')
-        order = [names.index(n) for n in self._names]
-        q = positions[order]
-        qd = velocities[order] if len(velocities) else np.zeros(self.n_joints)
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
-            raise InvalidInputError('joint_states has non-finite values')
-        return q, qd
+        return np.array([names.index(n) for n in self._names], dtype=np.intp)
 
     @property
     def measured(self) -> bool:

@@ -18,13 +18,11 @@ status value ``jog_refused``. A jog command whose stamp lies in the future of it
 refused, and every jog command goes stale ``servo_command_timeout`` after the earlier of its
 stamp and its arrival.
 
-All the logic is in ``mover6_control.control.controller_core``, whose model of the arm is a
-``control.robot.Robot`` (``self.core.robot``): the node hands each /joint_states message's
-names, positions and velocities to it (mapped by name there), converts demands, calls the core
-and publishes. For the Mover6's vendor driver set ``jog_units`` to fraction_of_max;
-``driver_tick_size`` and ``driver_cycle`` (defaults: the Mover6's) let the core move joints that
-a command under one encoder tick per cycle would leave standing, and widen the goal tolerance to
-one tick.
+All the logic is in ``control.controller_core`` (its model of the arm: a ``control.robot.Robot``,
+``self.core.robot``, which maps /joint_states by name); the node converts, calls it, publishes.
+For the Mover6's vendor driver set ``jog_units`` to fraction_of_max; ``driver_tick_size`` and
+``driver_cycle`` (the Mover6's by default) let the core move joints that a command under one
+encoder tick per cycle would leave standing (the goal tolerance is then one tick).
 
 Three threads: the executor's (the callbacks, this module), the tick thread
 (``controller_ticks``) and the demand thread (``controller_demands``: a large demand is planned
@@ -47,13 +45,13 @@ from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.status import StatusKey
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes import conversions, params, shutdown
+from mover6_control.nodes import cdr, conversions, params, shutdown
 from mover6_control.nodes.controller_demands import DemandThread
 from mover6_control.nodes.controller_ticks import TickLoop
 from mover6_control.nodes.goal_ledger import GoalLedger
 from mover6_control.nodes.params import config_from_parameters
 from mover6_control.nodes.plan_worker import PlanWorker
-from mover6_control.nodes.qos import STATUS_QOS
+from mover6_control.nodes.qos import STATUS_QOS, STREAM_READER_QOS
 from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from mover6_control.parameters import CONTROLLER
 from rclpy.duration import Duration
@@ -98,11 +96,14 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.last_q = None               # the latest valid joint positions, for the action
         self.demands = queue.SimpleQueue()   # /joint_demands messages not yet taken; None: end
         self.plan_worker = PlanWorker()      # the planning process of large demands
+        self.states_reader = cdr.JointStateReader()   # /joint_states read and /JointJog
+        self.jog_writer = cdr.JointJogWriter(self.joint_names)   # written as bytes (issue 21)
 
         self.jog_pub = self.create_publisher(JointJog, 'JointJog', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'controller/status',
                                                 STATUS_QOS)
-        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
+        self.create_subscription(JointState, 'joint_states', self.on_joint_states,
+                                 STREAM_READER_QOS, raw=True)
         self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
         self.create_subscription(TwistStamped, '~/delta_twist_cmds', self.on_twist, 10)
         self.create_subscription(JointJog, '~/delta_joint_cmds', self.on_joint_jog, 10)
@@ -179,17 +180,19 @@ class ControllerNode(TickLoop, DemandThread, Node):
             with self.lock:          # built outside it (it loads the arm's shapes)
                 self.core.collision_guard = guard
 
-    def on_joint_states(self, msg: JointState) -> None:
+    def on_joint_states(self, raw: bytes) -> None:
         """
-        Hand a JointState's names, positions and velocities to the core's robot (by name).
+        Hand a serialized JointState's names, positions and velocities to the core's robot.
 
-        Other joints (a gripper) are ignored; a missing or repeated joint, or a non-finite value,
-        makes the states invalid with that reason: the core faults.
+        Other joints (a gripper) are ignored; a missing or repeated joint or a non-finite value
+        makes the states invalid with that reason: the core faults. A sample that cannot be read
+        is dropped with the reason, as rclpy drops one (the states go stale if no other comes).
         """
         now = self.now()
         try:
+            fields = conversions.joint_state_fields_from_raw(raw, self.states_reader)
             with self.lock:
-                self.core.on_named_joint_states(now, msg.name, msg.position, msg.velocity)
+                self.core.on_named_joint_states(now, *fields)   # names, positions, velocities
                 self.last_q = self.core.robot.q
         except InvalidInputError as err:
             self.get_logger().warning(f'bad /joint_states: {err}', throttle_duration_sec=1.0)
@@ -233,8 +236,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         """Leave fault and wait for fresh joint states (std_srvs/Trigger)."""
         with self.lock:
             self.core.reset(self.now())
-            state = self.core.state
-        response.success, response.message = True, f'state {state}'
+            response.success, response.message = True, f'state {self.core.state}'
         return response
 
     def destroy_node(self) -> None:
@@ -253,8 +255,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
                 thread.join(timeout=1.0)
         if self.context.ok():
             self.send_zero()
-            # Destroying the writer at once drops a sample not yet acknowledged: the driver
-            # would never see the zero (2 of 7 stops in test_shutdown.py lost it).
+            # else the writer's end drops an unacknowledged zero (lost in 2 of 7, test_shutdown)
             self.jog_pub.wait_for_all_acked(Duration(seconds=ZERO_ACK_TIMEOUT))
         super().destroy_node()
 
@@ -287,9 +288,8 @@ def main(args: Optional[list[str]] = None) -> None:
     zero (and the vendor driver keeps the last command forever); ``shutdown.run_node`` keeps the
     context valid until ``destroy_node()`` has sent it, and ignores any further signal meanwhile.
     """
-    # The tick thread gets the interpreter 0.5 ms after its deadline, not 5 ms (the period error
-    # p99 well under a millisecond at 100 Hz, bench/bench_controller.py); what is loaded now is
-    # never scanned again by a full collection (one holds it; a 10,000-point goal makes 40,000).
+    # The tick gets the interpreter 0.5 ms after its deadline, not 5 ms (bench controller); what
+    # is loaded now is never scanned by a full collection (a 10,000-point goal makes 40,000).
     sys.setswitchinterval(0.0005)
     gc.collect()
     gc.freeze()

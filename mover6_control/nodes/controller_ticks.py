@@ -32,7 +32,6 @@ import time
 import traceback
 
 from mover6_control.control.state_machine import FAULT
-from mover6_control.nodes import conversions
 from mover6_control.nodes.controller_demands import WAIT_FOR_STATES
 from mover6_control.realtime import raise_this_thread
 from rclpy.duration import Duration
@@ -172,8 +171,7 @@ class TickLoop:
                 self.get_logger().info(f'fault cleared ({out.state}): {fault_change}')
         # Published without the lock: a DDS write can block (seen for 0.33 s right after start-up
         # while the sim bridge was being matched), and the callbacks must not wait for it.
-        self.jog_pub.publish(
-            conversions.make_joint_jog(self.joint_names, out.jog, time_now.to_msg()))
+        self.jog_pub.publish(self.jog_writer.serialize(*time_now.seconds_nanoseconds(), out.jog))
         if gap > TICK_GAP_WARN:         # logged after the command went, not before it
             self.get_logger().warning(
                 f'tick {gap * 1e3:.0f} ms after the one before (period '
@@ -193,5 +191,5 @@ class TickLoop:
 
     def send_zero(self) -> None:
         """Publish a zero JointJog (the vendor driver keeps the last command forever)."""
-        self.jog_pub.publish(conversions.make_joint_jog(
-            self.joint_names, [0.0] * len(self.joint_names), self.get_clock().now().to_msg()))
+        self.jog_pub.publish(self.jog_writer.serialize(
+            *self.get_clock().now().seconds_nanoseconds(), [0.0] * len(self.joint_names)))

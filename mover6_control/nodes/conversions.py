@@ -84,6 +84,15 @@ def joint_state_from_msg(msg: JointState,
     return q, qd
 
 
+def joint_state_fields_from_raw(raw: bytes, reader: 'cdr.JointStateReader') -> tuple:
+    """Return ``(names, positions, velocities)`` of a serialized JointState, not yet checked."""
+    try:                        # what the cdr reader does not read, rclpy does (or says why not)
+        return reader.read_state(raw)[2:]
+    except ValueError:
+        msg = _deserialize(raw, JointState)
+        return msg.name, msg.position, msg.velocity
+
+
 def make_joint_state(joint_names: Sequence[str], q: Sequence[float],
                      qd: Optional[Sequence[float]] = None,
                      effort: Optional[Sequence[float]] = None,

@@ -48,7 +48,7 @@ from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.nodes.planner_delivery import CONTROLLER_STATUS_QOS, DemandDelivery
 from mover6_control.nodes.planner_thread import PlanningThread, READY, WAITING
-from mover6_control.nodes.qos import STATUS_QOS
+from mover6_control.nodes.qos import LATEST_READER_QOS, STATUS_QOS
 from mover6_control.parameters import PLANNER
 from mover6_control.planning.planner_core import (check_path_shape, PATH_MOTIONS,
                                                   plan_path_goal, plan_pose_goal, POSE_MOTIONS)
@@ -87,7 +87,8 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
         self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'planner/status', STATUS_QOS)
         # Raw: 100 messages a second only need keeping; one is converted when a goal needs it.
-        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 1, raw=True)
+        self.create_subscription(JointState, 'joint_states', self.on_joint_states,
+                                 LATEST_READER_QOS, raw=True)
         self.create_subscription(DiagnosticStatus, 'controller/status', self.on_controller_status,
                                  CONTROLLER_STATUS_QOS)
         self.create_subscription(PoseStamped, 'pose_goal', self.on_pose_goal, 10)
