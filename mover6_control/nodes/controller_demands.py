@@ -42,9 +42,9 @@ DEMAND_ROUNDS = DEMAND_ATTEMPTS + 3
 # planning it here holds the interpreter lock that the tick needs. Measured (continuous law,
 # load 24, CPU of this process per demand): 22 waypoints 8 ms here, 0.8 ms through the worker,
 # 100: 15 / 0.9 ms, 1,000: 149 / 2.7 ms, at about the same wall time. Below it a demand stays
-# here, and so does every demand while the worker starts (seconds, at the node's start): the
-# planner's first demand must not wait for it; but one of WORKER_WAIT_POINTS or more waits (it
-# takes seconds to plan anyway: here it would stall the tick from the start).
+# here, and so does every demand while the worker starts (seconds: the first such demand starts
+# it): a demand must not wait for it; but one of WORKER_WAIT_POINTS or more waits (it takes
+# seconds to plan anyway: here it would stall the tick from the start).
 WORKER_POINTS = 100
 WORKER_WAIT_POINTS = 1000
 

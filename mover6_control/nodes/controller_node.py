@@ -95,7 +95,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.pending_logged = False      # 'applies to the next motion' said, not yet applied
         self.last_q = None               # the latest valid joint positions, for the action
         self.demands = queue.SimpleQueue()   # /joint_demands messages not yet taken; None: end
-        self.plan_worker = PlanWorker()      # the planning process of large demands
+        self.plan_worker = PlanWorker(start=False)   # started by the first large demand
         self.states_reader = cdr.JointStateReader()   # /joint_states read and /JointJog
         self.jog_writer = cdr.JointJogWriter(self.joint_names)   # written as bytes (issue 21)
 

@@ -6,10 +6,12 @@ seconds of CPU. Done in the controller's demand thread, it held the interpreter 
 numpy calls, and on a loaded machine also while it waited for a CPU: the tick thread waited
 behind it (ticks 0.1-0.26 s apart, and a '/joint_states stale' fault of the controller's own
 making while the states kept coming). ``PlanWorker`` runs the demand's ``PlanJob``
-(``control.demand_intake``) in a child process that the node starts with itself ('spawn': a
-process with DDS threads is never forked) and returns the same plan, bit for bit: the job and the
-collision guard go there pickled, the plan comes back pickled (``BlendedPath`` pickles as a few
-arrays, so taking it back is short), and an exception the job raises there is raised here.
+(``control.demand_intake``) in a child process ('spawn': a process with DDS threads is never
+forked), which the controller starts at its first large demand (a controller that never gets one
+never pays for a second Python with numpy and scipy), and returns the same plan, bit for bit:
+the job and the collision guard go there pickled, the plan comes back pickled (``BlendedPath``
+pickles as a few arrays, so taking it back is short), and an exception the job raises there is
+raised here.
 
 A worker that dies, or that takes longer than ``timeout + per_point`` per waypoint, raises
 ``PlanWorkerError`` with the reason (the controller refuses the demand with it, and goes on) and
@@ -86,8 +88,12 @@ class PlanWorker:
     """A planning process of the controller (module docstring); call it as a ``Planner``."""
 
     def __init__(self, timeout: float = TIMEOUT, per_point: float = PER_POINT,
-                 method: str = 'spawn', target: Callable = serve):
-        """Start the worker process (``target`` is its main loop; tests give their own)."""
+                 method: str = 'spawn', target: Callable = serve, start: bool = True):
+        """
+        Start the worker process now, or with ``start`` False at the first ``ready`` or job.
+
+        ``target`` is its main loop (tests give their own).
+        """
         self.timeout, self.per_point = timeout, per_point
         self._context = multiprocessing.get_context(method)
         self._target = target
@@ -98,7 +104,8 @@ class PlanWorker:
         self._conn = None
         self.restarts = 0
         self._ready = False              # the worker said READY
-        self._start()
+        if start:
+            self._start()
 
     def _start(self) -> None:
         """Start a worker process (none when closed)."""
@@ -123,7 +130,7 @@ class PlanWorker:
         _end(process)
         if conn is not None:
             conn.close()
-        self.restarts += 1
+        self.restarts += process is not None      # the first start of a lazy worker is none
         self._start()
 
     def ready(self) -> bool:

@@ -191,3 +191,24 @@ def test_close_ends_the_worker_and_a_waiting_job_is_refused():
     assert planner.process is None and not os.path.exists(f'/proc/{pid}')
     with pytest.raises(PlanWorkerError, match='closing'):
         planner(job(smooth(20)))
+
+
+def test_a_lazy_worker_starts_at_the_first_ready_or_job():
+    """As the controller makes it (start=False): no process until asked, then it plans."""
+    planner = PlanWorker(start=False)
+    try:
+        assert planner.process is None
+        assert not planner.ready()                  # asked: it starts now, not up yet
+        assert planner.process is not None and planner.restarts == 0
+        assert wait_ready(planner)
+        plan, _ = planner(job(smooth(20)), GUARD)
+        same_plan(plan, job(smooth(20)).run(GUARD)[0])
+    finally:
+        planner.close()
+    lazy = PlanWorker(start=False)
+    try:
+        plan, _ = lazy(job(smooth(20)), GUARD)     # a job starts it and waits for it
+        same_plan(plan, job(smooth(20)).run(GUARD)[0])
+        assert lazy.restarts == 0
+    finally:
+        lazy.close()
