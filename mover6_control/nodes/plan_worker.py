@@ -88,15 +88,10 @@ class PlanWorker:
     """A planning process of the controller (module docstring); call it as a ``Planner``."""
 
     def __init__(self, timeout: float = TIMEOUT, per_point: float = PER_POINT,
-                 method: str = 'spawn', target: Callable = serve, start: bool = True):
-        """
-        Start the worker process now, or with ``start`` False at the first ``ready`` or job.
-
-        ``target`` is its main loop (tests give their own).
-        """
+                 start: bool = True):
+        """Start the worker process now, or with ``start`` False at the first ``ready`` or job."""
         self.timeout, self.per_point = timeout, per_point
-        self._context = multiprocessing.get_context(method)
-        self._target = target
+        self._context = multiprocessing.get_context('spawn')
         self._busy = threading.Lock()    # one job at a time
         self._state = threading.Lock()   # process, conn and closed, swapped together
         self.closed = False
@@ -110,7 +105,7 @@ class PlanWorker:
     def _start(self) -> None:
         """Start a worker process (none when closed)."""
         ours, theirs = self._context.Pipe()
-        process = self._context.Process(target=self._target, args=(theirs,), daemon=True,
+        process = self._context.Process(target=serve, args=(theirs,), daemon=True,
                                         name='controller-planning')
         with self._state:
             if self.closed:
