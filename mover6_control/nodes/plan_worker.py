@@ -6,9 +6,9 @@ seconds of CPU. Done in the controller's demand thread, it held the interpreter 
 numpy calls, and on a loaded machine also while it waited for a CPU: the tick thread waited
 behind it (ticks 0.1-0.26 s apart, and a '/joint_states stale' fault of the controller's own
 making while the states kept coming). ``PlanWorker`` runs the demand's ``PlanJob``
-(``control.demand_intake``) in a child process ('spawn': a process with DDS threads is never
-forked), which the controller starts at its first large demand (a controller that never gets one
-never pays for a second Python with numpy and scipy), and returns the same plan, bit for bit:
+(``control.demand_intake``) in a child process (a new Python, never a fork of a process with DDS
+threads), which the controller starts at its first large demand (a controller that never gets
+one never pays for a second Python with numpy and scipy), and returns the same plan, bit for bit:
 the job and the collision guard go there pickled, the plan comes back pickled (``BlendedPath``
 pickles as a few arrays, so taking it back is short), and an exception the job raises there is
 raised here.
@@ -17,19 +17,21 @@ A worker that dies, or that takes longer than ``timeout + per_point`` per waypoi
 ``PlanWorkerError`` with the reason (the controller refuses the demand with it, and goes on) and
 is started again for the next demand. One job at a time, in the order they come (the demand
 thread's). ``close`` ends the worker (SIGKILL: it keeps nothing); a job waiting for it then
-raises. The worker ignores SIGINT and SIGTERM (a terminal's Ctrl-C and a launcher's SIGTERM
-reach the whole process group: the controller ends it, after its last zero command) once it
-runs (a Ctrl-C in its first second, while it loads numpy, ends it with a traceback; the
-controller is not affected), and it ends by itself when the controller's end of its pipe closes
-(the controller died).
+raises. The worker runs in a session of its own: a terminal's Ctrl-C and a launcher's signal to
+the controller's process group never reach it (not even while it loads numpy, when a SIGINT
+ended it with a traceback), the controller ends it by pid, after its last zero command; and it
+ends by itself when the controller's end of its socket closes (the controller died).
 
 No ROS here and none in the worker: it imports the core's planning only.
 """
 
-import multiprocessing
 from multiprocessing.connection import Connection
+import os
 import pickle
 import signal
+import socket
+import subprocess
+import sys
 import threading
 from typing import Callable, Optional
 
@@ -52,6 +54,54 @@ PROTOCOL = pickle.HIGHEST_PROTOCOL
 
 class PlanWorkerError(Mover6Error):
     """The planning process could not plan the demand (died, too slow, closed): the reason."""
+
+
+class WorkerProcess:
+    """
+    The worker process: a new Python in a session of its own, its end of a socket pair at ``fd``.
+
+    It offers what ``PlanWorker`` and its tests use of a process: ``pid``, ``is_alive``,
+    ``kill``, ``join`` and ``exitcode`` (negative: the signal that ended it).
+    """
+
+    COMMAND = ('import sys; from mover6_control.nodes.plan_worker import main; '
+               'main(int(sys.argv[1]))')
+
+    def __init__(self, fd: int):
+        """Start the worker with its end of the socket pair at ``fd`` (inherited)."""
+        env = dict(os.environ)
+        # The same modules as here: the worker unpickles the job's classes.
+        env['PYTHONPATH'] = os.pathsep.join(p for p in sys.path if p)
+        self._popen = subprocess.Popen(
+            [sys.executable, '-c', self.COMMAND, str(fd)], pass_fds=(fd,), env=env,
+            stdin=subprocess.DEVNULL, start_new_session=True, close_fds=True)
+        self.pid = self._popen.pid
+
+    def is_alive(self) -> bool:
+        """Return whether the process still runs."""
+        return self._popen.poll() is None
+
+    def kill(self) -> None:
+        """Send it SIGKILL."""
+        if self.is_alive():
+            self._popen.kill()
+
+    def join(self, timeout: Optional[float] = None) -> None:
+        """Wait up to ``timeout`` [s] for it to end."""
+        try:
+            self._popen.wait(timeout)
+        except subprocess.TimeoutExpired:
+            pass
+
+    @property
+    def exitcode(self) -> Optional[int]:
+        """Return its exit code (None while it runs)."""
+        return self._popen.poll()
+
+
+def main(fd: int) -> None:
+    """The worker process's entry: serve the socket at ``fd`` until the controller closes it."""
+    serve(Connection(fd))
 
 
 def serve(conn: Connection) -> None:
@@ -91,7 +141,6 @@ class PlanWorker:
                  start: bool = True):
         """Start the worker process now, or with ``start`` False at the first ``ready`` or job."""
         self.timeout, self.per_point = timeout, per_point
-        self._context = multiprocessing.get_context('spawn')
         self._busy = threading.Lock()    # one job at a time
         self._state = threading.Lock()   # process, conn and closed, swapped together
         self.closed = False
@@ -104,17 +153,13 @@ class PlanWorker:
 
     def _start(self) -> None:
         """Start a worker process (none when closed)."""
-        ours, theirs = self._context.Pipe()
-        process = self._context.Process(target=serve, args=(theirs,), daemon=True,
-                                        name='controller-planning')
+        ours, theirs = socket.socketpair()
         with self._state:
-            if self.closed:
-                ours.close()
-                theirs.close()
-                return
-            process.start()
-            self.process, self._conn = process, ours
-            self._ready = False
+            if not self.closed:
+                self.process = WorkerProcess(theirs.fileno())
+                self._conn = Connection(ours.detach())
+                self._ready = False
+        ours.close()
         theirs.close()
 
     def _restart(self) -> None:

@@ -129,6 +129,13 @@ def test_a_dying_worker_refuses_the_job_and_the_next_is_planned(worker):
     same_plan(plan, job(smooth(20)).run(GUARD)[0])
 
 
+def test_the_worker_is_out_of_reach_of_the_controllers_ctrl_c(worker):
+    """A new session: a terminal's SIGINT to the controller's process group never reaches it."""
+    pid = worker.process.pid
+    assert os.getsid(pid) == pid != os.getsid(0)
+    assert os.getpgid(pid) == pid != os.getpgid(0)
+
+
 def test_ready_says_whether_the_worker_is_up():
     """ready() never waits: False while the worker starts, True once up; a dead one restarts."""
     planner = PlanWorker()
