@@ -40,6 +40,11 @@ class SplineTrajectory(JointTrajectory):
         self._derivs = [tuple(p.derivative(k) if k else p for k in range(4)) for p in parts]
 
     @property
+    def derivative_splines(self) -> tuple[tuple, ...]:
+        """Return per spline its derivatives 0 to 3 (callables of time, as ``splines`` gave)."""
+        return tuple(self._derivs)
+
+    @property
     def breakpoints(self) -> np.ndarray:
         """Return the sorted times [s] where any spline piece starts or ends."""
         knots = [np.asarray(getattr(d[0], 'x', None) if hasattr(d[0], 'x') else d[0].t)
@@ -102,7 +107,7 @@ def _peaks(traj, orders=(1, 2)):
     ``orders`` picks the derivatives (a tuple of 1 and/or 2); one array (n,) per order.
     """
     peaks = tuple([] for _ in orders)
-    for derivs in traj._derivs:
+    for derivs in traj.derivative_splines:
         for pp in _columns(derivs[0]):
             for out, k in zip(peaks, orders):
                 out.append(_piece_extremes(pp, k, traj.duration))

@@ -86,6 +86,10 @@ class JointTrajectory:
             return q[0], qd[0], qdd[0]
         return q, qd, qdd
 
+    def derivatives(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Return ``(q, qd, qdd, qddd)`` (m, n) each at the times ``t`` (m,) [s] (clamped)."""
+        return self._evaluate(self._times(t)[0])
+
     def sample_jerk(self, t: float | np.ndarray) -> np.ndarray:
         """Return the jerk [rad/s^3] at time(s) ``t``: (n,) for a scalar, else (m, n)."""
         times, scalar = self._times(t)
@@ -151,7 +155,7 @@ class PiecewiseTrajectory(JointTrajectory):
             mask = idx == i
             seg = self.segments[i]
             local = np.clip(t[mask] - self.starts[i], 0.0, seg.duration)
-            for o, v in zip(out, seg._evaluate(local)):
+            for o, v in zip(out, seg.derivatives(local)):
                 o[mask] = v
         return tuple(out)
 
