@@ -95,12 +95,12 @@ class WorkerProcess:
 
     @property
     def exitcode(self) -> Optional[int]:
-        """Return its exit code (None while it runs)."""
+        """Return the code it ended with (None while it runs)."""
         return self._popen.poll()
 
 
 def main(fd: int) -> None:
-    """The worker process's entry: serve the socket at ``fd`` until the controller closes it."""
+    """Serve the socket at ``fd`` until the controller closes it: the worker process's entry."""
     serve(Connection(fd))
 
 

@@ -162,7 +162,8 @@ def test_cubic_through_random_waypoints(build, rows):
         return
     traj = build(W, v_max=1.0, a_max=2.0)
     if build is not sp.bspline_trajectory:
-        knots = traj.derivative_splines[0][0].x if build is sp.cubic_trajectory else traj.breakpoints
+        cubic = build is sp.cubic_trajectory
+        knots = traj.derivative_splines[0][0].x if cubic else traj.breakpoints
         assert np.allclose(traj.sample(knots)[0], W, atol=1e-9)
     assert np.allclose(traj.sample([0.0, traj.duration])[0], W[[0, -1]], atol=1e-9)
     _, qd, qdd = dense_with_breakpoints(traj)
