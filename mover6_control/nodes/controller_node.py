@@ -86,7 +86,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.last_state = None           # the core's state after the latest tick
         self.has_states = threading.Event()  # set while the core has valid states
         self.last_tick = None            # node clock [ns] of the latest tick
-        self.max_tick_gap = 0.0          # [s] longest time between two ticks so far
+        self.max_tick_gap = self.max_states_age = 0.0   # [s] so far (tick_figures)
         self.running = True
         self.destroyed = False
         self.fatal = None                # why the tick cannot run: the process exits with 1
@@ -274,7 +274,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
                 goal_id = self.goals.goal_of(int(status.values.get(StatusKey.MOTION_ID, 0)))
             values = dict(status.values)
             values[StatusKey.GOAL_ID] = goal_id
-            values[StatusKey.MAX_TICK_GAP] = f'{self.max_tick_gap:.4f}'
+            values.update(self.tick_figures())     # max_tick_gap, max_states_age
             values.update(extra or {})
             self.status_pub.publish(conversions.make_status(
                 'controller', level or status.level, message or status.message, values))

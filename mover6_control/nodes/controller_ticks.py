@@ -13,7 +13,9 @@ which can take 333 ms (eProsima/Fast-DDS issue 6535); every write of the node wa
 The status value ``max_tick_gap`` [s] is the longest time between two ticks since the node
 started (node clock; nominal ``1 / rate``), and a tick later than ``TICK_GAP_WARN`` logs a
 warning, so a stalled tick thread shows in the controller and not only as a stale command at the
-driver. To see what held it up, set the environment variable ``MOVER6_TICK_WATCHDOG`` to a time
+driver. The status value ``max_states_age`` [s] is the age of the oldest valid /joint_states a
+tick found (node clock; nominal the states' period plus a tick): how long the intake of the
+states was held up at most (``state_timeout`` faults). To see what held it up, set the environment variable ``MOVER6_TICK_WATCHDOG`` to a time
 [s]: a tick later than that dumps the stack of every thread to stderr (``faulthandler``, which
 needs no interpreter lock for it; wall time, so a paused sim clock trips it too).
 
@@ -32,6 +34,7 @@ import time
 import traceback
 
 from mover6_control.control.state_machine import FAULT
+from mover6_control.control.status import StatusKey
 from mover6_control.nodes.controller_demands import WAIT_FOR_STATES
 from mover6_control.realtime import raise_this_thread
 from rclpy.duration import Duration
@@ -145,6 +148,7 @@ class TickLoop:
         now = time_now.nanoseconds * 1e-9
         gap = self.note_tick(time_now.nanoseconds)
         with self.lock:
+            t_states = self.core.robot.t_states     # of the latest valid states (None: none)
             out = self.core.tick(now)
             fault_change = None
             if (out.state == FAULT) != (self.last_state == FAULT):
@@ -162,6 +166,8 @@ class TickLoop:
             status_due = (out.status_changed or self.last_status is None
                           or now - self.last_status >= self.status_period
                           or now < self.last_status)
+        if t_states is not None:
+            self.max_states_age = max(self.max_states_age, now - t_states)
         if applied:
             self.get_logger().info(f'parameters in force from now: {profile} at {rate:g} Hz')
         if fault_change is not None:        # entering fault and leaving it: logged once each
@@ -188,6 +194,11 @@ class TickLoop:
         gap = (stamp_ns - last) * 1e-9
         self.max_tick_gap = max(self.max_tick_gap, gap)
         return gap
+
+    def tick_figures(self) -> dict:
+        """Return the status values ``max_tick_gap`` and ``max_states_age`` [s], as text."""
+        return {StatusKey.MAX_TICK_GAP: f'{self.max_tick_gap:.4f}',
+                StatusKey.MAX_STATES_AGE: f'{self.max_states_age:.4f}'}
 
     def send_zero(self) -> None:
         """Publish a zero JointJog (the vendor driver keeps the last command forever)."""
