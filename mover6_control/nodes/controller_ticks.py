@@ -13,11 +13,12 @@ which can take 333 ms (eProsima/Fast-DDS issue 6535); every write of the node wa
 The status value ``max_tick_gap`` [s] is the longest time between two ticks since the node
 started (node clock; nominal ``1 / rate``), and a tick later than ``TICK_GAP_WARN`` logs a
 warning, so a stalled tick thread shows in the controller and not only as a stale command at the
-driver. The status value ``max_states_age`` [s] is the age of the oldest valid /joint_states a
-tick found (node clock; nominal the states' period plus a tick): how long the intake of the
-states was held up at most (``state_timeout`` faults). To see what held it up, set the environment variable ``MOVER6_TICK_WATCHDOG`` to a time
+driver. To see what held it up, set the environment variable ``MOVER6_TICK_WATCHDOG`` to a time
 [s]: a tick later than that dumps the stack of every thread to stderr (``faulthandler``, which
-needs no interpreter lock for it; wall time, so a paused sim clock trips it too).
+needs no interpreter lock for it; wall time, so a paused sim clock trips it too). The status
+value ``max_states_age`` [s] is the age of the oldest valid /joint_states a tick found (node
+clock; nominal the states' period plus a tick): how long their intake was held up at most
+(``state_timeout`` faults).
 
 The tick never dies: an exception inside it is a fault (zero command, the reason on the
 status, cleared by fresh joint states as any fault); when ``MAX_TICK_FAILURES`` ticks in a row
