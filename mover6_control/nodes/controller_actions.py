@@ -18,19 +18,18 @@ remapping would give it the controller's name) and has no parameters: the goal's
 from the controller's (``path_tolerance``, ``goal_tolerance``) and its waits run on the
 controller's clock (sim time too).
 
-The thread spins in slices of ``SPIN_SLICE``; ``close`` ends it (woken at once), then destroys
-the server and its node. Goals still running then end as they did when the controller's
-executor stopped: the controller closed.
+The thread spins in slices of ``shutdown.SPIN_SLICE``, as the main thread; ``close`` ends it
+(woken at once), then destroys the server and its node. Goals still running then end as they
+did when the controller's executor stopped: the controller closed.
 """
 
 import threading
 
+from mover6_control.nodes.shutdown import SPIN_SLICE
 from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
-# [s] longest wait of the action thread before it sees that it must end (``close`` wakes it).
-SPIN_SLICE = 0.1
 # [s] longest wait for the action thread to end at ``close``.
 JOIN_TIMEOUT = 2.0
 
