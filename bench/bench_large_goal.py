@@ -12,7 +12,8 @@ figures per goal, from the /JointJog header stamps (the tick's start on the node
   the period error p99 |period - 10 ms| [ms];
 - ``whole``: the same from the send to the result;
 - the goal's duration from send to commit [s], its result, and the controller's own
-  ``max_tick_gap`` (status) at the end;
+  ``max_tick_gap`` and ``max_states_age`` (status: the oldest valid /joint_states a tick found,
+  how long their intake was held up; 0.25 s faults) at the end, both since the node started;
 - ``faults``: the controller's statuses in fault from the send to the result (each once, with
   its message: '/joint_states stale' was the tick's own starvation).
 
@@ -138,6 +139,7 @@ class Probe:
                 'result_code': None if result is None else int(result[0]),
                 'result': None if result is None else result[1],
                 'max_tick_gap_status_s': float(self.status.get('max_tick_gap', 'nan')),
+                'max_states_age_status_s': float(self.status.get('max_states_age', 'nan')),
                 'faults': list(self.faults)}
 
     def close(self):
@@ -174,6 +176,7 @@ def run_goals(points, goals, log_dir, watchdog=0.0, timeout=240.0):
             raise RuntimeError('the stack did not come up within 60 s:\n'
                                + '\n'.join(n.tail() for n in nodes.values()))
         before = float(probe.status.get('max_tick_gap', 'nan'))
+        states_before = float(probe.status.get('max_states_age', 'nan'))
         rows = smooth(points)
         for i in range(goals):
             run = probe.run(rows, timeout=timeout)
@@ -187,7 +190,8 @@ def run_goals(points, goals, log_dir, watchdog=0.0, timeout=240.0):
             probe.close()
         for n in reversed(list(nodes.values())):   # the controller first: no stale fault
             n.stop()
-    return {'runs': runs, 'alive_to_the_end': alive, 'max_tick_gap_before_s': before}
+    return {'runs': runs, 'alive_to_the_end': alive, 'max_tick_gap_before_s': before,
+            'max_states_age_before_s': states_before}
 
 
 def main(argv=None):
@@ -210,16 +214,18 @@ def main(argv=None):
     print(f'\n{args.points}-point FollowJointTrajectory goals; tick gaps from the /JointJog '
           f'stamps (period {1e3 / RATE:g} ms), late = gap > {LATE * 1e3:g} ms; the '
           f"controller's max_tick_gap before the first goal "
-          f'{result["max_tick_gap_before_s"] * 1e3:.1f} ms')
+          f'{result["max_tick_gap_before_s"] * 1e3:.1f} ms, max_states_age '
+          f'{result["max_states_age_before_s"] * 1e3:.1f} ms')
     print(f'{"goal":>4} {"taken [s]":>9} {"largest gap taking":>18} {"late":>5} '
           f'{"p99 err":>8} {"largest gap whole":>17} {"late":>5} {"status max gap":>14} '
-          f'{"result":>7} {"faults":>6} {"load":>5}')
+          f'{"states age":>10} {"result":>7} {"faults":>6} {"load":>5}')
     for i, run in enumerate(runs):
         a, b = run['taking'], run['whole']
         print(f'{i + 1:>4} {run["taken_after_s"]:9.2f} {a.get("largest_gap_ms", 0):15.1f} ms '
               f'{a.get("late_ticks", 0):5d} {a.get("period_error_p99_ms", 0):8.2f} '
               f'{b.get("largest_gap_ms", 0):14.1f} ms {b.get("late_ticks", 0):5d} '
-              f'{run["max_tick_gap_status_s"] * 1e3:11.1f} ms {str(run["result_code"]):>7} '
+              f'{run["max_tick_gap_status_s"] * 1e3:11.1f} ms '
+              f'{run["max_states_age_status_s"] * 1e3:7.1f} ms {str(run["result_code"]):>7} '
               f'{len(run["faults"]):6d} {run["load_average"][0]:5.2f}')
     for i, run in enumerate(runs):
         for message in run['faults']:
@@ -231,7 +237,8 @@ def main(argv=None):
     write_json('large_goal', {'points': args.points, 'goals': goals, 'cpus': os.cpu_count(),
                               'load_average_at_start': list(load), 'runs': runs,
                               'alive_to_the_end': alive,
-                              'max_tick_gap_before_s': result['max_tick_gap_before_s']})
+                              'max_tick_gap_before_s': result['max_tick_gap_before_s'],
+                              'max_states_age_before_s': result['max_states_age_before_s']})
     return 0 if all(alive.values()) else 1
 
 

@@ -86,6 +86,7 @@ class StatusKey(StrEnum):
     GOAL_ID = 'goal_id'              # the controller's (the goal of motion_id) and the planner's
     GOAL_STAMP = 'goal_stamp'        # the planner's: the stamp of the goal it is about
     MAX_TICK_GAP = 'max_tick_gap'
+    MAX_STATES_AGE = 'max_states_age'    # the controller's: oldest valid states a tick saw [s]
 
 
 class PlannerState(StrEnum):

@@ -14,9 +14,8 @@ writes it): the status then carries it as ``goal_id`` next to the ``motion_id`` 
 Jogging, as MoveIt Servo names it: ~/delta_twist_cmds (geometry_msgs/TwistStamped, flange
 twist in base_link or link6) and ~/delta_joint_cmds (control_msgs/JointJog, velocities by name)
 drive the arm live (``control.servo``); a refused command is logged and its reason is the
-status value ``jog_refused``. A jog command whose stamp lies in the future of its arrival is
-refused, and every jog command goes stale ``servo_command_timeout`` after the earlier of its
-stamp and its arrival.
+status value ``jog_refused``. A jog command stamped in the future of its arrival is refused;
+each goes stale ``servo_command_timeout`` after the earlier of its stamp and its arrival.
 
 All the logic is in ``control.controller_core`` (its model of the arm: a ``control.robot.Robot``,
 ``self.core.robot``, which maps /joint_states by name); the node converts, calls it, publishes.
@@ -24,10 +23,10 @@ For the Mover6's vendor driver set ``jog_units`` to fraction_of_max; ``driver_ti
 ``driver_cycle`` (the Mover6's by default) let the core move joints that a command under one
 encoder tick per cycle would leave standing (the goal tolerance is then one tick).
 
-Three threads: the executor's (the callbacks, this module), the tick thread
-(``controller_ticks``) and the demand thread (``controller_demands``: a large demand is planned
-in a process, ``plan_worker``). The lock rule: the core (``core.state``, ``core.config`` ...)
-and the goal ledger are read and changed only under ``lock``; nothing slow, nothing published.
+Four threads: the executor's (the callbacks, this module), the tick's (``controller_ticks``),
+the demand thread's (``controller_demands``; large demands are planned in ``plan_worker``'s
+process) and the action server's (``controller_actions``, on a node of its own). The lock rule:
+the core and the goal ledger are read and changed only under ``lock``; nothing slow or published.
 """
 
 import gc
@@ -46,13 +45,13 @@ from mover6_control.control.status import StatusKey
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes import cdr, conversions, params, shutdown
+from mover6_control.nodes.controller_actions import ActionThread
 from mover6_control.nodes.controller_demands import DemandThread
 from mover6_control.nodes.controller_ticks import TickLoop
 from mover6_control.nodes.goal_ledger import GoalLedger
 from mover6_control.nodes.params import config_from_parameters
 from mover6_control.nodes.plan_worker import PlanWorker
 from mover6_control.nodes.qos import STATUS_QOS, STREAM_READER_QOS
-from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from mover6_control.parameters import CONTROLLER
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -87,7 +86,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.last_state = None           # the core's state after the latest tick
         self.has_states = threading.Event()  # set while the core has valid states
         self.last_tick = None            # node clock [ns] of the latest tick
-        self.max_tick_gap = 0.0          # [s] longest time between two ticks so far
+        self.max_tick_gap = self.max_states_age = 0.0   # [s] so far (tick_figures)
         self.running = True
         self.destroyed = False
         self.fatal = None                # why the tick cannot run: the process exits with 1
@@ -109,14 +108,15 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.create_subscription(JointJog, '~/delta_joint_cmds', self.on_joint_jog, 10)
         self.create_service(Trigger, '~/stop', self.on_stop)
         self.create_service(Trigger, '~/reset', self.on_reset)
-        self.trajectory_server = FollowJointTrajectoryServer(self)
+        self.actions = ActionThread(self)   # the action server (its own node and thread)
 
         # Started once every attribute exists (a real-time tick runs at once and publishes a
-        # status); the demand thread first, so the tick's raise puts it one below (realtime.py).
+        # status); the others first, so the tick's raise puts them one below (realtime.py).
         self.tick_thread = threading.Thread(target=self.run_ticks, daemon=True)
         self.demand_thread = threading.Thread(target=self.demand_loop, daemon=True)
         self.log_start(limit_set, config)
         self.demand_thread.start()
+        self.actions.start()
         self.tick_thread.start()
         self.publish_status(self.now())
 
@@ -249,7 +249,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.plan_worker.close()    # a demand planned there is refused: its thread can end
         self.has_states.set()       # a demand waiting for states stops waiting
         self.goals.close()          # an action goal waiting for its demand stops waiting
-        self.trajectory_server.destroy()
+        self.actions.close()        # its thread ends, then its server and node
         for thread in (self.tick_thread, self.demand_thread):
             if thread.is_alive() and thread is not threading.current_thread():
                 thread.join(timeout=1.0)
@@ -274,7 +274,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
                 goal_id = self.goals.goal_of(int(status.values.get(StatusKey.MOTION_ID, 0)))
             values = dict(status.values)
             values[StatusKey.GOAL_ID] = goal_id
-            values[StatusKey.MAX_TICK_GAP] = f'{self.max_tick_gap:.4f}'
+            values.update(self.tick_figures())     # max_tick_gap, max_states_age
             values.update(extra or {})
             self.status_pub.publish(conversions.make_status(
                 'controller', level or status.level, message or status.message, values))

@@ -15,7 +15,10 @@ started (node clock; nominal ``1 / rate``), and a tick later than ``TICK_GAP_WAR
 warning, so a stalled tick thread shows in the controller and not only as a stale command at the
 driver. To see what held it up, set the environment variable ``MOVER6_TICK_WATCHDOG`` to a time
 [s]: a tick later than that dumps the stack of every thread to stderr (``faulthandler``, which
-needs no interpreter lock for it; wall time, so a paused sim clock trips it too).
+needs no interpreter lock for it; wall time, so a paused sim clock trips it too). The status
+value ``max_states_age`` [s] is the age of the oldest valid /joint_states a tick found (node
+clock; nominal the states' period plus a tick): how long their intake was held up at most
+(``state_timeout`` faults).
 
 The tick never dies: an exception inside it is a fault (zero command, the reason on the
 status, cleared by fresh joint states as any fault); when ``MAX_TICK_FAILURES`` ticks in a row
@@ -32,6 +35,7 @@ import time
 import traceback
 
 from mover6_control.control.state_machine import FAULT
+from mover6_control.control.status import StatusKey
 from mover6_control.nodes.controller_demands import WAIT_FOR_STATES
 from mover6_control.realtime import raise_this_thread
 from rclpy.duration import Duration
@@ -145,6 +149,7 @@ class TickLoop:
         now = time_now.nanoseconds * 1e-9
         gap = self.note_tick(time_now.nanoseconds)
         with self.lock:
+            t_states = self.core.robot.t_states     # of the latest valid states (None: none)
             out = self.core.tick(now)
             fault_change = None
             if (out.state == FAULT) != (self.last_state == FAULT):
@@ -162,6 +167,8 @@ class TickLoop:
             status_due = (out.status_changed or self.last_status is None
                           or now - self.last_status >= self.status_period
                           or now < self.last_status)
+        if t_states is not None:
+            self.max_states_age = max(self.max_states_age, now - t_states)
         if applied:
             self.get_logger().info(f'parameters in force from now: {profile} at {rate:g} Hz')
         if fault_change is not None:        # entering fault and leaving it: logged once each
@@ -188,6 +195,11 @@ class TickLoop:
         gap = (stamp_ns - last) * 1e-9
         self.max_tick_gap = max(self.max_tick_gap, gap)
         return gap
+
+    def tick_figures(self) -> dict:
+        """Return the status values ``max_tick_gap`` and ``max_states_age`` [s], as text."""
+        return {StatusKey.MAX_TICK_GAP: f'{self.max_tick_gap:.4f}',
+                StatusKey.MAX_STATES_AGE: f'{self.max_states_age:.4f}'}
 
     def send_zero(self) -> None:
         """Publish a zero JointJog (the vendor driver keeps the last command forever)."""

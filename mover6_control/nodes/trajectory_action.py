@@ -33,7 +33,9 @@ ends canceled once the arm is at rest. A new goal, or a /joint_demands message, 
 running goal: it is aborted with INVALID_GOAL (as joint_trajectory_controller) and the reason.
 
 How a goal is read (joints by name, points, timing, tolerances) and which code a motion that
-ended gets: ``nodes/trajectory_goal.py``; here the server that runs it.
+ended gets: ``nodes/trajectory_goal.py``; here the server that runs it. It is served by a node,
+an executor and a thread of its own (``nodes/controller_actions.py``): a goal of 10,000 points
+is built as Python objects there, not in the thread that takes /joint_states.
 """
 
 from typing import Optional, Sequence
@@ -51,6 +53,8 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.duration import Duration
+from rclpy.executors import Executor
+from rclpy.node import Node
 from rclpy.task import Future
 from trajectory_msgs.msg import JointTrajectoryPoint
 
@@ -66,13 +70,19 @@ ENDED_AFTER = (State.EXECUTING, State.SETTLING, State.STOPPING)
 class FollowJointTrajectoryServer:
     """The action server of a ``ControllerNode``; see the module docstring."""
 
-    def __init__(self, node):
-        """Serve ``<node>/follow_joint_trajectory`` for ``node`` (a ``ControllerNode``)."""
+    def __init__(self, node, server_node: Node, executor: Executor, name: str):
+        """
+        Serve the action ``name`` for ``node`` (a ``ControllerNode``) on ``server_node``.
+
+        ``executor`` spins ``server_node`` (``controller_actions``: not the controller's).
+        """
         self.node = node
+        self.server_node = server_node
+        self.executor = executor
         self.group = ReentrantCallbackGroup()
         self.active = None       # the goal handle being executed
         self.server = ActionServer(
-            node, FollowJointTrajectory, '~/follow_joint_trajectory', self.execute,
+            server_node, FollowJointTrajectory, name, self.execute,
             goal_callback=lambda goal: GoalResponse.ACCEPT,
             cancel_callback=lambda handle: CancelResponse.ACCEPT,
             callback_group=self.group)
@@ -84,12 +94,13 @@ class FollowJointTrajectoryServer:
     async def sleep(self, seconds: float, future: Optional[Future] = None) -> None:
         """Wait ``seconds`` on the node's clock, or until ``future`` is done, not holding it."""
         future = Future() if future is None else future
-        timer = self.node.create_timer(seconds, lambda: future.done() or future.set_result(None),
-                                       callback_group=self.group)
+        timer = self.server_node.create_timer(
+            seconds, lambda: future.done() or future.set_result(None),
+            callback_group=self.group, clock=self.node.get_clock())
         try:
             await future
         finally:
-            self.node.destroy_timer(timer)
+            self.server_node.destroy_timer(timer)
 
     def finish(self, handle: ServerGoalHandle, code: int, text: str, how: str = 'abort') -> Result:
         """End ``handle`` (abort, succeed or canceled) with ``code`` and ``text``."""
@@ -126,7 +137,7 @@ class FollowJointTrajectoryServer:
             demand = demand_messages.make_demands(mapped['rows'], goal_id)
             return (demand, mapped['timing']) if mapped['timing'].timed else demand
 
-        taken = node.goals.expect(goal_id, node.executor)   # done when taken or refused
+        taken = node.goals.expect(goal_id, self.executor)   # done when taken or refused
         node.demands.put(convert)
         if node.running:
             await self.sleep(ACCEPT_TIMEOUT + ACCEPT_PER_POINT * len(goal.trajectory.points),

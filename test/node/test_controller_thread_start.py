@@ -9,6 +9,7 @@ runs at once, in the caller, the worst order a scheduler can choose.
 import threading
 
 from mover6_control.nodes import controller_node
+from mover6_control.nodes.controller_actions import ActionThread
 from mover6_control.nodes.controller_node import ControllerNode
 import pytest
 import rclpy
@@ -34,11 +35,13 @@ def test_threads_start_after_every_attribute_exists(monkeypatch):
     monkeypatch.setattr(controller_node.threading, 'Thread', RunsAtOnce)
     monkeypatch.setattr(ControllerNode, 'tick_loop', one_tick)
     monkeypatch.setattr(ControllerNode, 'demand_loop', lambda node: ran.append('demand'))
+    monkeypatch.setattr(ActionThread, 'serve', lambda actions: ran.append('actions'))
     context = rclpy.Context()
     rclpy.init(context=context)
     try:
         node = ControllerNode(context=context, namespace=NS)
-        assert ran == ['demand', 'tick']     # the tick raises the demand thread with it
+        # The tick raises the others with it: they run before it.
+        assert ran == ['demand', 'actions', 'tick']
         node.running = False
         node.destroy_node()
     finally:
