@@ -192,6 +192,19 @@ class Stack:
                          for n in self.nodes.values())
 
 
+def spin_until(executor, predicate, timeout=30.0, period=0.01, each=None):
+    """
+    Spin ``executor`` until ``predicate()`` holds: return the monotonic time it did, else None.
+
+    ``each()``, when given, runs after every spin (a stream the test keeps up meanwhile).
+    """
+    def spin(slice_):
+        executor.spin_once(timeout_sec=slice_)
+        if each is not None:
+            each()
+    return time.monotonic() if wait_until(predicate, timeout, spin, period) else None
+
+
 def wait_until(predicate, timeout, spin=None, period=0.05):
     """Wait until ``predicate()`` is true (spinning ``spin(period)`` between checks)."""
     deadline = time.monotonic() + timeout

@@ -23,6 +23,7 @@ import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
+import ros_testing
 from test_controller_node import FakeArm
 
 NS = f'jog_faults_test_{os.getpid()}'
@@ -78,14 +79,9 @@ def ros(request):
     executor.add_node(arm)
 
     def spin_until(predicate, timeout=30.0, each=None):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.01)
-            if each is not None:
-                each()
-            if predicate():
-                return True
-        raise AssertionError(f'timed out; last status {arm.status()}')
+        if ros_testing.spin_until(executor, predicate, timeout, each=each) is None:
+            raise AssertionError(f'timed out; last status {arm.status()}')
+        return True
 
     spin_until(lambda: arm.status().get('state') == 'idle')
     yield controller, arm, Jogger(arm), spin_until

@@ -16,6 +16,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
+import ros_testing
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
@@ -83,12 +84,9 @@ def ros():
     executor.add_node(arm)
 
     def spin_until(predicate, timeout=30.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.02)
-            if predicate():
-                return True
-        raise AssertionError(f'timed out; last status {arm.status()}')
+        if ros_testing.spin_until(executor, predicate, timeout) is None:
+            raise AssertionError(f'timed out; last status {arm.status()}')
+        return True
 
     yield controller, arm, spin_until
     executor.shutdown()
@@ -254,12 +252,8 @@ def test_ticks_follow_sim_time():
     executor.add_node(clock_node)
 
     def spin_until(predicate, timeout=30.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.01)
-            if predicate():
-                return
-        raise AssertionError(f'timed out with {len(stamps)} ticks')
+        if ros_testing.spin_until(executor, predicate, timeout) is None:
+            raise AssertionError(f'timed out with {len(stamps)} ticks')
 
     try:
         spin_until(lambda: len(stamps) >= 60)
@@ -431,12 +425,10 @@ def test_continuous_demands_never_stall_the_ticks():
     executor.add_node(arm)
 
     def spin_until(predicate, timeout=30.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.01)
-            if predicate():
-                return time.monotonic()
-        raise AssertionError(f'timed out; last status {arm.status()}')
+        held = ros_testing.spin_until(executor, predicate, timeout)
+        if held is None:
+            raise AssertionError(f'timed out; last status {arm.status()}')
+        return held
 
     def stamp(msg):
         return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
@@ -488,10 +480,7 @@ def test_a_demand_before_the_first_states_waits_for_them():
     executor.add_node(arm)
 
     def spin_until(predicate, timeout=30.0):
-        deadline = time.monotonic() + timeout
-        while not predicate() and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.02)
-        return predicate()
+        return ros_testing.spin_until(executor, predicate, timeout) is not None
     try:
         assert spin_until(lambda: arm.demand_pub.get_subscription_count() > 0
                           and arm.status().get('state') == 'waiting_for_states')

@@ -20,6 +20,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
+from ros_testing import spin_until
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 
@@ -64,15 +65,6 @@ def nodes():
     planner.destroy_node()
     probe.destroy_node()
     rclpy.try_shutdown()
-
-
-def spin_until(executor, predicate, timeout=30.0):
-    """Spin until ``predicate()`` holds or ``timeout`` [s] passes; return it."""
-    import time
-    deadline = time.monotonic() + timeout
-    while not predicate() and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.05)
-    return predicate()
 
 
 def connected(executor, probe):

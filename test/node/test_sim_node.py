@@ -19,6 +19,7 @@ import pytest  # noqa: E402
 import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
+from ros_testing import spin_until  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from sim_bridge.bridge_node import SimBridgeNode  # noqa: E402
@@ -63,12 +64,7 @@ class Harness:
 
     def spin_until(self, predicate, timeout=LIMIT):
         """Spin until ``predicate()`` holds; return whether it did."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if predicate():
-                return True
-            self.executor.spin_once(timeout_sec=0.01)
-        return bool(predicate())
+        return spin_until(self.executor, predicate, timeout) is not None
 
     def spin_for(self, duration):
         """Spin for ``duration`` [s] (only to show that something does not happen)."""
