@@ -44,11 +44,14 @@ def sleep_until_ns(clock: Clock, deadline: int, context: Context) -> bool:
     False, as ``Clock.sleep_until`` returns it, when the wait ended for another reason: the
     context shut down, or the clock changed between system and sim time. On the system clock
     both are seen within ``MAX_NAP`` (a sleep until the next tick is one nap at 100 Hz); a ROS
-    clock on sim time sleeps in ``Clock.sleep_until``.
+    clock on sim time sleeps in ``Clock.sleep_until``, unless the deadline has passed already
+    (``Clock.sleep_until`` would wait for the next /clock even then).
     """
     if not on_system_time(clock):
         if not context.ok():
             return False
+        if clock.now().nanoseconds >= deadline:     # Clock.sleep_until waits for a /clock
+            return True
         return clock.sleep_until(Time(nanoseconds=deadline, clock_type=clock.clock_type),
                                  context)
     while True:
