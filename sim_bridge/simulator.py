@@ -170,7 +170,10 @@ class Simulator:
         opt = self.config.model
         self._feedforward = (opt.kv + opt.damping) / opt.kv
         contact_off = int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-        self._contact_flags = self.model.opt.disableflags & ~contact_off
+        self._opt = self.model.opt       # the struct's wrapper, looked up once (every step)
+        self._contact_flags = self._opt.disableflags & ~contact_off
+        self._vendor = self.config.mode == 'vendor_driver'
+        self._timeout = self.config.command_timeout + _EPS
         self._geom_names = [mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, g) or str(g)
                             for g in range(self.model.ngeom)]
         # MuJoCo's warning kinds (name, index), looked up once: the node asks 100 times a second.
@@ -216,10 +219,9 @@ class Simulator:
 
     def is_stale(self) -> bool:
         """Return True when no command is active ('rad_per_s': none yet or timed out)."""
-        if self.config.mode == 'vendor_driver':
+        if self._vendor:
             return False
-        return self._cmd_time is None or (
-            self.time - self._cmd_time > self.config.command_timeout + _EPS)
+        return self._cmd_time is None or self.data.time - self._cmd_time > self._timeout
 
     def warnings(self) -> dict[str, int]:
         """
@@ -229,6 +231,8 @@ class Simulator:
         node reports it rather than let the arm jump silently.
         """
         out = {}
+        if not self.data.warning.number.any():     # none: the common case, one call
+            return out
         for name, i in self._warning_kinds:
             number = self.data.warning[i].number
             if number > 0:
@@ -327,25 +331,24 @@ class Simulator:
 
     def step(self, n_steps: int = 1) -> None:
         """Advance the physics by ``n_steps`` steps of ``physics_dt``."""
+        control = self._vendor_control if self._vendor else self._servo_control
+        model, data, detect = self.model, self.data, self._detect_contacts
         for _ in range(int(n_steps)):
-            if self.config.mode == 'vendor_driver':
-                self._vendor_control()
-            else:
-                self._servo_control()
-            mujoco.mj_step(self.model, self.data)
+            control()
+            mujoco.mj_step(model, data)
             self.step_count += 1
-            self._detect_contacts()
+            detect()
 
     def _detect_contacts(self):
         """Run MuJoCo's collision detection on the present state; note any contact."""
-        model, data = self.model, self.data
-        flags = model.opt.disableflags
-        model.opt.disableflags = self._contact_flags
+        model, data, opt = self.model, self.data, self._opt
+        flags = opt.disableflags
+        opt.disableflags = self._contact_flags
         try:
             mujoco.mj_kinematics(model, data)
             mujoco.mj_collision(model, data)
         finally:
-            model.opt.disableflags = flags
+            opt.disableflags = flags
         if data.ncon:
             self.contact_steps += 1
             if self.first_contact is None:
@@ -355,6 +358,8 @@ class Simulator:
 
     def contacts(self) -> list[tuple[str, str]]:
         """Return the pairs of geom names in contact after the last step (or reset)."""
+        if not self.data.ncon:
+            return []
         c = self.data.contact
         return [(self._geom_names[int(a)], self._geom_names[int(b)])
                 for a, b in zip(c.geom1[:self.data.ncon], c.geom2[:self.data.ncon])]
@@ -383,8 +388,12 @@ class Simulator:
         Ask the joint servos for velocity ``v`` (n,) [rad/s].
 
         The demand is scaled by (kv + damping) / kv, the drive's feed-forward of the joint's
-        viscous damping, so that the steady velocity equals ``v`` exactly.
+        viscous damping, so that the steady velocity equals ``v`` exactly. The same array as
+        the step before (the held command, or zero while stale) is in ``data.ctrl`` already:
+        only this method writes it, and a reset gives ``_demand`` a new array.
         """
+        if v is self._demand:
+            return
         self._demand = v
         self.data.ctrl[:self._n] = v * self._feedforward
 

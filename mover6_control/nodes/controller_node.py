@@ -49,6 +49,7 @@ from mover6_control.nodes.controller_actions import ActionThread
 from mover6_control.nodes.controller_demands import DemandThread
 from mover6_control.nodes.controller_ticks import TickLoop
 from mover6_control.nodes.goal_ledger import GoalLedger
+from mover6_control.nodes.node_clock import now_ns
 from mover6_control.nodes.params import config_from_parameters
 from mover6_control.nodes.plan_worker import PlanWorker
 from mover6_control.nodes.qos import STATUS_QOS, STREAM_READER_QOS
@@ -132,7 +133,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
 
     def now(self) -> float:
         """Return the node clock's time [s] (sim time when use_sim_time is set)."""
-        return self.get_clock().now().nanoseconds * 1e-9
+        return now_ns(self.get_clock()) * 1e-9
 
     def check_config(self, get: Callable[[str], object]) -> None:
         """
@@ -223,8 +224,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
             self.get_logger().warning(f'refused ~/delta_joint_cmds: {err}',
                                       throttle_duration_sec=1.0)
 
-    def on_stop(self, request: Trigger.Request,
-                response: Trigger.Response) -> Trigger.Response:
+    def on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Decelerate to rest and hold (std_srvs/Trigger)."""
         with self.lock:
             response.success, response.message = self.core.request_stop(self.now())

@@ -1,14 +1,15 @@
 """
 The controller node's tick thread: one core tick, one /JointJog and the status when due.
 
-The tick runs in its own thread that sleeps on the node's clock (``Clock.sleep_until``, so sim
-time works): that costs less CPU and jitter than an executor timer; the executor thread serves
-the callbacks, and the node's lock keeps the core consistent between the two (``core.state``,
-``core.config`` and the core's other state are read only under it). Nothing slow happens under
-that lock. JointJog and status are published outside it: a DDS write can block. Measured
-(``bench/bench_churn.py``): Fast DDS 2.14 holds one send lock per participant, and its discovery
-thread holds it while it opens the shared-memory port of a process that just joined the graph,
-which can take 333 ms (eProsima/Fast-DDS issue 6535); every write of the node waits that long.
+The tick runs in its own thread that sleeps on the node's clock (``node_clock.sleep_until_ns``:
+on the system clock a timed wait, on sim time ``Clock.sleep_until``): that costs less CPU and
+jitter than an executor timer; the executor thread serves the callbacks, and the node's lock
+keeps the core consistent between the two (``core.state``, ``core.config`` and the core's other
+state are read only under it). Nothing slow happens under that lock. JointJog and status are
+published outside it: a DDS write can block. Measured (``bench/bench_churn.py``): Fast DDS 2.14
+holds one send lock per participant, and its discovery thread holds it while it opens the
+shared-memory port of a process that just joined the graph, which can take 333 ms
+(eProsima/Fast-DDS issue 6535); every write of the node waits that long.
 
 The status value ``max_tick_gap`` [s] is the longest time between two ticks since the node
 started (node clock; nominal ``1 / rate``), and a tick later than ``TICK_GAP_WARN`` logs a
@@ -37,8 +38,8 @@ import traceback
 from mover6_control.control.state_machine import FAULT
 from mover6_control.control.status import StatusKey
 from mover6_control.nodes.controller_demands import WAIT_FOR_STATES
+from mover6_control.nodes.node_clock import now_ns, sleep_until_ns
 from mover6_control.realtime import raise_this_thread
-from rclpy.duration import Duration
 
 # A tick this late [s] is logged: the driver (and the sim bridge) halt after 0.2 s without one.
 TICK_GAP_WARN = 0.05
@@ -60,26 +61,28 @@ class TickLoop:
         Call ``on_tick`` every ``1 / rate`` [s] of the node's clock until the node closes.
 
         The thread sleeps before every tick, at least ``TICK_REST`` of a period when it is late.
+        Times are integer nanoseconds of the node clock (``node_clock``: no rclpy ``Time`` or
+        ``Duration`` per tick; sim time sleeps in ``Clock.sleep_until``).
         """
         self.set_tick_priority(self.get_parameter('tick_priority').value)
         clock = self.get_clock()
-        deadline = clock.now()
+        deadline = now_ns(clock)
         watchdog = float(os.environ.get(WATCHDOG_ENV) or 0.0)
         while self.running and self.context.ok():
             with self.lock:
                 period = 1.0 / self.core.config.rate  # the rate in force: set live
-            step = Duration(seconds=period)
+            step = round(period * 1e9)
             if watchdog > 0.0:
                 faulthandler.dump_traceback_later(watchdog + period)   # re-armed each tick
-            deadline = deadline + step
-            if clock.now() >= deadline:         # late: rest all the same (real-time priority)
+            deadline += step
+            if now_ns(clock) >= deadline:       # late: rest all the same (real-time priority)
                 time.sleep(period * TICK_REST)
-            if not clock.sleep_until(deadline, self.context):
-                deadline = clock.now()          # clock switched (sim time) or shutting down
+            if not sleep_until_ns(clock, deadline, self.context):
+                deadline = now_ns(clock)        # clock switched (sim time) or shutting down
                 self.last_tick = None           # no gap across the switch
                 continue
-            now = clock.now()
-            if (now - deadline).nanoseconds > step.nanoseconds:
+            now = now_ns(clock)
+            if now - deadline > step:
                 deadline = now                  # fell behind by a whole period: no burst
             if self.running:
                 self.run_tick()
@@ -145,9 +148,9 @@ class TickLoop:
 
     def on_tick(self) -> None:
         """Run one control tick: publish the JointJog, and the status when due."""
-        time_now = self.get_clock().now()
-        now = time_now.nanoseconds * 1e-9
-        gap = self.note_tick(time_now.nanoseconds)
+        stamp_ns = now_ns(self.get_clock())
+        now = stamp_ns * 1e-9
+        gap = self.note_tick(stamp_ns)
         with self.lock:
             t_states = self.core.robot.t_states     # of the latest valid states (None: none)
             out = self.core.tick(now)
@@ -178,7 +181,7 @@ class TickLoop:
                 self.get_logger().info(f'fault cleared ({out.state}): {fault_change}')
         # Published without the lock: a DDS write can block (seen for 0.33 s right after start-up
         # while the sim bridge was being matched), and the callbacks must not wait for it.
-        self.jog_pub.publish(self.jog_writer.serialize(*time_now.seconds_nanoseconds(), out.jog))
+        self.jog_pub.publish(self.jog_writer.serialize(*divmod(stamp_ns, 1_000_000_000), out.jog))
         if gap > TICK_GAP_WARN:         # logged after the command went, not before it
             self.get_logger().warning(
                 f'tick {gap * 1e3:.0f} ms after the one before (period '
@@ -204,4 +207,4 @@ class TickLoop:
     def send_zero(self) -> None:
         """Publish a zero JointJog (the vendor driver keeps the last command forever)."""
         self.jog_pub.publish(self.jog_writer.serialize(
-            *self.get_clock().now().seconds_nanoseconds(), [0.0] * len(self.joint_names)))
+            *divmod(now_ns(self.get_clock()), 1_000_000_000), [0.0] * len(self.joint_names)))

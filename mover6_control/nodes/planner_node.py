@@ -46,6 +46,7 @@ from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 from mover6_control.nodes import conversions, params, shutdown
+from mover6_control.nodes.node_clock import now_ns
 from mover6_control.nodes.planner_delivery import CONTROLLER_STATUS_QOS, DemandDelivery
 from mover6_control.nodes.planner_thread import PlanningThread, READY, WAITING
 from mover6_control.nodes.qos import LATEST_READER_QOS, STATUS_QOS
@@ -73,7 +74,7 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
         self.arm = mover6(limit_set)
         self.state = WAITING
         self.states_came = threading.Event()   # set by every /joint_states
-        self.states = None       # (serialized /joint_states, node clock at arrival): the latest
+        self.states = None       # (serialized /joint_states, node clock [ns] at arrival): latest
         self._converted = None   # (serialized message, its positions): the latest converted
         self.goal_seq = 0
         self.stopped_seq = 0         # goals up to this seq were dropped by ~/stop
@@ -120,10 +121,11 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
         while the planner is not ready is each message converted, to say ready on the first
         valid one.
         """
-        self.states = (raw, self.get_clock().now())
+        self.states = (raw, now_ns(self.get_clock()))
         if self.state != READY and self.q is not None:
             self.set_state(READY)
-        self.states_came.set()
+        if not self.states_came.is_set():     # set already: the same (and no lock taken)
+            self.states_came.set()
 
     def positions(self, raw: bytes) -> np.ndarray:
         """Return the joint positions [rad] of a serialized JointState; raise when malformed."""

@@ -20,6 +20,7 @@ from mover6_control.collision.checker import CollisionChecker
 from mover6_control.control.planners import predicted_duration
 from mover6_control.control.status import PlannerState
 from mover6_control.errors import Mover6Error, UnreachableError
+from mover6_control.nodes.node_clock import now_ns
 from mover6_control.nodes.params import planner_settings_from_parameters
 from mover6_control.planning.planner_core import PlannerSettings
 import numpy as np
@@ -53,7 +54,7 @@ class PlanningThread:
         if self.states is None:
             raise Mover6Error('no /joint_states received yet: the current pose is unknown')
         raw, arrival = self.states
-        age = (self.get_clock().now() - arrival).nanoseconds * 1e-9
+        age = (now_ns(self.get_clock()) - arrival) * 1e-9
         timeout = self.get_parameter('state_timeout').value
         if age > timeout:
             raise Mover6Error(f'/joint_states are {age:.2f} s old (limit {timeout:.2f} s): '
