@@ -330,6 +330,11 @@ case "$cmd" in
         fi
         pick_domain_id
         log "tests in ROS_DOMAIN_ID=$ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE=$ROS_AUTOMATIC_DISCOVERY_RANGE${MOVER6_DDS:+, MOVER6_DDS=$MOVER6_DDS}"
+        # Bytecode, and pytest's rewritten test modules, cached in the workspace (out of the
+        # source tree): without it every run compiled every module again, a large part of the
+        # unit tier's time. Python checks each source's mtime, so a cache is never stale.
+        unset PYTHONDONTWRITEBYTECODE
+        export PYTHONPYCACHEPREFIX="$WS/pycache"
         # No stale results: a run that wrote none must fail, not pass on the last one's.
         rm -rf "$WS/build/mover6_control/test_results" "$WS/build/mover6_control/pytest.xml"
         (cd "$ROOT" && colcon --log-base "$WS/log" test --base-paths . \

@@ -59,6 +59,18 @@ class SplineTrajectory(JointTrajectory):
             out.append(np.hstack(cols))
         return tuple(out)
 
+    def state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return ``(q, qd)`` (n,) each at one time ``t`` [s], as ``sample(t)[:2]``.
+
+        The same spline calls for the position and velocity only: a scalar spline per joint
+        (the multi-point trapezoid) makes each call count, every control tick.
+        """
+        times = np.array([self._time(t)])
+        q = np.concatenate([np.asarray(d[0](times)).reshape(-1) for d in self._derivs])
+        qd = np.concatenate([np.asarray(d[1](times)).reshape(-1) for d in self._derivs])
+        return q, qd
+
 
 def _segment_durations(Q, v_max):
     return np.max(np.abs(np.diff(Q, axis=0)) / v_max, axis=1)

@@ -61,12 +61,16 @@ class PolynomialTimeLaw:
         if c.ndim != 1 or c.size < 2 or not np.all(np.isfinite(c)):
             raise InvalidInputError(f'coefficients must be finite, 1-D, length >= 2: {c}')
         object.__setattr__(self, 'coefficients', tuple(float(x) for x in c))
+        # s and its first three derivatives, made once: the controller samples them every tick.
+        poly = np.polynomial.Polynomial(self.coefficients)
+        object.__setattr__(self, '_polys', (poly,) + tuple(poly.deriv(k) for k in (1, 2, 3)))
 
     def evaluate(self, tau: float | np.ndarray, derivative: int = 0) -> np.ndarray:
         """Return ``d^k s / d tau^k`` at ``tau`` (scalar or array) for ``derivative`` k."""
         tau = _as_tau(tau)
-        poly = np.polynomial.Polynomial(self.coefficients)
-        return poly.deriv(derivative)(tau) if derivative else poly(tau)
+        if 0 <= derivative < len(self._polys):
+            return self._polys[derivative](tau)
+        return self._polys[0].deriv(derivative)(tau)
 
     def __call__(self, tau: float | np.ndarray) -> np.ndarray:
         """Return ``s(tau)``."""
