@@ -332,7 +332,8 @@ case "$cmd" in
         log "tests in ROS_DOMAIN_ID=$ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE=$ROS_AUTOMATIC_DISCOVERY_RANGE${MOVER6_DDS:+, MOVER6_DDS=$MOVER6_DDS}"
         # Bytecode, and pytest's rewritten test modules, cached in the workspace (out of the
         # source tree): without it every run compiled every module again, a large part of the
-        # unit tier's time. Python checks each source's mtime, so a cache is never stale.
+        # unit tier's time. Python checks each source's mtime, so a cache is never stale. For
+        # pytest's process only: test/conftest.py takes it from the processes the tests start.
         unset PYTHONDONTWRITEBYTECODE
         export PYTHONPYCACHEPREFIX="$WS/pycache"
         # No stale results: a run that wrote none must fail, not pass on the last one's.
