@@ -6,14 +6,18 @@ Conventions:
 - Euler angles follow the Mover6 report (MATLAB's default ZYX): ``R = Rz(A) @ Ry(B) @ Rx(C)``, so A
   is yaw, B pitch and C roll [rad].
 - Quaternions are in ROS order ``(x, y, z, w)``.
+
+The conversions are closed forms in numpy (the quaternion of a matrix by the largest of its
+trace and diagonal, as scipy's ``Rotation.from_matrix`` takes it): no ``scipy.spatial``, which
+took half a second of every node's start-up to import; the tests check them against scipy.
 """
 
 from collections.abc import Sequence
+import math
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.validation import as_finite_array
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 ORTHONORMAL_TOL = 1e-6
 
@@ -49,8 +53,11 @@ def make_transform(position: Sequence[float], R: np.ndarray | None = None) -> np
 
 def euler_zyx_to_matrix(a: float, b: float, c: float) -> np.ndarray:
     """Return ``Rz(a) @ Ry(b) @ Rx(c)`` (3, 3) for angles [rad] in MATLAB's default ZYX order."""
-    angles = as_finite_array([a, b, c], (3,), 'euler angles')
-    return Rotation.from_euler('ZYX', angles).as_matrix()
+    a, b, c = as_finite_array([a, b, c], (3,), 'euler angles')
+    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    return np.array([[ca * cb, ca * sb * sc - sa * cc, ca * sb * cc + sa * sc],
+                     [sa * cb, sa * sb * sc + ca * cc, sa * sb * cc - ca * sc],
+                     [-sb, cb * sc, cb * cc]])
 
 
 def matrix_to_euler_zyx(R: np.ndarray) -> tuple[float, float, float]:
@@ -72,13 +79,103 @@ def quaternion_to_matrix(q_xyzw: Sequence[float]) -> np.ndarray:
         raise InvalidInputError('quaternion is zero: it describes no rotation')
     if abs(norm - 1.0) > 1e-3:
         raise InvalidInputError(f'quaternion is not unit length (norm {norm:.6f})')
-    return Rotation.from_quat(q / norm).as_matrix()
+    return unit_quaternion_to_matrix(q / norm)
 
 
 def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
     """Return the quaternion ``(x, y, z, w)`` of a rotation matrix, with ``w >= 0``."""
-    q = Rotation.from_matrix(validate_rotation(R)).as_quat()
-    return q if q[3] >= 0.0 else -q
+    return matrices_to_quaternions(validate_rotation(R))
+
+
+def matrices_to_quaternions(R: np.ndarray) -> np.ndarray:
+    """
+    Return the quaternions ``(..., 4)`` ``(x, y, z, w)``, ``w >= 0``, of rotations ``(..., 3, 3)``.
+
+    For matrices known to be rotations (``matrix_to_quaternion`` checks one first). Each comes
+    from the largest of the trace and the diagonal entries, so no division is by a small number.
+    """
+    R = np.asarray(R, dtype=float)
+    if R.ndim == 2:
+        return _matrix_to_quaternion(R.tolist())
+    trace = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
+    choice = np.argmax(np.stack([R[..., 0, 0], R[..., 1, 1], R[..., 2, 2], trace], -1), -1)
+    q = np.empty(R.shape[:-2] + (4,))
+    for i in range(4):
+        at = choice == i
+        Ri = R[at]
+        if i == 3:
+            q[at] = np.stack([Ri[:, 2, 1] - Ri[:, 1, 2], Ri[:, 0, 2] - Ri[:, 2, 0],
+                              Ri[:, 1, 0] - Ri[:, 0, 1], 1.0 + trace[at]], -1)
+            continue
+        j, k = (i + 1) % 3, (i + 2) % 3
+        qi = np.empty((Ri.shape[0], 4))
+        qi[:, i] = 1.0 - trace[at] + 2.0 * Ri[:, i, i]
+        qi[:, j] = Ri[:, j, i] + Ri[:, i, j]
+        qi[:, k] = Ri[:, k, i] + Ri[:, i, k]
+        qi[:, 3] = Ri[:, k, j] - Ri[:, j, k]
+        q[at] = qi
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., 3:] < 0.0, -q, q)
+
+
+def _matrix_to_quaternion(R: list) -> np.ndarray:
+    """``matrices_to_quaternions`` of one matrix given as nested lists (the same steps)."""
+    trace = R[0][0] + R[1][1] + R[2][2]
+    diagonal = (R[0][0], R[1][1], R[2][2])
+    i = max(range(3), key=diagonal.__getitem__)
+    if trace > diagonal[i]:       # as argmax: the first of equals, the trace last
+        q = [R[2][1] - R[1][2], R[0][2] - R[2][0], R[1][0] - R[0][1], 1.0 + trace]
+    else:
+        j, k = (i + 1) % 3, (i + 2) % 3
+        q = [0.0, 0.0, 0.0, R[k][j] - R[j][k]]
+        q[i] = 1.0 - trace + 2.0 * R[i][i]
+        q[j] = R[j][i] + R[i][j]
+        q[k] = R[k][i] + R[i][k]
+    norm = math.sqrt(sum(v * v for v in q))
+    sign = -1.0 if q[3] < 0.0 else 1.0
+    return np.array([sign * v / norm for v in q])
+
+
+def unit_quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
+    """Return the rotations ``(..., 3, 3)`` of unit quaternions ``(..., 4)`` ``(x, y, z, w)``."""
+    q = np.asarray(q, dtype=float)
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
+def quaternion_angle(q: np.ndarray) -> np.ndarray:
+    """Return the rotation angle [rad] (0 .. pi) of unit quaternions ``(..., 4)``."""
+    q = np.asarray(q, dtype=float)
+    return 2.0 * np.arctan2(np.linalg.norm(q[..., :3], axis=-1), np.abs(q[..., 3]))
+
+
+def slerp(keys: Sequence[float], R_keys: np.ndarray, params: Sequence[float]) -> np.ndarray:
+    """
+    Return the rotations ``(m, 3, 3)`` at ``params`` (m,), SLERPed between ``R_keys`` (k, 3, 3).
+
+    ``keys`` (k,) rise strictly; a parameter outside them takes the nearest end's rotation.
+    Between two keys the rotation turns about one fixed axis at a constant rate, the shorter
+    way, as scipy's ``Slerp`` does.
+    """
+    keys = np.asarray(keys, dtype=float)
+    q = matrices_to_quaternions(R_keys)
+    params = np.clip(np.asarray(params, dtype=float), keys[0], keys[-1])
+    seg = np.clip(np.searchsorted(keys, params, side='right') - 1, 0, len(keys) - 2)
+    u = (params - keys[seg]) / (keys[seg + 1] - keys[seg])
+    q0, q1 = q[seg], q[seg + 1]
+    dot = np.sum(q0 * q1, axis=-1)
+    q1 = np.where(dot[:, None] < 0.0, -q1, q1)            # the shorter way
+    angle = np.arccos(np.clip(np.abs(dot), -1.0, 1.0))
+    small = angle < 1e-9
+    sin = np.where(small, 1.0, np.sin(angle))
+    w0 = np.where(small, 1.0 - u, np.sin((1.0 - u) * angle) / sin)
+    w1 = np.where(small, u, np.sin(u * angle) / sin)
+    out = w0[:, None] * q0 + w1[:, None] * q1
+    out /= np.linalg.norm(out, axis=-1, keepdims=True)
+    return unit_quaternion_to_matrix(out)
 
 
 def pose_from_xyzabc(x: float, y: float, z: float, a: float, b: float, c: float) -> np.ndarray:
@@ -88,9 +185,9 @@ def pose_from_xyzabc(x: float, y: float, z: float, a: float, b: float, c: float)
 
 def rotation_angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
     """Return the angle [rad] of the rotation taking ``R_a`` to ``R_b`` (0 .. pi)."""
-    # Rotation.magnitude is accurate near zero, where arccos of the trace loses half the digits.
+    # From the quaternion: accurate near zero, where arccos of the trace loses half the digits.
     R = np.asarray(R_a).T @ np.asarray(R_b)
-    return float(Rotation.from_matrix(R).magnitude())
+    return float(quaternion_angle(matrices_to_quaternions(R)))
 
 
 def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> tuple[float, float]:

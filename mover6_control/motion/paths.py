@@ -22,11 +22,11 @@ from typing import Callable, Optional, Sequence
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import (euler_zyx_to_matrix, make_transform,
-                                                 rotation_angle_between, validate_transform)
+                                                 rotation_angle_between, slerp,
+                                                 validate_transform)
 from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.spatial.transform import Rotation, Slerp
 
 # Points closer than this [m] and rotations smaller than this [rad] count as coincident.
 COINCIDENT_TOL = 1e-9
@@ -79,14 +79,8 @@ def _count(n, max_step, max_angle_step, length, angle, rate_scale=1.0):
 def _poses(positions, rotations):
     T = np.tile(np.eye(4), (positions.shape[0], 1, 1))
     T[:, :3, 3] = positions
-    T[:, :3, :3] = rotations.as_matrix()
+    T[:, :3, :3] = rotations
     return T
-
-
-def _slerp(keys, R_keys, params):
-    """Return rotations at ``params`` SLERPed between key rotations (3, 3) at ``keys``."""
-    return Slerp(np.asarray(keys, dtype=float), Rotation.from_matrix(np.asarray(R_keys)))(
-        np.clip(params, keys[0], keys[-1]))
 
 
 def _pin_ends(T, T_start, T_goal):
@@ -120,7 +114,7 @@ def linear_curve(T_start: np.ndarray, T_goal: np.ndarray, n: Optional[int] = Non
     def pose_at(t):
         t = np.asarray(t, dtype=float)
         pos = (1.0 - t)[:, None] * T_start[:3, 3] + t[:, None] * T_goal[:3, 3]
-        return _poses(pos, _slerp([0.0, 1.0], [T_start[:3, :3], T_goal[:3, :3]], t))
+        return _poses(pos, slerp([0.0, 1.0], [T_start[:3, :3], T_goal[:3, :3]], t))
 
     return _sampled(pose_at, np.linspace(0.0, 1.0, count), T_start, T_goal)
 
@@ -204,7 +198,7 @@ def parabolic_curve_through(T_start, p_peak, T_goal, n=None, max_step=None,
     def pose_at(t):
         t = np.asarray(t, dtype=float)
         pos = np.outer(t ** 2, a) + np.outer(t, b) + c
-        return _poses(pos, _slerp([0.0, 1.0], [T_start[:3, :3], T_goal[:3, :3]], t))
+        return _poses(pos, slerp([0.0, 1.0], [T_start[:3, :3], T_goal[:3, :3]], t))
 
     return _sampled(pose_at, np.linspace(0.0, 1.0, count), T_start, T_goal)
 
@@ -260,7 +254,7 @@ def spline_curve(T_start: np.ndarray, T_vias: np.ndarray, T_goal: np.ndarray,
 
     def pose_at(t):
         t = np.asarray(t, dtype=float)
-        return _poses(curve(t), _slerp(u_keys, R, t))
+        return _poses(curve(t), slerp(u_keys, R, t))
 
     return _sampled(pose_at, u, T_start, T_goal)
 
@@ -330,7 +324,7 @@ def arc_curve(T_start: np.ndarray, T_via: np.ndarray, T_goal: np.ndarray,
     def pose_at(t):
         phi = np.asarray(t, dtype=float) * ang_c
         pos = center + radius * (np.outer(np.cos(phi), e1) + np.outer(np.sin(phi), e2))
-        return _poses(pos, _slerp(keys, R, t))
+        return _poses(pos, slerp(keys, R, t))
 
     return _sampled(pose_at, np.linspace(0.0, 1.0, count), T_start, T_goal)
 
