@@ -50,7 +50,7 @@ from mover6_control.nodes.controller_demands import DemandThread
 from mover6_control.nodes.controller_ticks import TickLoop
 from mover6_control.nodes.goal_ledger import GoalLedger
 from mover6_control.nodes.node_clock import now_ns
-from mover6_control.nodes.params import config_from_parameters
+from mover6_control.nodes.node_configs import collision_settings, config_from_parameters
 from mover6_control.nodes.plan_worker import PlanWorker
 from mover6_control.nodes.qos import STATUS_QOS, STREAM_READER_QOS
 from mover6_control.parameters import CONTROLLER
@@ -144,7 +144,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         once the core exists, the config against the arm (one driver tick per joint ...).
         """
         _, config = config_from_parameters(get)
-        params.collision_settings(get)
+        collision_settings(get)
         core = getattr(self, 'core', None)
         if core is not None:
             core.check_config(config)
@@ -173,7 +173,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
     def apply_collision_parameters(self) -> None:
         """Give the core the collision check of the parameters (None when it is off)."""
         get = self.get_parameter
-        settings = params.collision_settings(lambda n: get(n).value)
+        settings = collision_settings(lambda n: get(n).value)
         with self.lock:
             guard = self.core.collision_guard
         if guard is None or guard.settings != settings:

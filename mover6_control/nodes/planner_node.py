@@ -47,6 +47,7 @@ from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 from mover6_control.nodes import conversions, params, shutdown
 from mover6_control.nodes.node_clock import now_ns
+from mover6_control.nodes.node_configs import planner_settings_from_parameters
 from mover6_control.nodes.planner_delivery import CONTROLLER_STATUS_QOS, DemandDelivery
 from mover6_control.nodes.planner_thread import PlanningThread, READY, WAITING
 from mover6_control.nodes.qos import LATEST_READER_QOS, STATUS_QOS
@@ -69,7 +70,7 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
         """Declare the parameters, build the arm, start the topics and the planning thread."""
         super().__init__('planner', **kwargs)
         # Refuses invalid values, each and as the planner's settings, at start and later.
-        params.declare(self, PLANNER, params.planner_settings_from_parameters)
+        params.declare(self, PLANNER, planner_settings_from_parameters)
         limit_set = self.get_parameter('limit_set').value
         self.arm = mover6(limit_set)
         self.state = WAITING

@@ -21,7 +21,7 @@ from mover6_control.control.planners import predicted_duration
 from mover6_control.control.status import PlannerState
 from mover6_control.errors import Mover6Error, UnreachableError
 from mover6_control.nodes.node_clock import now_ns
-from mover6_control.nodes.params import planner_settings_from_parameters
+from mover6_control.nodes.node_configs import planner_settings_from_parameters
 from mover6_control.planning.planner_core import PlannerSettings
 import numpy as np
 
