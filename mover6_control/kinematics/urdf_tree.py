@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import xml.etree.ElementTree as ElementTree
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.rotations import make_transform
+from mover6_control.kinematics.rotations import euler_zyx_to_matrix, make_transform
 import numpy as np
 
 MOVING = ('revolute', 'continuous', 'prismatic')
@@ -69,15 +69,6 @@ def _floats(text: str | None, default: tuple, what: str) -> np.ndarray:
     return np.array(values)
 
 
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """Return URDF's rotation of ``rpy`` [rad]: Rz(yaw) Ry(pitch) Rx(roll), (3, 3)."""
-    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
-                              np.cos(yaw), np.sin(yaw))
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
-
-
 def axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     """Return the rotation (3, 3) by ``angle`` [rad] about the unit ``axis`` (Rodrigues)."""
     x, y, z = axis
@@ -129,7 +120,8 @@ def parse_urdf(text: str) -> UrdfTree:
         mimic = element.find('mimic')
         joints.append(TreeJoint(
             name=name, type=kind, parent=parent.get('link'), child=child.get('link'),
-            origin=make_transform(xyz, rpy_matrix(*rpy)), axis=axis,
+            # URDF's rpy is the rotation Rz(yaw) Ry(pitch) Rx(roll): ZYX Euler angles reversed.
+            origin=make_transform(xyz, euler_zyx_to_matrix(rpy[2], rpy[1], rpy[0])), axis=axis,
             mimic=mimic.get('joint', '') if mimic is not None else '',
             multiplier=float(mimic.get('multiplier', 1.0)) if mimic is not None else 1.0,
             offset=float(mimic.get('offset', 0.0)) if mimic is not None else 0.0))
@@ -141,11 +133,16 @@ def parse_urdf(text: str) -> UrdfTree:
 
 def joint_transform(joint: TreeJoint, position: float = 0.0) -> np.ndarray:
     """Return ``T_parent_child`` (4, 4) of ``joint`` at ``position`` [rad or m]."""
+    # No validation here: the origin and the unit axis were checked when the URDF was parsed,
+    # and the state publisher calls this for every joint of every /tf it sends.
     if joint.type in ('revolute', 'continuous'):
-        return joint.origin @ make_transform((0.0, 0.0, 0.0),
-                                             axis_rotation(joint.axis, position))
+        T = joint.origin.copy()
+        T[:3, :3] = T[:3, :3] @ axis_rotation(joint.axis, position)
+        return T
     if joint.type == 'prismatic':
-        return joint.origin @ make_transform(joint.axis * position)
+        T = joint.origin.copy()
+        T[:3, 3] += T[:3, :3] @ (joint.axis * position)
+        return T
     return joint.origin
 
 

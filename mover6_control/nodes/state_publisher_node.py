@@ -19,7 +19,7 @@ from typing import Optional
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.rotations import matrix_to_quaternion
+from mover6_control.kinematics.rotations import matrices_to_quaternions
 from mover6_control.kinematics.urdf_tree import fixed_transforms, moving_transforms, parse_urdf
 from mover6_control.nodes import shutdown
 from mover6_control.nodes.params import declare
@@ -38,15 +38,19 @@ SHIPPED_URDF = os.path.join(CONFIG_DIR, 'mover6.urdf')
 
 def make_transform_stamped(T: np.ndarray, parent: str, child: str, stamp: Time,
                            prefix: str = '') -> TransformStamped:
-    """Return the ``TransformStamped`` of ``T`` (4, 4) from ``parent`` to ``child``."""
+    """
+    Return the ``TransformStamped`` of ``T`` (4, 4) from ``parent`` to ``child``.
+
+    ``T`` is a transform of the URDF tree (checked when the URDF was parsed): not checked again.
+    """
     msg = TransformStamped()
     msg.header.stamp = stamp
     msg.header.frame_id = prefix + parent
     msg.child_frame_id = prefix + child
     t = msg.transform.translation
-    t.x, t.y, t.z = (float(v) for v in T[:3, 3])
+    t.x, t.y, t.z = T[:3, 3].tolist()
     r = msg.transform.rotation
-    r.x, r.y, r.z, r.w = (float(v) for v in matrix_to_quaternion(T[:3, :3]))
+    r.x, r.y, r.z, r.w = matrices_to_quaternions(T[:3, :3]).tolist()
     return msg
 
 
