@@ -42,8 +42,9 @@ def test_joint_transforms_are_the_origin_then_the_joints_motion(q):
     tree = parse_urdf(URDF)
     got = {j.name: T for j, T in moving_transforms(tree, {'turn': q, 'slide': 0.3 * q})}
     axis = np.array([1.0, 2.0, 2.0]) / 3.0
-    assert np.abs(got['turn'] - reference([0.1, -0.2, 0.3], [0.4, -0.5, 0.6],
-                                          Rotation.from_rotvec(axis * q).as_matrix())).max() < 1e-12
+    turn = reference([0.1, -0.2, 0.3], [0.4, -0.5, 0.6],
+                     Rotation.from_rotvec(axis * q).as_matrix())
+    assert np.abs(got['turn'] - turn).max() < 1e-12
     slide_axis = np.array([0.0, 0.6, 0.8])
     assert np.abs(got['slide'] - reference([0.0, 0.0, 0.05], [1.2, 0.0, -0.3],
                                            shift=slide_axis * 0.3 * q)).max() < 1e-12
