@@ -1,6 +1,7 @@
 """
-The configs the nodes build from their parameters: the controller's, its servo's, the planner's
-and the collision settings both use.
+The configs the controller and the planner build from their parameters.
+
+The controller's, its servo's, the planner's, and the collision settings both of them use.
 
 Each takes a getter ``get(name)`` of the parameter values (those in force, or those a set would
 leave in force: the set check builds the config to refuse a value the node could not use) and

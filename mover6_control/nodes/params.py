@@ -3,9 +3,9 @@ Node parameters from ``mover6_control.parameters``: descriptors, declaration, th
 
 The one place where a ``ParameterSpec`` becomes a ROS ``ParameterDescriptor`` (description with
 the unit, ``floating_point_range`` / ``integer_range``, allowed values as
-``additional_constraints``, ``read_only``), used by every node alike. The configs each node builds from its
-parameters are in ``node_configs`` (this module imports no core config, so a node that needs
-none, the bridge or the state publisher, does not load the planners to start).
+``additional_constraints``, ``read_only``), used by every node alike. The configs the nodes
+build from their parameters are in ``node_configs``: this module imports no core config, so a
+node that needs none (the bridge, the state publisher) does not load the planners to start.
 """
 
 from typing import Callable, Optional
