@@ -29,6 +29,7 @@ import time
 from bench.output import RESULTS, write_json
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk, fk_batch
+from mover6_control.kinematics.rotations import goal_relative_to_start
 from mover6_control.motion import (jerk_limited, metrics, paths, spline_trajectories, time_laws,
                                    time_optimal, trajectories)
 from mover6_control.tools import plots
@@ -142,7 +143,7 @@ def bench_report_linear(arm):
     """Time the Mover6 report's linear example: its stop-at-each scheme against continuous."""
     q_home = np.zeros(arm.n_joints)
     T_home = fk(arm, q_home)
-    T_goal = paths.goal_relative_to_start(T_home, 0.445, 0.0, 0.4425, 0.0, 0.0, 0.0)
+    T_goal = goal_relative_to_start(T_home, 0.445, 0.0, 0.4425, 0.0, 0.0, 0.0)
     poses = paths.linear_path(T_home, T_goal, n=20)
     Q, ik_used = _solve_path(arm, poses, q_home)
     line = paths.positions_of(poses)[[0, -1]]

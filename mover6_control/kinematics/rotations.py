@@ -183,6 +183,19 @@ def pose_from_xyzabc(x: float, y: float, z: float, a: float, b: float, c: float)
     return make_transform([x, y, z], euler_zyx_to_matrix(a, b, c))
 
 
+def goal_relative_to_start(T_start: np.ndarray, x: float, y: float, z: float, a: float,
+                           b: float, c: float) -> np.ndarray:
+    """
+    Return the goal pose as the Mover6 report's MATLAB builds it, rotation relative to the start.
+
+    Position X Y Z [m] is absolute; the rotation is ``R_start @ Rz(a) Ry(b) Rx(c)``, so
+    ``a = b = c = 0`` keeps the start orientation (the Mover6 report:
+    ``tform2rotm(initial_Pos) * eul2rotm([A, B, C])``).
+    """
+    T_start = validate_transform(T_start, 'T_start')
+    return make_transform([x, y, z], T_start[:3, :3] @ euler_zyx_to_matrix(a, b, c))
+
+
 def rotation_angle_between(R_a: np.ndarray, R_b: np.ndarray) -> float:
     """Return the angle [rad] of the rotation taking ``R_a`` to ``R_b`` (0 .. pi)."""
     # From the quaternion: accurate near zero, where arccos of the trace loses half the digits.

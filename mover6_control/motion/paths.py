@@ -21,8 +21,7 @@ from dataclasses import dataclass
 from typing import Callable, Optional, Sequence
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.rotations import (euler_zyx_to_matrix, make_transform,
-                                                 rotation_angle_between, slerp,
+from mover6_control.kinematics.rotations import (rotation_angle_between, slerp,
                                                  validate_transform)
 from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
@@ -327,19 +326,6 @@ def arc_curve(T_start: np.ndarray, T_via: np.ndarray, T_goal: np.ndarray,
         return _poses(pos, slerp(keys, R, t))
 
     return _sampled(pose_at, np.linspace(0.0, 1.0, count), T_start, T_goal)
-
-
-def goal_relative_to_start(T_start: np.ndarray, x: float, y: float, z: float, a: float,
-                           b: float, c: float) -> np.ndarray:
-    """
-    Return the goal pose as the Mover6 report's MATLAB builds it, rotation relative to the start.
-
-    Position X Y Z [m] is absolute; the rotation is ``R_start @ Rz(a) Ry(b) Rx(c)``, so
-    ``a = b = c = 0`` keeps the start orientation (the Mover6 report:
-    ``tform2rotm(initial_Pos) * eul2rotm([A, B, C])``).
-    """
-    T_start = validate_transform(T_start, 'T_start')
-    return make_transform([x, y, z], T_start[:3, :3] @ euler_zyx_to_matrix(a, b, c))
 
 
 def positions_of(poses: np.ndarray) -> np.ndarray:

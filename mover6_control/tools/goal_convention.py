@@ -14,9 +14,9 @@ from typing import Optional, Sequence
 from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk
-from mover6_control.kinematics.rotations import (euler_zyx_near, make_transform,
-                                                 pose_from_xyzabc, quaternion_to_matrix)
-from mover6_control.motion.paths import goal_relative_to_start
+from mover6_control.kinematics.rotations import (euler_zyx_near, goal_relative_to_start,
+                                                 make_transform, pose_from_xyzabc,
+                                                 quaternion_to_matrix)
 import numpy as np
 
 EXIT_ARRIVED, EXIT_FAILED, EXIT_REFUSED, EXIT_NO_NODES = 0, 1, 2, 3

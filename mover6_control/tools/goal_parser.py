@@ -35,7 +35,7 @@ malformed, 3 nodes not found.
 
 import argparse
 
-from mover6_control.control.profiles import PROFILES
+from mover6_control.parameters import PROFILES
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -9,7 +9,7 @@ from mover6_control.control.planners import predicted_duration
 from mover6_control.control.profiles import LawConfig, PROFILES
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
-from mover6_control.motion.paths import goal_relative_to_start
+from mover6_control.kinematics.rotations import goal_relative_to_start
 from mover6_control.parameters import CONTROLLER, PLANNER
 from mover6_control.planning.planner_core import plan_pose_goal
 from mover6_control.planning.via_joint import plan_via_joint_move

@@ -9,10 +9,10 @@ from mover6_control.control.commands import (closed_loop_command, guard_position
 from mover6_control.control.motion_plan import plan_stop
 from mover6_control.control.planners import plan_motion
 from mover6_control.control.profiles import LawConfig
-from mover6_control.control.profiles import PROFILES as ALL_PROFILES
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.parameters import CONTROLLER
+from mover6_control.parameters import PROFILES as ALL_PROFILES
 import numpy as np
 import pytest
 

@@ -3,8 +3,8 @@
 from hypothesis import given, settings
 import hypothesis.strategies as st
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.rotations import (euler_zyx_to_matrix, make_transform,
-                                                 rotation_angle_between)
+from mover6_control.kinematics.rotations import (euler_zyx_to_matrix, goal_relative_to_start,
+                                                 make_transform, rotation_angle_between)
 from mover6_control.motion import paths
 import numpy as np
 import pytest
@@ -37,7 +37,7 @@ def test_linear_path_mover6_report_eq4_and_slerp():
 
 
 def test_mover6_report_example_keeps_home_orientation():
-    T_goal = paths.goal_relative_to_start(T0, 0.445, 0.0, 0.4425, 0.0, 0.0, 0.0)
+    T_goal = goal_relative_to_start(T0, 0.445, 0.0, 0.4425, 0.0, 0.0, 0.0)
     assert np.allclose(T_goal[:3, :3], R_HOME)
     poses = paths.linear_path(T0, T_goal, n=20)
     assert np.allclose(poses[:, :3, :3], R_HOME)
