@@ -172,8 +172,8 @@ class Simulator:
         contact_off = int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
         self._opt = self.model.opt       # the struct's wrapper, looked up once (every step)
         self._contact_flags = self._opt.disableflags & ~contact_off
-        self._vendor = self.config.mode == 'vendor_driver'
-        self._timeout = self.config.command_timeout + _EPS
+        self._vendor = self.config.mode == 'vendor_driver'   # the config is frozen: once
+        self._timeout = self.config.command_timeout + _EPS    # stale after this [s]
         self._geom_names = [mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, g) or str(g)
                             for g in range(self.model.ngeom)]
         # MuJoCo's warning kinds (name, index), looked up once: the node asks 100 times a second.
@@ -241,7 +241,7 @@ class Simulator:
 
     def state(self) -> JointReading:
         """Return the ``JointReading`` the arm reports now (the driver's view in vendor mode)."""
-        if self.config.mode == 'vendor_driver':
+        if self._vendor:
             return JointReading(self._read_time, self._read_q.copy(), self._read_qd.copy(),
                                 np.zeros(self.arm.n_joints))
         return JointReading(self.time, self.q, self.qd, self.effort)
@@ -278,7 +278,7 @@ class Simulator:
             raise InvalidInputError(f'the command has non-finite velocities: {values.tolist()}')
         if not math.isfinite(receive_time):
             raise InvalidInputError(f'receive_time must be finite, got {receive_time}')
-        vendor = self.config.mode == 'vendor_driver'
+        vendor = self._vendor
         cmd = self._cmd.copy() if vendor else np.zeros(self.arm.n_joints)
         warnings = []
         for name, value in zip(names, values):
@@ -309,9 +309,9 @@ class Simulator:
         caller sets the command anew).
         """
         last = self._cmd_time
-        if (self.config.mode == 'vendor_driver' or last is None
+        if (self._vendor or last is None
                 or not math.isfinite(receive_time) or receive_time < last
-                or receive_time - last > self.config.command_timeout + _EPS):
+                or receive_time - last > self._timeout):
             return False
         self._cmd_time = float(receive_time)
         self.command_count += 1

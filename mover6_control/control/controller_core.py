@@ -27,10 +27,12 @@ Behind a driver with a cycle (``jog_units`` 'fraction_of_max', the Mover6's vend
 ``cycle_driver``) the commands are compensated for its whole ticks and for what is still in
 flight (``driver_compensation``).
 
-One concept a module: this one holds the state, the inputs and the tick; its parts are the
-settings (``controller_config``), the demand protocol (``demand_intake``), jogging
-(``jogging``), the per-state ticks of a motion (``motion_ticks``) and the status
-(``status_report``).
+One concept a module: this one holds the inputs and the tick; its parts are the settings
+(``controller_config``), the demand protocol (``demand_intake``), jogging (``jogging``), the
+per-state ticks of a motion (``motion_ticks``) and the status (``status_report``). What the
+parts share lives in one record, the core's ``core_state`` (``core_state.CoreState``: the state
+machine's state and message, the motion, how it ended, the settings in force and pending); what
+only jogging keeps, in ``jog_session``; the arm's model, in ``robot``.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from typing import Optional, Sequence
 from mover6_control.control import state_machine as sm
 from mover6_control.control.commands import guard_position_limits, to_jog_units
 from mover6_control.control.controller_config import ControllerConfig, derive_config
+from mover6_control.control.core_state import CoreState
 from mover6_control.control.demand_intake import DemandIntake
 from mover6_control.control.driver_compensation import DriverCompensation
 from mover6_control.control.jogging import Jogging, JogSession
@@ -75,24 +78,12 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
         """Make a controller for ``arm`` (an ``ArmModel``) with ``config``."""
         self.arm = arm
         self.robot = Robot.from_arm(arm)  # the model: joints, states, demand, reference
-        self._driver = DriverCompensation(arm.n_joints)   # a driver with a cycle behind
-        self.config = None
-        self._pending_config = None      # applies when the running motion ends
-        self._apply(derive_config(self.arm, ControllerConfig() if config is None else config))
-        self._state = sm.WAITING_FOR_STATES
-        self._t_fault = None
-        self._motion_id = 0
-        self._waypoints_total = 0
-        self._waypoint = 0
-        self._t_settle = 0.0
-        self._message = 'waiting for /joint_states'
-        self._level = 'WARN'
-        self._result = {}
-        self._rejection = {}             # the last refused demand, until one is accepted
-        self._motion_profile = ''        # the profile the running (or last) motion is timed by
-        self._arrived_at = None          # [s] when the running motion arrived (None: not yet)
-        self._timing = ''                # timed_plan.plan_demand's note on the latest motion
-        self._changed = True
+        # A driver with a cycle behind the commands (control.driver_compensation).
+        self.driver_compensation = DriverCompensation(arm.n_joints)
+        derived = derive_config(self.arm, ControllerConfig() if config is None else config)
+        # What the parts share: the state machine, the motion, its result, the settings.
+        self.core_state = CoreState(derived)
+        self._apply(derived)
         self.jog_session = JogSession()  # jogging's own state (control.jogging)
         # A callable(plan) that raises on a colliding motion (collision_guard.CollisionGuard);
         # the node sets it. None: no collision check.
@@ -100,13 +91,15 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
         self.tick_failures = 0           # ticks in a row that raised (a fault each)
 
     def _apply(self, derived):
-        """Install a ``DerivedConfig`` (the config last: ``prepare_demand`` reads it)."""
-        config = derived.config
-        self.robot.set_limits(derived.goal_tolerance, config.law.a_max, derived.ticks)
-        self._settle_tol = derived.settle_tolerance
-        self._vlim, self._dt = derived.velocity_limits, derived.dt
-        self._driver.configure(derived)
-        self.config = config
+        """Install a ``DerivedConfig``: the robot's limits, the driver's ticks, then it whole."""
+        self.robot.set_limits(derived.goal_tolerance, derived.config.law.a_max, derived.ticks)
+        self.driver_compensation.configure(derived)
+        self.core_state.derived = derived
+
+    @property
+    def config(self) -> ControllerConfig:
+        """Return the ``ControllerConfig`` in force (``core_state.derived``'s)."""
+        return self.core_state.derived.config
 
     def check_config(self, config: ControllerConfig) -> None:
         """Raise ``InvalidInputError`` saying why ``config`` cannot drive this arm."""
@@ -123,18 +116,18 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
         a pending config. Raises ``InvalidInputError`` (nothing changed) when it does not fit.
         """
         derived = derive_config(self.arm, config)
-        self._changed = True
-        if self._state in sm.MOVING_STATES:
-            self._pending_config = derived
+        self.core_state.changed = True
+        if self.core_state.state in sm.MOVING_STATES:
+            self.core_state.pending = derived
             return False
-        self._pending_config = None
+        self.core_state.pending = None
         self._apply(derived)
         return True
 
     @property
     def pending_config(self) -> Optional[ControllerConfig]:
         """Return the config waiting for the running motion to end (None when none)."""
-        return None if self._pending_config is None else self._pending_config.config
+        return None if self.core_state.pending is None else self.core_state.pending.config
 
     @property
     def goal_tolerance(self) -> np.ndarray:
@@ -146,12 +139,12 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
     @property
     def state(self) -> str:
         """Return the current state name (``state_machine.STATES``)."""
-        return self._state
+        return self.core_state.state
 
     @property
     def motion_id(self) -> int:
         """Return the id of the latest accepted demand (0 before any)."""
-        return self._motion_id
+        return self.core_state.motion_id
 
     @property
     def plan(self) -> Optional[MotionPlan]:
@@ -172,19 +165,19 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
 
     def request_stop(self, now: float) -> tuple[bool, str]:
         """Decelerate to rest and hold; return ``(True, message)`` or why nothing moved."""
-        if self._state not in (sm.EXECUTING, sm.SETTLING, sm.JOGGING):
-            return True, f'not moving ({self._state}); command is zero'
+        if self.core_state.state not in (sm.EXECUTING, sm.SETTLING, sm.JOGGING):
+            return True, f'not moving ({self.core_state.state}); command is zero'
         ref = self.robot.reference
         q_ref, qd_ref = ref if ref is not None else (self.robot.q, self.robot.commanded)
         self.robot.give(plan_stop(q_ref, qd_ref, self.config.law.a_max), now)
-        self._result = {K.RESULT: MotionResult.STOPPED, K.CAUSE: Cause.STOP_REQUESTED,
-                        K.REASON: 'stop requested'}
-        self._set(sm.STOP, 'OK', f'stopping motion {self._motion_id} on request')
+        self.core_state.result = {K.RESULT: MotionResult.STOPPED,
+                                  K.CAUSE: Cause.STOP_REQUESTED, K.REASON: 'stop requested'}
+        self._set(sm.STOP, 'OK', f'stopping motion {self.core_state.motion_id} on request')
         return True, f'stopping within {self.robot.plan.duration:.2f} s'
 
     def reset(self, now: float) -> None:
         """Leave fault: wait for fresh joint states again."""
-        if self._state == sm.FAULT:
+        if self.core_state.state == sm.FAULT:
             self.robot.forget_states()
             self._set(sm.RESET, 'WARN', 'reset: waiting for /joint_states')
 
@@ -209,18 +202,19 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
 
     def _tick_fault(self, now, reason):
         """Fault at ``now``: drop the motion or jog, a zero command, ``reason`` on the status."""
-        if self._state in sm.MOVING_STATES:
-            self._result = {K.RESULT: MotionResult.FAULT, K.REASON: reason}
+        if self.core_state.state in sm.MOVING_STATES:
+            self.core_state.result = {K.RESULT: MotionResult.FAULT, K.REASON: reason}
         self.robot.drop_plan()
-        self._t_fault = now
+        self.core_state.t_fault = now
         self._set(sm.TICK_FAULT, 'ERROR', reason)
         zero = np.zeros(self.arm.n_joints)
         self.robot.commanded = zero
-        return TickOutput(zero, zero.copy(), self._state, True)
+        return TickOutput(zero, zero.copy(), self.core_state.state, True)
 
     def _tick(self, now):
         self._check_states(now)
-        state = self._state
+        shared = self.core_state
+        state = shared.state
         qd = None
         if state == sm.EXECUTING:
             qd = self._tick_executing(now)
@@ -230,52 +224,55 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
             qd = self._tick_stopping(now)
         elif state == sm.JOGGING:
             qd = self._tick_jogging(now)
-        if qd is None or self._state not in sm.MOVING_STATES:
+        if qd is None or shared.state not in sm.MOVING_STATES:
             qd = np.zeros(self.arm.n_joints)
             self.robot.reference = None
         else:
-            if (self._driver.active and self._state in (sm.EXECUTING, sm.SETTLING)
-                    and self._arrived_at is None):     # after arrival: whole-tick pulses
-                qd = self._driver.whole_ticks(now, qd, self.robot)
+            if (self.driver_compensation.active and shared.state in (sm.EXECUTING, sm.SETTLING)
+                    and shared.arrived_at is None):     # after arrival: whole-tick pulses
+                qd = self.driver_compensation.whole_ticks(now, qd, self.robot)
             qd = guard_position_limits(qd, self.robot.q, self.robot.lower, self.robot.upper,
-                                       self._dt)
+                                       shared.derived.dt)
             if not np.all(np.isfinite(qd)):      # never sent: no driver may receive a NaN
                 return self._tick_fault(now, f'non-finite command {np.asarray(qd).tolist()} '
                                              f'while {state}: not sent')
-        self._driver.end_tick(now, qd, self.robot.n_states)
+        self.driver_compensation.end_tick(now, qd, self.robot.n_states)
         self.robot.commanded = qd
         jog = to_jog_units(qd, self.arm.velocity_limits, self.config.jog_units,
                            self.config.speed_override)
-        if self._pending_config is not None and self._state not in sm.MOVING_STATES:
-            self._apply(self._pending_config)      # the motion ended: the new config now
-            self._pending_config = None
-            self._changed = True
-        changed, self._changed = self._changed, False
-        return TickOutput(qd, jog, self._state, changed)
+        if shared.pending is not None and shared.state not in sm.MOVING_STATES:
+            self._apply(shared.pending)      # the motion ended: the new config now
+            shared.pending = None
+            shared.changed = True
+        changed, shared.changed = shared.changed, False
+        return TickOutput(qd, jog, shared.state, changed)
 
     def _check_states(self, now):
+        shared = self.core_state
         if not self.robot.measured:
             if self.robot.invalid_reason is not None:
                 message = f'waiting for valid /joint_states: {self.robot.invalid_reason}'
-                if message != self._message:
-                    self._message, self._changed = message, True
+                if message != shared.message:
+                    shared.message, shared.changed = message, True
             return
         reason = self.robot.states_problem(now, self.config.state_timeout)
         if reason is not None:
-            if self._state != sm.FAULT and sm.accepts(self._state, sm.STATES_INVALID):
-                if self._state in sm.MOVING_STATES:
-                    self._result = {K.RESULT: MotionResult.FAULT, K.CAUSE: Cause.STATES_INVALID,
-                                    K.REASON: reason}
+            if shared.state != sm.FAULT and sm.accepts(shared.state, sm.STATES_INVALID):
+                if shared.state in sm.MOVING_STATES:
+                    shared.result = {K.RESULT: MotionResult.FAULT, K.CAUSE: Cause.STATES_INVALID,
+                                     K.REASON: reason}
                 self.robot.drop_plan()
-                self._t_fault = now
+                shared.t_fault = now
                 self._set(sm.STATES_INVALID, 'ERROR', reason)
             return
-        if self._state == sm.WAITING_FOR_STATES:
+        if shared.state == sm.WAITING_FOR_STATES:
             self._set(sm.STATES_VALID, 'OK', 'joint states received; idle')
-        elif self._state == sm.FAULT and self.robot.t_states > self._t_fault:
+        elif shared.state == sm.FAULT and self.robot.t_states > shared.t_fault:
             self._set(sm.STATES_VALID, 'OK', 'valid joint states again; idle')
 
     def _set(self, event, level, message):
-        self._state = sm.step(self._state, event)
-        self._level, self._message = level, message
-        self._changed = True
+        """Step the state machine by ``event``; the status says ``message`` at ``level``."""
+        shared = self.core_state
+        shared.state = sm.step(shared.state, event)
+        shared.level, shared.message = level, message
+        shared.changed = True

@@ -13,8 +13,9 @@ The planning itself is a ``PlanJob`` (its inputs, read from the snapshot and the
 for the controller's state raises ``NotAcceptingError``, so the node can tell it from a bad
 demand (it waits for fresh states and asks again: the refusal names the state it is in then).
 
-``DemandIntake`` is a part of ``controller_core.ControllerCore`` (its state is the core's, set
-in ``ControllerCore.__init__``); it is not used on its own.
+``DemandIntake`` is a part of ``controller_core.ControllerCore``: the state it shares with the
+other parts is the core's ``core_state`` (``control.core_state.CoreState``); it is not used on
+its own.
 """
 
 from __future__ import annotations
@@ -124,11 +125,12 @@ class DemandIntake:
 
     def snapshot(self) -> Snapshot:
         """Return the ``Snapshot`` a demand is planned from (call it under the node's lock)."""
-        state, ref = self._state, self.robot.reference          # each read once
+        shared = self.core_state
+        state, ref = shared.state, self.robot.reference          # each read once
         moving = state != sm.IDLE and ref is not None
         q = self.robot.q if self.robot.measured else None
-        return Snapshot(state, ref if moving else (q, None), moving, self._motion_id,
-                        self._message)
+        return Snapshot(state, ref if moving else (q, None), moving, shared.motion_id,
+                        shared.message)
 
     def prepare_demand(self, now: float, waypoints: np.ndarray, snapshot: Snapshot,
                        demand_id: str = '', timing: Optional[Timing] = None,
@@ -149,8 +151,8 @@ class DemandIntake:
         ``PlanJob`` (default: ``job.run(guard)`` here; a node may run it in another process).
         Raises ``NotAcceptingError`` when the snapshot's state takes no demand.
         """
-        config = self.config       # read once, before the limits it comes with (_apply)
-        vlim = self._vlim
+        derived = self.core_state.derived     # read once: the config and its limits together
+        config, vlim = derived.config, derived.velocity_limits
         Q = self.check_demand(waypoints)
         self._check_accepts(snapshot.state, snapshot.message)
         q_start, qd_start = snapshot.start
@@ -215,25 +217,27 @@ class DemandIntake:
         motion ended, another started: ``is_current`` is False) the demand is planned again
         from a new snapshot; raises when it cannot take a demand any more.
         """
-        self._check_accepts(self._state)
+        shared = self.core_state
+        self._check_accepts(shared.state)
         plan, note = pending.plan, pending.timing_note
         if not self.is_current(pending):
             q_start, qd_start = self.snapshot().start
-            plan, note = PlanJob(self.law_for(pending.profile), q_start, pending.waypoints,
-                                 self._vlim, qd_start, pending.timing, self.arm.lower,
-                                 self.arm.upper).run(self.collision_guard)   # checked as before
-        self._timing = note
+            job = PlanJob(self.law_for(pending.profile), q_start, pending.waypoints,
+                          shared.derived.velocity_limits, qd_start, pending.timing,
+                          self.arm.lower, self.arm.upper)
+            plan, note = job.run(self.collision_guard)   # checked as before
+        shared.timing = note
         self.robot.give(plan, pending.now if start is None else start)
-        self._motion_id += 1
-        self._waypoints_total, self._waypoint = len(pending.waypoints), 0
-        self._result = {}
-        self._rejection = {}
-        self._arrived_at = None
-        self._motion_profile = pending.profile or self.config.law.profile
-        self._set(sm.DEMAND, 'OK', f'motion {self._motion_id}: {len(pending.waypoints)} '
-                                   f'waypoint(s), {self._motion_profile}, '
+        shared.motion_id += 1
+        shared.waypoints_total, shared.waypoint = len(pending.waypoints), 0
+        shared.result = {}
+        shared.rejection = {}
+        shared.arrived_at = None
+        shared.motion_profile = pending.profile or self.config.law.profile
+        self._set(sm.DEMAND, 'OK', f'motion {shared.motion_id}: {len(pending.waypoints)} '
+                                   f'waypoint(s), {shared.motion_profile}, '
                                    f'{plan.duration:.2f} s')
-        return self._motion_id
+        return shared.motion_id
 
     def is_current(self, pending: PendingDemand) -> bool:
         """
@@ -245,21 +249,24 @@ class DemandIntake:
         """
         snapshot = self.snapshot()
         return (snapshot.moving == pending.moving and snapshot.motion_id == pending.motion_id
-                and self._state in sm.ACCEPTS_DEMANDS and pending.config is self.config)
+                and self.core_state.state in sm.ACCEPTS_DEMANDS
+                and pending.config is self.config)
 
     def reject(self, now: float, reason: str, demand_id: str = '') -> None:
         """Note a refused demand: reason, time [s] and id stay in the status until one is taken."""
-        self._rejection = {K.REJECTED: short_text(reason),
-                           K.REJECTED_TIME: f'{now:.3f}',
-                           K.REJECTED_GOAL_ID: str(demand_id)}
-        self._changed = True
+        self.core_state.rejection = {K.REJECTED: short_text(reason),
+                                     K.REJECTED_TIME: f'{now:.3f}',
+                                     K.REJECTED_GOAL_ID: str(demand_id)}
+        self.core_state.changed = True
 
     def refusal(self) -> Optional[NotAcceptingError]:
         """Return why no demand is taken in the state now (None: one is); under the lock."""
-        if self._state in sm.ACCEPTS_DEMANDS:
+        shared = self.core_state
+        if shared.state in sm.ACCEPTS_DEMANDS:
             return None
-        return NotAcceptingError(self._state, self._message)
+        return NotAcceptingError(shared.state, shared.message)
 
     def _check_accepts(self, state, message=None):
         if state not in sm.ACCEPTS_DEMANDS:
-            raise NotAcceptingError(state, self._message if message is None else message)
+            raise NotAcceptingError(state,
+                                    self.core_state.message if message is None else message)

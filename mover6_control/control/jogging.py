@@ -7,8 +7,8 @@ Idle, a fresh command starts jogging; jogging, the next replaces it; it ends, at
 command goes stale. While a collision guard is set, the jog's next poses are checked by it too.
 
 ``Jogging`` is a part of ``controller_core.ControllerCore`` (the state it shares with the other
-parts is the core's, set in ``ControllerCore.__init__``); it is not used on its own. What only
-jogging keeps between commands and ticks is its own ``JogSession``
+parts is the core's ``core_state``, a ``control.core_state.CoreState``); it is not used on its
+own. What only jogging keeps between commands and ticks is its own ``JogSession``
 (``ControllerCore.jog_session``), which the status reads.
 """
 
@@ -68,11 +68,12 @@ class Jogging:
     def _take_jog(self, now, make):
         try:
             command = make()
-            if self._state != sm.JOGGING:
-                if self._state != sm.IDLE:
-                    hint = '; stop the motion first' if self._state in sm.MOVING_STATES else ''
-                    raise InvalidInputError(f'jogging refused while {self._state}: '
-                                            f'{self._message}{hint}')
+            state = self.core_state.state
+            if state != sm.JOGGING:
+                if state != sm.IDLE:
+                    hint = '; stop the motion first' if state in sm.MOVING_STATES else ''
+                    raise InvalidInputError(f'jogging refused while {state}: '
+                                            f'{self.core_state.message}{hint}')
                 timeout = self.config.servo.command_timeout
                 if command_age(command, now) > timeout:
                     raise InvalidInputError(f'jog command older than the timeout {timeout:g} s '
@@ -80,45 +81,45 @@ class Jogging:
         except InvalidInputError as err:
             self.note_jog_refused(str(err))
             raise
-        session = self.jog_session
+        session, shared = self.jog_session, self.core_state
         session.command = command
         if session.refused:
-            session.refused, self._changed = '', True
-        if self._state == sm.IDLE:
+            session.refused, shared.changed = '', True
+        if shared.state == sm.IDLE:
             session.servo_state = initial_state(self.arm)
             session.kind = ''
-            self._result = {}
+            shared.result = {}
             self._set(sm.JOG, 'OK', 'jogging')
 
     def note_jog_refused(self, reason: str) -> None:
         """Keep why a jog command was refused (status: ``jog_refused``) until one is taken."""
         session = self.jog_session
         if session.refused != reason:     # a stream of the same refusal: one status change
-            session.refused, self._changed = reason, True
+            session.refused, self.core_state.changed = reason, True
 
     def _tick_jogging(self, now):
         """Return this tick's jogging command; back to idle once stale and at rest."""
-        q, session = self.robot.q, self.jog_session
+        q, session, shared = self.robot.q, self.jog_session, self.core_state
         servo, guard = self.config.servo, self.collision_guard
         if guard is not None and servo.veto is None:     # the jog's next poses are checked too
             if session.vetoed[0] is not servo or session.vetoed[1] is not guard:
                 session.vetoed = (servo, guard, replace(servo, veto=guard.veto))
             servo = session.vetoed[2]
         out = servo_step(self.arm, servo, session.servo_state, session.command, q, now,
-                         self._dt, self._vlim)
+                         shared.derived.dt, shared.derived.velocity_limits)
         session.servo_state = out.state
         self.robot.reference = (q, out.qd)      # a demand now starts from the jog's velocity
         kind = ('stale' if out.stale else 'halted' if out.halted
                 else 'slowed' if out.scale < 1.0 else 'free')
         session.values = {K.JOG_REASON: out.reason, K.JOG_CONDITION: f'{out.condition:.2f}',
                           K.JOG_SCALE: f'{out.scale:.3f}'}
-        self._message = f'jogging: {out.reason}' if out.reason else 'jogging'
-        self._level = 'OK' if kind in ('free', 'stale') else 'WARN'
+        shared.message = f'jogging: {out.reason}' if out.reason else 'jogging'
+        shared.level = 'OK' if kind in ('free', 'stale') else 'WARN'
         if kind != session.kind:
-            session.kind, self._changed = kind, True
+            session.kind, shared.changed = kind, True
         if out.stale and out.at_rest:
-            self._result = {K.RESULT: MotionResult.JOG_STOPPED, K.CAUSE: Cause.JOG_ENDED,
-                            K.REASON: out.reason}
+            shared.result = {K.RESULT: MotionResult.JOG_STOPPED, K.CAUSE: Cause.JOG_ENDED,
+                             K.REASON: out.reason}
             self._set(sm.JOG_DONE, 'OK', f'jog ended, at rest: {out.reason}; idle')
             return None
         return out.qd

@@ -7,8 +7,10 @@ goal tolerance (result 'arrived'), then closes the last of the error down to the
 tolerance (behind a driver with a cycle, counting what is in flight: ``driver_compensation``);
 stopping follows the stop plan to rest.
 
-``MotionTicks`` is a part of ``controller_core.ControllerCore`` (its state is the core's, set in
-``ControllerCore.__init__``); it is not used on its own.
+``MotionTicks`` is a part of ``controller_core.ControllerCore``: the state it shares with the
+other parts is the core's ``core_state`` (``control.core_state.CoreState``), the arm's model its
+``robot`` and the compensation of a driver with a cycle its ``driver_compensation``; it is not
+used on its own.
 """
 
 from __future__ import annotations
@@ -26,23 +28,24 @@ class MotionTicks:
     """The per-state ticks of a motion of ``ControllerCore`` (module docstring)."""
 
     def _tick_executing(self, now):
+        shared = self.core_state
         t = self.robot.follow(now)
         q_ref, qd_ref = self.robot.reference
-        self._waypoint = self.robot.plan.waypoints_reached(t)
+        shared.waypoint = self.robot.plan.waypoints_reached(t)
         worst = float(np.max(np.abs(self.robot.error)))
         if worst > self.config.path_tolerance:
             self.robot.give(plan_stop(q_ref, qd_ref, self.config.law.a_max), now)
             reason = (f'tracking error {worst:.3f} rad above path tolerance '
                       f'{self.config.path_tolerance} rad')
-            self._result = {K.RESULT: MotionResult.ABORTED, K.CAUSE: Cause.PATH_TOLERANCE,
-                            K.REASON: reason}
-            self._set(sm.PATH_ERROR, 'WARN', f'aborting motion {self._motion_id}: {reason}')
+            shared.result = {K.RESULT: MotionResult.ABORTED, K.CAUSE: Cause.PATH_TOLERANCE,
+                             K.REASON: reason}
+            self._set(sm.PATH_ERROR, 'WARN', f'aborting motion {shared.motion_id}: {reason}')
             return self._tick_stopping(now)
         if t >= self.robot.plan.duration:
-            self._t_settle = now
-            self._set(sm.REFERENCE_DONE, 'OK', f'motion {self._motion_id}: settling')
+            shared.t_settle = now
+            self._set(sm.REFERENCE_DONE, 'OK', f'motion {shared.motion_id}: settling')
             return self._tick_settling(now)
-        return self.robot.command(self.config.position_gain, self._vlim)
+        return self.robot.command(self.config.position_gain, shared.derived.velocity_limits)
 
     def _tick_settling(self, now):
         """
@@ -53,52 +56,53 @@ class MotionTicks:
         joint is inside the settle tolerance or ``settle_time`` has passed since the arrival,
         then the controller goes idle and holds with a zero command.
         """
+        shared = self.core_state
         goal = self.robot.plan.q_goal
         self.robot.hold(goal)
-        self._waypoint = self._waypoints_total
+        shared.waypoint = shared.waypoints_total
         worst = float(np.max(np.abs(self.robot.error)))
-        if self._arrived_at is None:
+        if shared.arrived_at is None:
             if np.all(self._within(self.robot.goal_tolerances)):
-                self._arrived_at = now
-                self._result = {K.RESULT: MotionResult.ARRIVED,
-                                K.FINAL_JOINT_ERROR: f'{worst:.6f}'}
-                self._message = (f'motion {self._motion_id} arrived (max joint error '
-                                 f'{worst:.4f} rad); settling')
-                self._changed = True
-            elif now - self._t_settle > self.config.settle_timeout:
+                shared.arrived_at = now
+                shared.result = {K.RESULT: MotionResult.ARRIVED,
+                                 K.FINAL_JOINT_ERROR: f'{worst:.6f}'}
+                shared.message = (f'motion {shared.motion_id} arrived (max joint error '
+                                  f'{worst:.4f} rad); settling')
+                shared.changed = True
+            elif now - shared.t_settle > self.config.settle_timeout:
                 reason = (f'not within goal tolerance after {self.config.settle_timeout} s '
                           f'(max joint error {worst:.4f} rad)')
-                self._result = {K.RESULT: MotionResult.ABORTED, K.CAUSE: Cause.GOAL_TOLERANCE,
-                                K.REASON: reason, K.FINAL_JOINT_ERROR: f'{worst:.6f}'}
-                self._set(sm.SETTLE_TIMEOUT, 'WARN', f'motion {self._motion_id}: {reason}')
+                shared.result = {K.RESULT: MotionResult.ABORTED, K.CAUSE: Cause.GOAL_TOLERANCE,
+                                 K.REASON: reason, K.FINAL_JOINT_ERROR: f'{worst:.6f}'}
+                self._set(sm.SETTLE_TIMEOUT, 'WARN', f'motion {shared.motion_id}: {reason}')
                 return None
-        if self._arrived_at is not None:
-            fine = np.all(self._within(self._settle_tol))
-            if fine or now - self._arrived_at >= self.config.settle_time:
-                if self._driver.active and np.any(self._in_flight() != 0.0):
+        if shared.arrived_at is not None:
+            fine = np.all(self._within(shared.derived.settle_tolerance))
+            if fine or now - shared.arrived_at >= self.config.settle_time:
+                if self.driver_compensation.active and np.any(self._in_flight() != 0.0):
                     # Settle time over: command zero until what is in flight has landed, so
                     # the arm is still once idle (the driver lags up to two cycles).
                     return np.zeros_like(goal)
-                self._result = {**self._result, K.SETTLED_JOINT_ERROR: f'{worst:.6f}'}
+                shared.result = {**shared.result, K.SETTLED_JOINT_ERROR: f'{worst:.6f}'}
                 how = 'settled' if fine else f'settle time {self.config.settle_time} s over'
-                self._set(sm.SETTLED, 'OK', f'motion {self._motion_id} arrived; {how} '
+                self._set(sm.SETTLED, 'OK', f'motion {shared.motion_id} arrived; {how} '
                                             f'(max joint error {worst:.6f} rad); holding')
                 return None
             return self._fine_command(now)
-        return self.robot.command(self.config.position_gain, self._vlim)
+        return self.robot.command(self.config.position_gain, shared.derived.velocity_limits)
 
     def _in_flight(self):
         """Return the motion (n,) [rad] commanded that the latest reading cannot show yet."""
-        return self._driver.in_flight(self.robot.t_states)
+        return self.driver_compensation.in_flight(self.robot.t_states)
 
     def _within(self, tol):
         """Return which joints are within ``tol`` (n,) of the goal, counting what still moves."""
-        if self._driver.active:
+        if self.driver_compensation.active:
             return self.robot.within(tol, self._in_flight())
         # Not arrived while still moving: where the arm will be two ticks from now must be
         # within tolerance too (a law that ends at full speed, such as the synchronised one,
         # would otherwise declare arrival and coast one tick past the goal).
-        return self.robot.within(tol, 2.0 * self._dt * self.robot.qd)
+        return self.robot.within(tol, 2.0 * self.core_state.derived.dt * self.robot.qd)
 
     def _fine_command(self, now):
         """
@@ -112,18 +116,19 @@ class MotionTicks:
         readings are whole ticks two or three cycles old (the plain loop on them crept, and
         limit-cycled a wrist joint by a tick).
         """
-        if not self._driver.active:
-            gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / self._dt)
-            return self.robot.command(gain, self._vlim)
-        return self._driver.tick_pulses(now, self.robot, self._vlim)
+        derived = self.core_state.derived
+        if not self.driver_compensation.active:
+            gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / derived.dt)
+            return self.robot.command(gain, derived.velocity_limits)
+        return self.driver_compensation.tick_pulses(now, self.robot, derived.velocity_limits)
 
     def _tick_stopping(self, now):
         t = self.robot.follow(now)
         qd_ref = self.robot.reference[1]
         if t >= self.robot.plan.duration:
             self.robot.drop_plan()
-            result = self._result.get(K.RESULT, MotionResult.STOPPED)
+            result = self.core_state.result.get(K.RESULT, MotionResult.STOPPED)
             self._set(sm.AT_REST, 'OK' if result == MotionResult.STOPPED else 'WARN',
-                      f'motion {self._motion_id} {result}: at rest, holding')
+                      f'motion {self.core_state.motion_id} {result}: at rest, holding')
             return None
         return qd_ref.copy()

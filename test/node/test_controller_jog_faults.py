@@ -5,6 +5,11 @@ A huge twist publishes no NaN and the tick goes on; a future stamp does not keep
 and a malformed one is refused with the reason; an exception inside a tick is a fault with the
 reason on the status, and a tick that cannot run at all ends the node, in a process with exit
 code 1. A test node plays the arm (``test_controller_node.FakeArm``).
+
+The exceptions come from inside the core's real tick, through what it calls: the collision
+guard's veto of the jog's next pose (the node gives the core its guard,
+``ControllerCore.collision_guard``), or the robot's states check that opens every tick
+(``Robot.measured``); the doubles stand in for those, never for the tick itself.
 """
 
 import os
@@ -14,6 +19,7 @@ import time
 
 from control_msgs.msg import JointJog
 from geometry_msgs.msg import TwistStamped
+from mover6_control.control.robot import Robot
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes import conversions, local_dds
 from mover6_control.nodes.controller_node import ControllerNode
@@ -166,19 +172,34 @@ def test_a_malformed_stamp_is_refused_with_the_reason_and_changes_nothing(ros):
     assert arm.status()['state'] == 'idle' and not np.any(arm.qd)
 
 
-def test_an_exception_in_a_tick_is_a_fault_with_the_reason_and_the_tick_goes_on(ros):
-    """The core's tick raising (a test double for it) killed the tick thread; now: a fault."""
-    controller, arm, jogger, spin_until = ros
-    real, raised = controller.core._tick, []
+class VetoBreaksOnce:
+    """A collision guard whose veto of a jog's next pose raises once, then lets all pass."""
 
-    def broken(now):
-        if not raised:
-            raised.append(now)
+    def __init__(self):
+        self.raised = 0
+
+    def __call__(self, plan):
+        pass                            # a demand's plan: no collision
+
+    def veto(self, q, q_ahead):
+        if not self.raised:
+            self.raised += 1
             raise RuntimeError('broken once')
-        return real(now)
+        return None
 
+
+def always_broken(robot):
+    raise RuntimeError('always broken')
+
+
+def test_an_exception_in_a_tick_is_a_fault_with_the_reason_and_the_tick_goes_on(ros):
+    """An exception inside the tick (the guard's veto of the jog) killed the tick thread."""
+    controller, arm, jogger, spin_until = ros
     stream(spin_until, lambda: jogger.joints(['joint1'], [0.2]), 0.5)
-    controller.core._tick = broken
+    guard = VetoBreaksOnce()
+    with controller.lock:               # as the node gives the core its guard
+        assert controller.core.state == 'jogging'
+        controller.core.collision_guard = guard     # the next jogging tick calls its veto
     reason = 'tick failed: RuntimeError: broken once'
 
     def fault():
@@ -192,18 +213,15 @@ def test_an_exception_in_a_tick_is_a_fault_with_the_reason_and_the_tick_goes_on(
     spin_until(lambda: arm.status().get('state') == 'idle')   # fresh states clear it
     spin_until(lambda: len(arm.jogs) > faulted + 20)          # and the ticks went on
     assert not any(any(m.velocities) for m in arm.jogs[faulted:])
-    assert controller.fatal is None and controller.tick_thread.is_alive()
+    assert guard.raised == 1 and controller.fatal is None and controller.tick_thread.is_alive()
 
 
-def test_a_tick_that_cannot_run_ends_the_node(ros):
-    """Every tick raising (a test double for the core's): zero command, then the node gives up."""
+def test_a_tick_that_cannot_run_ends_the_node(ros, monkeypatch):
+    """Every tick raising (the robot's states check broken): zero command, the node gives up."""
     controller, arm, jogger, spin_until = ros
-
-    def broken(now):
-        raise RuntimeError('always broken')
-
     stream(spin_until, lambda: jogger.joints(['joint1'], [0.2]), 0.5)
-    controller.core._tick = broken
+    with controller.lock:
+        monkeypatch.setattr(Robot, 'measured', property(always_broken))
     spin_until(lambda: controller.fatal is not None and not controller.tick_thread.is_alive())
     assert f'{MAX_TICK_FAILURES} ticks in a row failed' in controller.fatal
     assert 'RuntimeError: always broken' in controller.fatal
@@ -212,15 +230,15 @@ def test_a_tick_that_cannot_run_ends_the_node(ros):
 
 BROKEN_CONTROLLER = """
 import sys
-from mover6_control.control.controller_core import ControllerCore
+from mover6_control.control.robot import Robot
 from mover6_control.nodes import controller_node
 
 
-def broken(self, now):
+def broken(robot):
     raise RuntimeError('always broken')
 
 
-ControllerCore._tick = broken          # a test double: every tick of the core raises
+Robot.measured = property(broken)      # the states check that opens every tick raises
 sys.exit(controller_node.main())
 """
 

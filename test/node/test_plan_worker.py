@@ -44,8 +44,8 @@ def smooth(n, amplitude=0.3):
 def job(waypoints, q_start=None, qd_start=None, timing=None, profile=''):
     """Return the ``PlanJob`` the controller core makes of a demand."""
     return PlanJob(CORE.law_for(profile), np.zeros(6) if q_start is None else q_start,
-                   CORE.check_demand(waypoints), CORE._vlim, qd_start, timing,
-                   ARM.lower, ARM.upper)
+                   CORE.check_demand(waypoints), CORE.core_state.derived.velocity_limits,
+                   qd_start, timing, ARM.lower, ARM.upper)
 
 
 @pytest.fixture(scope='module')

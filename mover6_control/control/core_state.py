@@ -1,0 +1,63 @@
+"""
+What the controller keeps between calls: the one record its parts share (``CoreState``).
+
+``ControllerCore`` is built of parts, one concept each (``demand_intake``, ``jogging``,
+``motion_ticks``, ``status_report``); what more than one of them reads or writes lives here, in
+the core's ``core_state``, and nowhere else. Four groups: the state machine (state, level,
+message, whether the status changed, when the fault began), the motion (its id, its waypoints,
+its profile and timing note, when it settled and arrived), how the latest motion ended and the
+latest refused demand (status values), and the settings in force and pending
+(``controller_config.DerivedConfig``). What only jogging keeps is its own
+(``jogging.JogSession``); the model of the arm is the core's ``Robot`` (``control.robot``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+from mover6_control.control import state_machine as sm
+from mover6_control.control.controller_config import DerivedConfig
+
+
+@dataclass(eq=False)
+class CoreState:
+    """
+    The controller's state shared by its parts (module docstring); mutable, one per core.
+
+    The state machine: ``state`` (``state_machine.STATES``), ``level`` ('OK', 'WARN', 'ERROR')
+    and ``message`` (the human reason) of the status; ``changed``: the status changed since the
+    last tick's output (the node publishes it at once); ``t_fault`` [s]: when the latest fault
+    began (None: none yet); only joint states newer than that clear it.
+
+    The motion (the running one, else the latest): ``motion_id`` of the latest accepted demand
+    (0 before any); ``waypoints_total`` its waypoints and ``waypoint`` those reached;
+    ``motion_profile`` the profile it is timed by; ``timing`` ``timed_plan.plan_demand``'s note
+    on it ('' : none); ``t_settle`` [s] when its reference ended (settling began);
+    ``arrived_at`` [s] when every joint came inside the goal tolerance (None: not yet).
+
+    How it ended and what was refused, as status values (``status.StatusKey`` keys):
+    ``result`` of the latest motion or jog ({} while one runs or before any); ``rejection`` the
+    latest refused demand ({} once one is taken).
+
+    The settings: ``derived`` the ``DerivedConfig`` in force (its config, tolerances, velocity
+    limits in the driver's units, control period), installed whole by ``ControllerCore``;
+    ``pending`` the one waiting for the running motion to end (None: none).
+    """
+
+    derived: DerivedConfig
+    pending: Optional[DerivedConfig] = None
+    state: str = sm.WAITING_FOR_STATES
+    level: str = 'WARN'
+    message: str = 'waiting for /joint_states'
+    changed: bool = True
+    t_fault: Optional[float] = None
+    motion_id: int = 0
+    waypoints_total: int = 0
+    waypoint: int = 0
+    motion_profile: str = ''
+    timing: str = ''
+    t_settle: float = 0.0
+    arrived_at: Optional[float] = None
+    result: dict = field(default_factory=dict)
+    rejection: dict = field(default_factory=dict)
