@@ -22,6 +22,7 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import matrices_to_quaternions
 from mover6_control.kinematics.urdf_tree import fixed_transforms, moving_transforms, parse_urdf
 from mover6_control.nodes import shutdown
+from mover6_control.nodes.node_clock import now_ns
 from mover6_control.nodes.params import declare
 from mover6_control.nodes.qos import LATCHED_QOS
 from mover6_control.parameters import STATE_PUBLISHER
@@ -69,7 +70,10 @@ class StatePublisherNode(Node):
         self.description = self.get_parameter('robot_description').value or shipped_description()
         self.tree = parse_urdf(self.description)
         self.prefix = self.get_parameter('frame_prefix').value
-        self.last_publish = None
+        self.last_publish = None        # [ns] of the node clock
+        self.period_ns = self.frequency_period_ns()
+        self.add_post_set_parameters_callback(
+            lambda _: setattr(self, 'period_ns', self.frequency_period_ns()))
         self.published = 0
         self.pub_description = self.create_publisher(String, 'robot_description', LATCHED_QOS)
         self.pub_static = self.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)
@@ -86,11 +90,15 @@ class StatePublisherNode(Node):
             f'{self.tree.name}: {len(self.tree.moving)} moving and {len(self.tree.fixed)} fixed '
             f'joints from {self.tree.root}')
 
+    def frequency_period_ns(self) -> int:
+        """Return the shortest time [ns] between two /tf messages (``publish_frequency``)."""
+        return round(1e9 / self.get_parameter('publish_frequency').value)
+
     def on_joint_states(self, data: bytes) -> None:
         """Publish /tf for the joints a message names (at most ``publish_frequency`` a second)."""
-        now = self.get_clock().now()
-        period = 1.0 / self.get_parameter('publish_frequency').value
-        if self.last_publish is not None and (now - self.last_publish).nanoseconds < period * 1e9:
+        # 100 messages a second, most of them dropped here: no Time object, no parameter read.
+        now = now_ns(self.get_clock())
+        if self.last_publish is not None and now - self.last_publish < self.period_ns:
             return
         msg = deserialize_message(data, JointState)
         if len(msg.position) != len(msg.name):
@@ -98,7 +106,7 @@ class StatePublisherNode(Node):
         positions = dict(zip(msg.name, msg.position))
         stamp = msg.header.stamp
         if stamp.sec == 0 and stamp.nanosec == 0:
-            stamp = now.to_msg()
+            stamp = Time(sec=now // 1_000_000_000, nanosec=now % 1_000_000_000)
         transforms = [make_transform_stamped(T, j.parent, j.child, stamp, self.prefix)
                       for j, T in moving_transforms(self.tree, positions)]
         if transforms:

@@ -7,6 +7,7 @@ tree behind /tf is parsed independently of the ArmModel the planner uses.
 """
 
 import os
+import time
 
 # conftest.py keeps discovery on loopback and gives this test run its own ROS_DOMAIN_ID.
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
@@ -141,6 +142,33 @@ def test_frame_prefix_and_partial_joint_states():
         assert wait_until(seen, LIMIT, h.spin)
         frames = {(t.header.frame_id, t.child_frame_id) for t in h.tf[-1].transforms}
         assert frames == {('arm1/link1', 'arm1/link2'), ('arm1/link2', 'arm1/link3')}
+    finally:
+        h.close()
+
+
+def tf_count_while_streaming(h, seconds):
+    """Publish /joint_states every 10 ms for ``seconds`` [s] of wall time; return the /tf count."""
+    msg = JointState(name=NAMES, position=[0.1] * 6)
+    h.tf.clear()
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        h.joints.publish(msg)
+        h.spin(0.01)
+    return len(h.tf)
+
+
+def test_tf_at_most_publish_frequency_and_a_new_frequency_applies_at_once():
+    """100 Hz of /joint_states give /tf at most publish_frequency a second; a set changes it."""
+    h = Harness(publish_frequency=5.0)
+    try:
+        assert wait_until(lambda: tf_count_while_streaming(h, 0.1) > 0, LIMIT)
+        slow = tf_count_while_streaming(h, 2.0)
+        assert 1 <= slow <= 2.0 * 5.0 + 1, slow             # never more than the period allows
+        result = h.publisher.set_parameters([Parameter('publish_frequency', value=50.0)])
+        assert result[0].successful
+        fast = tf_count_while_streaming(h, 2.0)
+        assert fast > 2.0 * 5.0 + 1, fast                   # more than 5 Hz could have sent
+        assert fast <= 2.0 * 50.0 + 1, fast
     finally:
         h.close()
 
