@@ -99,10 +99,12 @@ def world(tmp_path_factory):
         prefix = f'/shutdown_{pattern}'
         arms[pattern] = FakeArm(node, prefix, names)
         for name in NODES:
-            remaps = ()
-            if name == 'controller':
-                remaps = sum((('-r', f'{topic}:={prefix}/{topic}')
-                              for topic in ('JointJog', 'joint_states', 'joint_demands')), ())
+            # The controller and the planner on the fake arm's topics: their states must not
+            # come from the bridges, which the bridge cases end first (a planner slower to start
+            # than the four bridges were to end was never ready).
+            topics = {'sim_bridge': (), 'planner': ('joint_states',),
+                      'controller': ('JointJog', 'joint_states', 'joint_demands')}[name]
+            remaps = sum((('-r', f'{topic}:={prefix}/{topic}') for topic in topics), ())
             procs[name, pattern] = NodeProcess(name, log_dir, ros_args=remaps, new_session=True,
                                                log_name=f'{name}_{pattern}')
     node.create_timer(STATE_PERIOD, lambda: [arm.step() for arm in arms.values()])
