@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
+from mover6_control.kinematics.rotations import matrices_to_quaternions
 from mover6_control.parameters import TOOL_SHAPES   # the shapes ToolVolume takes
 import numpy as np
 
@@ -231,20 +232,9 @@ def _vec(values):
 
 
 def _quat(R):
-    """Return the quaternion (w, x, y, z) of a rotation matrix (3, 3)."""
-    R = np.asarray(R, dtype=float)
-    w = np.sqrt(max(0.0, 1.0 + np.trace(R))) / 2.0
-    if w > 1e-6:
-        return np.array([w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w),
-                         (R[1, 0] - R[0, 1]) / (4 * w)])
-    k = int(np.argmax(np.diag(R)))
-    i, j = (k + 1) % 3, (k + 2) % 3
-    v = np.zeros(4)
-    v[k + 1] = np.sqrt(max(0.0, 1.0 + R[k, k] - R[i, i] - R[j, j])) / 2.0
-    v[0] = (R[j, i] - R[i, j]) / (4 * v[k + 1])
-    v[i + 1] = (R[i, k] + R[k, i]) / (4 * v[k + 1])
-    v[j + 1] = (R[j, k] + R[k, j]) / (4 * v[k + 1])
-    return v
+    """Return the MuJoCo quaternion (w, x, y, z) of a rotation matrix (3, 3)."""
+    x, y, z, w = matrices_to_quaternions(R)
+    return np.array([w, x, y, z])
 
 
 COLLIDES = 'contype="1" conaffinity="1"'

@@ -97,29 +97,14 @@ def matrices_to_quaternions(R: np.ndarray) -> np.ndarray:
     R = np.asarray(R, dtype=float)
     if R.ndim == 2:
         return _matrix_to_quaternion(R.tolist())
-    trace = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
-    choice = np.argmax(np.stack([R[..., 0, 0], R[..., 1, 1], R[..., 2, 2], trace], -1), -1)
-    q = np.empty(R.shape[:-2] + (4,))
-    for i in range(4):
-        at = choice == i
-        Ri = R[at]
-        if i == 3:
-            q[at] = np.stack([Ri[:, 2, 1] - Ri[:, 1, 2], Ri[:, 0, 2] - Ri[:, 2, 0],
-                              Ri[:, 1, 0] - Ri[:, 0, 1], 1.0 + trace[at]], -1)
-            continue
-        j, k = (i + 1) % 3, (i + 2) % 3
-        qi = np.empty((Ri.shape[0], 4))
-        qi[:, i] = 1.0 - trace[at] + 2.0 * Ri[:, i, i]
-        qi[:, j] = Ri[:, j, i] + Ri[:, i, j]
-        qi[:, k] = Ri[:, k, i] + Ri[:, i, k]
-        qi[:, 3] = Ri[:, k, j] - Ri[:, j, k]
-        q[at] = qi
-    q /= np.linalg.norm(q, axis=-1, keepdims=True)
-    return np.where(q[..., 3:] < 0.0, -q, q)
+    # One matrix at a time: the callers pass a few (SLERP's keys), and in plain floats one
+    # conversion takes a fraction of numpy's per-call overhead (the state publisher's /tf).
+    flat = R.reshape(-1, 3, 3).tolist()
+    return np.array([_matrix_to_quaternion(m) for m in flat]).reshape(R.shape[:-2] + (4,))
 
 
 def _matrix_to_quaternion(R: list) -> np.ndarray:
-    """``matrices_to_quaternions`` of one matrix given as nested lists (the same steps)."""
+    """Return the quaternion (4,) of one rotation given as nested lists (see the caller)."""
     trace = R[0][0] + R[1][1] + R[2][2]
     diagonal = (R[0][0], R[1][1], R[2][2])
     i = max(range(3), key=diagonal.__getitem__)
