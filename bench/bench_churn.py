@@ -140,6 +140,8 @@ def echo_main(topic):
     deadline = time.monotonic() + CHURN_TIMEOUT
     while not got and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.1)
+    seen = 'saw a status' if got else f'no status within {CHURN_TIMEOUT:g} s'
+    print(f'churn {os.getpid()}: {seen}', flush=True)
     node.destroy_node()
     rclpy.shutdown()
     return 0 if got else 1
@@ -369,6 +371,7 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False, bridge_pa
             'ticks': int(len(ticks)),
             'churn_processes': total,
             'churn_saw_status': sum(1 for c in churn.exit_codes if c == 0),
+            'churn_exit_codes': churn.exit_codes,
             'max_tick_gap_ms': float(np.max(periods) * 1e3),
             'period_error_p50_ms': float(np.median(err) * 1e3),
             'period_error_p99_ms': float(np.percentile(err, 99) * 1e3),

@@ -11,6 +11,7 @@ Only inside a private network namespace (./run.sh test): the churn processes run
 configuration as the nodes.
 """
 
+import os
 import socket
 import sys
 
@@ -30,7 +31,13 @@ def test_joining_processes_stall_neither_tick_nor_motion(tmp_path):
     """No tick gap of 0.2 s or more, no halt at the bridge, every motion arrived."""
     row = bench_churn.run_variant('test', {}, {}, CHURN, str(tmp_path))
     figures = {k: row[k] for k in ('max_tick_gap_ms', 'ticks_over_200ms', 'bridge_halts',
-                                   'motion_results', 'churn_saw_status', 'log_dir')}
+                                   'motion_results', 'churn_saw_status', 'churn_exit_codes',
+                                   'log_dir')}
+    if row['churn_saw_status'] != CHURN:
+        # What the churn processes printed (each says whether it saw a status, or why it
+        # died): shown in full with the failure, as pytest shortens the assertion's message.
+        with open(os.path.join(row['log_dir'], 'churn.log')) as log:
+            print(f'figures: {figures}\nchurn.log:\n{log.read()[-6000:]}')
     assert row['churn_saw_status'] == CHURN, figures
     assert row['ticks_over_200ms'] == 0, figures
     assert row['bridge_halts'] == 0, figures
