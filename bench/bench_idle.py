@@ -21,9 +21,10 @@ work. The timing window (``TIMING`` s): this process also reads /JointJog and /j
 
 - the controller's tick: the period between consecutive /JointJog header stamps (the tick's
   start on the node clock): mean rate, and the period error |period - 1 / rate| p50, p99, max;
-- the bridge's real-time factor: /joint_states come one ``publish_rate`` period of sim time
-  apart (their stamps are the node's wall clock), so sim time over wall time is
-  (n - 1) / publish_rate over the span of the stamps of the n received.
+- the bridge's real-time factor: sim time over the bridge's monotonic wall time between the
+  first and the last of its ~/status reports (once a second) in the window;
+- the rate of /joint_states by their stamps (the bridge publishes at ``rest_publish_rate``
+  while the arm rests, at ``publish_rate`` while it moves).
 
 The machine may be shared: the load average is printed and stored with the figures. Run:
 ``./run.sh bench idle`` or ``./run.sh exec python -m bench.bench_idle [--quick] [--repeat N]``
@@ -49,7 +50,6 @@ WINDOW = 30.0                # [s] CPU window (the issue's 30 s)
 TIMING = 10.0                # [s] tick and real-time-factor window
 QUICK = (10.0, 5.0)          # --quick: CPU and timing windows
 RATE = 100.0                 # [Hz] the controller's rate (config/controller.yaml)
-PUBLISH_RATE = 100.0         # [Hz] the bridge's /joint_states (config/sim_bridge.yaml)
 MOTIONS = np.array([[0.5, -0.4, 0.3, 0.4, -0.3, 0.6], [-0.4, 0.3, -0.3, -0.4, 0.4, -0.5]])
 GOAL = 0.10                  # [fraction of one core] the three nodes together at rest
 CLK_TCK = os.sysconf('SC_CLK_TCK')
@@ -78,13 +78,16 @@ class Probe:
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node('bench_idle', namespace=namespace, context=self.context)
-        self.controller, self.planner = [], []
+        self.controller, self.planner, self.bridge = [], [], []
         self.node.create_subscription(
             DiagnosticStatus, 'controller/status',
             lambda m: self.controller.append(conversions.status_values(m)), STATUS_QOS)
         self.node.create_subscription(
             DiagnosticStatus, 'planner/status',
             lambda m: self.planner.append(conversions.status_values(m)), STATUS_QOS)
+        self.node.create_subscription(
+            DiagnosticStatus, 'sim_bridge/status',
+            lambda m: self.bridge.append(conversions.status_values(m)), STATUS_QOS)
         self.demand_pub = self.node.create_publisher(Float32MultiArray, 'joint_demands', 10)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -138,6 +141,7 @@ class Probe:
             return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         self.jog_stamps.clear()
         self.state_stamps.clear()
+        self.bridge.clear()
         self.timing_subs = [
             self.node.create_subscription(JointJog, 'JointJog',
                                           lambda m: self.jog_stamps.append(stamp(m)), 100),
@@ -157,20 +161,27 @@ class Probe:
         self.rclpy.try_shutdown(context=self.context)
 
 
-def timing_figures(jog_stamps, state_stamps):
-    """Return the tick figures (from /JointJog stamps) and the real-time factor."""
+def timing_figures(jog_stamps, state_stamps, bridge_statuses):
+    """Return the tick figures (/JointJog stamps), the real-time factor, the states' rate."""
     jog = np.sort(np.array(jog_stamps))
     periods = np.diff(jog)
     err = np.abs(periods - 1.0 / RATE) * 1e3
     states = np.array(state_stamps)
     span = states[-1] - states[0] if len(states) > 1 else float('nan')
+    rtf = float('nan')
+    if len(bridge_statuses) > 1:
+        first, last = bridge_statuses[0], bridge_statuses[-1]
+        rtf = ((float(last['sim_time']) - float(first['sim_time']))
+               / (float(last['wall_time']) - float(first['wall_time'])))
     return {'ticks': int(len(jog)),
             'tick_rate_hz': float(len(periods) / (jog[-1] - jog[0])),
             'period_error_p50_ms': float(np.median(err)),
             'period_error_p99_ms': float(np.percentile(err, 99)),
             'period_error_max_ms': float(np.max(err)),
             'joint_states': int(len(states)),
-            'real_time_factor': float((len(states) - 1) / PUBLISH_RATE / span)}
+            'joint_states_rate_hz': float((len(states) - 1) / span),
+            'bridge_reports': len(bridge_statuses),
+            'real_time_factor': rtf}
 
 
 def run_stack(window, timing, log_dir):
@@ -208,7 +219,7 @@ def run_stack(window, timing, log_dir):
             probe.stop_timing()
             row = {'cpu_percent': cpu, 'cpu_percent_total': sum(cpu.values()),
                    'cpu_window_s': seconds, 'load_average': list(os.getloadavg())}
-            row.update(timing_figures(probe.jog_stamps, probe.state_stamps))
+            row.update(timing_figures(probe.jog_stamps, probe.state_stamps, probe.bridge))
             if moving:
                 row['motions_sent'] = probe.sent
                 row['motions_arrived'] = probe.results.count('arrived')
@@ -247,7 +258,7 @@ def main(argv=None):
           f'{timing:g} s after it. Goal at rest: the three together <= {GOAL * 100:g} %')
     print(f'{"run":>3} {"phase":>7} {"sim_bridge":>10} {"controller":>10} {"planner":>8} '
           f'{"total":>6} {"tick [Hz]":>9} {"err p50":>8} {"err p99":>8} {"err max":>8} '
-          f'{"RTF":>6} {"motions":>8} {"load 1 min":>10}')
+          f'{"RTF":>6} {"states [Hz]":>11} {"motions":>8} {"load 1 min":>10}')
     for i, run in enumerate(results['runs']):
         for phase in ('rest', 'moving'):
             row = run[phase]
@@ -258,9 +269,10 @@ def main(argv=None):
                   f'{c["planner"]:8.1f} {row["cpu_percent_total"]:6.1f} '
                   f'{row["tick_rate_hz"]:9.2f} {row["period_error_p50_ms"]:8.3f} '
                   f'{row["period_error_p99_ms"]:8.3f} {row["period_error_max_ms"]:8.3f} '
-                  f'{row["real_time_factor"]:6.3f} {motions:>8} {row["load_average"][0]:10.2f}')
+                  f'{row["real_time_factor"]:6.3f} {row["joint_states_rate_hz"]:11.1f} '
+                  f'{motions:>8} {row["load_average"][0]:10.2f}')
     print('(period error |period - 10 ms| in ms, from the /JointJog stamps; RTF from the '
-          '/joint_states stamps)')
+          'sim bridge ~/status, sim time over its wall time; states: /joint_states by stamps)')
     write_json('idle', results)
     dead = [name for run in results['runs'] for name, ok in run['alive_to_the_end'].items()
             if not ok]

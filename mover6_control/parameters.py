@@ -336,6 +336,11 @@ SIM_BRIDGE = _table(
     P('publish_rate', 'float', 100.0, 'Hz',
       '/joint_states rate of sim time (rad_per_s mode; vendor_driver: the driver cycle)',
       0.1, 500.0),
+    P('rest_publish_rate', 'float', 20.0, 'Hz',
+      '/joint_states rate while the arm rests (rad_per_s mode: no command moves it, every '
+      'joint slower than 1e-4 rad/s), as the real arm publishes at 10 to 20 Hz; a command that '
+      'moves it brings publish_rate back at its first step; at or above publish_rate: one rate',
+      0.1, 500.0),
     P('command_timeout', 'float', 0.2, 's',
       'a /JointJog older than this (by receive time, sim clock) halts the joints; set at '
       'start: the simulator is built with it', 0.001, 10.0, read_only=True),

@@ -5,7 +5,12 @@ Subscribes /JointJog (control_msgs/JointJog: ``velocities`` by joint name; ``dis
 ``duration`` and the stamp are ignored, as the vendor driver ignores them) and ~/reset_to
 (sensor_msgs/JointState: reset to the named ``position`` values, unnamed joints to
 ``initial_q``). Publishes /joint_states (names joint1..joint6, position, velocity, effort,
-stamped) and, with ``publish_clock``, /clock after every physics step. Services: ~/reset
+stamped) at ``publish_rate``, at ``rest_publish_rate`` while the arm rests (no command moves it
+and every joint is still, as the real arm's driver publishes at 10 to 20 Hz; the first step of a
+command that moves it publishes at ``publish_rate`` again), and, with ``publish_clock``, /clock
+after every physics step. ~/status (diagnostic_msgs/DiagnosticStatus, transient local), once a
+second: sim time, the real-time factor measured since the last report, the /joint_states rate
+in force, whether the arm rests, pacing overruns and rejected /JointJog messages. Services: ~/reset
 (std_srvs/Trigger, to ``initial_q``), ~/pause (std_srvs/SetBool), ~/step (std_srvs/Trigger:
 one control period while paused: one /joint_states period, or one 50 ms driver cycle in
 vendor mode).
@@ -22,9 +27,9 @@ Physics runs in its own thread, paced against the monotonic wall clock at
 ``Simulator`` under a lock. In 'vendor_driver' mode /joint_states come at the driver's own rate
 (one per 50 ms cycle) and ``publish_rate`` is not used. Stamps are sim time with
 ``publish_clock`` (the bridge drives the clock), the node's clock otherwise. Parameters are
-read at start; ``real_time_factor`` and ``publish_rate`` also apply live when set (``ros2 param
-set``), the others are read-only. The physics thread (pacing, stepping, publishing) is
-``sim_bridge/bridge_physics.py``, a part of this node.
+read at start; ``real_time_factor``, ``publish_rate`` and ``rest_publish_rate`` also apply live
+when set (``ros2 param set``), the others are read-only. The physics thread (pacing, stepping,
+publishing) is ``sim_bridge/bridge_physics.py``, a part of this node.
 """
 
 import os
@@ -37,12 +42,11 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import LIMIT_SETS, load_urdf, mover6
 from mover6_control.nodes import cdr, conversions, params, shutdown
-from mover6_control.nodes.qos import STREAM_READER_QOS
+from mover6_control.nodes.qos import STATUS_QOS, STREAM_READER_QOS
 from mover6_control.parameters import SIM_BRIDGE
 import numpy as np
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from sim_bridge.bridge_physics import PhysicsLoop
@@ -85,6 +89,7 @@ class SimBridgeNode(PhysicsLoop, Node):
         self.vendor = config.mode == 'vendor_driver'
         self.dt = config.physics_dt
         self.publish_period = config.vendor_cycle if self.vendor else 1.0 / rate
+        self.rest_period = 1.0 / float(p['rest_publish_rate'])   # at least publish_period
         self.publish_clock = bool(p['publish_clock'])
 
         self.lock = threading.Lock()
@@ -109,10 +114,11 @@ class SimBridgeNode(PhysicsLoop, Node):
         self._state_writer = cdr.JointStateWriter(self.arm.joint_names)
         self._jog_reader = cdr.JointJogReader()
         self._last_jog = None            # (names, velocities) of the last command taken
-        self.contacts_pub = self.create_publisher(
-            DiagnosticStatus, '~/contacts',
-            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.contacts_pub = self.create_publisher(DiagnosticStatus, '~/contacts', STATUS_QOS)
         self.joint_states_pub = self.create_publisher(JointState, 'joint_states', 10)
+        self.status_pub = self.create_publisher(DiagnosticStatus, '~/status', STATUS_QOS)
+        self._status_due = 0.0           # [s] monotonic: the next ~/status
+        self._status_mark = None         # (wall, sim) time of the last ~/status
         self.clock_pub = (self.create_publisher(Clock, 'clock', 10)
                           if self.publish_clock else None)
         self.create_subscription(JointJog, 'JointJog', self.on_joint_jog, STREAM_READER_QOS,
@@ -127,12 +133,14 @@ class SimBridgeNode(PhysicsLoop, Node):
         self.thread.start()
         self.get_logger().info(
             f'{self.arm.name}: mode {config.mode}, physics_dt {self.dt} s, real-time factor '
-            f'{self.rtf}, /joint_states every {self.publish_period:.4f} s, command timeout '
+            f'{self.rtf}, /joint_states every {self.publish_period:.4f} s'
+            + ('' if self.vendor or self.rest_period <= self.publish_period else
+               f' ({self.rest_period:.4f} s while the arm rests)') + ', command timeout '
             f'{config.command_timeout} s' + (', publishing /clock' if self.publish_clock else ''))
 
     def on_parameters_set(self, parameters: list[Parameter]) -> None:
         """
-        Apply ``real_time_factor`` and ``publish_rate`` live (the others are read-only).
+        Apply ``real_time_factor``, ``publish_rate`` and ``rest_publish_rate`` live.
 
         The pace re-anchors at the present time, so a new factor holds from now on; the next
         /joint_states comes at most one new period of sim time after the change (vendor_driver
@@ -143,9 +151,12 @@ class SimBridgeNode(PhysicsLoop, Node):
             if parameter.name == 'real_time_factor':
                 self.rtf = float(parameter.value)
                 self._reanchor = True
-            elif parameter.name == 'publish_rate' and not self.vendor:
+            elif parameter.name in ('publish_rate', 'rest_publish_rate') and not self.vendor:
                 with self.lock:
-                    self.publish_period = 1.0 / float(parameter.value)
+                    if parameter.name == 'publish_rate':
+                        self.publish_period = 1.0 / float(parameter.value)
+                    else:
+                        self.rest_period = 1.0 / float(parameter.value)
                     self._next_publish = min(self._next_publish,
                                              self.sim.time + self.publish_period)
             else:
@@ -198,6 +209,9 @@ class SimBridgeNode(PhysicsLoop, Node):
                 with self.lock:
                     warnings = self.sim.set_command(names, velocities, self.sim.time)
                     self._pending = (self.sim.command_count, arrival)
+                    # A resting arm's slower /joint_states: the full rate from this command on.
+                    self._next_publish = min(self._next_publish,
+                                             self.sim.time + self.publish_period)
                     self._last_jog = (tuple(names), tuple(velocities.tolist()))
             self._wake.set()             # its first step when due, not at the next publication
         except InvalidInputError as exc:

@@ -5,7 +5,8 @@ Physics runs in its own thread, paced against the monotonic wall clock at the no
 ``real_time_factor`` (0 = as fast as it can); the callbacks and this thread share the
 ``Simulator`` under the node's ``lock``, and pacing and stepping (here, or in a callback that
 runs the steps due before it acts) under its ``step_lock``. Each step publishes /clock (with
-``publish_clock``) and, when due, /joint_states; ~/contacts when the contacts changed.
+``publish_clock``) and, when due, /joint_states (``rest_publish_rate`` while the arm rests);
+~/contacts when the contacts changed; ~/status once a second.
 
 ``PhysicsLoop`` is a part of ``bridge_node.SimBridgeNode`` (its state is the node's, set in
 ``SimBridgeNode.__init__``); it is not used on its own.
@@ -21,6 +22,7 @@ from sim_bridge.simulator import steps_due
 
 MAX_BATCH = 200           # physics steps per loop pass before pacing gives up and re-anchors
 VIEWER_PERIOD = 1.0 / 30.0
+STATUS_PERIOD = 1.0       # [s] wall time between ~/status reports
 
 
 class PhysicsLoop:
@@ -77,6 +79,8 @@ class PhysicsLoop:
         while not self.stop_event.is_set():
             self._keep_priority()
             self._wake.clear()
+            if time.monotonic() >= self._status_due:
+                self._report_status(time.monotonic())
             if self.paused:
                 with self.step_lock:
                     self._anchor = None
@@ -152,7 +156,10 @@ class PhysicsLoop:
                     self._last_reading_time = candidate.time
             elif t >= self._next_publish - 1e-9:
                 reading = self.sim.state()
-                self._next_publish += self.publish_period
+                period = self.publish_period
+                if self.rest_period > period and self.sim.at_rest():
+                    period = self.rest_period
+                self._next_publish += period
                 if self._next_publish <= t:
                     self._next_publish = t + self.publish_period
         if stale and not self._was_stale:
@@ -164,6 +171,34 @@ class PhysicsLoop:
             self.clock_pub.publish(conversions.make_clock(t))
         if reading is not None and publish_states:
             self._publish_state(reading)
+
+    def _report_status(self, now):
+        """
+        Publish ~/status: sim time, the real-time factor since the last report, the rates.
+
+        Once a second of wall time. ``real_time_factor`` is sim time over monotonic wall time
+        between the last two reports (``sim_time`` and ``wall_time`` say what it came from),
+        ``joint_states_rate`` the rate in force now (``rest_publish_rate`` while the arm
+        rests).
+        """
+        self._status_due = now + STATUS_PERIOD
+        with self.lock:
+            sim_time, resting = self.sim.time, self.sim.at_rest()
+        mark, self._status_mark = self._status_mark, (now, sim_time)
+        measured = ((sim_time - mark[1]) / (now - mark[0])
+                    if mark is not None and now > mark[0] else float('nan'))
+        if self.vendor:
+            period = self.publish_period
+        else:
+            period = max(self.rest_period, self.publish_period) if resting else self.publish_period
+        values = {'sim_time': f'{sim_time:.6f}', 'wall_time': f'{now:.6f}',
+                  'real_time_factor': f'{measured:.4f}', 'real_time_factor_target': self.rtf,
+                  'joint_states_rate': f'{1.0 / period:g}', 'at_rest': str(resting).lower(),
+                  'overruns': self.overruns, 'jog_rejected': self.rejected,
+                  'last_rejection': self.last_rejection}
+        text = (f'paused at t = {sim_time:.3f} s' if self.paused else
+                f'running at real-time factor {measured:.3f}')
+        self.status_pub.publish(conversions.make_status('sim_bridge', 'OK', text, values))
 
     def _check_physics(self):
         """Log an error when MuJoCo reports a new warning (a blow-up resets its state)."""

@@ -53,6 +53,7 @@ from sim_bridge.model import build_model, joint_dof_addresses, joint_qpos_addres
 
 _EPS = 1e-9
 _LIMIT_APPROACH = 5.0    # physics steps over which a joint may close its gap to a limit
+STILL_SPEED = 1e-4       # [rad/s] a joint slower than this is still (the arm rests: at_rest)
 
 
 @dataclass(frozen=True)
@@ -222,6 +223,19 @@ class Simulator:
         if self._vendor:
             return False
         return self._cmd_time is None or self.data.time - self._cmd_time > self._timeout
+
+    def at_rest(self, speed: float = STILL_SPEED) -> bool:
+        """
+        Return True when no command moves the arm and every joint is slower than ``speed``.
+
+        'rad_per_s' mode: the held command is zero or stale (halted), and every joint's velocity
+        is under ``speed`` [rad/s]. 'vendor_driver' mode: never (the driver's cycle sets its pace).
+        """
+        if self._vendor:
+            return False
+        if not self.is_stale() and any(self._cmd_reach):
+            return False
+        return all(abs(v) < speed for v in self.data.qvel[self._dadr].tolist())
 
     def warnings(self) -> dict[str, int]:
         """

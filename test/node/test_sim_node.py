@@ -13,7 +13,9 @@ import time
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 from control_msgs.msg import JointJog  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from mover6_control.nodes import conversions  # noqa: E402
+from mover6_control.nodes.qos import STATUS_QOS  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 import rclpy  # noqa: E402
@@ -108,17 +110,72 @@ def harness(request):
     h.close()
 
 
+def stamp_rate(messages):
+    """Return the rate [Hz] of ``messages`` by their header stamps."""
+    stamps = [conversions.stamp_to_seconds(m.header.stamp) for m in messages]
+    return (len(stamps) - 1) / (stamps[-1] - stamps[0])
+
+
 def test_joint_states_are_complete_and_at_the_rate(harness):
-    """Names joint1..joint6, position, velocity and effort for each, at 100 Hz of stamps."""
+    """
+    Names joint1..joint6, position, velocity and effort; 100 Hz while moving, 20 Hz at rest.
+
+    At rest (nothing moves the arm) /joint_states come at ``rest_publish_rate``, as the real
+    arm's driver publishes; a JointJog stream that moves the arm brings ``publish_rate`` back,
+    and its end (the joints halt when it goes stale) the rest rate; ~/status says which.
+    """
     h = harness
+    statuses = []
+    h.node.create_subscription(DiagnosticStatus, 'sim_bridge/status',
+                               lambda m: statuses.append(conversions.status_values(m)),
+                               STATUS_QOS)
     start = len(h.states)
-    assert h.spin_until(lambda: len(h.states) >= start + 150)
+    assert h.spin_until(lambda: len(h.states) >= start + 30)
     msg = h.states[-1]
     assert list(msg.name) == NAMES
     assert len(msg.position) == len(msg.velocity) == len(msg.effort) == 6
-    stamps = np.array([conversions.stamp_to_seconds(m.header.stamp) for m in h.states[start:]])
-    rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
+    rate = stamp_rate(h.states[start:])
+    assert 18.0 < rate < 22.0, rate
+    assert h.spin_until(lambda: statuses and statuses[-1]['joint_states_rate'] == '20')
+    assert statuses[-1]['at_rest'] == 'true'
+
+    v = [0.3, 0.0, 0.0, 0.0, 0.0, 0.0]
+    h.jog(v)
+    assert h.spin_until(lambda: abs(h.states[-1].velocity[0] - v[0]) < 1e-3)
+    moving = len(h.states)
+    t_end = time.monotonic() + 1.5
+    while time.monotonic() < t_end:
+        h.jog(v)
+        h.spin_until(lambda: False, 0.01)
+    assert h.states[moving:][-1].velocity[0] == pytest.approx(v[0], abs=1e-3)
+    rate = stamp_rate(h.states[moving:])
     assert 90.0 < rate < 110.0, rate
+    assert any(s['at_rest'] == 'false' and s['joint_states_rate'] == '100' for s in statuses)
+
+    # The stream ended: the joints halt when it goes stale, then the rest rate again.
+    assert h.spin_until(lambda: abs(h.states[-1].velocity[0]) < 1e-5)
+    resting = len(h.states) + 2
+    assert h.spin_until(lambda: len(h.states) >= resting + 20)
+    rate = stamp_rate(h.states[resting:])
+    assert 18.0 < rate < 22.0, rate
+
+
+def test_status_reports_sim_time_and_the_real_time_factor(harness):
+    """~/status once a second: sim time advancing at the real-time factor, the rates."""
+    h = harness
+    statuses = []
+    h.node.create_subscription(DiagnosticStatus, 'sim_bridge/status',
+                               lambda m: statuses.append(conversions.status_values(m)),
+                               STATUS_QOS)
+    assert h.spin_until(lambda: len(statuses) >= 4)
+    first, last = statuses[1], statuses[-1]
+    sim = float(last['sim_time']) - float(first['sim_time'])
+    wall = float(last['wall_time']) - float(first['wall_time'])
+    assert 1.5 < wall < 10.0, wall
+    assert sim / wall == pytest.approx(1.0, abs=0.02)
+    assert float(last['real_time_factor']) == pytest.approx(1.0, abs=0.05)
+    assert last['real_time_factor_target'] == '1.0'
+    assert last['overruns'] == '0' and last['jog_rejected'] == '0'
 
 
 def test_jog_moves_at_the_commanded_speed_then_halts_when_stale(harness):
@@ -289,10 +346,11 @@ def test_parameter_service_refuses_bad_values_and_describes_ranges(harness):
 
 def test_publish_rate_set_live_changes_the_rate_of_joint_states(harness):
     """
-    ``ros2 param set /sim_bridge publish_rate 20.0``: /joint_states come at 20 Hz, then 100 again.
+    ``ros2 param set /sim_bridge rest_publish_rate`` and ``publish_rate`` change the rate at once.
 
-    Set through the parameter service as ``ros2 param set`` does; the rate is what a subscriber
-    counts over a window of arrivals (wall clock) and of stamps, with generous margins.
+    Set through the parameter service as ``ros2 param set`` does, on an arm at rest; the rate
+    is what a subscriber counts over a window of arrivals (wall clock) and of stamps, with
+    generous margins. At rest the slower of the two rates holds.
     """
     from rclpy.parameter_client import AsyncParameterClient
     h = harness
@@ -304,11 +362,11 @@ def test_publish_rate_set_live_changes_the_rate_of_joint_states(harness):
     client = AsyncParameterClient(h.node, 'sim_bridge')
     assert h.spin_until(client.services_are_ready)
 
-    def rate_after_setting(value, count):
-        future = client.set_parameters([Parameter('publish_rate', value=value)])
+    def rate_after_setting(name, value, count):
+        future = client.set_parameters([Parameter(name, value=value)])
         assert h.spin_until(future.done)
         assert future.result().results[0].successful, future.result().results[0].reason
-        assert h.bridge.get_parameter('publish_rate').value == value
+        assert h.bridge.get_parameter(name).value == value
         start = len(arrivals) + 2         # skip what was already in flight
         assert h.spin_until(lambda: len(arrivals) >= start + count), (value, len(arrivals))
         window = np.array(arrivals[start:])
@@ -316,10 +374,14 @@ def test_publish_rate_set_live_changes_the_rate_of_joint_states(harness):
         stamped = (len(window) - 1) / (window[-1, 1] - window[0, 1])
         return wall, stamped
 
-    wall, stamped = rate_after_setting(20.0, 30)
-    assert 12.0 < wall < 30.0 and 15.0 < stamped < 25.0, (wall, stamped)
-    wall, stamped = rate_after_setting(100.0, 150)
+    wall, stamped = rate_after_setting('rest_publish_rate', 100.0, 150)
     assert 60.0 < wall < 140.0 and 80.0 < stamped < 120.0, (wall, stamped)
+    wall, stamped = rate_after_setting('publish_rate', 20.0, 30)
+    assert 12.0 < wall < 30.0 and 15.0 < stamped < 25.0, (wall, stamped)
+    wall, stamped = rate_after_setting('publish_rate', 100.0, 150)
+    assert 60.0 < wall < 140.0 and 80.0 < stamped < 120.0, (wall, stamped)
+    wall, stamped = rate_after_setting('rest_publish_rate', 10.0, 15)
+    assert 6.0 < wall < 15.0 and 8.0 < stamped < 12.0, (wall, stamped)
 
 
 @pytest.mark.parametrize('bad', [{'mode': 'turbo'}, {'publish_rate': 1000.0},

@@ -96,6 +96,27 @@ def test_fresh_commands_keep_the_arm_moving():
     np.testing.assert_allclose(sim.qd, v, atol=1e-4)
 
 
+def test_at_rest_while_nothing_moves_the_arm():
+    """At rest: no command, a zero one or a stale one, and every joint still; else not."""
+    sim = Simulator(ARM)
+    assert sim.at_rest()                          # no command yet, still
+    sim.set_command(NAMES, np.zeros(6), sim.time)
+    sim.step(5)
+    assert sim.at_rest()                          # a zero command moves nothing
+    v = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.2])
+    sim.set_command(NAMES, v, sim.time)
+    assert not sim.at_rest()                      # commanded to move, before its first step
+    sim.step(50)
+    assert not sim.at_rest()
+    sim.run_for(sim.config.command_timeout + 0.01)    # stale: halted, braking
+    assert sim.is_stale()
+    while abs(sim.qd[5]) >= 1e-4:
+        sim.step()
+        assert not sim.at_rest()                  # still moving faster than STILL_SPEED
+    assert sim.at_rest()
+    assert not Simulator(ARM, VENDOR).at_rest()   # vendor mode: the driver's cycle rules
+
+
 def test_partial_command_zeroes_the_other_joints():
     """In rad_per_s mode a command naming some joints stops the others (MoveIt Servo)."""
     sim = Simulator(ARM)
