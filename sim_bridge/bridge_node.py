@@ -29,7 +29,8 @@ Physics runs in its own thread, paced against the monotonic wall clock at
 ``publish_clock`` (the bridge drives the clock), the node's clock otherwise. Parameters are
 read at start; ``real_time_factor``, ``publish_rate`` and ``rest_publish_rate`` also apply live
 when set (``ros2 param set``), the others are read-only. The physics thread (pacing, stepping,
-publishing) is ``sim_bridge/bridge_physics.py``, a part of this node.
+publishing) is ``sim_bridge/bridge_physics.py``, the reset, pause and step services
+``sim_bridge/bridge_controls.py``: parts of this node.
 """
 
 import os
@@ -49,6 +50,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from sim_bridge.bridge_controls import SimControls
 from sim_bridge.bridge_physics import PhysicsLoop
 from sim_bridge.model import ModelOptions
 from sim_bridge.simulator import SimConfig, Simulator
@@ -65,7 +67,7 @@ def sim_config_from_parameters(get: Callable[[str], object]) -> SimConfig:
                                         kv=float(get('kv')), damping=float(get('damping'))))
 
 
-class SimBridgeNode(PhysicsLoop, Node):
+class SimBridgeNode(PhysicsLoop, SimControls, Node):
     """The simulated arm on ROS 2; see the module docstring."""
 
     def __init__(self, **kwargs):
@@ -222,74 +224,6 @@ class SimBridgeNode(PhysicsLoop, Node):
         for text in warnings:
             self.get_logger().warning(f'/JointJog speed clamped: {text}',
                                       throttle_duration_sec=1.0)
-
-    def on_reset_to(self, msg: JointState) -> None:
-        """Reset to the positions of a JointState (by name; unnamed joints go home)."""
-        names = list(msg.name)
-        try:
-            if len(msg.position) != len(names):
-                raise InvalidInputError(
-                    f'{len(names)} names but {len(msg.position)} positions')
-            index = {name: i for i, name in enumerate(self.arm.joint_names)}
-            unknown = [n for n in names if n not in index]
-            if unknown:
-                raise InvalidInputError(f'unknown joints {unknown}')
-            q = self.sim.home_q.copy()
-            for name, value in zip(names, msg.position):
-                q[index[name]] = value
-            self._reset(q)
-        except InvalidInputError as exc:
-            self.get_logger().warning(f'~/reset_to rejected: {exc}')
-
-    def on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        """Reset to ``initial_q``, at rest, commands dropped."""
-        self._reset(None)
-        response.success = True
-        response.message = f'reset to {np.round(self.sim.home_q, 4).tolist()}'
-        return response
-
-    def on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
-        """Pause (data true) or resume (data false) the physics."""
-        with self.step_lock:
-            self._catch_up()             # pause at the present time
-            with self.lock:
-                self.paused = bool(request.data)
-                t = self.sim.time
-        self._wake.set()
-        response.success = True
-        response.message = f'{"paused" if self.paused else "running"} at t = {t:.4f} s'
-        self.get_logger().info(response.message)
-        return response
-
-    def on_step(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        """While paused, run one control period and publish; refuse when running."""
-        if not self.paused:
-            response.success = False
-            response.message = 'not paused: ~/pause first'
-            return response
-        n = max(1, int(round(self.publish_period / self.dt)))
-        with self.step_lock:
-            for _ in range(n):
-                self._one_step(publish_states=self.vendor)  # vendor: its one reading of the cycle
-            if not self.vendor:                             # the state at the end of the period
-                with self.lock:
-                    reading = self.sim.state()
-                    self._next_publish = reading.time + self.publish_period
-                self._publish_state(reading)
-        response.success = True
-        response.message = f'stepped {n} x {self.dt} s to t = {self.sim.time:.4f} s'
-        return response
-
-    def _reset(self, q):
-        """Reset the simulator (raises on a bad ``q``) and publish the new state at once."""
-        with self.step_lock:
-            self._catch_up()             # reset at the present time
-            with self.lock:
-                self.sim.reset(q)
-                self._pending = None
-                reading = self.sim.state()
-            self._publish_state(reading)
-        self.get_logger().info(f'reset to {np.round(reading.q, 4).tolist()}')
 
     def destroy_node(self) -> None:
         """Stop the physics thread and the viewer, then destroy the node."""

@@ -18,7 +18,7 @@ import time
 from mover6_control.nodes import conversions
 from mover6_control.nodes.node_clock import now_ns
 from mover6_control.realtime import raise_this_thread, run_normal
-from sim_bridge.simulator import steps_due
+from sim_bridge.pacing import steps_due
 
 MAX_BATCH = 200           # physics steps per loop pass before pacing gives up and re-anchors
 VIEWER_PERIOD = 1.0 / 30.0

@@ -56,7 +56,8 @@ from mover6_control.hardware import protocol
 from mover6_control.hardware.scaling import JointScale
 from mover6_control.kinematics.arm import ArmModel
 import numpy as np
-from sim_bridge.simulator import SimConfig, Simulator, steps_due
+from sim_bridge.pacing import steps_due
+from sim_bridge.simulator import SimConfig, Simulator
 
 BROWN_OUT = 0x01
 NOT_ENABLED = 0x04

@@ -13,7 +13,8 @@ import mujoco
 import numpy as np
 import pytest
 from sim_bridge.model import ModelOptions
-from sim_bridge.simulator import SimConfig, Simulator, steps_due
+from sim_bridge.pacing import steps_due
+from sim_bridge.simulator import SimConfig, Simulator
 
 ARM = mover6('hardware')
 NAMES = ARM.joint_names
