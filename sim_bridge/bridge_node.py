@@ -29,8 +29,8 @@ Physics runs in its own thread, paced against the monotonic wall clock at
 ``publish_clock`` (the bridge drives the clock), the node's clock otherwise. Parameters are
 read at start; ``real_time_factor``, ``publish_rate`` and ``rest_publish_rate`` also apply live
 when set (``ros2 param set``), the others are read-only. The physics thread (pacing, stepping,
-publishing) is ``sim_bridge/bridge_physics.py``, the reset, pause and step services
-``sim_bridge/bridge_controls.py``: parts of this node.
+publishing) is ``sim_bridge/bridge_physics.py``, the reset, pause and step behind the services
+``sim_bridge/bridge_controls.py`` (no ROS): parts of this node.
 """
 
 import os
@@ -224,6 +224,38 @@ class SimBridgeNode(PhysicsLoop, SimControls, Node):
         for text in warnings:
             self.get_logger().warning(f'/JointJog speed clamped: {text}',
                                       throttle_duration_sec=1.0)
+
+    def on_reset_to(self, msg: JointState) -> None:
+        """Reset to the positions of a JointState (by name; unnamed joints go home)."""
+        try:
+            self.reset_to(self.named_positions(list(msg.name), list(msg.position)))
+        except InvalidInputError as exc:
+            self.get_logger().warning(f'~/reset_to rejected: {exc}')
+
+    def on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """Reset to ``initial_q``, at rest, commands dropped."""
+        self.reset_to(None)
+        response.success = True
+        response.message = f'reset to {np.round(self.sim.home_q, 4).tolist()}'
+        return response
+
+    def on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+        """Pause (data true) or resume (data false) the physics."""
+        t = self.pause(bool(request.data))
+        response.success = True
+        response.message = f'{"paused" if request.data else "running"} at t = {t:.4f} s'
+        self.get_logger().info(response.message)
+        return response
+
+    def on_step(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """While paused, run one control period and publish; refuse when running."""
+        response.success = self.paused
+        if not self.paused:
+            response.message = 'not paused: ~/pause first'
+            return response
+        n = self.step_period()
+        response.message = f'stepped {n} x {self.dt} s to t = {self.sim.time:.4f} s'
+        return response
 
     def destroy_node(self) -> None:
         """Stop the physics thread and the viewer, then destroy the node."""

@@ -3,11 +3,10 @@ The core stays ROS-free: no rclpy, no message or service package, imported or pu
 
 ROS lives in ``mover6_control/nodes/`` (the nodes and the one message-conversion module), in
 ``mover6_control/tools/`` (the goal command line and the demo talk to the nodes) and in
-``sim_bridge/bridge_node.py`` (with its physics thread, ``bridge_physics.py``, and its
-controls, ``bridge_controls.py``); everything else
-is the core. Checked twice: statically on every
-import statement, and dynamically by importing each core module in a fresh interpreter and looking
-at what got loaded.
+``sim_bridge/bridge_node.py`` (with its physics thread, ``bridge_physics.py``); everything else
+is the core (the bridge node's ROS-free controls, ``bridge_controls.py``, included). Checked
+twice: statically on every import statement, and dynamically by importing each core module in a
+fresh interpreter and looking at what got loaded.
 """
 
 import ast
@@ -21,7 +20,7 @@ from source_tree import ROOT
 
 PACKAGES = ('mover6_control', 'sim_bridge')
 ROS_SIDE = ('mover6_control.nodes', 'mover6_control.tools', 'sim_bridge.bridge_node',
-            'sim_bridge.bridge_physics', 'sim_bridge.bridge_controls')
+            'sim_bridge.bridge_physics')
 FORBIDDEN = re.compile(r'^(rclpy|rosidl\w*|rcl_interfaces|builtin_interfaces|\w+_msgs|\w+_srvs)'
                        r'(\.|$)')
 
