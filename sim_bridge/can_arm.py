@@ -17,28 +17,37 @@ jonaitken/cpr_ros2; and the Mover6 user guide's CAN pages):
   than its command's (a set-point has 8 bytes, set zero 4, the other commands 2) or with an
   unknown payload is ignored, and counted in ``ignored``.
 - It answers every position set-point at once with its error flags, its encoder position (ticks
-  plus the joint's offset, int32 big-endian), a timestamp it counts up and its inputs (0x80 once
-  referenced). Commands get no answer of their own: their effect shows in the next reply.
+  plus the joint's offset, int32 big-endian), the set-point's counter byte as its timestamp (the
+  user guide: the module copies the command's timestamp into its answer) and its inputs (0x80 once
+  referenced). With ``answers_commands`` (design.md: a module answers every command it takes) it
+  answers reset, enable, disable, referencing and set zero too, with timestamp 0 (those frames
+  carry none); without it only set-points are answered, the worst a driver may meet.
 - Error flags: 0x1C after power-up (motor not enabled, communication watchdog, position lag),
   0x04 after a reset, 0x00 after an enable. Enable is taken only when nothing but 0x04 is set
   (after a reset); otherwise it changes nothing. Any error flag stops the motor and sets 0x04.
 - Motion: while enabled the motor follows its set-points, each interpolated linearly over the
   interval between the last two set-points (the driver's cycle), at most at the joint's speed
-  limit. Enabling takes the present position as the set-point (a driver that then sends a
-  distant set-point trips the lag). When the reference runs more than ``lag_limit`` ahead of
-  the position, the module raises position lag (0x10).
+  limit. A disabled module keeps the last set-point it was sent, and **enabling drives there**
+  at the joint's top speed (the worst a firmware may do: the reason the vendor's enable first
+  sets the set-point to the measured position); with no set-point yet it holds where it is.
+  When the reference runs more than ``lag_limit`` ahead of the position, the module raises
+  position lag (0x10). ``max_setpoint_gap`` keeps the largest distance between a set-point an
+  enabled module was sent (or kept, at enable) and its position then [wire ticks]: what a test
+  reads to see a jump.
 - Communication watchdog: an enabled module that gets no set-point for ``watchdog_timeout``
   raises 0x08 and stops.
 - Start referencing and set zero take effect on the second of two commands; set zero's second
   must follow within ``set_zero_window`` (0.5 s), referencing's within ``reference_window``.
   Referencing needs the motor enabled and takes ``reference_time``; the simulated encoder
   already counts from the true zero, so it only sets the referenced bit. Set zero makes the
-  present position read 0 on the wire (offset included, as the vendor's driver sends it).
+  present position read the value in its last two bytes on the wire (big-endian, as
+  ``protocol.encode_set_zero`` sends it; the vendor's driver always sends 0).
 
 What is this simulation's and not the vendor's (no vendor source gives the firmware's numbers;
 they are parameters, to be checked on the real arm): ``watchdog_timeout``, ``lag_limit``,
 ``reference_time``, ``reference_window``, the interpolation of set-points, that the watchdog,
-the position lag and an injected flag also set 0x04, and that commands get no reply.
+the position lag and an injected flag also set 0x04, what a reply to a command carries, and the
+drive to a kept set-point on enable.
 
 Faults to inject (``inject_flags``, ``set_silent``): any error flags on a module (cleared by a
 reset unless sticky), and a silent module that takes commands but never answers. A corrupted
@@ -98,10 +107,19 @@ class MotorModule:
     Positions here are on the wire's scale [ticks, offset included]; ``ref_time`` etc. [s].
     """
 
-    def __init__(self, joint: int, timing: ModuleTiming) -> None:
-        """Power the module up: flags 0x1C, motor off, not referenced."""
+    def __init__(self, joint: int, timing: ModuleTiming, top_speed: float = 1.0e4,
+                 answers_commands: bool = True) -> None:
+        """
+        Power the module up: flags 0x1C, motor off, not referenced.
+
+        ``top_speed`` [wire ticks/s] is how fast it drives to a kept set-point on enable;
+        ``answers_commands``: it answers commands as well as set-points.
+        """
         self.joint = joint
         self.timing = timing
+        self.top_speed = float(top_speed)
+        self.answers_commands = bool(answers_commands)
+        self.max_setpoint_gap = 0      # [wire ticks] the largest set-point an enabled one met
         self.flags = POWER_UP_FLAGS
         self.enabled = False
         self.referenced = False
@@ -141,17 +159,17 @@ class MotorModule:
             self.ignored += 1
             return None
         if command.kind == 'setpoint':
-            self._take_setpoint(command, now)
+            self._take_setpoint(command, now, position)
         elif command.kind == 'reset':
             self.flags = NOT_ENABLED | self.sticky_flags
             self.enabled = False
             self._armed.clear()
             self._referencing_until = None
         elif command.kind == 'enable':
-            if self.flags & ~NOT_ENABLED == 0:
+            if self.flags & ~NOT_ENABLED == 0 and not self.enabled:
                 self.enabled = True
                 self.flags = 0
-                self._hold(position, now)
+                self._drive_to_kept(position, now)
         elif command.kind == 'disable':
             self._stop(position, now)
         elif command.kind == 'reference':
@@ -160,15 +178,27 @@ class MotorModule:
                 self._referencing_until = now + self.timing.reference_time
         elif command.kind == 'set_zero':
             if self._second_of_pair('set_zero', now, self.timing.set_zero_window):
-                self.bias -= position
-                self._hold(0, now)
-        if command.kind != 'setpoint' or self.silent:
+                self.bias += command.position - position
+                position = command.position
+                self._hold(position, now)
+        if self.silent or (command.kind != 'setpoint' and not self.answers_commands):
             return None
+        self.timestamp = command.counter if command.kind == 'setpoint' else 0
         return self._reply(position)
+
+    def _drive_to_kept(self, position, now):
+        """On enable: drive from ``position`` to the kept set-point at top speed, if any."""
+        kept = self.last_setpoint
+        if kept is None:
+            self._hold(position, now)
+            return
+        self.max_setpoint_gap = max(self.max_setpoint_gap, abs(kept - position))
+        self._ref_from, self._ref_to = float(position), float(kept)
+        self._ramp_start = now
+        self._ramp_time = max(abs(kept - position) / self.top_speed, _MIN_INTERVAL)
 
     def _reply(self, position):
         """Return the reply payload for the encoder at ``position`` [wire ticks]."""
-        self.timestamp = (self.timestamp + 1) & 0xFF
         self.replies += 1
         inputs = (self.inputs & ~protocol.REFERENCED) | \
             (protocol.REFERENCED if self.referenced else 0)
@@ -182,9 +212,12 @@ class MotorModule:
         self._armed[kind] = now
         return False
 
-    def _take_setpoint(self, command, now):
+    def _take_setpoint(self, command, now, position):
         """Store a set-point and start the reference's ramp to it."""
         self.setpoints += 1
+        if self.enabled:
+            self.max_setpoint_gap = max(self.max_setpoint_gap,
+                                        abs(command.position - position))
         self.digital_out = command.digital_out
         if self._setpoint_time is not None:
             self._interval = min(max(now - self._setpoint_time, _MIN_INTERVAL), _MAX_INTERVAL)
@@ -255,7 +288,7 @@ class MotorModule:
                 'silent': self.silent, 'setpoint': self.last_setpoint, 'bias': self.bias,
                 'setpoints': self.setpoints, 'setpoint_changed': self.setpoint_changed,
                 'replies': self.replies, 'ignored': self.ignored,
-                'digital_out': self.digital_out}
+                'digital_out': self.digital_out, 'max_setpoint_gap': self.max_setpoint_gap}
 
 
 class CanArm:
@@ -269,13 +302,14 @@ class CanArm:
 
     def __init__(self, arm: ArmModel, scales: Sequence[JointScale],
                  timing: ModuleTiming | None = None, home_q: np.ndarray | None = None,
-                 sim_config: SimConfig | None = None) -> None:
+                 sim_config: SimConfig | None = None, answers_commands: bool = True) -> None:
         """
         Power up at rest at ``home_q`` (n,) [rad] (zeros): every module reports 0x1C.
 
         ``scales`` are the joints' scaling as the driver reads it (``hardware.scaling``, from
         config/mover6_joints.yaml): the modules count with the driver's gears, ticks and
         offsets, so the simulation cannot check them (J1's sign least of all).
+        ``answers_commands``: the modules answer commands too, not only set-points.
         """
         if len(scales) != arm.n_joints or arm.n_joints != len(protocol.JOINTS):
             raise InvalidInputError(
@@ -285,8 +319,10 @@ class CanArm:
         self.scales = tuple(scales)
         self.timing = timing or ModuleTiming()
         self.sim = Simulator(arm, sim_config or SimConfig(mode='rad_per_s'), home_q)
-        self.modules = tuple(MotorModule(j, self.timing) for j in protocol.JOINTS)
         self._tpr = np.array([s.ticks_per_rad for s in self.scales])
+        self.modules = tuple(
+            MotorModule(j, self.timing, abs(v * t), answers_commands)
+            for j, v, t in zip(protocol.JOINTS, arm.velocity_limits, self._tpr))
         self._offset = np.array([s.offset for s in self.scales], dtype=float)
         self._lag_ticks = np.abs(self.timing.lag_limit * self._tpr)
         self._vmax = np.array(arm.velocity_limits)

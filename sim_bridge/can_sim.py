@@ -58,11 +58,16 @@ SIM_PRIORITY = 60
 
 def build_arm(limit_set: str = 'hardware', joints_file: str = JOINTS_YAML,
               home_q: Optional[Sequence[float]] = None,
-              timing: ModuleTiming | None = None) -> CanArm:
-    """Return the CAN-level Mover6 counting with the joint file the driver reads."""
+              timing: ModuleTiming | None = None, answers_commands: bool = True) -> CanArm:
+    """
+    Return the CAN-level Mover6 counting with the joint file the driver reads.
+
+    ``answers_commands``: the modules answer commands as well as set-points (``can_arm``).
+    """
     _, joints = load_joints(joints_file)
     return CanArm(mover6(limit_set), joints, timing,
-                  None if home_q is None else np.asarray(home_q, dtype=float))
+                  None if home_q is None else np.asarray(home_q, dtype=float),
+                  answers_commands=answers_commands)
 
 
 class BusServer:
@@ -304,6 +309,9 @@ def parse_args(argv: Optional[list[str]]) -> argparse.Namespace:
                         help='[s] without a set-point before 0x08 (default: %(default)s)')
     parser.add_argument('--lag-limit', type=float, default=ModuleTiming.lag_limit,
                         help='[rad] position lag before 0x10 (default: %(default)s)')
+    parser.add_argument('--command-replies', choices=('on', 'off'), default='on',
+                        help='on: the modules answer every command they take (design.md); off: '
+                        'only set-points, the worst a driver may meet (default: %(default)s)')
     parser.add_argument('--priority', type=int, default=SIM_PRIORITY,
                         help='SCHED_FIFO priority of the simulated modules where the system '
                         'allows it, 0 = normal scheduling (default: %(default)s, above the '
@@ -329,7 +337,8 @@ def main(argv: Optional[list[str]] = None) -> int:
         return 0 if answer.get('ok') else 1
     try:
         timing = ModuleTiming(watchdog_timeout=args.watchdog_timeout, lag_limit=args.lag_limit)
-        arm = build_arm(args.limit_set, args.joints_file, args.home, timing)
+        arm = build_arm(args.limit_set, args.joints_file, args.home, timing,
+                        args.command_replies == 'on')
         server = SerialArm(arm, args.link, args.control or args.link + '.control')
     except (InvalidInputError, OSError) as err:
         print(f'can_sim: {err}', file=sys.stderr)

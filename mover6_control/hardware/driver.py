@@ -3,32 +3,38 @@ The Mover6 arm driver without ROS: joint velocities in, position set-points on t
 
 One ``ArmDriver`` owns the bus. Each cycle (``step``, 50 ms by default; ``start`` runs it on one
 control thread) it reads every reply that arrived, updates each joint's state, integrates the
-commanded joint velocities into set-points and sends one set-point per module. The differences
-from the vendor's driver (``MotorModule::WriteLoop``, ``Joint::OnWrite`` in cpr_robot) are on
-purpose:
+commanded joint velocities into set-points and queues one set-point per module; the frames go
+out in order, ``frame_gap`` apart (``outbox``). The differences from the vendor's driver
+(``MotorModule::WriteLoop``, ``Joint::OnWrite`` in cpr_robot) are on purpose. The first is one
+rule: **no set-point that is not where the joint is reaches a module that is, or is about to be,
+enabled.** So:
 
-- the set-point starts at the measured position, and keeps tracking it whenever a joint is not
-  enabled (after start, a reset, a fault, referencing, set zero): never a jump. Before the first
-  reply the position is unknown, so the first frames are a ``disable`` to every module and then
-  set-points a disabled module cannot act on (the vendor streams set-point 0 to a module that may
-  be enabled);
+- before a module has answered, it gets ``disable`` (which moves nothing; a module that answers
+  every command tells its position in the reply). Only a module that still has not answered
+  after ``PROBE_CYCLES`` cycles gets a set-point, and then right behind a ``disable``, so it is
+  disabled when the set-point arrives (the vendor streams set-point 0 to a module that may be
+  enabled);
+- while a joint is not enabled (after start, a reset, a fault, referencing, set zero) its
+  set-point is its measured position; ``enable`` goes out only once every module has answered a
+  set-point at its measured position (``driver_requests``), so a module that keeps its last
+  set-point while disabled goes nowhere when enabled; enable is all six modules or none;
+- motion after an enable starts only from a command that arrives after it: a JointJog stream
+  that was live before it moves nothing;
 - the set-point is integrated in fractional ticks (a slow wrist command still moves J5 and J6),
-  clamped to the joint's tick limits and to the measured position plus or minus ``max_lag``;
-  at rest it is the whole tick sent, so a move of whole ticks lands on whole ticks;
+  clamped to the joint's tick limits and to the measured position plus or minus ``max_lag``; a
+  clamp only shortens a cycle's step (``setpoints``): a joint found outside its limits moves only
+  inward, at the commanded speed;
 - a command older than ``command_timeout`` stops the integration at the next cycle: the arm
   holds where it is (the vendor keeps the last command forever);
 - any error flag on any joint, a joint not enabled, or a module silent for ``silent_cycles``
   cycles holds the whole arm (velocity zero, set-points frozen), with the reason in the report;
   a silent module is a latched ``fault`` until ``reset``;
+- confirmations (enable, reset, referencing, set zero) count only replies that echo a set-point
+  sent after the command (``driver_replies``);
 - ``close`` disables every module before the bus is shut down.
 
-What the bus brings that is not a reply of one of the joints' modules is dropped and counted by
-its reason (``ArmReport.bad_frames``), never decoded as a position: an unknown or extended ID, a
-remote or error frame, a reply of the wrong length, a command frame of another master on the
-bus. A well-formed reply whose position jumps further than the joint can have moved since its last
-reply (``max_lag`` plus twice its maximum speed over the time between the two) while the driver
-drives it is dropped too ('position_jump'): the set-point never follows it, and a joint whose
-replies keep jumping goes silent and faults, so the arm holds.
+What the bus brings that is not a fresh reply of one of the joints' modules is refused and
+counted by its reason (``ArmReport.bad_frames``, ``driver_replies``).
 
 The control thread (``start``) sleeps to absolute deadlines on ``clock`` (an overrun skips, never
 bursts) and, with ``priority`` 1..99, runs at SCHED_FIFO where the system allows it
@@ -36,10 +42,11 @@ bursts) and, with ``priority`` 1..99, runs at SCHED_FIFO where the system allows
 to ``on_cycle``, which must hand them over without waiting (the node publishes on a thread of
 its own).
 
-The driver is five parts: this module (the commands, the cycle, the control thread),
-``driver_state`` (each joint's record and state machine, the arm's state, the reports),
-``setpoints`` (the set-point integrator), ``driver_replies`` (the bus intake) and
-``driver_requests`` (reset, enable, disable, reference and set zero, and their confirmation).
+The driver is built from parts it makes in its constructor, each a class a test can build alone:
+``JointRecord`` per joint (``driver_state``: the joint's record and state machine), an
+``Outbox`` (the frames in order, ``frame_gap`` apart), a ``ReplyIntake`` (the bus intake) and
+``Requests`` (reset, enable, disable, reference and set zero, and their confirmation); the
+set-point integrator is the function ``setpoints.integrate``.
 """
 
 from __future__ import annotations
@@ -51,32 +58,38 @@ from typing import Callable, Optional, Sequence
 import can
 from mover6_control.errors import InvalidInputError
 from mover6_control.hardware import protocol as p
-from mover6_control.hardware.driver_replies import DriverReplies
-from mover6_control.hardware.driver_requests import DriverRequests
+from mover6_control.hardware.driver_replies import ReplyIntake
+from mover6_control.hardware.driver_requests import Request, Requests
 from mover6_control.hardware.driver_state import (
     arm_state, ArmReport, hold_reason, joint_report, JointRecord)
+from mover6_control.hardware.outbox import Outbox
 from mover6_control.hardware.scaling import JointScale
 from mover6_control.hardware.setpoints import integrate
 from mover6_control.realtime import run_at_priority
 
+PROBE_CYCLES = 2
+"""Cycles of ``disable`` alone before a silent module is polled with a set-point behind one."""
+FRAME_GAP = 0.005
+"""[s] between two frames the driver sends: the vendor's (``Bus.cpp``, CPRog's configuration)."""
 
-class ArmDriver(DriverReplies, DriverRequests):
+
+class ArmDriver:
     """
     Drive the modules on ``bus`` for ``joints`` (``scaling.load_joints``), one cycle per ``step``.
 
-    ``cycle`` [s], ``command_timeout`` [s], ``max_lag`` [rad] and ``silent_cycles`` as in the
-    module docstring; ``limit_set`` names the joint limits the set-points are clamped to (always
-    within the hardware ones); ``firmware`` names the error-flag table. ``clock`` [s] is only used
-    by the control thread (``start``) and by ``request``; ``step`` takes the time as an argument.
-    ``on_cycle``, if given, gets every cycle's ``ArmReport`` on the control thread. ``priority``
-    (0 = normal scheduling, 1..99 SCHED_FIFO where allowed) is the control thread's;
-    ``scheduling`` says what it got.
+    ``cycle`` [s], ``command_timeout`` [s], ``max_lag`` [rad], ``silent_cycles`` and
+    ``frame_gap`` [s] as in the module docstring; ``limit_set`` names the joint limits the
+    set-points are clamped to (always within the hardware ones); ``firmware`` names the
+    error-flag table. ``clock`` [s] is only used by the control thread (``start``) and by
+    ``request``; ``step`` takes the time as an argument. ``on_cycle``, if given, gets every
+    cycle's ``ArmReport`` on the control thread. ``priority`` (0 = normal scheduling, 1..99
+    SCHED_FIFO where allowed) is the control thread's; ``scheduling`` says what it got.
     """
 
     def __init__(self, bus: can.BusABC, joints: Sequence[JointScale], *, cycle: float = 0.05,
                  command_timeout: float = 0.2, max_lag: float = 0.2, silent_cycles: int = 3,
-                 limit_set: str = 'hardware', firmware: str = 'mover6',
-                 clock: Callable[[], float] = time.monotonic,
+                 frame_gap: float = FRAME_GAP, limit_set: str = 'hardware',
+                 firmware: str = 'mover6', clock: Callable[[], float] = time.monotonic,
                  on_cycle: Optional[Callable[[ArmReport], None]] = None,
                  priority: int = 0) -> None:
         for name, value in (('cycle', cycle), ('command_timeout', command_timeout),
@@ -85,33 +98,30 @@ class ArmDriver(DriverReplies, DriverRequests):
                 raise InvalidInputError(f'{name} must be positive, got {value!r}')
         if int(silent_cycles) < 1:
             raise InvalidInputError(f'silent_cycles must be >= 1, got {silent_cycles!r}')
+        if not 0.0 <= frame_gap < cycle / 8:
+            raise InvalidInputError(f'frame_gap must be in [0, cycle / 8), got {frame_gap!r}')
         p.flag_names(0, firmware)
         self.bus = bus
-        self._joints = [JointRecord(j) for j in joints]
+        self._joints = tuple(JointRecord(j) for j in joints)
         for j in self._joints:
             j.scale.tick_limits(limit_set)
+        self._outbox = Outbox(bus, frame_gap)
+        self._intake = ReplyIntake(self._joints, silent_cycles)
+        self._requests = Requests(self._joints, self._outbox, firmware)
         self.cycle = float(cycle)
         self.command_timeout = float(command_timeout)
         self.max_lag = float(max_lag)
-        self.silent_cycles = int(silent_cycles)
         self.limit_set = limit_set
         self.firmware = firmware
         self.clock = clock
         self.on_cycle = on_cycle
         self._lock = threading.RLock()
         self._command = None          # (velocities [rad/s], time [s])
-        self._scheduled = []          # (due [s], can_id, data)
-        self._requests = []
         self._last_step = None
         self._started = False
         self._report = None
-        self._bad = 0
-        self._bad_reasons = {}        # reason -> frames dropped for it
-        self._last_bad = ''
         self.priority = int(priority)
         self.scheduling = 'not started'
-        self._tx_errors = 0
-        self._bus_error = ''
         self._stop = threading.Event()
         self._thread = None
 
@@ -124,6 +134,11 @@ class ArmDriver(DriverReplies, DriverRequests):
     def report(self) -> Optional[ArmReport]:
         """Return the last cycle's report, None before the first cycle."""
         return self._report
+
+    @property
+    def frame_gap(self) -> float:
+        """Return the time between two frames sent [s]."""
+        return self._outbox.gap
 
     # --- commands (any thread) ---
 
@@ -152,6 +167,17 @@ class ArmDriver(DriverReplies, DriverRequests):
         with self._lock:
             self._joints[joint - 1].outputs = bits
 
+    def request(self, kind: str, joints: Optional[Sequence[int]] = None,
+                timeout: float = 2.0) -> Request:
+        """
+        Queue ``kind`` (reset, enable, disable, reference, set_zero) for ``joints`` (default all).
+
+        Refused at once, with the reason, when it cannot be done safely (``driver_requests``);
+        otherwise the control thread sends its frames from its next cycle on.
+        """
+        with self._lock:
+            return self._requests.submit(kind, joints, timeout, self._moving())
+
     # --- the cycle ---
 
     def step(self, now: float) -> ArmReport:
@@ -163,27 +189,51 @@ class ArmDriver(DriverReplies, DriverRequests):
             if not self._started:
                 self._started = True
                 for n in range(1, len(self._joints) + 1):
-                    self._send(p.command_id(n), p.DISABLE)
-            self._read(now)
-            self._send_requests(now)
-            busy = self._busy_joints()
-            hold = hold_reason(self._joints, busy, self.firmware)
+                    self._outbox.put(p.command_id(n), p.DISABLE)
+            self._intake.read(self.bus, now, self.max_lag, self.cycle)
+            self._requests.start(now)
+            busy = self._requests.busy_joints()
+            enabling = self._requests.enabling()
+            hold = hold_reason(self._joints, busy, self.firmware, enabling)
             fresh = self._command is not None and now - self._command[1] <= self.command_timeout
             command = self._command[0] if fresh else [0.0] * len(self._joints)
             for n, (j, v) in enumerate(zip(self._joints, command), start=1):
-                if n in busy:
+                if n in busy or enabling:
                     j.track = True               # the module moves itself: follow it
                 integrate(j, v, dt, bool(hold), self.limit_set, self.max_lag)
             for n, j in enumerate(self._joints, start=1):
-                wire = j.scale.to_wire(round(j.setpoint) if j.setpoint is not None else 0)
-                self._send(p.command_id(n), p.encode_setpoint(wire, j.counter, j.outputs))
-                j.counter = (j.counter + 1) & 0xFF
-            self._send_due(now)
-            self._check_requests(now)
+                self._queue_setpoint(n, j)
+            self._requests.after_setpoints(now)
+            self._outbox.send_due(now)
+            for req in self._requests.check(now):
+                if req.kind == 'enable' and req.ok:
+                    self._command = None         # motion starts from a command after enable
+                hold = hold_reason(self._joints, self._requests.busy_joints(), self.firmware,
+                                   self._requests.enabling())
             self._report = self._make_report(now, hold, period)
         if self.on_cycle is not None:
             self.on_cycle(self._report)
         return self._report
+
+    def _queue_setpoint(self, n: int, j: JointRecord) -> None:
+        """Queue joint ``n``'s set-point, or, while its position is unknown, a disable."""
+        can_id = p.command_id(n)
+        if j.ticks is None:
+            self._outbox.put(can_id, p.DISABLE)
+            if j.unknown_cycles >= PROBE_CYCLES:
+                # A module that answers only set-points: poll it right behind the disable, so
+                # it cannot act on the set-point; enable waits for one at its position.
+                counter = j.next_counter()
+                seq = self._outbox.put(can_id, p.encode_setpoint(j.scale.to_wire(0), counter,
+                                                                  j.outputs))
+                j.sent[counter] = (seq, 0)
+            j.unknown_cycles += 1
+            return
+        ticks = round(j.setpoint) if j.setpoint is not None else j.ticks
+        counter = j.next_counter()
+        seq = self._outbox.put(can_id, p.encode_setpoint(j.scale.to_wire(ticks), counter,
+                                                          j.outputs))
+        j.sent[counter] = (seq, ticks)
 
     def _moving(self) -> bool:
         command = self._command
@@ -191,24 +241,28 @@ class ArmDriver(DriverReplies, DriverRequests):
             any(v != 0.0 for v in command[0])
         return live or any(j.velocity != 0.0 for j in self._joints)
 
-    def _send(self, can_id: int, data: bytes) -> None:
-        try:
-            self.bus.send(can.Message(arbitration_id=can_id, is_extended_id=False, data=data))
-        except can.CanError as err:
-            self._tx_errors += 1
-            self._bus_error = f'send failed: {err}'
-
     def _make_report(self, now: float, hold: str, period: float) -> ArmReport:
         joints = tuple(joint_report(j, self.firmware) for j in self._joints)
         state = arm_state(joints)
+        intake, outbox = self._intake, self._outbox
         return ArmReport(time=now, state=state, hold=hold, joints=joints, period=period,
                          frames_dropped=int(getattr(self.bus, 'dropped', 0)),
-                         frames_bad=self._bad, tx_errors=self._tx_errors,
-                         bus_error=self._bus_error,
-                         bad_frames=tuple(sorted(self._bad_reasons.items())),
-                         last_bad_frame=self._last_bad)
+                         frames_bad=intake.bad, tx_errors=outbox.tx_errors,
+                         bus_error=outbox.error or intake.bus_error,
+                         bad_frames=tuple(sorted(intake.bad_reasons.items())),
+                         last_bad_frame=intake.last_bad)
 
     # --- the control thread ---
+
+    def send_due(self, now: float) -> None:
+        """Send the queued frames that are due at ``now`` [s] (the control thread's job)."""
+        with self._lock:
+            self._outbox.send_due(now)
+
+    def next_due(self) -> Optional[float]:
+        """Return when the next queued frame is due [s], or None."""
+        with self._lock:
+            return self._outbox.next_due()
 
     def start(self) -> None:
         """Start the control thread: one ``step`` every ``cycle`` on ``clock``."""
@@ -244,7 +298,8 @@ class ArmDriver(DriverReplies, DriverRequests):
             self._thread.join(timeout=5.0)
             self._thread = None
         with self._lock:
+            self._outbox.clear()
             for n in range(1, len(self._joints) + 1):
-                self._send(p.command_id(n), p.DISABLE)
-            self._finish_all('the driver shut down')
+                self._outbox.send_now(p.command_id(n), p.DISABLE)
+            self._requests.finish_all('the driver shut down')
         self.bus.shutdown()

@@ -1,23 +1,34 @@
 """
-The arm driver's intake of the bus: each module's replies, everything else dropped by reason.
+The arm driver's intake of the bus: each module's replies, everything else refused by reason.
 
-Each cycle ``_read`` takes every frame that arrived. What is not a reply of one of the joints'
-modules is dropped and counted by its reason (``ArmReport.bad_frames``), never decoded as a
+``ReplyIntake.read`` takes every frame that arrived. What is not a reply of one of the joints'
+modules is refused and counted by its reason (``ArmReport.bad_frames``), never decoded as a
 position: a remote or error frame, an extended ID, an unknown ID, a command frame of another
-master on the bus, a reply of the wrong length. A well-formed reply whose position the joint
-cannot have reached is dropped too ('position_jump', ``setpoints.plausible``). A joint whose
-module sent nothing this cycle counts a silent cycle; after ``silent_cycles`` it is a latched
-fault until a reset.
+master on the bus, a reply of the wrong length. So is a reply whose timestamp (``data[5]``) did
+not move since the module's last one ('stale_timestamp': the vendor's ``Joint.cpp`` ignores such
+a reply too), and a well-formed reply whose position the joint cannot have reached
+('position_jump', ``setpoints.plausible``). Timestamp 0 is never a set-point's counter (the
+driver sends 1..255): a reply carrying it answers a command, and is taken without that check.
 
-``DriverReplies`` is a part of ``hardware.driver.ArmDriver`` (its state is the driver's, set in
-``ArmDriver.__init__``); it is not used on its own.
+A reply whose timestamp echoes the counter of a set-point the driver sent (the user guide: the
+module copies the command's timestamp into its answer) proves that the module had that set-point
+when it answered: the joint's ``echo_seq`` / ``echo_value`` keep the newest such set-point, and
+confirmations (enable, reset, set zero, referencing) count only replies that echo a set-point
+sent after their command. A joint whose module sent nothing this cycle counts a silent cycle;
+after ``silent_cycles`` it is a latched fault until a reset.
 """
 
 from __future__ import annotations
 
+from typing import Sequence
+
 import can
 from mover6_control.hardware import protocol as p
+from mover6_control.hardware.driver_state import JointRecord
 from mover6_control.hardware.setpoints import plausible
+
+COMMAND_STAMP = 0
+"""A reply's timestamp that no set-point carries: the answer to a command (reset, disable...)."""
 
 
 def frame_problem(msg: can.Message, n_joints: int) -> str:
@@ -37,40 +48,33 @@ def frame_problem(msg: can.Message, n_joints: int) -> str:
     return ''
 
 
-class DriverReplies:
-    """The bus intake of ``ArmDriver`` (module docstring)."""
+class ReplyIntake:
+    """Read the replies into ``joints`` (``JointRecord``), refusing what is no fresh reply."""
 
-    def _read(self, now: float) -> None:
+    def __init__(self, joints: Sequence[JointRecord], silent_cycles: int) -> None:
+        """Take the joints' records; a module silent ``silent_cycles`` cycles in a row faults."""
+        self.joints = joints
+        self.silent_cycles = int(silent_cycles)
+        self.bad = 0                  # frames refused
+        self.bad_reasons = {}         # reason -> frames refused for it
+        self.last_bad = ''
+        self.bus_error = ''
+
+    def read(self, bus: can.BusABC, now: float, max_lag: float, cycle: float) -> set:
+        """Take every frame on ``bus`` at ``now`` [s]; return the joints that answered."""
         fresh = set()
         while True:
             try:
-                msg = self.bus.recv(timeout=0.0)
+                msg = bus.recv(timeout=0.0)
             except can.CanError as err:
-                self._bus_error = f'receive failed: {err}'
+                self.bus_error = f'receive failed: {err}'
                 break
             if msg is None:
                 break
-            reason = frame_problem(msg, len(self._joints))
-            if not reason:
-                joint = p.joint_of_id(msg.arbitration_id)[0]
-                try:
-                    reply = p.decode_reply(bytes(msg.data[:msg.dlc]))
-                except p.ProtocolError:
-                    reason = 'wrong_length'
-            if not reason:
-                j = self._joints[joint - 1]
-                ticks = j.scale.from_wire(reply.position)
-                if not plausible(j, ticks, now, self.max_lag, self.cycle):
-                    reason = 'position_jump'
-            if reason:
-                self._refuse_frame(msg, reason)
-                continue
-            if j.ticks is not None and j.reply_time is not None and now > j.reply_time:
-                j.qd = j.scale.to_rad(ticks - j.ticks) / (now - j.reply_time)
-            j.reply, j.ticks, j.reply_time = reply, ticks, now
-            j.replies += 1
-            fresh.add(joint)
-        for n, j in enumerate(self._joints, start=1):
+            joint = self._take(msg, now, max_lag, cycle)
+            if joint:
+                fresh.add(joint)
+        for n, j in enumerate(self.joints, start=1):
             if n in fresh:
                 j.silent = 0
             elif j.reply is not None:
@@ -78,9 +82,39 @@ class DriverReplies:
                 j.qd = 0.0
                 if j.silent >= self.silent_cycles:
                     j.fault = True
+        return fresh
 
-    def _refuse_frame(self, msg: can.Message, reason: str) -> None:
-        self._bad += 1
-        self._bad_reasons[reason] = self._bad_reasons.get(reason, 0) + 1
+    def _take(self, msg: can.Message, now: float, max_lag: float, cycle: float) -> int:
+        """Take one frame into its joint's record; return the joint, or 0 when refused."""
+        reason = frame_problem(msg, len(self.joints))
+        if not reason:
+            joint = p.joint_of_id(msg.arbitration_id)[0]
+            j = self.joints[joint - 1]
+            try:
+                reply = p.decode_reply(bytes(msg.data[:msg.dlc]))
+            except p.ProtocolError:
+                reason = 'wrong_length'
+        if not reason and reply.timestamp != COMMAND_STAMP and j.reply is not None and \
+                reply.timestamp == j.reply.timestamp:
+            reason = 'stale_timestamp'
+        if not reason:
+            ticks = j.scale.from_wire(reply.position)
+            if not plausible(j, ticks, now, max_lag, cycle):
+                reason = 'position_jump'
+        if reason:
+            self._refuse(msg, reason)
+            return 0
+        if j.ticks is not None and j.reply_time is not None and now > j.reply_time:
+            j.qd = j.scale.to_rad(ticks - j.ticks) / (now - j.reply_time)
+        j.reply, j.ticks, j.reply_time = reply, ticks, now
+        j.replies += 1
+        sent = j.sent.get(reply.timestamp)
+        if sent is not None and sent[0] > j.echo_seq:
+            j.echo_seq, j.echo_value = sent
+        return joint
+
+    def _refuse(self, msg: can.Message, reason: str) -> None:
+        self.bad += 1
+        self.bad_reasons[reason] = self.bad_reasons.get(reason, 0) + 1
         data = bytes(msg.data[:msg.dlc]).hex(' ')
-        self._last_bad = f'{reason}: id 0x{msg.arbitration_id:X} dlc {msg.dlc} [{data}]'
+        self.last_bad = f'{reason}: id 0x{msg.arbitration_id:X} dlc {msg.dlc} [{data}]'

@@ -86,8 +86,27 @@ class JointRecord:
         self.silent = 0
         self.fault = False
         self.track = True          # set-point follows the measured position
-        self.counter = 0
+        self.counter = 0           # the last set-point's counter byte (1..255: 0 is never sent)
+        self.sent = {}             # counter -> (frame sequence, set-point [ticks]) sent lately
+        self.echo_seq = -1         # sequence of the set-point the latest reply echoes (-1: none)
+        self.echo_value = None     # that set-point [ticks]
+        self.unknown_cycles = 0    # cycles without a position yet
         self.outputs = 0
+
+    def next_counter(self) -> int:
+        """Return the counter byte of the next set-point: 1..255, wrapping past 0."""
+        self.counter = self.counter % 255 + 1
+        return self.counter
+
+    def primed(self, since: int) -> bool:
+        """
+        Tell whether the module answered a set-point sent after frame ``since`` at its position.
+
+        Then the set-point the module holds is where the joint is (a module that keeps its last
+        set-point while disabled goes nowhere when enabled).
+        """
+        return self.echo_seq > since and self.echo_value is not None and \
+            self.ticks is not None and abs(self.echo_value - self.ticks) <= 1
 
     def state(self) -> ModuleState:
         """Return the joint's state from its latest reply (and a latched fault)."""
@@ -103,10 +122,17 @@ class JointRecord:
         return S.REFERENCED if self.reply.referenced else S.ENABLED
 
 
-def hold_reason(joints: Sequence[JointRecord], busy: set, firmware: str) -> str:
-    """Return why the arm must hold ('' when it may move); ``busy``: joints referencing."""
+def hold_reason(joints: Sequence[JointRecord], busy: set, firmware: str,
+                enabling: bool = False) -> str:
+    """
+    Return why the arm must hold ('' when it may move).
+
+    ``busy``: joints referencing or setting zero; ``enabling``: an enable is under way.
+    """
     if busy:
         return f'joints {sorted(busy)}: referencing or setting zero'
+    if enabling:
+        return 'enabling: every module first answers a set-point at its measured position'
     for j in joints:
         state = j.state()
         if state == S.FAULT:

@@ -11,13 +11,17 @@ No I/O here: bytes in, values out, and back. The facts, checked against the vend
   (``MotorModule::Command_SetJoint``).
 - Commands (``MotorModule::Command_*``): reset errors ``[0x01, 0x06]``, enable ``[0x01, 0x09]``,
   disable ``[0x01, 0x0A]``, start referencing ``[0x01, 0x0B]``, all DLC 2; set zero
-  ``[0x01, 0x08, 0x00, 0x00]``, DLC 4. The vendor sends enable, referencing and set-zero twice,
-  20 ms apart (``MotorModule::Enable``, ``StartReferencing``, ``SetZero``); that timing belongs to
-  the driver, not here.
+  ``[0x01, 0x08, v1, v0]``, DLC 4, whose last two bytes carry the new zero value (the user
+  guide's example ``0x01 0x08 0x7D 0x00``; assumed big-endian and unsigned like every other value
+  on this bus: ``encode_set_zero``; the vendor always sends 0). The vendor sends enable,
+  referencing and set-zero twice, 20 ms apart (``MotorModule::Enable``, ``StartReferencing``,
+  ``SetZero``); that timing belongs to the driver, not here.
 - Reply, DLC 8: ``data[0]`` error flags, ``data[1..4]`` position int32 big-endian (minus the offset
-  gives ticks), ``data[5]`` a timestamp the module counts up, ``data[7]`` digital inputs, bit 0x80
-  "referenced" (``MotorModule::get_CurrentPosition``, ``Joint::DATABIT_REFERENCED``). ``data[6]``
-  is not read by the vendor; it is encoded as 0 here.
+  gives ticks), ``data[5]`` a timestamp, which the user guide says the module copies from the
+  command it answers (a set-point's counter byte; the vendor's ``Joint.cpp`` ignores a reply
+  whose timestamp did not change), ``data[7]`` digital inputs, bit 0x80 "referenced"
+  (``MotorModule::get_CurrentPosition``, ``Joint::DATABIT_REFERENCED``). ``data[6]`` is not read
+  by the vendor; it is kept in ``Reply.spare``.
 - Error flags of the Mover6 modules, as the Mover6 user guide's CAN pages name them: 0x01
   brown-out, 0x02 velocity lag, 0x04 motor not enabled, 0x08 communication watchdog, 0x10 position
   lag, 0x20 encoder, 0x40 over-current, 0x80 CAN. The newer CAN V2 modules reuse 0x04..0x20 but
@@ -48,7 +52,8 @@ RESET_ERRORS = b'\x01\x06'
 ENABLE = b'\x01\x09'
 DISABLE = b'\x01\x0a'
 START_REFERENCING = b'\x01\x0b'
-SET_ZERO = b'\x01\x08\x00\x00'
+SET_ZERO_HEADER = b'\x01\x08'
+SET_ZERO = SET_ZERO_HEADER + b'\x00\x00'
 
 REFERENCED = 0x80
 """The bit of a reply's inputs byte that tells the joint is referenced."""
@@ -104,7 +109,8 @@ class Command:
     A decoded command frame: ``kind`` is one of ``COMMAND_KINDS``.
 
     ``position`` [ticks, offset included, as on the wire], ``counter`` and ``digital_out`` are set
-    for a 'setpoint' and None for every other kind.
+    for a 'setpoint' and None for every other kind, except set zero's ``position``: the value the
+    module is to read at its present position (``encode_set_zero``).
     """
 
     kind: str
@@ -121,6 +127,7 @@ class Reply:
     position: int
     timestamp: int
     inputs: int
+    spare: int = 0
 
     @property
     def referenced(self) -> bool:
@@ -180,6 +187,18 @@ def encode_setpoint(position: int, counter: int, digital_out: int = 0) -> bytes:
         bytes((counter & 0xFF, digital_out))
 
 
+def encode_set_zero(value: int) -> bytes:
+    """
+    Return the 4 bytes of set zero: the module is to read ``value`` (0..65535) where it is now.
+
+    ``value`` [ticks, offset included, as on the wire] goes big-endian in the last two bytes; the
+    joint reads angle 0 afterwards when ``value`` is its offset (500 for J5, 509 for J6).
+    """
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 0xFFFF:
+        raise ProtocolError(f'set zero value must be an int in 0..65535, got {value!r}')
+    return SET_ZERO_HEADER + value.to_bytes(2, 'big')
+
+
 def decode_command(data: bytes) -> Command:
     """Return the command of a frame's payload; ProtocolError on a wrong length or unknown."""
     data = bytes(data)
@@ -188,20 +207,24 @@ def decode_command(data: bytes) -> Command:
             raise ProtocolError(f'a set-point has 8 bytes, got {len(data)}: {data.hex()}')
         return Command('setpoint', int.from_bytes(data[2:6], 'big', signed=True), data[6],
                        data[7])
+    if data[:2] == SET_ZERO_HEADER and len(data) == 4:
+        return Command('set_zero', int.from_bytes(data[2:4], 'big'))
     kind = _COMMANDS.get(data)
     if kind is None:
         raise ProtocolError(f'unknown command or wrong length ({len(data)} bytes): {data.hex()}')
     return Command(kind)
 
 
-def encode_reply(error_flags: int, position: int, timestamp: int, inputs: int) -> bytes:
+def encode_reply(error_flags: int, position: int, timestamp: int, inputs: int,
+                 spare: int = 0) -> bytes:
     """Return the 8 bytes of a module's reply; ``position`` [ticks, offset included]."""
     _check_byte(error_flags, 'error_flags')
     _check_int32(position, 'position')
     _check_byte(timestamp, 'timestamp')
     _check_byte(inputs, 'inputs')
+    _check_byte(spare, 'spare')
     return bytes((error_flags,)) + position.to_bytes(4, 'big', signed=True) + \
-        bytes((timestamp, 0, inputs))
+        bytes((timestamp, spare, inputs))
 
 
 def decode_reply(data: bytes) -> Reply:
@@ -209,7 +232,8 @@ def decode_reply(data: bytes) -> Reply:
     data = bytes(data)
     if len(data) != 8:
         raise ProtocolError(f'a reply has 8 bytes, got {len(data)}: {data.hex()}')
-    return Reply(data[0], int.from_bytes(data[1:5], 'big', signed=True), data[5], data[7])
+    return Reply(data[0], int.from_bytes(data[1:5], 'big', signed=True), data[5], data[7],
+                 data[6])
 
 
 def flag_names(flags: int, firmware: str = 'mover6') -> tuple[str, ...]:

@@ -4,7 +4,10 @@ The arm driver's set-point integrator: joint velocities into position set-points
 Each cycle ``integrate`` moves one joint's set-point by its commanded velocity over the cycle,
 in fractional ticks (a slow wrist command still moves J5 and J6; the wire gets the nearest
 tick), clamped to the joint's tick limits and to the measured position plus or minus
-``max_lag``. The set-point starts at the measured position and keeps tracking it whenever the
+``max_lag``. A clamp only ever shortens the cycle's step: it never moves a set-point further
+than the commanded motion of one cycle, nor against it, so a joint found outside its limits (or
+further than ``max_lag`` from its set-point) moves only inward, at the commanded speed, instead
+of jumping to the bound. The set-point starts at the measured position and keeps tracking it whenever the
 joint is not enabled or is told to (after start, a reset, a fault, referencing, set zero):
 never a jump. At rest (a zero command) the set-point is the whole tick on the wire, so a later
 move of whole ticks lands on whole ticks. ``plausible`` tells a reply whose position the joint
@@ -42,8 +45,11 @@ def integrate(j: JointRecord, v: float, dt: float, frozen: bool, limit_set: str,
         return
     lo, hi = j.scale.tick_limits(limit_set)
     lag = max_lag * abs(j.scale.ticks_per_rad)
-    target = j.setpoint + v * dt * j.scale.ticks_per_rad
-    target = min(max(target, j.ticks - lag, lo), j.ticks + lag, hi)
+    # The bounds, each widened to take in the set-point where it is: a clamp shortens the
+    # step, it never makes one (low <= setpoint <= high).
+    low = min(max(lo, j.ticks - lag), j.setpoint)
+    high = max(min(hi, j.ticks + lag), j.setpoint)
+    target = min(max(j.setpoint + v * dt * j.scale.ticks_per_rad, low), high)
     j.velocity = j.scale.to_rad(target - j.setpoint) / dt if dt > 0 else 0.0
     j.setpoint = target
 

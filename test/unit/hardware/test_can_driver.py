@@ -40,8 +40,9 @@ class Rig:
             if velocity is not None:
                 self.driver.set_velocity(velocity, self.t)
             report = self.driver.step(self.t)
-            for _ in range(5):                        # the modules answer, physics runs
-                self.t += CYCLE / 5
+            for _ in range(10):       # the frames go frame_gap apart, the modules answer
+                self.t += CYCLE / 10
+                self.driver.send_due(self.t)
                 self.server.poll(0.0)
         return report
 
@@ -111,7 +112,9 @@ def test_a_velocity_moves_the_arm_and_it_stops_on_timeout(rig):
 def test_an_injected_position_lag_holds_the_arm_until_reset_and_enable(rig):
     enabled(rig)
     rig.arm.inject_flags(2, 0x10, rig.t)
-    report = rig.run(2 * CYCLE, [0.3] * 6)
+    # Three cycles: the hold starts at the cycle that reads the flag, and the set-points sent
+    # before it (the last of them frame_gap x 5 into its cycle) take a cycle to be reached.
+    report = rig.run(3 * CYCLE, [0.3] * 6)
     assert report.state == 'error' and report.hold
     assert 'position_lag' in report.joints[1].flag_names
     q = rig.arm.sim.q.copy()

@@ -58,6 +58,7 @@ class Loop:
         end = self.t + duration
         while self.t < end - 1e-9:
             self.t = round(self.t + STEP, 9)
+            self.driver.send_due(self.t)          # the control thread: frames frame_gap apart
             self.server.poll(0.0)
             if self.t >= self.next_cycle - 1e-9:
                 self.next_cycle += CYCLE

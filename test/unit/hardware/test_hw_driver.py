@@ -3,8 +3,10 @@ The arm driver against python-can's ``virtual`` bus and a minimal stand-in for t
 
 ``Modules`` below is a test double used only in this unit test of ``ArmDriver``: it answers each
 set-point with a reply as the protocol says (flags 0x1C after power-up, 0x04 after reset, 0x00
-after enable; referencing and set zero taking effect on the second frame), and follows a
-set-point at once when enabled. The cycle runs on synthetic time (``step(t)``), except in the one
+after enable; referencing and set zero taking effect on the second frame; the set-point's counter
+echoed as the timestamp), answers commands too (timestamp 0) unless told not to, follows a
+set-point at once when enabled, and, as the worst firmware may, jumps to the last set-point it
+was sent when it is enabled. The cycle runs on synthetic time (``step(t)``), except in the one
 test of the control thread.
 """
 
@@ -26,8 +28,11 @@ CHANNELS = itertools.count()
 class Modules:
     """Six module stand-ins on the other end of a virtual bus (test double)."""
 
-    def __init__(self, bus, positions=None):
+    def __init__(self, bus, positions=None, answers_commands=True):
         self.bus = bus
+        self.answers_commands = answers_commands
+        self.enabled_at = {}     # joint -> (last set-point, position) when it was enabled
+        self.gaps = []           # (joint, |set-point - position|) of set-points taken enabled
         self.flags = dict.fromkeys(range(1, 7), 0x1C)
         self.wire = {n: (positions or {}).get(n, 0) + JOINTS[n - 1].offset for n in range(1, 7)}
         self.inputs = dict.fromkeys(range(1, 7), 0)
@@ -35,7 +40,7 @@ class Modules:
         self.frozen = set()
         self.log = []            # (joint, Command)
         self.repeats = {}
-        self.stamp = 0
+        self.kept = {}           # joint -> the last set-point it was sent
 
     def serve(self):
         while True:
@@ -59,18 +64,30 @@ class Modules:
             self.flags[n] |= 0x04
         elif cmd.kind == 'enable' and self.flags[n] == 0x04:
             self.flags[n] = 0x00
+            self.enabled_at[n] = (self.kept.get(n), self.wire[n])
+            if n in self.kept and n not in self.frozen:
+                self.wire[n] = self.kept[n]          # drives to the kept set-point
         elif cmd.kind == 'reference' and second:
             self.inputs[n] |= p.REFERENCED
         elif cmd.kind == 'set_zero' and second:
-            self.wire[n] = JOINTS[n - 1].offset
+            self.wire[n] = cmd.position
         elif cmd.kind == 'setpoint':
-            if self.flags[n] == 0 and n not in self.frozen:
-                self.wire[n] = cmd.position
-            if n not in self.silent:
-                self.stamp = (self.stamp + 1) & 0xFF
-                self.bus.send(can.Message(arbitration_id=p.reply_id(n), is_extended_id=False,
-                                          data=p.encode_reply(self.flags[n], self.wire[n],
-                                                              self.stamp, self.inputs[n])))
+            self.kept[n] = cmd.position
+            if self.flags[n] == 0:
+                self.gaps.append((n, abs(cmd.position - self.wire[n])))
+                if n not in self.frozen:
+                    self.wire[n] = cmd.position
+        if n not in self.silent and (cmd.kind == 'setpoint' or self.answers_commands):
+            stamp = cmd.counter if cmd.kind == 'setpoint' else 0
+            self.bus.send(can.Message(arbitration_id=p.reply_id(n), is_extended_id=False,
+                                      data=p.encode_reply(self.flags[n], self.wire[n], stamp,
+                                                          self.inputs[n])))
+
+    def largest_gap(self):
+        """Return the largest |set-point - position| an enabled module met [wire ticks]."""
+        gaps = [g for _, g in self.gaps]
+        gaps += [abs(kept - wire) for kept, wire in self.enabled_at.values() if kept is not None]
+        return max(gaps, default=0)
 
     def setpoints(self, n):
         return [c.position for j, c in self.log if j == n and c.kind == 'setpoint']
@@ -79,10 +96,11 @@ class Modules:
 class Rig:
     """A driver, its modules and a synthetic clock."""
 
-    def __init__(self, positions=None, **kwargs):
+    def __init__(self, positions=None, answers_commands=True, **kwargs):
         channel = f'driver_test_{next(CHANNELS)}'
         self.t = 100.0
-        self.modules = Modules(can.Bus(interface='virtual', channel=channel), positions)
+        self.modules = Modules(can.Bus(interface='virtual', channel=channel), positions,
+                               answers_commands)
         self.driver = ArmDriver(can.Bus(interface='virtual', channel=channel), JOINTS,
                                 clock=lambda: self.t, **kwargs)
 
@@ -91,8 +109,9 @@ class Rig:
             self.t += self.driver.cycle
             report = self.driver.step(self.t)
             self.modules.serve()
-            self.driver.send_due(self.t + 0.02)
-            self.modules.serve()
+            for k in range(1, 10):               # the frames go frame_gap apart
+                self.driver.send_due(self.t + k * self.driver.cycle / 10)
+                self.modules.serve()
         return report
 
     def until(self, req, cycles=40):
@@ -129,8 +148,9 @@ def test_start_disables_first_and_then_sets_the_measured_position(rig):
     report = r.run(3)
     first = r.modules.log[:6]
     assert first == [(n, p.Command('disable')) for n in range(1, 7)]
-    assert r.modules.setpoints(1)[1:] == [12345, 12345]
-    assert r.modules.setpoints(5)[1:] == [-40 + 500, -40 + 500]
+    # The modules answer the disable with their positions: the first set-point is there.
+    assert r.modules.setpoints(1) == [12345, 12345]
+    assert r.modules.setpoints(5) == [-40 + 500, -40 + 500]
     # Power-up flags 0x1C: watchdog and position lag on top of "motor not enabled".
     assert report.state == 'error' and 'comm_watchdog, position_lag' in report.hold
     assert report.joints[0].q == pytest.approx(JOINTS[0].to_rad(12345))
@@ -146,9 +166,9 @@ def test_enable_then_velocities_become_setpoints(rig):
         r.driver.set_velocity([0.1, 0, 0, 0, 0.02, 0])
         r.run()
     sp1, sp5 = r.modules.setpoints(1), r.modules.setpoints(5)
-    step = 0.1 * 0.05 * JOINTS[0].ticks_per_rad             # negative gear: ticks go down
+    step = 0.1 * 0.05 * JOINTS[0].ticks_per_rad             # J1's gear > 0: ticks go up
     assert all(abs((b - a) - step) <= 1 for a, b in zip(sp1[-4:], sp1[-3:]))
-    assert sp1[-1] < start
+    assert sp1[-1] > start
     # J5 at 0.02 rad/s is 0.16 ticks per cycle: it still moves, by fractional ticks.
     for _ in range(20):
         r.driver.set_velocity([0.1, 0, 0, 0, 0.02, 0])
@@ -247,12 +267,30 @@ def test_a_silent_module_faults_after_three_cycles(rig):
     assert r.driver.report.state == 'enabled'
 
 
-def test_enable_times_out_with_the_reason(rig):
+def test_a_module_lost_during_enable_disables_all_six(rig):
     r = rig()
     assert r.until(r.driver.request('reset'))[0]
     r.modules.silent.add(2)
     ok, reason = r.until(r.driver.request('enable', timeout=0.3))
-    assert not ok and 'joint2' in reason and 'not confirmed within 0.3 s' in reason
+    assert not ok and 'joint2' in reason and 'all six disabled' in reason
+    r.run()                               # the disables go out frame_gap apart
+    assert all(r.modules.flags[n] & 0x04 for n in range(1, 7))     # none left enabled
+
+
+def test_enable_times_out_with_the_reason_and_disables_all_six(rig):
+    r = rig()
+    assert r.until(r.driver.request('reset'))[0]
+    original = r.modules._apply
+
+    def refuse_enable(n, cmd):
+        if not (n == 3 and cmd.kind == 'enable'):
+            original(n, cmd)
+    r.modules._apply = refuse_enable
+    ok, reason = r.until(r.driver.request('enable', timeout=0.3))
+    assert not ok and 'joint3' in reason and 'not confirmed within 0.3 s' in reason
+    assert 'all six disabled' in reason
+    r.run()                               # the disables go out frame_gap apart
+    assert all(r.modules.flags[n] & 0x04 for n in range(1, 7))
 
 
 def test_corrupted_reply_is_counted_never_decoded(rig):

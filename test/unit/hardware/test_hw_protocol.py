@@ -68,8 +68,21 @@ COMMANDS = [
 def test_commands_byte_for_byte(kind, const, wire):
     assert const == bytes.fromhex(wire)
     assert p.COMMAND_FRAMES[kind] == const
-    assert p.decode_command(bytes.fromhex(wire)) == p.Command(kind)
-    assert p.decode_command(bytes.fromhex(wire)).position is None
+    value = 0 if kind == 'set_zero' else None          # set zero carries its new value
+    assert p.decode_command(bytes.fromhex(wire)) == p.Command(kind, position=value)
+
+
+@pytest.mark.parametrize('value,wire', [(0, '01 08 00 00'), (500, '01 08 01 F4'),
+                                        (509, '01 08 01 FD'), (0x7D00, '01 08 7D 00')])
+def test_set_zero_carries_its_value_big_endian(value, wire):
+    assert p.encode_set_zero(value) == bytes.fromhex(wire)
+    assert p.decode_command(bytes.fromhex(wire)) == p.Command('set_zero', position=value)
+
+
+@pytest.mark.parametrize('value', [-1, 0x10000, 1.0, True, None])
+def test_set_zero_refuses_a_value_off_two_bytes(value):
+    with pytest.raises(p.ProtocolError):
+        p.encode_set_zero(value)
 
 
 @pytest.mark.parametrize('wire', [

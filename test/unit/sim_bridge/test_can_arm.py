@@ -42,9 +42,14 @@ def setpoints(arm, ticks, t, counter=0):
 
 
 def command_all(arm, data, t):
-    """Send the same command to every module at ``t``; commands get no reply."""
+    """Send the same command to every module at ``t``; return the replies (timestamp 0)."""
+    replies = []
     for joint in protocol.JOINTS:
-        assert send(arm, joint, data, t) == []
+        got = send(arm, joint, data, t)
+        expected = 1 if arm.modules[joint - 1].answers_commands else 0
+        assert len(got) == expected and all(r.timestamp == 0 for r in got)
+        replies += got
+    return replies
 
 
 def enable(arm, t):
@@ -72,10 +77,41 @@ def test_power_up_reset_enable_flags(arm):
     assert [r.error_flags for r in setpoints(arm, arm.positions(), 0.08)] == [0x04] * 6
 
 
-def test_timestamp_counts_replies(arm):
-    first = setpoints(arm, arm.positions(), 0.0)
-    second = setpoints(arm, arm.positions(), 0.05)
-    assert all((b.timestamp - a.timestamp) % 256 == 1 for a, b in zip(first, second))
+def test_a_reply_echoes_the_set_point_counter_and_a_command_answers_with_0(arm):
+    assert [r.timestamp for r in setpoints(arm, arm.positions(), 0.0, counter=17)] == [17] * 6
+    assert [r.timestamp for r in setpoints(arm, arm.positions(), 0.05, counter=18)] == [18] * 6
+    replies = command_all(arm, protocol.DISABLE, 0.06)
+    assert [r.timestamp for r in replies] == [0] * 6
+    assert [r.position for r in replies] == arm.positions().tolist()
+
+
+def test_modules_that_answer_only_set_points():
+    arm = build_arm(answers_commands=False)
+    for data in (protocol.RESET_ERRORS, protocol.DISABLE, protocol.ENABLE):
+        assert command_all(arm, data, 0.0) == []
+    assert len(setpoints(arm, arm.positions(), 0.01, counter=3)) == 6
+
+
+def test_a_disabled_module_keeps_its_last_set_point_and_drives_there_on_enable(arm):
+    """The worst a firmware may do: the reason a driver primes the set-point before enable."""
+    far = arm.positions().copy()
+    far[0] += 2000                                 # ~1 deg of J1
+    setpoints(arm, far, 0.0, counter=1)            # disabled: nothing moves
+    command_all(arm, protocol.RESET_ERRORS, 0.01)
+    arm.advance(0.3)
+    assert arm.positions()[0] == far[0] - 2000
+    assert arm.modules[0].max_setpoint_gap == 0
+    command_all(arm, protocol.ENABLE, 0.31)        # no set-point since: it drives to the kept one
+    arm.advance(1.5)
+    assert abs(arm.positions()[0] - far[0]) <= 2
+    assert arm.modules[0].max_setpoint_gap == 2000
+
+
+def test_set_zero_takes_the_value_in_its_last_two_bytes(arm):
+    for joint, value in ((1, 0), (5, 500), (6, 509), (2, 0x7D00)):
+        send(arm, joint, protocol.encode_set_zero(value), 0.0)
+        send(arm, joint, protocol.encode_set_zero(value), 0.02)
+        assert arm.positions()[joint - 1] == value
 
 
 @pytest.mark.parametrize('data', [
