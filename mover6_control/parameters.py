@@ -417,6 +417,9 @@ DRIVER = _table(
     P('silent_cycles', 'int', 3, '',
       'a module that misses this many replies in a row is a fault (until ~/reset)', 1, 100,
       read_only=True),
+    P('frame_gap', 'float', 0.005, 's',
+      "time between two frames sent (the vendor's 5 ms): six set-points take 25 ms of the "
+      'cycle', 0.0, 0.006, read_only=True),
     P('allow_set_zero', 'bool', False, '',
       '~/set_zero is refused unless this is true (it redefines every joint zero)'),
     P('request_timeout', 'float', 2.0, 's',

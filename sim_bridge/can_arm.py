@@ -62,6 +62,7 @@ import math
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.hardware import protocol
+from mover6_control.hardware.protocol import NOT_ENABLED
 from mover6_control.hardware.scaling import JointScale
 from mover6_control.kinematics.arm import ArmModel
 import numpy as np
@@ -69,7 +70,6 @@ from sim_bridge.pacing import steps_due
 from sim_bridge.simulator import SimConfig, Simulator
 
 BROWN_OUT = 0x01
-NOT_ENABLED = 0x04
 WATCHDOG = 0x08
 POSITION_LAG = 0x10
 POWER_UP_FLAGS = NOT_ENABLED | WATCHDOG | POSITION_LAG      # 0x1C

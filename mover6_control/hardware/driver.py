@@ -224,15 +224,15 @@ class ArmDriver:
                 # A module that answers only set-points: poll it right behind the disable, so
                 # it cannot act on the set-point; enable waits for one at its position.
                 counter = j.next_counter()
-                seq = self._outbox.put(can_id, p.encode_setpoint(j.scale.to_wire(0), counter,
-                                                                  j.outputs))
+                poll = p.encode_setpoint(j.scale.to_wire(0), counter, j.outputs)
+                seq = self._outbox.put(can_id, poll)
                 j.sent[counter] = (seq, 0)
             j.unknown_cycles += 1
             return
         ticks = round(j.setpoint) if j.setpoint is not None else j.ticks
         counter = j.next_counter()
-        seq = self._outbox.put(can_id, p.encode_setpoint(j.scale.to_wire(ticks), counter,
-                                                          j.outputs))
+        frame = p.encode_setpoint(j.scale.to_wire(ticks), counter, j.outputs)
+        seq = self._outbox.put(can_id, frame)
         j.sent[counter] = (seq, ticks)
 
     def _moving(self) -> bool:

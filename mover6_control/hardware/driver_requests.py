@@ -36,7 +36,6 @@ from mover6_control.hardware.outbox import Outbox
 REPEAT_DELAY = 0.02
 """Delay between the two frames of enable, start referencing and set zero [s]."""
 REPEATED = ('enable', 'reference', 'set_zero')
-NOT_ENABLED = 0x04
 
 
 class Request:
@@ -138,7 +137,7 @@ class Requests:
         if strict and j.silent:
             return f'its module missed its last {j.silent} replies'
         if state == ModuleState.ERROR:
-            names = ', '.join(p.flag_names(j.reply.error_flags & ~NOT_ENABLED, self.firmware))
+            names = ', '.join(p.flag_names(j.reply.error_flags & ~p.NOT_ENABLED, self.firmware))
             return f'error flags {names}: reset first'
         return ''
 
@@ -231,10 +230,10 @@ class Requests:
                 return f'{j.scale.name}: no reply to a set-point sent since the command', False
             flags = j.reply.error_flags
             missing = {
-                'reset': flags & ~NOT_ENABLED and 'error flags still set: ' + ', '.join(
-                    p.flag_names(flags & ~NOT_ENABLED, self.firmware)),
+                'reset': flags & ~p.NOT_ENABLED and 'error flags still set: ' + ', '.join(
+                    p.flag_names(flags & ~p.NOT_ENABLED, self.firmware)),
                 'enable': flags and 'flags ' + ', '.join(p.flag_names(flags, self.firmware)),
-                'disable': not flags & NOT_ENABLED and 'motor still enabled',
+                'disable': not flags & p.NOT_ENABLED and 'motor still enabled',
                 'reference': not j.reply.referenced and 'not referenced yet',
                 'set_zero': abs(j.ticks) > 1 and f'position {j.ticks} ticks, not zero',
             }[req.kind]

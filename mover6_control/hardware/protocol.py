@@ -57,6 +57,8 @@ SET_ZERO = SET_ZERO_HEADER + b'\x00\x00'
 
 REFERENCED = 0x80
 """The bit of a reply's inputs byte that tells the joint is referenced."""
+NOT_ENABLED = 0x04
+"""The error flag "motor not enabled", the same in every firmware's table."""
 
 # The fixed commands by their payload (exact length included: a module ignores any other).
 _COMMANDS = {

@@ -7,11 +7,11 @@ tick), clamped to the joint's tick limits and to the measured position plus or m
 ``max_lag``. A clamp only ever shortens the cycle's step: it never moves a set-point further
 than the commanded motion of one cycle, nor against it, so a joint found outside its limits (or
 further than ``max_lag`` from its set-point) moves only inward, at the commanded speed, instead
-of jumping to the bound. The set-point starts at the measured position and keeps tracking it whenever the
-joint is not enabled or is told to (after start, a reset, a fault, referencing, set zero):
-never a jump. At rest (a zero command) the set-point is the whole tick on the wire, so a later
-move of whole ticks lands on whole ticks. ``plausible`` tells a reply whose position the joint
-cannot have reached from one it may have.
+of jumping to the bound. The set-point starts at the measured position and keeps tracking it
+whenever the joint is not enabled or is told to (after start, a reset, a fault, referencing,
+set zero): never a jump. At rest (a zero command) the set-point is the whole tick on the wire, so
+a later move of whole ticks lands on whole ticks. ``plausible`` tells a reply whose position
+the joint cannot have reached from one it may have.
 """
 
 from __future__ import annotations

@@ -71,7 +71,8 @@ class DriverNode(JogInput, ReportPublisher, Node):
         bus = open_bus(p['can_interface'], p['can_channel'], p['bitrate'])
         self.driver = ArmDriver(
             bus, joints, cycle=p['cycle'], command_timeout=p['command_timeout'],
-            max_lag=p['max_lag'], silent_cycles=p['silent_cycles'], limit_set=p['limit_set'],
+            max_lag=p['max_lag'], silent_cycles=p['silent_cycles'], frame_gap=p['frame_gap'],
+            limit_set=p['limit_set'],
             firmware=firmware, on_cycle=self.on_cycle, priority=p['cycle_priority'])
         self.names = self.driver.names
         self.refused = 0

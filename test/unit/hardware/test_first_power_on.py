@@ -1,5 +1,5 @@
 """
-The first power-on: in every state the arm can be found in, no set-point away from where a joint is.
+The first power-on: in every state the arm may be found in, no set-point away from where it is.
 
 The real classes in one process on synthetic time: ``ArmDriver`` with its shipped defaults
 (cycle, frame gap, silent cycles, max lag) on a python-can ``virtual`` bus, and the CAN-level
@@ -94,8 +94,11 @@ class Rig:
             assert ok, reason
 
     def largest_gap(self, since_cycle=0):
-        """Return per joint the largest |set-point - position| met enabled [ticks], cycle by
-        cycle since ``since_cycle``, the set-points kept at an enable included."""
+        """
+        Return per joint the largest |set-point - position| met enabled [ticks].
+
+        Cycle by cycle since ``since_cycle``, the set-points kept at an enable included.
+        """
         gap = np.zeros(6)
         for cycle, joint, setpoint, position, enabled in self.received:
             if enabled and cycle >= since_cycle:
@@ -137,8 +140,11 @@ def allowed(velocity=None, following=True):
 
 
 def largest_step(rig, since_cycle=0):
-    """Return per joint the largest change between two set-points an enabled module received
-    in consecutive cycles [ticks]: what the driver alone decides."""
+    """
+    Return per joint the largest change between two consecutive set-points [ticks].
+
+    Of set-points an enabled module received in consecutive cycles: what the driver alone decides.
+    """
     step, last = np.zeros(6), {}
     for cycle, joint, setpoint, _, enabled in rig.received:
         if enabled and cycle >= since_cycle and last.get(joint, (None, -2))[1] == cycle - 1:
