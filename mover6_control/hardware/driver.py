@@ -106,7 +106,7 @@ class ArmDriver:
         for j in self._joints:
             j.scale.tick_limits(limit_set)
         self._outbox = Outbox(bus, frame_gap)
-        self._intake = ReplyIntake(self._joints, silent_cycles)
+        self._intake = ReplyIntake(self._joints, self._outbox, silent_cycles)
         self._requests = Requests(self._joints, self._outbox, firmware)
         self.cycle = float(cycle)
         self.command_timeout = float(command_timeout)

@@ -14,8 +14,10 @@ A reply whose timestamp echoes the counter of a set-point the driver sent (the u
 module copies the command's timestamp into its answer) proves that the module had that set-point
 when it answered: the joint's ``echo_seq`` / ``echo_value`` keep the newest such set-point, and
 confirmations (enable, reset, set zero, referencing) count only replies that echo a set-point
-sent after their command. A joint whose module sent nothing this cycle counts a silent cycle;
-after ``silent_cycles`` it is a latched fault until a reset.
+sent after their command. A module that has not answered a frame that went to it at least
+``REPLY_GRACE`` before the read misses a reply (a frame still waiting in the outbox, behind a
+burst of commands, is owed nothing yet); after ``silent_cycles`` missed in a row the joint is a
+latched fault until a reset.
 """
 
 from __future__ import annotations
@@ -25,8 +27,11 @@ from typing import Sequence
 import can
 from mover6_control.hardware import protocol as p
 from mover6_control.hardware.driver_state import JointRecord
+from mover6_control.hardware.outbox import Outbox
 from mover6_control.hardware.setpoints import plausible
 
+REPLY_GRACE = 0.01
+"""[s] a frame sent this long before a read is owed a reply by then."""
 COMMAND_STAMP = 0
 """A reply's timestamp that no set-point carries: the answer to a command (reset, disable...)."""
 
@@ -51,9 +56,15 @@ def frame_problem(msg: can.Message, n_joints: int) -> str:
 class ReplyIntake:
     """Read the replies into ``joints`` (``JointRecord``), refusing what is no fresh reply."""
 
-    def __init__(self, joints: Sequence[JointRecord], silent_cycles: int) -> None:
-        """Take the joints' records; a module silent ``silent_cycles`` cycles in a row faults."""
+    def __init__(self, joints: Sequence[JointRecord], outbox: Outbox,
+                 silent_cycles: int) -> None:
+        """
+        Take the joints' records; ``outbox`` tells when a frame last went to each module.
+
+        A module that misses ``silent_cycles`` replies in a row faults.
+        """
         self.joints = joints
+        self.outbox = outbox
         self.silent_cycles = int(silent_cycles)
         self.bad = 0                  # frames refused
         self.bad_reasons = {}         # reason -> frames refused for it
@@ -75,9 +86,11 @@ class ReplyIntake:
             if joint:
                 fresh.add(joint)
         for n, j in enumerate(self.joints, start=1):
+            sent = self.outbox.sent_at.get(p.command_id(n))
             if n in fresh:
                 j.silent = 0
-            elif j.reply is not None:
+            elif j.reply is not None and sent is not None and sent > j.reply_time and \
+                    sent <= now - REPLY_GRACE:
                 j.silent += 1
                 j.qd = 0.0
                 if j.silent >= self.silent_cycles:

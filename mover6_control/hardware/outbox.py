@@ -27,6 +27,7 @@ class Outbox:
         self.seq = 0                  # the sequence number of the last frame queued
         self.tx_errors = 0
         self.error = ''
+        self.sent_at = {}             # can_id -> when a frame last went to it [s]
         self._queue = deque()         # (not_before [s], can_id, data)
         self._last: Optional[float] = None
 
@@ -58,7 +59,7 @@ class Outbox:
                 break
             _, can_id, data = self._queue.popleft()
             self.send_now(can_id, data)
-            self._last = now
+            self.sent_at[can_id] = self._last = now
             sent += 1
         return sent
 

@@ -167,10 +167,10 @@ class DriverNode(JogInput, ReportPublisher, Node):
     def _enable_on_start(self):
         for kind in ('reset', 'enable'):
             ok, reason = self.run_request(kind)
-            (self.get_logger().info if ok else self.get_logger().error)(
-                f'enable_on_start: {reason}')
             if not ok:
+                self.get_logger().error(f'enable_on_start: {reason}')
                 return
+            self.get_logger().info(f'enable_on_start: {reason}')
 
     def destroy_node(self) -> None:
         """Stop the control thread, disable every module, then destroy the node."""

@@ -18,14 +18,21 @@ from ros_testing import CanSimProcess, wait_until
 from sim_bridge.can_sim import build_arm, BusServer
 
 
-def replies_of(bus, count, timeout=5.0):
-    """Receive up to ``count`` frames within ``timeout`` [s]; return {reply ID: Reply}."""
+def replies_of(bus, count, stamp, timeout=5.0):
+    """
+    Receive ``count`` replies with timestamp ``stamp`` within ``timeout`` [s].
+
+    Return {reply ID: Reply}. A module echoes a set-point's counter and answers a command with 0:
+    ``stamp`` picks the answers to one round of frames.
+    """
     out = {}
 
     def more():
         msg = bus.recv(0.05)
         if msg is not None:
-            out[msg.arbitration_id] = protocol.decode_reply(bytes(msg.data[:msg.dlc]))
+            reply = protocol.decode_reply(bytes(msg.data[:msg.dlc]))
+            if reply.timestamp == stamp:
+                out[msg.arbitration_id] = reply
         return len(out) >= count
     wait_until(more, timeout, period=0.0)
     return out
@@ -38,7 +45,7 @@ def send_all(bus, data):
                              is_extended_id=False))
 
 
-def setpoint_all(bus, arm_positions, counter=0):
+def setpoint_all(bus, arm_positions, counter):
     """Send every module a set-point at the given wire positions."""
     for joint, p in zip(protocol.JOINTS, arm_positions):
         bus.send(can.Message(arbitration_id=protocol.command_id(joint),
@@ -56,14 +63,14 @@ def test_the_arm_answers_on_a_virtual_bus():
     thread = threading.Thread(target=BusServer(arm, server_bus).serve, args=(stop,))
     thread.start()
     try:
-        setpoint_all(client, [0, 0, 0, 0, 500, 509])
-        got = replies_of(client, 6)
+        setpoint_all(client, [0, 0, 0, 0, 500, 509], 1)
+        got = replies_of(client, 6, 1)
         assert sorted(got) == [protocol.reply_id(j) for j in protocol.JOINTS]
         assert [got[protocol.reply_id(j)].error_flags for j in protocol.JOINTS] == [0x1C] * 6
         assert got[protocol.reply_id(6)].position == 509
         send_all(client, protocol.RESET_ERRORS)
-        setpoint_all(client, [0, 0, 0, 0, 500, 509], 1)
-        got = replies_of(client, 6)
+        setpoint_all(client, [0, 0, 0, 0, 500, 509], 2)
+        got = replies_of(client, 6, 2)
         assert [got[protocol.reply_id(j)].error_flags for j in protocol.JOINTS] == [0x04] * 6
     finally:
         stop.set()
@@ -90,25 +97,25 @@ def usb2can(can_sim):
 
 def test_the_process_answers_through_the_usb2can_framing(can_sim, usb2can):
     assert os.path.realpath(can_sim.link).startswith('/dev/pts/')
-    setpoint_all(usb2can, [0, 0, 0, 0, 500, 509])
-    got = replies_of(usb2can, 6)
+    setpoint_all(usb2can, [0, 0, 0, 0, 500, 509], 1)
+    got = replies_of(usb2can, 6, 1)
     assert [got[protocol.reply_id(j)].error_flags for j in protocol.JOINTS] == [0x1C] * 6
     send_all(usb2can, protocol.RESET_ERRORS)
     send_all(usb2can, protocol.ENABLE)
-    setpoint_all(usb2can, [0, 0, 0, 0, 500, 509], 1)
-    got = replies_of(usb2can, 6)
+    setpoint_all(usb2can, [0, 0, 0, 0, 500, 509], 2)
+    got = replies_of(usb2can, 6, 2)
     assert [got[protocol.reply_id(j)].error_flags for j in protocol.JOINTS] == [0x00] * 6
     status = can_sim.control('status')
     assert status['ok'] and [m['flags'] for m in status['modules']] == [0] * 6
-    assert status['serial_dropped'] == 0 and status['frames_out'] == 12
+    assert status['serial_dropped'] == 0 and status['frames_out'] == 24       # 12 set-points, 12 commands answered
 
 
 def test_faults_through_the_control_channel(can_sim, usb2can):
     """An injected position lag on J2 only (the others are as the previous test left them)."""
     assert can_sim.control('flags 2 0x10') == {'ok': True}
     assert can_sim.control('silent 4 on') == {'ok': True}
-    setpoint_all(usb2can, [0, 0, 0, 0, 500, 509])
-    got = replies_of(usb2can, 5)
+    setpoint_all(usb2can, [0, 0, 0, 0, 500, 509], 3)
+    got = replies_of(usb2can, 5, 3)
     assert protocol.reply_id(4) not in got
     assert got[protocol.reply_id(2)].error_flags & 0x14 == 0x14
     assert got[protocol.reply_id(1)].error_flags & 0x10 == 0
@@ -116,8 +123,8 @@ def test_faults_through_the_control_channel(can_sim, usb2can):
     assert not answer['ok'] and 'joint' in answer['error']
     assert not can_sim.control('warp 3')['ok']
     assert can_sim.control('silent 4 off') == {'ok': True}
-    setpoint_all(usb2can, [0, 0, 0, 0, 500, 509])
-    assert protocol.reply_id(4) in replies_of(usb2can, 6)
+    setpoint_all(usb2can, [0, 0, 0, 0, 500, 509], 4)
+    assert protocol.reply_id(4) in replies_of(usb2can, 6, 4)
     assert can_sim.alive()
 
 
@@ -125,14 +132,14 @@ def test_corrupted_bytes_are_dropped_by_the_adapter(can_sim, usb2can):
     """Two corrupted replies of J3: the reader drops both, decodes the rest, then all again."""
     assert can_sim.control('corrupt 2 3') == {'ok': True}
     before = can_sim.control('status')['corrupted']
-    for counter in range(2):
+    for counter in (5, 6):
         setpoint_all(usb2can, [0, 0, 0, 0, 500, 509], counter)
-        got = replies_of(usb2can, 5)
+        got = replies_of(usb2can, 5, counter)
         assert protocol.reply_id(3) not in got and len(got) == 5
         assert all(r.position in (0, 500, 509) for r in got.values())
     assert wait_until(lambda: usb2can.dropped == 2, 5.0), usb2can.dropped
-    setpoint_all(usb2can, [0, 0, 0, 0, 500, 509], 2)
-    got = replies_of(usb2can, 6)
+    setpoint_all(usb2can, [0, 0, 0, 0, 500, 509], 7)
+    got = replies_of(usb2can, 6, 7)
     assert len(got) == 6 and got[protocol.reply_id(3)].position == 0
     status = can_sim.control('status')
     assert status['corrupted'] == before + 2 and status['corrupt_pending'] == 0

@@ -20,6 +20,7 @@ from geometry_msgs.msg import PoseStamped
 from mover6_control.hardware.scaling import load_joints
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes.conversions import matrix_to_pose, status_values
+from mover6_control.parameters import DRIVER
 from mover6_control.tools.goal_cli import GoalClient
 from mover6_control.tools.goal_convention import poses_from_numbers
 import numpy as np
@@ -41,22 +42,19 @@ GOAL = poses_from_numbers([0.445, 0.0, 0.4425, 0.0, 0.0, 0.0], quat=False, arm=A
 HOME = poses_from_numbers([0.345, 0.0, 0.4425, 0.0, 0.0, 0.0], quat=False, arm=ARM)[-1]
 # Half way back (a linear move onto HOME itself ends in its singularity and is refused).
 MID = poses_from_numbers([0.395, 0.0, 0.4425, 0.0, 0.0, 0.0], quat=False, arm=ARM)[-1]
-CONTROLLER = {'limit_set': 'hardware', 'state_timeout': 1.0, 'cycle_driver': True}
-# Allowances for a loaded machine, where any process may stall for a few hundred milliseconds:
-# a module is silent for the driver after 10 missed cycles (0.5 s, default 3), the modules'
-# watchdog trips after 1 s without a set-point (can_sim's default 0.5 s), the controller takes
-# /joint_states up to 1 s old (0.5 s in the launch files).
-SILENT_CYCLES, WATCHDOG = 10, 1.0
+# The shipped defaults of a real arm, as scripts/launch.sh --hardware can starts it: the driver's
+# three silent cycles, the modules' 0.5 s watchdog (can_sim's default), the controller's
+# state_timeout of 0.5 s with the driver. Nothing here is given more than a real arm gets.
+CONTROLLER = {'limit_set': 'hardware', 'state_timeout': 0.5, 'cycle_driver': True}
 
 
 @pytest.fixture(scope='module')
 def rig(tmp_path_factory):
     """Start can_sim, then the driver on its pty (enabled at start), controller and planner."""
     logs = tmp_path_factory.mktemp('e2e_can_logs')
-    with CanSimProcess(logs, logs / 'mover6-can', ['--watchdog-timeout', str(WATCHDOG)]) as sim:
+    with CanSimProcess(logs, logs / 'mover6-can') as sim:
         driver = {'can_interface': 'cpr_usb2can', 'can_channel': sim.link,
-                  'enable_on_start': True, 'limit_set': 'hardware',
-                  'silent_cycles': SILENT_CYCLES}
+                  'enable_on_start': True, 'limit_set': 'hardware'}
         with Stack(logs, controller=CONTROLLER, planner={'limit_set': 'hardware'},
                    driver=driver, names=('driver', 'controller', 'planner')) as stack:
             stack.nodes['can_sim'] = sim
@@ -231,7 +229,8 @@ def test_an_injected_position_lag_holds_and_recovers(rig, client):
 def test_corrupted_bytes_hold_and_recover(rig, client):
     sim, stack = rig
     dropped = int(bus(client).get('frames_dropped', '0'))
-    assert sim.control(f'corrupt {6 * (SILENT_CYCLES + 5)}')['ok']    # every reply, 15 cycles
+    silent_cycles = DRIVER['silent_cycles'].default        # shipped: 3
+    assert sim.control(f'corrupt {6 * (silent_cycles + 5)}')['ok']    # every reply, 8 cycles
     assert_holds(client, sim, stack, 'fault',
                  lambda d: int(d.get('driver: bus', {}).get('frames_dropped', '0')) > dropped)
     recover(client, stack)
