@@ -269,7 +269,7 @@ in_private_netns() {
     # (only loopback: nothing the nodes send can leave the machine; the package's stall-free
     # local DDS configuration applies there) when the machine allows one, the user chose no DDS
     # setup of their own and did not ask for the host network (MOVER6_NETNS=0). Returns when it
-    # does not; the caller then runs on the host network (LOCALHOST).
+    # does not; the caller then runs on the host network (the same local configuration).
     [ "${MOVER6_NETNS:-1}" = 0 ] && return 0
     [ -n "$USER_DDS" ] && return 0
     only_loopback && return 0
@@ -314,22 +314,32 @@ case "$cmd" in
                 ROS_STATIC_PEERS MOVER6_DDS
             ensure
         else
-            # Without one, as before: discovery on loopback (LOCALHOST) unless the user chose.
-            export ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}
+            # Without one: the same local configuration on the host network (loopback only),
+            # unless the user chose their own (ROS_AUTOMATIC_DISCOVERY_RANGE, MOVER6_DDS=...).
             ensure
             if [ "${MOVER6_NETNS:-1}" != 0 ] && private_netns; then
                 log "tests inside a private network namespace (${UNSHARE[*]}): only loopback (MOVER6_NETNS=0: host)"
-                MOVER6_TEST_NETWORK=netns exec "${UNSHARE[@]}" "$ROOT/run.sh" test "$@"
+                [ $# -gt 0 ] && MOVER6_TEST_NETWORK=netns exec "${UNSHARE[@]}" "$ROOT/run.sh" test "$@"
+                # The whole suite: then the tests of the DDS configuration itself (marker
+                # host_network) again on this machine's own network, where a user runs the
+                # launchers: the local configuration keeps every socket on loopback there too.
+                netns_rc=0
+                MOVER6_TEST_NETWORK=netns "${UNSHARE[@]}" "$ROOT/run.sh" test || netns_rc=$?
+                log 'the host_network tests again on the host network (the local configuration)'
+                host_rc=0
+                MOVER6_NETNS=0 "$ROOT/run.sh" test -m host_network || host_rc=$?
+                log "inside the namespace: exit $netns_rc; on the host network: exit $host_rc"
+                exit $(( netns_rc != 0 || host_rc != 0 ))
             fi
             if [ "${MOVER6_NETNS:-1}" = 0 ]; then
-                log 'MOVER6_NETNS=0: tests on the host network (loopback discovery, LOCALHOST)'
+                log 'MOVER6_NETNS=0: tests on the host network (the local configuration: loopback only)'
             else
                 log 'this machine allows no private network namespace: tests on the host network'
             fi
             export MOVER6_TEST_NETWORK=host
         fi
         pick_domain_id
-        log "tests in ROS_DOMAIN_ID=$ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE=$ROS_AUTOMATIC_DISCOVERY_RANGE${MOVER6_DDS:+, MOVER6_DDS=$MOVER6_DDS}"
+        log "tests in ROS_DOMAIN_ID=$ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-}${MOVER6_DDS:+, MOVER6_DDS=$MOVER6_DDS}"
         # Bytecode, and pytest's rewritten test modules, cached in the workspace (out of the
         # source tree): without it every run compiled every module again, a large part of the
         # unit tier's time. Python checks each source's mtime, so a cache is never stale. For

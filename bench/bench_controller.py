@@ -28,6 +28,7 @@ from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.profiles import LawConfig, PROFILES
 from mover6_control.kinematics.arm import mover6
+from mover6_control.nodes import local_dds
 import numpy as np
 
 DT = 0.01
@@ -186,7 +187,7 @@ def main(argv=None):
     parser.add_argument('--no-node', action='store_true', help='only the compute part')
     args = parser.parse_args(argv)
     n_ticks, seconds = (2000, 3.0) if args.quick else (20000, 10.0)
-    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    local_dds.apply_default(os.environ)   # the launchers' DDS: loopback only
     os.environ.setdefault('ROS_DOMAIN_ID', '32')
     results = {'quick': args.quick, 'compute': [], 'node': [],
                'load_average_1min_at_start': os.getloadavg()[0], 'cpus': os.cpu_count()}

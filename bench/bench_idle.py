@@ -39,6 +39,7 @@ import tempfile
 import time
 
 from bench.output import write_json
+from mover6_control.nodes import local_dds
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -242,7 +243,7 @@ def main(argv=None):
                         help=f'windows of {QUICK[0]:g} s and {QUICK[1]:g} s')
     parser.add_argument('--repeat', type=int, default=1, help='fresh stacks, one after another')
     args = parser.parse_args(argv)
-    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    local_dds.apply_default(os.environ)   # the launchers' DDS: loopback only
     window, timing = QUICK if args.quick else (WINDOW, TIMING)
     log_dir = tempfile.mkdtemp(prefix='bench_idle_')
     load = os.getloadavg()

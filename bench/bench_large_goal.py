@@ -30,6 +30,7 @@ import tempfile
 import time
 
 from bench.output import write_json
+from mover6_control.nodes import local_dds
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -159,7 +160,7 @@ def run_goals(points, goals, log_dir, watchdog=0.0, timeout=240.0):
     """
     from ros_testing import NodeProcess
 
-    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    local_dds.apply_default(os.environ)   # the launchers' DDS: loopback only
     namespace = f'bench_large_goal_{os.getpid()}'
     if watchdog > 0.0:
         os.environ['MOVER6_TICK_WATCHDOG'] = str(watchdog)

@@ -50,6 +50,7 @@ import tempfile
 import time
 
 from bench.output import write_json
+from mover6_control.nodes import local_dds
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -314,7 +315,7 @@ def main(argv=None):
     parser.add_argument('--profiles', nargs='+', choices=PROFILES, default=list(PROFILES))
     args = parser.parse_args(argv)
     reexec_in_ros_environment(argv)
-    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    local_dds.apply_default(os.environ)   # the launchers' DDS: loopback only
     os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(1, 100)))
     from mover6_control.kinematics.arm import mover6
     import rclpy

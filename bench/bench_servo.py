@@ -28,6 +28,7 @@ from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.controller_core import ControllerCore
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import jacobian
+from mover6_control.nodes import local_dds
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -158,7 +159,7 @@ def main(argv=None):
     parser.add_argument('--no-node', action='store_true', help='only the compute part')
     args = parser.parse_args(argv)
     n_ticks, samples = (2000, 30) if args.quick else (20000, 100)
-    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    local_dds.apply_default(os.environ)   # the launchers' DDS: loopback only
     os.environ.setdefault('ROS_DOMAIN_ID', '33')
     results = {'quick': args.quick, 'compute': [], 'latency': None,
                'load_average_1min_at_start': os.getloadavg()[0], 'cpus': os.cpu_count()}

@@ -23,11 +23,13 @@ import sys
 import threading
 import time
 
-os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+from bench.output import write_json
+from mover6_control.nodes import local_dds
+
+local_dds.apply_default(os.environ)   # the launchers' DDS (loopback only), before rclpy
 os.environ.setdefault('ROS_DOMAIN_ID', os.environ.get('BENCH_SIM_DOMAIN_ID', '31'))
 
-from bench.output import write_json  # noqa: E402
-from control_msgs.msg import JointJog  # noqa: E402
+from control_msgs.msg import JointJog  # noqa: E402, I100
 from mover6_control.kinematics.arm import mover6  # noqa: E402
 import numpy as np  # noqa: E402
 import rclpy  # noqa: E402

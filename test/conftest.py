@@ -1,7 +1,7 @@
 """
 Test-wide settings and the process harness of the end-to-end tests.
 
-DDS discovery stays on loopback, and each test run gets its own ROS domain (./run.sh test picks
+DDS stays on loopback, and each test run gets its own ROS domain (./run.sh test picks
 one; a bare pytest run picks one here), so parallel runs on one machine never see each other.
 
 Property tests (hypothesis) draw the same examples on every run, here as in CI, so a failure is
@@ -13,8 +13,13 @@ reproducible and a user meets the failures CI meets. Random exploration on reque
 import os
 import random
 
-# Before anything imports rclpy: these are read when a context is created.
-os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+from hypothesis import core, settings
+from mover6_control.nodes import local_dds
+
+# Before anything imports rclpy: these are read when a context is created. DDS as the launchers
+# set it (./run.sh test has already): the package's loopback-only configuration unless the user
+# chose their own (ROS_AUTOMATIC_DISCOVERY_RANGE, ..., MOVER6_DDS=localhost).
+local_dds.apply_default(os.environ)
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(1, 100)))
 os.environ.setdefault('MPLBACKEND', 'Agg')
 os.environ.setdefault('PYTHONDONTWRITEBYTECODE', '1')
@@ -22,8 +27,6 @@ os.environ.setdefault('PYTHONDONTWRITEBYTECODE', '1')
 # tests start must not look there: with a prefix Python ignores every __pycache__ beside the
 # sources, so each node compiled rclpy, numpy and scipy again (4-5 s more per start).
 os.environ.pop('PYTHONPYCACHEPREFIX', None)
-
-from hypothesis import core, settings  # noqa: E402
 
 RANDOM_ENV, SEED_ENV = 'MOVER6_HYPOTHESIS_RANDOM', 'MOVER6_HYPOTHESIS_SEED'
 settings.register_profile('ci', derandomize=True, print_blob=True)

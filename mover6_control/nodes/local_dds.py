@@ -7,10 +7,11 @@ time a process joins the graph (eProsima/Fast-DDS issue 6535): every publish of 
 controller's tick included, stops that long. The local configuration instead is
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT`` with the shipped Fast DDS profile
 ``config/fastdds_local.xml``: UDPv4 on 127.0.0.1 only, unicast discovery to 127.0.0.1, no
-multicast, no shared memory. ``MOVER6_DDS=local`` says a node was asked for it. The launchers
-set it only where nothing sent can leave the machine: inside a private network namespace (only
-``lo``), or when the user sets ``MOVER6_DDS=local`` (``default_environment``); on a host with
-other interfaces they keep ``LOCALHOST``, and a user's own DDS variables are left as they are.
+multicast, no shared memory. ``MOVER6_DDS=local`` says a node was asked for it. It is the
+launchers' default on every machine (``default_environment``): nothing it sends leaves
+loopback, on a host with other interfaces too. A user's own DDS variables are left as they are
+(a robot network), and ``MOVER6_DDS=localhost`` selects ROS's ``LOCALHOST`` discovery (with its
+shared memory and the stall) instead.
 
 A node asked for the local configuration that did not get it refuses to start with the reason
 (``shutdown.run_node`` calls ``check_environment`` before rclpy starts and makes the node with
@@ -25,7 +26,7 @@ import os
 import socket
 import struct
 import sys
-from typing import Callable, Mapping, Optional, TYPE_CHECKING, Union
+from typing import Callable, Mapping, MutableMapping, Optional, TYPE_CHECKING, Union
 
 from mover6_control.resources import CONFIG_DIR
 
@@ -34,6 +35,7 @@ if TYPE_CHECKING:      # no rclpy at import: the launchers call this before anyt
 
 MODE_ENV = 'MOVER6_DDS'
 LOCAL = 'local'
+LOCALHOST = 'localhost'
 PROFILE = os.path.join(CONFIG_DIR, 'fastdds_local.xml')
 PROFILE_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'     # the name Fast DDS 2.x reads
 RANGE_ENV = 'ROS_AUTOMATIC_DISCOVERY_RANGE'
@@ -66,9 +68,10 @@ def requested(environ: Optional[Mapping[str, str]] = None) -> bool:
     """Return True when the environment asks for the local configuration (``MOVER6_DDS``)."""
     environ = os.environ if environ is None else environ
     mode = environ.get(MODE_ENV, '')
-    if mode not in ('', LOCAL):
-        raise LocalDdsError(f"{MODE_ENV}='{mode}': the only value is '{LOCAL}' (or unset: the "
-                            'DDS setup of the environment as it is)')
+    if mode not in ('', LOCAL, LOCALHOST):
+        raise LocalDdsError(f"{MODE_ENV}='{mode}': the values are '{LOCAL}' (the package's "
+                            f"loopback-only profile, the launchers' default) and '{LOCALHOST}' "
+                            "(ROS's LOCALHOST discovery)")
     return mode == LOCAL
 
 
@@ -206,36 +209,33 @@ def make_checked_node(make_node: Callable[[], Node]) -> Node:
 
 def _refusal(problems):
     return (f'{MODE_ENV}={LOCAL} asks for the local DDS configuration (DDS on 127.0.0.1 only, '
-            'no shared memory), but ' + '; '.join(problems) + '. Not starting. Unset '
-            f'{MODE_ENV} to use the DDS setup of the environment as it is.')
-
-
-def only_loopback() -> bool:
-    """Return True when this network namespace has no interface but ``lo`` (a private one)."""
-    try:
-        return [name for _, name in socket.if_nameindex()] == ['lo']
-    except OSError:
-        return False
+            'no shared memory), but ' + '; '.join(problems) + '. Not starting. Set '
+            f"{MODE_ENV}={LOCALHOST} for ROS's LOCALHOST discovery instead.")
 
 
 def default_environment(environ: Mapping[str, str]) -> dict:
     """
     Return the DDS variables the launchers set in ``environ``: none when the user chose DDS.
 
-    ``MOVER6_DDS=local`` alone asks for the local configuration anywhere. Without any DDS
-    variable of the user's: the local configuration inside a private network namespace (only
-    ``lo``: nothing sent can leave the machine); on a host with other interfaces, discovery on
-    loopback as ROS knows it (``LOCALHOST``), the rule of the machines this package is tested
-    on; ``MOVER6_DDS=local`` then opts into the stall-free profile (README, "DDS").
+    The local configuration on every machine (nothing sent leaves loopback, and no shared
+    memory: no 1/3 s stall of every publish when a process joins the graph), unless the user set
+    DDS variables of their own (a robot network: left as they are) or ``MOVER6_DDS=localhost``
+    (ROS's ``LOCALHOST`` discovery, as before; README, "DDS").
     """
-    chosen = [name for name in USER_DDS_ENV if environ.get(name)]
-    if chosen == [MODE_ENV] and requested(environ):
-        return local_environment()
+    mode = environ.get(MODE_ENV, '')
+    requested(environ)                      # an unknown mode is refused
+    chosen = [name for name in USER_DDS_ENV if environ.get(name) and name != MODE_ENV]
     if chosen:
         return {}
-    if only_loopback():
-        return local_environment()
-    return {RANGE_ENV: 'LOCALHOST'}
+    if mode == LOCALHOST:
+        return {RANGE_ENV: 'LOCALHOST'}
+    return local_environment()
+
+
+def apply_default(environ: MutableMapping[str, str]) -> None:
+    """Set ``default_environment``'s variables in ``environ`` where it has none of its own."""
+    for name, value in default_environment(environ).items():
+        environ.setdefault(name, value)
 
 
 def main(argv: Optional[list[str]] = None) -> int:

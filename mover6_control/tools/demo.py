@@ -31,6 +31,7 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk_batch
 from mover6_control.motion.metrics import max_deviation_from_polyline
+from mover6_control.nodes import local_dds
 from mover6_control.nodes.qos import STATUS_QOS
 from mover6_control.resources import CONFIG_DIR
 from mover6_control.tools.goal_cli import GoalClient
@@ -290,7 +291,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         print(f'demo: {err}; nothing started', file=sys.stderr)
         return 2
     env = dict(os.environ)
-    env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    local_dds.apply_default(env)   # the launchers' DDS: loopback only
 
     def say(text):
         print(text, flush=True)

@@ -107,7 +107,8 @@ def test_the_process_answers_through_the_usb2can_framing(can_sim, usb2can):
     assert [got[protocol.reply_id(j)].error_flags for j in protocol.JOINTS] == [0x00] * 6
     status = can_sim.control('status')
     assert status['ok'] and [m['flags'] for m in status['modules']] == [0] * 6
-    assert status['serial_dropped'] == 0 and status['frames_out'] == 24       # 12 set-points, 12 commands answered
+    # 12 set-points and 12 commands answered
+    assert status['serial_dropped'] == 0 and status['frames_out'] == 24
 
 
 def test_faults_through_the_control_channel(can_sim, usb2can):

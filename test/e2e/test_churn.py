@@ -1,5 +1,5 @@
 """
-The controller's tick while processes join the graph (issue 22): no stall, no halt, no abort.
+The controller's tick while processes join the graph: no stall, no halt, no abort.
 
 A short run of bench/bench_churn.py in the run's DDS configuration: 12 processes join the graph
 (each echoes /controller/status once, as ``ros2 topic echo`` does) while motions run. Under
@@ -7,12 +7,12 @@ LOCALHOST (shared memory) every joining process can hold each publish of the con
 ~1/3 s (Fast DDS issue 6535): the tick stalls past the bridge's 0.2 s command timeout, the
 bridge halts the joints and the motion aborts. The limits are generous (a stall is a gap of
 0.2 s, the bridge's timeout); the figures themselves are for ``./run.sh bench churn``.
-Only inside a private network namespace (./run.sh test): the churn processes run in the same
-configuration as the nodes.
+The churn processes run in the same configuration as the nodes: the run's (the package's local
+configuration by default), inside a private network namespace and again on the host network
+(marker host_network).
 """
 
 import os
-import socket
 import sys
 
 from source_tree import ROOT
@@ -20,10 +20,7 @@ sys.path.insert(0, ROOT)
 from bench import bench_churn  # noqa: E402, I100
 import pytest  # noqa: E402
 
-pytestmark = [pytest.mark.e2e, pytest.mark.skipif(
-    [name for _, name in socket.if_nameindex()] != ['lo'],
-    reason='runs the test configuration for every process: only inside a private network '
-    'namespace (./run.sh test makes one)')]
+pytestmark = [pytest.mark.e2e, pytest.mark.host_network]
 CHURN = 12
 
 

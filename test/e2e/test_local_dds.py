@@ -1,11 +1,15 @@
 """
-The local DDS configuration (issue 22): what the test run used, what the nodes bind, who refuses.
+The local DDS configuration: what the test run used, what the nodes bind, who refuses.
 
-``./run.sh test`` runs the suite inside a private network namespace when the machine allows
-one, with the package's local configuration (``MOVER6_TEST_NETWORK=netns``), else on the host
-network as before (``host``); ``test_the_run_used_what_run_sh_said`` fails when the run fell back
-silently. The tests that start nodes in a configuration other than LOCALHOST run only inside a
-private network namespace (nothing sent there can leave the machine).
+The package's local configuration (UDP on 127.0.0.1, unicast discovery to 127.0.0.1, no shared
+memory) is the launchers' default on every machine. ``./run.sh test`` runs the suite inside a
+private network namespace when the machine allows one (``MOVER6_TEST_NETWORK=netns``), then this
+module and the churn test again on the host network (marker ``host_network``,
+``MOVER6_TEST_NETWORK=host``), where every node's sockets must be on loopback too;
+``test_the_run_used_what_run_sh_said`` fails when the run fell back silently. The tests that
+start nodes in a configuration that could leave loopback (Fast DDS's defaults without the
+profile) run only inside a private network namespace (nothing sent there can leave the
+machine).
 """
 
 import os
@@ -19,7 +23,7 @@ import pytest
 import rclpy
 from ros_testing import node_command, Stack, wait_until
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.host_network]
 
 ROOT = os.path.dirname(CONFIG_DIR)
 
@@ -42,11 +46,12 @@ def machine_allows_netns():
 
 
 netns_only = pytest.mark.skipif(not in_private_netns(),
-                                reason='starts DDS outside LOCALHOST: only inside a private '
-                                'network namespace (./run.sh test makes one)')
-local_only = pytest.mark.skipif(not (in_private_netns() and local_dds.requested()),
-                                reason='needs the local DDS configuration inside a private '
-                                'network namespace (./run.sh test)')
+                                reason='starts DDS without the profile (multicast on every '
+                                'interface): only inside a private network namespace '
+                                '(./run.sh test makes one)')
+local_only = pytest.mark.skipif(not local_dds.requested(),
+                                reason='needs the local DDS configuration (./run.sh test sets '
+                                'it; a DDS setup of your own was chosen)')
 
 
 def local_env(**changes):
@@ -70,9 +75,8 @@ def test_the_run_used_what_run_sh_said():
         if os.environ.get('MOVER6_NETNS') != '0':       # not asked for the host network
             assert not machine_allows_netns(), \
                 'this machine allows a private network namespace, but the tests ran without one'
-        assert os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE') == 'LOCALHOST'
-        return
-    assert in_private_netns(), f'interfaces: {socket.if_nameindex()}'
+    else:
+        assert in_private_netns(), f'interfaces: {socket.if_nameindex()}'
     assert local_dds.requested()
     local_dds.check_environment()          # SYSTEM_DEFAULT, the shipped profile, no override
     assert os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SYSTEM_DEFAULT'
@@ -101,7 +105,8 @@ def test_nodes_bind_loopback_only_and_join_no_multicast_group(stack):
             sockets = local_dds.ip_sockets(pid)
             assert sockets, f'{name}: no socket'
             assert local_dds.not_loopback(sockets) == [], f'{name}: {sockets}'
-        assert local_dds.multicast_groups() == [], open('/proc/net/igmp').read()
+        if in_private_netns():      # on a host, other programs' groups are listed too
+            assert local_dds.multicast_groups() == [], open('/proc/net/igmp').read()
         assert all(proc.alive() for proc in stack.nodes.values()), stack.report()
     finally:
         node.destroy_node()
@@ -138,7 +143,7 @@ def run_node_with(env, timeout=60):
     ({'FASTRTPS_DEFAULT_PROFILES_FILE': os.path.join(CONFIG_DIR, 'controller.yaml')},
      'is not the shipped profile'),
     ({'FASTDDS_BUILTIN_TRANSPORTS': 'DEFAULT'}, 'overrides the profile'),
-    ({'MOVER6_DDS': 'loopback'}, "the only value is 'local'"),
+    ({'MOVER6_DDS': 'loopback'}, "the values are 'local'"),
 ])
 def test_a_node_asked_for_the_local_profile_that_lacks_it_refuses_to_start(changes, reason):
     """Exit code 1 with the reason, before rclpy starts (so it sends nothing)."""
@@ -146,7 +151,7 @@ def test_a_node_asked_for_the_local_profile_that_lacks_it_refuses_to_start(chang
     code, out = run_node_with(env)
     assert code == 1, out
     assert reason in out, out
-    assert 'Not starting' in out or 'only value' in out, out
+    assert 'Not starting' in out or 'the values are' in out, out
 
 
 @netns_only
@@ -182,29 +187,27 @@ def test_the_launchers_keep_a_users_dds_setup():
                          capture_output=True, text=True, timeout=30).stdout
     assert out == ''
     bare = {k: v for k, v in os.environ.items() if k not in local_dds.USER_DDS_ENV}
-    out = subprocess.run([sys.executable, '-m', 'mover6_control.nodes.local_dds', 'env'],
-                         env=bare, capture_output=True, text=True, timeout=30).stdout
-    if in_private_netns():
-        # Only lo here: the local configuration.
+    for env in (bare, dict(bare, MOVER6_DDS='local')):
+        # The local configuration, on this machine's network as in a namespace.
+        out = subprocess.run([sys.executable, '-m', 'mover6_control.nodes.local_dds', 'env'],
+                             env=env, capture_output=True, text=True, timeout=30).stdout
         assert "export MOVER6_DDS='local'" in out
         assert "export ROS_AUTOMATIC_DISCOVERY_RANGE='SYSTEM_DEFAULT'" in out
         assert f"export FASTRTPS_DEFAULT_PROFILES_FILE='{local_dds.PROFILE}'" in out
-    else:
-        # A host with other interfaces: discovery on loopback as ROS knows it.
-        assert out == "export ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'\n", out
-    # MOVER6_DDS=local alone asks for the local configuration anywhere.
+    # MOVER6_DDS=localhost: ROS's LOCALHOST discovery, as before.
     out = subprocess.run([sys.executable, '-m', 'mover6_control.nodes.local_dds', 'env'],
-                         env=dict(bare, MOVER6_DDS='local'), capture_output=True, text=True,
+                         env=dict(bare, MOVER6_DDS='localhost'), capture_output=True, text=True,
                          timeout=30).stdout
-    assert "export ROS_AUTOMATIC_DISCOVERY_RANGE='SYSTEM_DEFAULT'" in out, out
-    assert f"export FASTRTPS_DEFAULT_PROFILES_FILE='{local_dds.PROFILE}'" in out
+    assert out == "export ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'\n", out
 
 
-def test_the_default_is_local_only_in_a_private_namespace(monkeypatch):
-    """Without a DDS choice: the profile where only lo exists, LOCALHOST on a wider host."""
-    for interfaces, expected in (([(1, 'lo')], local_dds.local_environment()),
-                                 ([(1, 'lo'), (2, 'eth0')],
-                                  {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'})):
-        monkeypatch.setattr(socket, 'if_nameindex', lambda interfaces=interfaces: interfaces)
-        assert local_dds.default_environment({}) == expected, interfaces
+def test_the_default_is_local_on_every_machine():
+    """Without a DDS choice: the profile; MOVER6_DDS=localhost: LOCALHOST; a user's own: kept."""
+    assert local_dds.default_environment({}) == local_dds.local_environment()
+    assert local_dds.default_environment({'MOVER6_DDS': 'local'}) == \
+        local_dds.local_environment()
+    assert local_dds.default_environment({'MOVER6_DDS': 'localhost'}) == \
+        {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
     assert local_dds.default_environment({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET'}) == {}
+    with pytest.raises(local_dds.LocalDdsError, match="the values are 'local'"):
+        local_dds.default_environment({'MOVER6_DDS': 'shm'})
