@@ -14,6 +14,8 @@ controller node does (the controller and the planner themselves do not run here)
   rest before) to the arrival of the first set-point frame of joint 1 that moves: DDS, the wait
   for the driver's next cycle (0 to one cycle by design), the serial write and the pty. p50, p95,
   max over the trials.
+- A cycle's six set-points [ms]: from joint 1's set-point to joint 6's on the wire, the
+  ``frame_gap`` (5 ms, the vendor's) apart: whether the cycle still fits 50 ms.
 - Cycle start error [ms]: the same period error from inside the driver process (the monotonic
   time at the start of every ``ArmDriver.step``, recorded by ``--probe``): the cycle itself,
   without the serial write and the pty.
@@ -62,6 +64,7 @@ WIRE_PRIORITY = 60
 CHURN = 40
 # (name, driver parameters, churn processes)
 VARIANTS = (('default', {}, 0), ('priority_0', {'cycle_priority': 0}, 0),
+            ('frame_gap_0', {'frame_gap': 0.0}, 0),
             ('default_churn', {}, CHURN), ('priority_0_churn', {'cycle_priority': 0}, CHURN))
 
 
@@ -103,7 +106,7 @@ def wire_main(argv):
         wire.server.run()
     finally:
         wire.server.close()
-        np.save(argv[1], np.array([(t, pos) for t, j, pos in wire.setpoints if j == 1]))
+        np.save(argv[1], np.array(wire.setpoints, dtype=float).reshape(-1, 3))
         print(json.dumps({'scheduling': scheduling}), flush=True)
 
 
@@ -136,6 +139,23 @@ def jog_for(node, pub, velocity, seconds):
         rclpy.spin_once(node, timeout_sec=0.0)
         time.sleep(0.01)
     return first
+
+
+def setpoint_spans(frames, t_start, t_end):
+    """
+    Return, per cycle, the time from joint 1's set-point to joint 6's next one [s].
+
+    ``frames``: (time [s], joint, position) of every set-point on the wire. With ``frame_gap``
+    (5 ms) six set-points take 25 ms of the 50 ms cycle: what is left is the margin.
+    """
+    firsts = [t for t, j, _ in frames if j == 1 and t_start <= t <= t_end]
+    lasts = np.array([t for t, j, _ in frames if j == 6])
+    spans = []
+    for t in firsts:
+        later = lasts[lasts >= t]
+        if len(later) and later[0] - t < CYCLE:
+            spans.append(later[0] - t)
+    return spans
 
 
 def stats(values, quantiles):
@@ -206,7 +226,9 @@ def run_variant(name, params, churn, trials, tmp):
         wire.terminate()
         out, _ = wire.communicate(timeout=30)
     wire_scheduling = json.loads(out.strip().splitlines()[-1])['scheduling']
-    frames = [(t, pos) for t, pos in np.load(wire_log)]
+    every = np.load(wire_log)
+    frames = [(t, pos) for t, j, pos in every if j == 1]
+    spans = setpoint_spans(every, t_start, t_end)
     for t_pub in publications:
         before = [pos for t, pos in frames if t_pub - 0.2 <= t < t_pub]
         moved = [t for t, pos in frames if t >= t_pub and before and pos != before[-1]]
@@ -231,6 +253,7 @@ def run_variant(name, params, churn, trials, tmp):
                                      if len(cycles) > 2 else None),
             'jointjog_to_frame_ms': stats(latencies, (50, 95)) if latencies else None,
             'jointjog_to_driver_callback_ms': stats(to_node, (50, 95)) if to_node else None,
+            'setpoint_span_ms': stats(spans, (50, 99)) if spans else None,
             'missed_trials': trials - len(latencies),
             'churn_exit_codes': churned.get('exit_codes', []),
             'churn_not_started': churned.get('left', 0),
@@ -309,7 +332,8 @@ def main(argv):
         for key, label in (('period_error_ms', 'period error on the wire'),
                            ('cycle_start_error_ms', 'cycle start error (in the driver)'),
                            ('jointjog_to_frame_ms', 'JointJog-to-frame'),
-                           ('jointjog_to_driver_callback_ms', 'JointJog-to-driver callback')):
+                           ('jointjog_to_driver_callback_ms', 'JointJog-to-driver callback'),
+                           ('setpoint_span_ms', "a cycle's six set-points, first to last")):
             figures = row[key]
             if figures:
                 high = figures.get('p99', figures.get('p95'))

@@ -18,6 +18,7 @@ import can
 from mover6_control.errors import InvalidInputError
 from mover6_control.hardware import protocol as p
 from mover6_control.hardware.driver import ArmDriver
+from mover6_control.hardware.outbox import Outbox
 from mover6_control.hardware.scaling import load_joints
 import pytest
 
@@ -498,3 +499,46 @@ def test_the_driver_on_a_pty_drops_what_the_wire_and_the_bus_bring_wrong():
         driver.close()
         os.close(slave)
         os.close(master)
+
+
+def test_a_reply_whose_timestamp_did_not_move_is_refused_and_the_joint_goes_silent(rig):
+    """The vendor's Joint.cpp ignores such a reply; here it is refused, counted, and held."""
+    r = rig(positions={2: 700})
+    r.enable()
+    original = r.modules._apply
+    stuck = {}
+
+    def stale(n, cmd):
+        if n == 2 and cmd.kind == 'setpoint':      # answers every set-point with one old reply
+            if 'frame' not in stuck:
+                stuck['frame'] = p.encode_reply(0, r.modules.wire[2] + 50, cmd.counter, 0)
+            r.modules.bus.send(can.Message(arbitration_id=p.reply_id(2), is_extended_id=False,
+                                           data=stuck['frame']))
+            return
+        original(n, cmd)
+    r.modules._apply = stale
+    report = r.run(6)
+    assert dict(report.bad_frames).get('stale_timestamp', 0) >= 3
+    assert report.hold and 'joint2' in report.hold and report.state == 'fault'
+
+
+def test_the_outbox_keeps_the_order_and_the_gap():
+    channel = f'outbox_{next(CHANNELS)}'
+    tx, rx = (can.Bus(interface='virtual', channel=channel) for _ in range(2))
+    try:
+        box = Outbox(tx, 0.005)
+        seqs = [box.put(0x10, b'\x01\x0a'), box.put(0x20, b'\x01\x0a'),
+                box.put(0x30, b'\x01\x09', not_before=10.02), box.put(0x40, b'\x01\x0a')]
+        assert seqs == sorted(seqs) and len(box) == 4
+        assert box.send_due(10.0) == 1                   # the gap: one frame now
+        assert box.next_due() == pytest.approx(10.005)
+        assert box.send_due(10.005) == 1
+        assert box.send_due(10.015) == 0                 # the third waits for its time...
+        assert box.send_due(10.02) == 1
+        assert box.send_due(10.025) == 1                 # ...and the fourth behind it
+        ids = [rx.recv(1.0).arbitration_id for _ in range(4)]
+        assert ids == [0x10, 0x20, 0x30, 0x40]
+        assert box.sent_at[0x40] == 10.025 and box.next_due() is None
+    finally:
+        tx.shutdown()
+        rx.shutdown()
