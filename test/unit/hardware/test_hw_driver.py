@@ -442,10 +442,35 @@ def test_a_reply_that_jumps_is_dropped_and_the_setpoint_never_follows(rig):
     r.modules.wire[2] = jump
     states = [r.run().joints[1].state for _ in range(4)]
     assert states[-1] == 'fault' and r.driver.report.hold
-    assert set(r.modules.setpoints(2)) <= {0, 1000}           # 0: before the first reply
+    assert set(r.modules.setpoints(2)) == {1000}          # none before the first reply either
     r.enable()                                                # reset: the new position stands
     assert r.driver.report.state == 'enabled'
     assert r.modules.setpoints(2)[-1] == jump
+
+
+def test_a_plausible_wrong_position_never_moves_a_setpoint_more_than_the_command(rig):
+    """
+    Serial bytes that pass the checksum but carry a wrong position within reach.
+
+    The plausibility check cannot tell them (``max_lag`` plus twice the top speed over a cycle);
+    the set-point still moves only by the commanded step and stays within the limits.
+    """
+    lo, hi = JOINTS[2].tick_limits('hardware')
+    r = rig(positions={3: hi - 3000})
+    r.enable()
+    v = [0, 0, 0.1, 0, 0, 0]
+    step = 0.1 * r.driver.cycle * abs(JOINTS[2].ticks_per_rad) + 1
+    wrong = int(0.15 * abs(JOINTS[2].ticks_per_rad))             # 0.15 rad: within reach
+    for k in range(12):
+        if k % 3 == 1:
+            send_raw(r, arbitration_id=p.reply_id(3), is_extended_id=False,
+                     data=p.encode_reply(0x00, r.modules.wire[3] + (-1) ** k * wrong, 0, 0))
+        r.driver.set_velocity(v)
+        r.run()
+    sp = r.modules.setpoints(3)
+    assert dict(r.driver.report.bad_frames).get('position_jump', 0) == 0    # all taken
+    assert max(abs(b - a) for a, b in zip(sp, sp[1:])) <= step
+    assert all(lo <= s <= hi for s in sp) and max(sp) == hi              # and up to the limit
 
 
 def test_the_control_thread_reports_its_scheduling():
