@@ -10,8 +10,8 @@ the command went out confirms nothing. Otherwise it times out, with what is miss
 
 Enable is all six modules or none, in three steps:
 
-1. refused at once unless every module answers (none silent, none faulted) and none reports an
-   error flag but "motor not enabled" (reset first);
+1. refused at once unless every module has answered, none is faulted (silent for
+   ``silent_cycles``) and none reports an error flag but "motor not enabled" (reset first);
 2. every module answers a set-point at its measured position (``JointRecord.primed``): a module
    that keeps its last set-point while disabled then goes nowhere when it is enabled;
 3. enable goes to all six; once all six report no flag in a reply after it, it is confirmed. A
@@ -107,7 +107,7 @@ class Requests:
             if any(r.kind == 'enable' for r in self._queue):
                 return 'an enable is under way'
             for j in self.joints:
-                problem = self._not_ready(j, strict=True)
+                problem = self._not_ready(j)
                 if problem:
                     return f'{j.scale.name}: {problem} (all six modules or none)'
         if req.kind in ('reference', 'set_zero') and moving:
@@ -122,20 +122,19 @@ class Requests:
             return 'the joint must be enabled first'
         return ''
 
-    def _not_ready(self, j: JointRecord, strict: bool = False) -> str:
+    def _not_ready(self, j: JointRecord) -> str:
         """
         Return why ``j``'s module may not be enabled now ('' when it may).
 
-        ``strict`` (when an enable is asked for): a module that missed its last reply is not
-        ready either; under way, only a fault (``silent_cycles`` missed) stops the enable.
+        A module that missed a reply or two is not refused here (a loaded machine delays one now
+        and then): it must still answer a set-point at its position before enable goes out, and
+        ``silent_cycles`` missed in a row (a fault) stop the enable on all six.
         """
         state = j.state()
         if state == ModuleState.DISCONNECTED:
             return 'no reply from its module'
         if state == ModuleState.FAULT:
             return f'its module is silent ({j.silent} replies missed): reset first'
-        if strict and j.silent:
-            return f'its module missed its last {j.silent} replies'
         if state == ModuleState.ERROR:
             names = ', '.join(p.flag_names(j.reply.error_flags & ~p.NOT_ENABLED, self.firmware))
             return f'error flags {names}: reset first'
