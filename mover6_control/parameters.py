@@ -420,6 +420,12 @@ DRIVER = _table(
     P('frame_gap', 'float', 0.005, 's',
       "time between two frames sent (the vendor's 5 ms): six set-points take 25 ms of the "
       'cycle', 0.0, 0.006, read_only=True),
+    P('frame_log', 'str', '', '',
+      "every frame sent and read, with its direction, to this file (python-can's writer by "
+      "the suffix: .log candump's format); '' = none; set at start", read_only=True),
+    P('listen_only', 'bool', False, '',
+      'send nothing: decode and publish what the modules answer to another master on the bus '
+      '(every request refused); set at start', read_only=True),
     P('allow_set_zero', 'bool', False, '',
       '~/set_zero is refused unless this is true (it redefines every joint zero)'),
     P('request_timeout', 'float', 2.0, 's',

@@ -4,7 +4,9 @@ Open the arm's CAN bus by interface name: python-can's interfaces, or the CPR US
 ``cpr_usb2can`` opens ``Usb2CanBus`` (the vendor's serial adapter, ``usb2can.py``); every other
 name goes to ``can.Bus`` (``socketcan`` for PEAK and other SocketCAN adapters, ``pcan``,
 ``virtual`` for tests, ...). An unknown name fails here with the list of the known ones, before
-any device is touched.
+any device is touched. ``open_frame_log`` opens python-can's own writer for a frame log (by the
+file's suffix: ``.log`` candump's log format with R/T for the direction, ``.asc``, ``.blf``,
+``.csv`` ...), or refuses a path it cannot write with the reason.
 """
 
 from __future__ import annotations
@@ -34,3 +36,18 @@ def open_bus(interface: str, channel: str, bitrate: int = BITRATE,
     if interface == USB2CAN:
         return Usb2CanBus(channel, **kwargs)
     return can.Bus(interface=interface, channel=channel, bitrate=bitrate, **kwargs)
+
+
+def open_frame_log(path: str) -> can.Listener:
+    """
+    Return python-can's writer for ``path`` (chosen by its suffix; ``.log``: candump's format).
+
+    InvalidInputError, with the reason, for a path that cannot be written or a suffix python-can
+    has no writer for; nothing is left open then.
+    """
+    if not isinstance(path, str) or not path:
+        raise InvalidInputError(f'frame_log must be a file path, got {path!r}')
+    try:
+        return can.Logger(path)
+    except (OSError, ValueError) as err:
+        raise InvalidInputError(f'frame_log {path!r} cannot be written: {err}') from None

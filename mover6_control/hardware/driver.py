@@ -33,6 +33,11 @@ enabled.** So:
   sent after the command (``driver_replies``);
 - ``close`` disables every module before the bus is shut down.
 
+Observability that cannot move the arm: ``frame_log`` (a ``can.Listener``, e.g. python-can's
+candump log writer from ``bus.open_frame_log``) gets every frame sent and read, with its
+direction; ``listen_only`` sends nothing at all (no disable at start, no set-point, every request
+refused): it decodes and reports what the modules answer to another master on the bus.
+
 What the bus brings that is not a fresh reply of one of the joints' modules is refused and
 counted by its reason (``ArmReport.bad_frames``, ``driver_replies``).
 
@@ -84,6 +89,8 @@ class ArmDriver:
     ``request``; ``step`` takes the time as an argument. ``on_cycle``, if given, gets every
     cycle's ``ArmReport`` on the control thread. ``priority`` (0 = normal scheduling, 1..99
     SCHED_FIFO where allowed) is the control thread's; ``scheduling`` says what it got.
+    ``frame_log`` and ``listen_only`` as in the module docstring (the log is stopped by
+    ``close``).
     """
 
     def __init__(self, bus: can.BusABC, joints: Sequence[JointScale], *, cycle: float = 0.05,
@@ -91,7 +98,8 @@ class ArmDriver:
                  frame_gap: float = FRAME_GAP, limit_set: str = 'hardware',
                  firmware: str = 'mover6', clock: Callable[[], float] = time.monotonic,
                  on_cycle: Optional[Callable[[ArmReport], None]] = None,
-                 priority: int = 0) -> None:
+                 priority: int = 0, frame_log: Optional[can.Listener] = None,
+                 listen_only: bool = False) -> None:
         for name, value in (('cycle', cycle), ('command_timeout', command_timeout),
                             ('max_lag', max_lag)):
             if not value > 0.0:
@@ -105,8 +113,11 @@ class ArmDriver:
         self._joints = tuple(JointRecord(j) for j in joints)
         for j in self._joints:
             j.scale.tick_limits(limit_set)
-        self._outbox = Outbox(bus, frame_gap)
-        self._intake = ReplyIntake(self._joints, self._outbox, silent_cycles)
+        self.listen_only = bool(listen_only)
+        self.frame_log = frame_log
+        self._outbox = Outbox(bus, frame_gap, frame_log)
+        self._intake = ReplyIntake(self._joints, self._outbox, silent_cycles, frame_log,
+                                   self.listen_only)
         self._requests = Requests(self._joints, self._outbox, firmware)
         self.cycle = float(cycle)
         self.command_timeout = float(command_timeout)
@@ -176,6 +187,10 @@ class ArmDriver:
         otherwise the control thread sends its frames from its next cycle on.
         """
         with self._lock:
+            if self.listen_only:
+                req = Request(kind, (), float(timeout))
+                req.finish(False, f'{kind} refused: listen_only, the driver sends nothing')
+                return req
             return self._requests.submit(kind, joints, timeout, self._moving())
 
     # --- the cycle ---
@@ -186,34 +201,48 @@ class ArmDriver:
             dt = self.cycle if self._last_step is None else max(0.0, now - self._last_step)
             period = 0.0 if self._last_step is None else now - self._last_step
             self._last_step = now
-            if not self._started:
-                self._started = True
-                for n in range(1, len(self._joints) + 1):
-                    self._outbox.put(p.command_id(n), p.DISABLE)
-            self._intake.read(self.bus, now, self.max_lag, self.cycle)
-            self._requests.start(now)
-            busy = self._requests.busy_joints()
-            enabling = self._requests.enabling()
-            hold = hold_reason(self._joints, busy, self.firmware, enabling)
-            fresh = self._command is not None and now - self._command[1] <= self.command_timeout
-            command = self._command[0] if fresh else [0.0] * len(self._joints)
-            for n, (j, v) in enumerate(zip(self._joints, command), start=1):
-                if n in busy or enabling:
-                    j.track = True               # the module moves itself: follow it
-                integrate(j, v, dt, bool(hold), self.limit_set, self.max_lag)
-            for n, j in enumerate(self._joints, start=1):
-                self._queue_setpoint(n, j)
-            self._requests.after_setpoints(now)
-            self._outbox.send_due(now)
-            for req in self._requests.check(now):
-                if req.kind == 'enable' and req.ok:
-                    self._command = None         # motion starts from a command after enable
-                hold = hold_reason(self._joints, self._requests.busy_joints(), self.firmware,
-                                   self._requests.enabling())
-            self._report = self._make_report(now, hold, period)
+            if self.listen_only:
+                self._listen(now, period)
+            else:
+                self._drive(now, dt, period)
         if self.on_cycle is not None:
             self.on_cycle(self._report)
         return self._report
+
+    def _drive(self, now: float, dt: float, period: float) -> None:
+        """One cycle that drives the arm (under the lock): read, decide, queue, send, answer."""
+        if not self._started:
+            self._started = True
+            for n in range(1, len(self._joints) + 1):
+                self._outbox.put(p.command_id(n), p.DISABLE)
+        self._intake.read(self.bus, now, self.max_lag, self.cycle)
+        self._requests.start(now)
+        busy = self._requests.busy_joints()
+        enabling = self._requests.enabling()
+        hold = hold_reason(self._joints, busy, self.firmware, enabling)
+        fresh = self._command is not None and now - self._command[1] <= self.command_timeout
+        command = self._command[0] if fresh else [0.0] * len(self._joints)
+        for n, (j, v) in enumerate(zip(self._joints, command), start=1):
+            if n in busy or enabling:
+                j.track = True               # the module moves itself: follow it
+            integrate(j, v, dt, bool(hold), self.limit_set, self.max_lag)
+        for n, j in enumerate(self._joints, start=1):
+            self._queue_setpoint(n, j)
+        self._requests.after_setpoints(now)
+        self._outbox.send_due(now)
+        for req in self._requests.check(now):
+            if req.kind == 'enable' and req.ok:
+                self._command = None         # motion starts from a command after enable
+            hold = hold_reason(self._joints, self._requests.busy_joints(), self.firmware,
+                               self._requests.enabling())
+        self._report = self._make_report(now, hold, period)
+
+    def _listen(self, now: float, period: float) -> None:
+        """One cycle of ``listen_only``: read and report, send nothing (under the lock)."""
+        self._intake.read(self.bus, now, self.max_lag, self.cycle)
+        for j in self._joints:
+            j.setpoint = None if j.ticks is None else float(j.ticks)
+        self._report = self._make_report(now, 'listen_only: the driver sends nothing', period)
 
     def _queue_setpoint(self, n: int, j: JointRecord) -> None:
         """Queue joint ``n``'s set-point, or, while its position is unknown, a disable."""
@@ -299,7 +328,10 @@ class ArmDriver:
             self._thread = None
         with self._lock:
             self._outbox.clear()
-            for n in range(1, len(self._joints) + 1):
-                self._outbox.send_now(p.command_id(n), p.DISABLE)
+            if not self.listen_only:
+                for n in range(1, len(self._joints) + 1):
+                    self._outbox.send_now(p.command_id(n), p.DISABLE)
             self._requests.finish_all('the driver shut down')
         self.bus.shutdown()
+        if self.frame_log is not None:
+            self.frame_log.stop()

@@ -17,12 +17,15 @@ confirmations (enable, reset, set zero, referencing) count only replies that ech
 sent after their command. A module that has not answered a frame that went to it at least
 ``REPLY_GRACE`` before the read misses a reply (a frame still waiting in the outbox, behind a
 burst of commands, is owed nothing yet); after ``silent_cycles`` missed in a row the joint is a
-latched fault until a reset.
+latched fault until a reset. Every frame read also goes to the frame log, if there is one
+(refused ones included, all eight bytes: ``data[5]`` and ``data[6]`` as the module sent them).
+With ``listen_only`` the set-points and commands of the master that drives the bus are expected:
+they are logged, not counted as refused.
 """
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Optional, Sequence
 
 import can
 from mover6_control.hardware import protocol as p
@@ -56,15 +59,18 @@ def frame_problem(msg: can.Message, n_joints: int) -> str:
 class ReplyIntake:
     """Read the replies into ``joints`` (``JointRecord``), refusing what is no fresh reply."""
 
-    def __init__(self, joints: Sequence[JointRecord], outbox: Outbox,
-                 silent_cycles: int) -> None:
+    def __init__(self, joints: Sequence[JointRecord], outbox: Outbox, silent_cycles: int,
+                 frame_log: Optional[can.Listener] = None, listen_only: bool = False) -> None:
         """
         Take the joints' records; ``outbox`` tells when a frame last went to each module.
 
-        A module that misses ``silent_cycles`` replies in a row faults.
+        A module that misses ``silent_cycles`` replies in a row faults; every frame read goes
+        to ``frame_log``; ``listen_only``: another master's frames are expected.
         """
         self.joints = joints
         self.outbox = outbox
+        self.frame_log = frame_log
+        self.listen_only = bool(listen_only)
         self.silent_cycles = int(silent_cycles)
         self.bad = 0                  # frames refused
         self.bad_reasons = {}         # reason -> frames refused for it
@@ -82,6 +88,8 @@ class ReplyIntake:
                 break
             if msg is None:
                 break
+            if self.frame_log is not None:
+                self.frame_log(msg)
             joint = self._take(msg, now, max_lag, cycle)
             if joint:
                 fresh.add(joint)
@@ -100,6 +108,8 @@ class ReplyIntake:
     def _take(self, msg: can.Message, now: float, max_lag: float, cycle: float) -> int:
         """Take one frame into its joint's record; return the joint, or 0 when refused."""
         reason = frame_problem(msg, len(self.joints))
+        if reason == 'command_of_another_master' and self.listen_only:
+            return 0                         # the master that drives the bus: expected
         if not reason:
             joint = p.joint_of_id(msg.arbitration_id)[0]
             j = self.joints[joint - 1]

@@ -6,12 +6,14 @@ says a 5 ms gap too): ``gap`` is the driver's ``frame_gap``. Every frame gets a 
 when it is queued; frames go out in that order, so a reply that echoes a set-point with a higher
 number than a command's came after the module took the command. A frame may also wait for a time
 (``not_before``: the second frame of enable, referencing and set zero, 20 ms after the first);
-the frames behind it wait with it, so the order holds.
+the frames behind it wait with it, so the order holds. Each frame sent also goes to the frame
+log, if there is one (``is_rx`` False, wall-clock time).
 """
 
 from __future__ import annotations
 
 from collections import deque
+import time
 from typing import Optional
 
 import can
@@ -20,10 +22,12 @@ import can
 class Outbox:
     """Queue frames for ``bus`` and send them in order, ``gap`` [s] apart."""
 
-    def __init__(self, bus: can.BusABC, gap: float) -> None:
-        """Send on ``bus``; ``gap`` [s] >= 0 between two frames."""
+    def __init__(self, bus: can.BusABC, gap: float,
+                 frame_log: Optional[can.Listener] = None) -> None:
+        """Send on ``bus``; ``gap`` [s] >= 0 between two frames; log each to ``frame_log``."""
         self.bus = bus
         self.gap = float(gap)
+        self.frame_log = frame_log
         self.seq = 0                  # the sequence number of the last frame queued
         self.tx_errors = 0
         self.error = ''
@@ -65,11 +69,16 @@ class Outbox:
 
     def send_now(self, can_id: int, data: bytes) -> None:
         """Send one frame at once, past the queue (the driver's last frames when it closes)."""
+        msg = can.Message(arbitration_id=can_id, is_extended_id=False, data=data, is_rx=False,
+                          timestamp=time.time())
         try:
-            self.bus.send(can.Message(arbitration_id=can_id, is_extended_id=False, data=data))
+            self.bus.send(msg)
         except can.CanError as err:
             self.tx_errors += 1
             self.error = f'send failed: {err}'
+            return
+        if self.frame_log is not None:
+            self.frame_log(msg)
 
     def clear(self) -> None:
         """Drop every frame that waits."""

@@ -10,6 +10,9 @@ frames dropped and refused), at ``diagnostics_rate`` and at once on every change
 (std_srvs/Trigger, each answering once the modules confirm or with the reason): ~/reset,
 ~/enable, ~/disable, ~/reference (joints one at a time, refused while moving), ~/set_zero
 (refused unless ``allow_set_zero``). The gripper and joint 1's digital outputs are parameters.
+``frame_log`` writes every frame sent and read (python-can's writer: candump's log format for
+``.log``), ``listen_only`` sends nothing; a frame log that cannot be written, or listen_only with
+enable_on_start, stops the node at start with the reason.
 
 The work is ``mover6_control.hardware.driver.ArmDriver`` on its own control thread (the cycle);
 the node converts messages and publishes. The control thread never waits on DDS: it hands each
@@ -36,7 +39,8 @@ from typing import Optional
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticArray
-from mover6_control.hardware.bus import open_bus
+from mover6_control.errors import InvalidInputError
+from mover6_control.hardware.bus import open_bus, open_frame_log
 from mover6_control.hardware.driver import ArmDriver
 from mover6_control.hardware.scaling import JOINTS_YAML, load_joints
 from mover6_control.nodes import shutdown
@@ -68,12 +72,20 @@ class DriverNode(JogInput, ReportPublisher, Node):
         self.jog_units = p['jog_units']
         firmware, joints = load_joints(p['joints_file'] or JOINTS_YAML)
         self.max_speed = [j.max_speed for j in joints]
+        if p['listen_only'] and p['enable_on_start']:
+            raise SystemExit('driver: listen_only sends nothing, enable_on_start asks to enable: '
+                             'refused (set one of them false)')
+        try:
+            frame_log = open_frame_log(p['frame_log']) if p['frame_log'] else None
+        except InvalidInputError as err:
+            raise SystemExit(f'driver: {err}') from None
         bus = open_bus(p['can_interface'], p['can_channel'], p['bitrate'])
         self.driver = ArmDriver(
             bus, joints, cycle=p['cycle'], command_timeout=p['command_timeout'],
             max_lag=p['max_lag'], silent_cycles=p['silent_cycles'], frame_gap=p['frame_gap'],
             limit_set=p['limit_set'],
-            firmware=firmware, on_cycle=self.on_cycle, priority=p['cycle_priority'])
+            firmware=firmware, on_cycle=self.on_cycle, priority=p['cycle_priority'],
+            frame_log=frame_log, listen_only=p['listen_only'])
         self.names = self.driver.names
         self.refused = 0
         self.refused_by = {}          # reason -> JointJogs refused for it

@@ -12,6 +12,7 @@ injected through can_sim's control socket and recovered through the driver's ser
 
 import os
 import signal
+import subprocess
 import time
 
 from control_msgs.msg import JointJog
@@ -25,7 +26,7 @@ from mover6_control.tools.goal_cli import GoalClient
 from mover6_control.tools.goal_convention import poses_from_numbers
 import numpy as np
 import pytest
-from ros_testing import CanSimProcess, ready_client, Stack
+from ros_testing import CanSimProcess, node_command, ready_client, Stack
 from std_srvs.srv import Trigger
 
 pytestmark = pytest.mark.e2e
@@ -250,3 +251,17 @@ def test_readme_goal_arrives_in_fraction_of_max(rig, client):
     assert client.wait_ready(timeout=60.0) is None, stack.report()
     assert client.spin_until(lambda: bus(client).get('state') == 'enabled', 30.0)
     assert_arrived(client, sim, stack, GOAL, 'fraction_of_max')
+
+
+@pytest.mark.parametrize('params, reason', [
+    (['-p', 'frame_log:=/nonexistent-folder/frames.log'], 'cannot be written'),
+    (['-p', 'listen_only:=true', '-p', 'enable_on_start:=true'], 'listen_only sends nothing'),
+])
+def test_the_driver_refuses_to_start_with_a_bad_observability_setting(tmp_path, params, reason):
+    """Exit code 1 with the reason, before the bus is opened (the channel does not exist)."""
+    cmd = node_command('driver') + ['--ros-args', '-p', 'can_interface:=cpr_usb2can',
+                                    '-p', f'can_channel:={tmp_path}/no-such-port'] + params
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    out = done.stdout + done.stderr
+    assert done.returncode == 1, out
+    assert reason in out and 'no-such-port' not in out, out
