@@ -3,7 +3,9 @@ The state of the arm driver: each joint's record and state machine, the arm's, a
 
 Per joint and for the arm the state is a ``ModuleState``: disconnected (no reply yet), connected
 (replying, motor not enabled), error (a flag other than "motor not enabled"), enabled, referenced
-(enabled and referenced), fault (silent). The arm's state is its worst joint's (``ARM_ORDER``).
+(enabled and referenced), fault (silent). The arm's state is its worst joint's (``ARM_ORDER``),
+or ``power_lost`` when every module reports its supply flag at once (brown-out on the Mover6's
+modules, "e-stop or supply too low" on CAN V2 ones): the e-stop was pressed or the power went.
 ``JointRecord`` is what the driver (``hardware.driver.ArmDriver``) keeps of one joint between
 cycles; ``hold_reason`` says why the arm may not move; ``joint_report`` and ``arm_state`` make
 the cycle's ``ArmReport``.
@@ -28,6 +30,7 @@ class ModuleState(StrEnum):
     ENABLED = 'enabled'
     REFERENCED = 'referenced'
     FAULT = 'fault'
+    POWER_LOST = 'power_lost'
 
 
 S = ModuleState
@@ -35,6 +38,10 @@ S = ModuleState
 ARM_ORDER = (S.FAULT, S.DISCONNECTED, S.ERROR, S.CONNECTED, S.ENABLED, S.REFERENCED)
 # The states in which a module follows its set-points.
 FOLLOWING = (S.ENABLED, S.REFERENCED)
+# The flag by which a module says its supply went, per firmware (protocol.ERROR_FLAGS' names).
+POWER_FLAGS = ('brown_out', 'estop_or_low_supply')
+POWER_LOST_REASON = ('power lost on every module (the e-stop was pressed, or the supply went): '
+                     'make the arm safe, release the e-stop, then ~/reset and ~/enable')
 
 
 @dataclass(frozen=True)
@@ -122,6 +129,12 @@ class JointRecord:
         return S.REFERENCED if self.reply.referenced else S.ENABLED
 
 
+def power_lost(flag_names: Sequence[Sequence[str]]) -> bool:
+    """Tell whether every module's flags (their names, one tuple per joint) say power lost."""
+    return bool(flag_names) and all(any(f in POWER_FLAGS for f in names)
+                                    for names in flag_names)
+
+
 def hold_reason(joints: Sequence[JointRecord], busy: set, firmware: str,
                 enabling: bool = False) -> str:
     """
@@ -129,6 +142,9 @@ def hold_reason(joints: Sequence[JointRecord], busy: set, firmware: str,
 
     ``busy``: joints referencing or setting zero; ``enabling``: an enable is under way.
     """
+    if all(j.reply is not None for j in joints) and power_lost(
+            [p.flag_names(j.reply.error_flags, firmware) for j in joints]):
+        return POWER_LOST_REASON
     if busy:
         return f'joints {sorted(busy)}: referencing or setting zero'
     if enabling:
@@ -160,5 +176,7 @@ def joint_report(j: JointRecord, firmware: str) -> JointReport:
 
 
 def arm_state(joints: Sequence[JointReport]) -> ModuleState:
-    """Return the arm's state: the worst of its joints' (``ARM_ORDER``)."""
+    """Return the arm's state: power lost, or the worst of its joints' (``ARM_ORDER``)."""
+    if all(r.replies for r in joints) and power_lost([r.flag_names for r in joints]):
+        return S.POWER_LOST
     return next(s for s in ARM_ORDER if any(r.state == s for r in joints))

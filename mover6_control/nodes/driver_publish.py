@@ -21,7 +21,8 @@ from mover6_control.nodes.conversions import make_joint_state, make_status
 
 LEVELS = {ModuleState.FAULT: 'ERROR', ModuleState.ERROR: 'ERROR',
           ModuleState.DISCONNECTED: 'WARN', ModuleState.CONNECTED: 'WARN',
-          ModuleState.ENABLED: 'OK', ModuleState.REFERENCED: 'OK'}
+          ModuleState.ENABLED: 'OK', ModuleState.REFERENCED: 'OK',
+          ModuleState.POWER_LOST: 'ERROR'}
 """The diagnostic level of a joint's, or the arm's, state."""
 
 
@@ -65,7 +66,7 @@ class ReportPublisher:
                                    hold_kind(report.hold) != hold_kind(self._seen.hold)):
             # Each change of the arm's state is logged once, with why it holds.
             text = f'arm {report.state}' + (f': holds, {report.hold}' if report.hold else '')
-            if report.state in (ModuleState.ERROR, ModuleState.FAULT):
+            if report.state in (ModuleState.ERROR, ModuleState.FAULT, ModuleState.POWER_LOST):
                 self.get_logger().warning(text)
             else:
                 self.get_logger().info(text)

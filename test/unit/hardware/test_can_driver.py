@@ -155,3 +155,20 @@ def test_referencing_one_joint(rig):
     report = rig.run(CYCLE)
     assert [j.referenced for j in report.joints] == [False, False, True, False, False, False]
     assert report.joints[2].state == 'referenced'
+
+
+def test_a_brown_out_on_every_module_reads_as_power_lost_with_the_recovery_steps(rig):
+    enabled(rig)
+    rig.arm.inject_flags(3, 0x01, rig.t)                  # one module: an ordinary error
+    report = rig.run(2 * CYCLE)
+    assert report.state == 'error' and 'brown_out' in report.hold
+    for n in range(1, 7):                                 # all six at once: the e-stop
+        rig.arm.inject_flags(n, 0x01, rig.t)
+    report = rig.run(2 * CYCLE, [0.2] * 6)
+    assert report.state == 'power_lost'
+    assert 'power lost' in report.hold and 'e-stop' in report.hold and '~/reset' in report.hold
+    q = rig.arm.sim.q.copy()
+    rig.run(0.5, [0.2] * 6)
+    assert np.all(np.abs(rig.arm.sim.q - q) <= TICK)      # held
+    enabled(rig)                                          # released: reset, enable
+    assert rig.run(CYCLE).state == 'enabled'
