@@ -214,7 +214,7 @@ class ArmDriver:
         if not self._started:
             self._started = True
             for n in range(1, len(self._joints) + 1):
-                self._outbox.put(p.command_id(n), p.DISABLE)
+                self._outbox.put(p.command_id(n), p.DISABLE, now)
         self._intake.read(self.bus, now, self.max_lag, self.cycle)
         self._requests.start(now)
         busy = self._requests.busy_joints()
@@ -227,7 +227,7 @@ class ArmDriver:
                 j.track = True               # the module moves itself: follow it
             integrate(j, v, dt, bool(hold), self.limit_set, self.max_lag)
         for n, j in enumerate(self._joints, start=1):
-            self._queue_setpoint(n, j)
+            self._queue_setpoint(n, j, now)
         self._requests.after_setpoints(now)
         self._outbox.send_due(now)
         for req in self._requests.check(now):
@@ -244,24 +244,24 @@ class ArmDriver:
             j.setpoint = None if j.ticks is None else float(j.ticks)
         self._report = self._make_report(now, 'listen_only: the driver sends nothing', period)
 
-    def _queue_setpoint(self, n: int, j: JointRecord) -> None:
-        """Queue joint ``n``'s set-point, or, while its position is unknown, a disable."""
+    def _queue_setpoint(self, n: int, j: JointRecord, now: float) -> None:
+        """Queue joint ``n``'s set-point at ``now`` [s], or, position unknown, a disable."""
         can_id = p.command_id(n)
         if j.ticks is None:
-            self._outbox.put(can_id, p.DISABLE)
+            self._outbox.put(can_id, p.DISABLE, now)
             if j.unknown_cycles >= PROBE_CYCLES:
                 # A module that answers only set-points: poll it right behind the disable, so
                 # it cannot act on the set-point; enable waits for one at its position.
                 counter = j.next_counter()
                 poll = p.encode_setpoint(j.scale.to_wire(0), counter, j.outputs)
-                seq = self._outbox.put(can_id, poll)
+                seq = self._outbox.put(can_id, poll, now)
                 j.sent[counter] = (seq, 0)
             j.unknown_cycles += 1
             return
         ticks = round(j.setpoint) if j.setpoint is not None else j.ticks
         counter = j.next_counter()
         frame = p.encode_setpoint(j.scale.to_wire(ticks), counter, j.outputs)
-        seq = self._outbox.put(can_id, frame)
+        seq = self._outbox.put(can_id, frame, now)
         j.sent[counter] = (seq, ticks)
 
     def _moving(self) -> bool:

@@ -176,10 +176,10 @@ class Requests:
         """Queue the frames of ``req`` (twice, ``REPEAT_DELAY`` apart, where it needs it)."""
         frames = [(n, self._frame(req.kind, n)) for n in req.joints]
         for n, data in frames:
-            req.last_seq = self.outbox.put(p.command_id(n), data)
+            req.last_seq = self.outbox.put(p.command_id(n), data, now)
         if req.kind in REPEATED:
             for n, data in frames:
-                req.last_seq = self.outbox.put(p.command_id(n), data, now + REPEAT_DELAY)
+                req.last_seq = self.outbox.put(p.command_id(n), data, now, now + REPEAT_DELAY)
 
     def _frame(self, kind: str, n: int) -> bytes:
         """Return the payload of ``kind`` for joint ``n``."""
@@ -199,7 +199,7 @@ class Requests:
             elif failed or now - req.sent >= req.timeout:
                 why = missing if failed else f'not confirmed within {req.timeout} s ({missing})'
                 if req.kind == 'enable':
-                    self._disable_all()
+                    self._disable_all(now)
                     why += '; all six disabled'
                 req.finish(False, f'{req.kind}: {why}')
             if req.ok is not None:
@@ -207,9 +207,9 @@ class Requests:
                 done.append(req)
         return done
 
-    def _disable_all(self) -> None:
+    def _disable_all(self, now: float) -> None:
         for n in range(1, len(self.joints) + 1):
-            self.outbox.put(p.command_id(n), p.DISABLE)
+            self.outbox.put(p.command_id(n), p.DISABLE, now)
             self.joints[n - 1].track = True
 
     def _confirmation(self, req: Request) -> tuple[str, bool]:

@@ -4,9 +4,13 @@ The frames the arm driver sends, in the order it queued them, at most one every 
 The vendor's driver writes one frame, then sleeps 5 ms (``Bus.cpp``; its CPRog configuration
 says a 5 ms gap too): ``gap`` is the driver's ``frame_gap``. Every frame gets a sequence number
 when it is queued; frames go out in that order, so a reply that echoes a set-point with a higher
-number than a command's came after the module took the command. A frame may also wait for a time
-(``not_before``: the second frame of enable, referencing and set zero, 20 ms after the first);
-the frames behind it wait with it, so the order holds. Each frame sent also goes to the frame
+number than a command's came after the module took the command. Each frame is planned when it is
+queued, ``gap`` after the frame before it (or at ``not_before``: the second frame of enable,
+referencing and set zero, 20 ms after the first; the frames behind it wait with it, so the order
+holds). A control thread that wakes late sends every frame whose plan has passed at once: a
+late thread catches up instead of falling further behind each cycle (one frame per late wake-up
+would leave the last modules of a cycle without their set-points, and their watchdogs would
+trip). Each frame sent also goes to the frame
 log, if there is one (``is_rx`` False, wall-clock time).
 """
 
@@ -32,13 +36,19 @@ class Outbox:
         self.tx_errors = 0
         self.error = ''
         self.sent_at = {}             # can_id -> when a frame last went to it [s]
-        self._queue = deque()         # (not_before [s], can_id, data)
-        self._last: Optional[float] = None
+        self._queue = deque()         # (planned [s], can_id, data)
+        self._plan_tail = float('-inf')  # when the last frame queued is planned to go [s]
 
-    def put(self, can_id: int, data: bytes, not_before: float = float('-inf')) -> int:
-        """Queue one frame, to go no sooner than ``not_before`` [s]; return its sequence."""
+    def put(self, can_id: int, data: bytes, now: float,
+            not_before: float = float('-inf')) -> int:
+        """
+        Queue one frame at ``now`` [s], to go no sooner than ``not_before``; return its sequence.
+
+        It is planned ``gap`` after the frame queued before it, and not before ``now``.
+        """
         self.seq += 1
-        self._queue.append((not_before, can_id, bytes(data)))
+        self._plan_tail = max(now, not_before, self._plan_tail + self.gap)
+        self._queue.append((self._plan_tail, can_id, bytes(data)))
         return self.seq
 
     def __len__(self) -> int:
@@ -46,24 +56,16 @@ class Outbox:
         return len(self._queue)
 
     def next_due(self) -> Optional[float]:
-        """Return when the next frame may go [s], or None when none waits."""
-        if not self._queue:
-            return None
-        due = self._queue[0][0]
-        if self._last is not None:
-            due = max(due, self._last + self.gap)
-        return due
+        """Return when the next frame is planned to go [s], or None when none waits."""
+        return self._queue[0][0] if self._queue else None
 
     def send_due(self, now: float) -> int:
-        """Send the frames whose time has come at ``now`` [s]; return how many went."""
+        """Send every frame whose planned time has come at ``now`` [s]; return how many went."""
         sent = 0
-        while self._queue:
-            due = self.next_due()
-            if due > now + 1e-9:
-                break
+        while self._queue and self._queue[0][0] <= now + 1e-9:
             _, can_id, data = self._queue.popleft()
             self.send_now(can_id, data)
-            self.sent_at[can_id] = self._last = now
+            self.sent_at[can_id] = now
             sent += 1
         return sent
 

@@ -552,8 +552,9 @@ def test_the_outbox_keeps_the_order_and_the_gap():
     tx, rx = (can.Bus(interface='virtual', channel=channel) for _ in range(2))
     try:
         box = Outbox(tx, 0.005)
-        seqs = [box.put(0x10, b'\x01\x0a'), box.put(0x20, b'\x01\x0a'),
-                box.put(0x30, b'\x01\x09', not_before=10.02), box.put(0x40, b'\x01\x0a')]
+        seqs = [box.put(0x10, b'\x01\x0a', 10.0), box.put(0x20, b'\x01\x0a', 10.0),
+                box.put(0x30, b'\x01\x09', 10.0, not_before=10.02),
+                box.put(0x40, b'\x01\x0a', 10.0)]
         assert seqs == sorted(seqs) and len(box) == 4
         assert box.send_due(10.0) == 1                   # the gap: one frame now
         assert box.next_due() == pytest.approx(10.005)
@@ -564,6 +565,10 @@ def test_the_outbox_keeps_the_order_and_the_gap():
         ids = [rx.recv(1.0).arbitration_id for _ in range(4)]
         assert ids == [0x10, 0x20, 0x30, 0x40]
         assert box.sent_at[0x40] == 10.025 and box.next_due() is None
+        # A thread that wakes late sends every frame whose plan passed: it catches up.
+        for k in range(6):
+            box.put(0x10 * (k + 1), b'\x01\x0a', 10.1)
+        assert box.send_due(10.118) == 4 and box.send_due(10.2) == 2
     finally:
         tx.shutdown()
         rx.shutdown()
