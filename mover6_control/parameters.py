@@ -414,9 +414,9 @@ DRIVER = _table(
       'config/mover6_joints.yaml; set at start', read_only=True),
     P('max_lag', 'float', 0.2, 'rad',
       'a set-point stays within this of the measured position', 0.001, 1.0),
-    P('silent_cycles', 'int', 3, '',
-      'a module that misses this many replies in a row is a fault (until ~/reset)', 1, 100,
-      read_only=True),
+    P('silent_cycles', 'int', 6, '',
+      'a module that misses this many replies in a row is a fault (until ~/reset); the first '
+      'missed reply already holds the arm', 1, 100, read_only=True),
     P('frame_gap', 'float', 0.005, 's',
       "time between two frames sent (the vendor's 5 ms): six set-points take 25 ms of the "
       'cycle', 0.0, 0.006, read_only=True),

@@ -8,8 +8,8 @@ that path exactly as it opens ``/dev/ttyUSB0`` on the real arm. It runs until SI
 SIGTERM, then removes the link and the control socket. No ROS here. It runs at SCHED_FIFO
 ``--priority`` (60) where the system allows it: the modules it stands for never wait for a CPU,
 and on a loaded machine a simulator at normal priority missed the driver's set-points for longer
-than its three-cycle silence limit, which latched a fault that held the arm for the rest of the
-run.
+than the driver's silence limit (then three cycles), which latched a fault that held the arm for
+the rest of the run.
 
 Control channel, for tests and for trying faults by hand: a unix stream socket (``--control``,
 default the link's path plus ``.control``) taking one command per line and answering each with

@@ -26,9 +26,10 @@ enabled.** So:
   inward, at the commanded speed;
 - a command older than ``command_timeout`` stops the integration at the next cycle: the arm
   holds where it is (the vendor keeps the last command forever);
-- any error flag on any joint, a joint not enabled, or a module silent for ``silent_cycles``
-  cycles holds the whole arm (velocity zero, set-points frozen), with the reason in the report;
-  a silent module is a latched ``fault`` until ``reset``;
+- any error flag on any joint, a joint not enabled, or a missed reply holds the whole arm
+  (velocity zero, set-points frozen: the driver does not know where the joint is, it does not
+  guess), with the reason in the report; it moves on when the reply comes, and a module silent
+  for ``silent_cycles`` cycles in a row is a latched ``fault`` until ``reset``;
 - confirmations (enable, reset, referencing, set zero) count only replies that echo a set-point
   sent after the command (``driver_replies``);
 - ``close`` disables every module before the bus is shut down.
@@ -94,7 +95,7 @@ class ArmDriver:
     """
 
     def __init__(self, bus: can.BusABC, joints: Sequence[JointScale], *, cycle: float = 0.05,
-                 command_timeout: float = 0.2, max_lag: float = 0.2, silent_cycles: int = 3,
+                 command_timeout: float = 0.2, max_lag: float = 0.2, silent_cycles: int = 6,
                  frame_gap: float = FRAME_GAP, limit_set: str = 'hardware',
                  firmware: str = 'mover6', clock: Callable[[], float] = time.monotonic,
                  on_cycle: Optional[Callable[[ArmReport], None]] = None,

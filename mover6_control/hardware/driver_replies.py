@@ -131,6 +131,7 @@ class ReplyIntake:
             j.qd = j.scale.to_rad(ticks - j.ticks) / (now - j.reply_time)
         j.reply, j.ticks, j.reply_time = reply, ticks, now
         j.replies += 1
+        j.relearn = False
         sent = j.sent.get(reply.timestamp)
         if sent is not None and sent[0] > j.echo_seq:
             j.echo_seq, j.echo_value = sent

@@ -161,6 +161,7 @@ class Requests:
             for n in req.joints:
                 j = self.joints[n - 1]
                 j.track = True
+                j.relearn = req.kind in ('reset', 'set_zero', 'reference')
                 if req.kind == 'reset':
                     j.fault, j.silent = False, 0
             self._send(req, now)

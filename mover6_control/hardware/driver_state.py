@@ -98,6 +98,7 @@ class JointRecord:
         self.echo_seq = -1         # sequence of the set-point the latest reply echoes (-1: none)
         self.echo_value = None     # that set-point [ticks]
         self.unknown_cycles = 0    # cycles without a position yet
+        self.relearn = False       # a command may have moved or re-zeroed it: take the next reply
         self.outputs = 0
 
     def next_counter(self) -> int:
@@ -153,6 +154,10 @@ def hold_reason(joints: Sequence[JointRecord], busy: set, firmware: str,
         state = j.state()
         if state == S.FAULT:
             return f'{j.scale.name}: module silent for {j.silent} cycles'
+        if j.silent:
+            # Not yet a fault, but the driver does not know where the joint is: it does not
+            # guess, the arm holds until the reply comes.
+            return f'{j.scale.name}: {j.silent} reply(ies) missed, holds until it answers'
         if state == S.DISCONNECTED:
             return f'{j.scale.name}: no reply from its module yet'
         if state == S.ERROR:

@@ -58,13 +58,19 @@ def plausible(j: JointRecord, ticks: int, now: float, max_lag: float, cycle: flo
     """
     Return False for a reply at ``now`` [s] whose position ``ticks`` the joint cannot reach.
 
-    A driven joint (or one latched silent, its set-point frozen at the last reading until a
-    reset) moves at most ``max_lag`` [rad] plus twice its maximum speed over the time since its
-    last reply (at least one ``cycle`` [s]), and two ticks of rounding.
+    A driven joint (or one latched silent, its set-point frozen until a reset) follows its
+    set-point, which never runs more than ``max_lag`` [rad] ahead of the position: it is within
+    ``max_lag`` plus twice its maximum speed over one ``cycle`` [s] of the set-point, and two
+    ticks of rounding. The bound does not grow while the module is silent (the arm then holds:
+    a long silence makes no jump plausible). Before a set-point, from the last reply: the same
+    over the time since it.
     """
-    if j.ticks is None or j.reply_time is None:
-        return True
+    if j.ticks is None or j.reply_time is None or j.relearn:
+        return True            # nothing to compare with (a reset or set zero since)
     if not j.fault and (j.track or j.state() not in FOLLOWING):
         return True            # not driven: the set-point follows the measured position
+    if j.setpoint is not None:
+        reach = max_lag + 2.0 * j.scale.max_speed * cycle
+        return abs(ticks - j.setpoint) <= reach * abs(j.scale.ticks_per_rad) + 2
     reach = max_lag + 2.0 * j.scale.max_speed * max(now - j.reply_time, cycle)
     return abs(ticks - j.ticks) <= reach * abs(j.scale.ticks_per_rad) + 2

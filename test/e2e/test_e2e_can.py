@@ -44,7 +44,7 @@ HOME = poses_from_numbers([0.345, 0.0, 0.4425, 0.0, 0.0, 0.0], quat=False, arm=A
 # Half way back (a linear move onto HOME itself ends in its singularity and is refused).
 MID = poses_from_numbers([0.395, 0.0, 0.4425, 0.0, 0.0, 0.0], quat=False, arm=ARM)[-1]
 # The shipped defaults of a real arm, as scripts/launch.sh --hardware can starts it: the driver's
-# three silent cycles, the modules' 0.5 s watchdog (can_sim's default), the controller's
+# six silent cycles, the modules' 0.5 s watchdog (can_sim's default), the controller's
 # state_timeout of 0.5 s with the driver. Nothing here is given more than a real arm gets.
 CONTROLLER = {'limit_set': 'hardware', 'state_timeout': 0.5, 'cycle_driver': True}
 
@@ -230,8 +230,8 @@ def test_an_injected_position_lag_holds_and_recovers(rig, client):
 def test_corrupted_bytes_hold_and_recover(rig, client):
     sim, stack = rig
     dropped = int(bus(client).get('frames_dropped', '0'))
-    silent_cycles = DRIVER['silent_cycles'].default        # shipped: 3
-    assert sim.control(f'corrupt {6 * (silent_cycles + 5)}')['ok']    # every reply, 8 cycles
+    silent_cycles = DRIVER['silent_cycles'].default        # shipped: 6
+    assert sim.control(f'corrupt {6 * (silent_cycles + 5)}')['ok']    # every reply, 11 cycles
     assert_holds(client, sim, stack, 'fault',
                  lambda d: int(d.get('driver: bus', {}).get('frames_dropped', '0')) > dropped)
     recover(client, stack)

@@ -11,11 +11,13 @@ import itertools
 import can
 from mover6_control.hardware.driver import ArmDriver
 from mover6_control.hardware.scaling import load_joints
+from mover6_control.parameters import DRIVER
 import numpy as np
 import pytest
 from sim_bridge.can_sim import build_arm, BusServer
 
 CYCLE = 0.05
+SILENT_CYCLES = DRIVER['silent_cycles'].default     # the shipped parameter
 CHANNELS = itertools.count()
 _, JOINTS = load_joints()
 TICK = np.array([j.tick for j in JOINTS])
@@ -31,7 +33,8 @@ class Rig:
         self.arm_bus = can.Bus(interface='virtual', channel=channel)
         self.driver_bus = can.Bus(interface='virtual', channel=channel)
         self.server = BusServer(self.arm, self.arm_bus, clock=lambda: self.t)
-        self.driver = ArmDriver(self.driver_bus, JOINTS, clock=lambda: self.t)
+        self.driver = ArmDriver(self.driver_bus, JOINTS, clock=lambda: self.t,
+                                silent_cycles=SILENT_CYCLES)
 
     def run(self, duration, velocity=None):
         """Run driver cycles for ``duration`` [s], commanding ``velocity`` (6,) each cycle."""
@@ -128,7 +131,9 @@ def test_an_injected_position_lag_holds_the_arm_until_reset_and_enable(rig):
 def test_a_silent_module_faults_the_arm_until_reset(rig):
     enabled(rig)
     rig.arm.set_silent(5, True)
-    report = rig.run(5 * CYCLE, [0.2] * 6)
+    report = rig.run(2 * CYCLE, [0.2] * 6)            # a missed reply: the arm holds at once
+    assert report.state == 'enabled' and 'joint5' in report.hold and 'missed' in report.hold
+    report = rig.run((SILENT_CYCLES + 1) * CYCLE, [0.2] * 6)
     assert report.state == 'fault' and report.joints[4].state == 'fault'
     q = rig.arm.sim.q.copy()
     rig.run(0.5, [0.2] * 6)

@@ -20,9 +20,11 @@ from mover6_control.hardware import protocol as p
 from mover6_control.hardware.driver import ArmDriver
 from mover6_control.hardware.outbox import Outbox
 from mover6_control.hardware.scaling import load_joints
+from mover6_control.parameters import DRIVER
 import pytest
 
 _, JOINTS = load_joints()
+SILENT_CYCLES = DRIVER['silent_cycles'].default     # the shipped parameter
 CHANNELS = itertools.count()
 
 
@@ -254,13 +256,23 @@ def test_an_error_flag_holds_the_arm_and_reset_enable_recover(rig):
     assert r.modules.setpoints(3)[-1] == r.modules.wire[3]  # restarts where it is
 
 
-def test_a_silent_module_faults_after_three_cycles(rig):
-    r = rig()
+def test_a_missed_reply_holds_and_a_silent_module_faults_after_silent_cycles(rig):
+    r = rig(silent_cycles=3)
     r.enable()
+    r.driver.set_velocity([0.1] * 6)
+    assert r.run().hold == ''
     r.modules.silent.add(4)
-    # The reply already on the bus is read first; then three cycles without one.
-    states = [r.run().joints[3].state for _ in range(5)]
+    # The reply already on the bus is read first; then three cycles without one: the first
+    # missed reply holds the arm (set-points frozen), the third latches the fault.
+    reports = []
+    for _ in range(5):
+        r.driver.set_velocity([0.1] * 6)
+        reports.append(r.run())
+    states = [rep.joints[3].state for rep in reports]
     assert states == ['enabled'] * 3 + ['fault'] * 2
+    assert 'joint4: 1 reply(ies) missed, holds' in reports[1].hold
+    frozen = r.modules.setpoints(1)[-4:]
+    assert len(set(frozen)) == 1, frozen                         # no motion while blind
     assert 'joint4: module silent for 4 cycles' in r.driver.report.hold
     r.modules.silent.clear()
     assert r.run(2).state == 'fault'                        # latched until a reset
@@ -440,7 +452,7 @@ def test_a_reply_that_jumps_is_dropped_and_the_setpoint_never_follows(rig):
     # A module whose every reply jumps: no valid reply, so it goes silent and the arm holds.
     r.modules.frozen.add(2)
     r.modules.wire[2] = jump
-    states = [r.run().joints[1].state for _ in range(4)]
+    states = [r.run().joints[1].state for _ in range(SILENT_CYCLES + 2)]
     assert states[-1] == 'fault' and r.driver.report.hold
     assert set(r.modules.setpoints(2)) == {1000}          # none before the first reply either
     r.enable()                                                # reset: the new position stands
@@ -542,7 +554,7 @@ def test_a_reply_whose_timestamp_did_not_move_is_refused_and_the_joint_goes_sile
             return
         original(n, cmd)
     r.modules._apply = stale
-    report = r.run(6)
+    report = r.run(SILENT_CYCLES + 3)
     assert dict(report.bad_frames).get('stale_timestamp', 0) >= 3
     assert report.hold and 'joint2' in report.hold and report.state == 'fault'
 
