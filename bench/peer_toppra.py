@@ -16,6 +16,7 @@ Only the benchmarks import this module (toppra is a test/bench requirement, not 
 
 import time
 
+from mover6_control.motion.blended_path import distinct_waypoints
 import numpy as np
 
 
@@ -77,7 +78,7 @@ def same_path(ours, v, a):
 def spline(Q, v, a):
     """Return a call that times a cubic spline through ``Q`` (m, n) with toppra's own grid."""
     toppra = _toppra()
-    Q = np.asarray(Q, dtype=float)
+    Q = distinct_waypoints(Q)       # a spline needs distinct ones; ours drops repeats too
     ss = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(Q, axis=0), axis=1))])
 
     def build():
