@@ -45,23 +45,29 @@ _JERK_MARGIN = 1e-2
 
 
 def _grid(path, n_grid):
-    """Return grid arc lengths (N + 1,) and the segment of each interval (N,)."""
+    """
+    Return grid arc lengths (N + 1,) and the segment of each interval (N,).
+
+    Each segment gets ``ceil(length / ds)`` intervals (at least 2), ``ds`` the path length over
+    ``n_grid``; a blend at least enough that its tangent turns by ``_MAX_TURN`` or less per
+    interval (a quintic, which turns unevenly, twice that many, and at least 8). Segment ends
+    are grid points (the stop corners among them).
+    """
     ds = path.length / max(int(n_grid), 1)
-    pieces, segs = [], []
-    for i, kind in enumerate(path.kinds):
-        a, b = path.starts[i], path.starts[i + 1]
-        count = max(2, int(np.ceil((b - a) / ds)))
-        if kind != 'line':
-            # Keep the tangent turn per interval small: limits hold to O(turn^2) in between.
-            # A quintic blend turns unevenly, so it gets twice the points.
-            per, least = (1.0, 2) if kind == 'arc' else (2.0, 8)
-            count = max(count, least, int(np.ceil(per * path.turn(i) / _MAX_TURN)))
-        pts = np.linspace(a, b, count + 1)
-        pieces.append(pts[:-1])
-        segs.append(np.full(count, i))
-    s_grid = np.concatenate(pieces + [[path.length]])
-    seg = np.concatenate(segs)
-    # Make the stop corners grid points (they are segment boundaries already).
+    a, b = path.starts[:-1], path.starts[1:]
+    count = np.maximum(2, np.ceil((b - a) / ds)).astype(int)
+    blends = np.flatnonzero(path.is_blend(np.arange(a.size)))
+    if blends.size:
+        quintic = np.array([path.kinds[i] == 'quintic' for i in blends.tolist()])
+        per, least = np.where(quintic, 2.0, 1.0), np.where(quintic, 8, 2)
+        count[blends] = np.maximum(np.maximum(count[blends], least),
+                                   np.ceil(per * path.turns()[blends] / _MAX_TURN).astype(int))
+    seg = np.repeat(np.arange(a.size), count)
+    first = np.repeat(np.cumsum(count) - count, count)
+    step = ((b - a) / count)[seg]
+    s_grid = np.empty(seg.size + 1)
+    s_grid[:-1] = (np.arange(seg.size) - first) * step + a[seg]
+    s_grid[-1] = path.length
     return s_grid, seg
 
 
