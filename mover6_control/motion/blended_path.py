@@ -195,6 +195,17 @@ class BlendedPath:
             return self.params[i][2]
         return float((self.starts[i + 1] - self.starts[i]) / self.params[i][1])
 
+    def arc_shape(self, segment: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the amplitudes (m, n) and radii (m,) [rad] of the arcs ``segment`` (m,).
+
+        On an arc each joint's ``q'`` and ``r q''`` are sinusoids in ``s / r`` of that
+        amplitude, ``sqrt(x_i^2 + y_i^2)`` (at most 1).
+        """
+        segment = np.asarray(segment, dtype=int)
+        x, y = self._stacks['x'][segment], self._stacks['y'][segment]
+        return np.sqrt(x * x + y * y), self._radius[segment]
+
     def turns(self) -> np.ndarray:
         """Return how far the tangent turns along each segment (k,) [rad] (0 on a line)."""
         out = (self.starts[1:] - self.starts[:-1]) / self._radius

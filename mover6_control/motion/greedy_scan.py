@@ -42,14 +42,14 @@ def greedy_scan(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray) -> np.
         return x
     starts, first = short + 1, value[short]
     ends = _walk(A, B, cap, starts, first)
-    # A ramp is real when the arm is on a cap where it starts: after the end of the last real
-    # ramp before it (inside one, the arm is below the caps and that ramp's values hold).
-    real, last = [], -1
-    for start, end in zip(starts.tolist(), ends.tolist()):
-        real.append(start > last)
-        if start > last:
-            last = end
-    real = np.array(real)
+    # A ramp is real when the arm is on a cap where it starts: the first one, then the first
+    # to start after the end of the last real one (inside it the arm is below the caps and
+    # its values hold).
+    after = np.searchsorted(starts, ends, side='right').tolist()
+    real, i = [], 0
+    while i < starts.size:
+        real.append(i)
+        i = after[i]
     _walk(A, B, cap, starts[real], first[real], x)
     return x
 

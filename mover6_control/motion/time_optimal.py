@@ -205,7 +205,7 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
     # third only for the jerk limits).
     orders = (1, 2) if j_max is None else (1, 2, 3)
     d0 = dict(zip(orders, path.evaluate(s_grid[:-1], seg, orders)))
-    d1 = dict(zip(orders, path.evaluate(s_grid[1:], seg, orders)))
+    d1 = _interval_ends(path, s_grid, seg, d0, orders)
     # Velocity caps at grid points: x <= (v_i / |q'_i|)^2, smallest of both sides.
     with np.errstate(divide='ignore', over='ignore'):
         cap0 = np.min((v / np.abs(d0[1])) ** 2, axis=1)
@@ -241,11 +241,28 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
         if qd_start is not None and np.any(np.asarray(qd_start) != 0.0):
             return traj      # scaling time would change the start velocity it must match
         return _within_limits(path, timing, traj, v / (1.0 - _LIMIT_MARGIN),
-                              a / (1.0 - _LIMIT_MARGIN), seg)
+                              a / (1.0 - _LIMIT_MARGIN), seg, (d0[1], d0[2], d1[1], d1[2]))
     return _jerk_limited(path, timing, v, a, j)
 
 
-def _within_limits(path, timing, traj, v, a, seg, samples=6):
+def _interval_ends(path, s_grid, seg, d0, orders):
+    """
+    Return the path derivatives at the end of every interval (N, n each), on its own segment.
+
+    Inside a segment an interval's end is the next one's start, on the same segment: those are
+    ``d0``'s (the derivatives at the starts); only the ends on a segment's last point are new.
+    """
+    last = np.append(np.flatnonzero(seg[1:] != seg[:-1]), seg.size - 1)
+    new = path.evaluate(s_grid[last + 1], seg[last], orders)
+    d1 = {}
+    for order, values in zip(orders, new):
+        d1[order] = np.empty_like(d0[order])
+        d1[order][:-1] = d0[order][1:]
+        d1[order][last] = values
+    return d1
+
+
+def _within_limits(path, timing, traj, v, a, seg, ends, samples=6):
     """
     Return ``traj``, slowed down uniformly if it exceeds ``v`` or ``a`` (n,) between grid points.
 
@@ -257,11 +274,15 @@ def _within_limits(path, timing, traj, v, a, seg, samples=6):
     and the rest-to-rest ends. On a line the path's derivative is constant and its curvature
     zero: the joint rates move monotonically between their values at the grid points and the
     accelerations are those at the interval's start, so the limits hold in between with the
-    margin they have at the grid points, and lines need no interior samples.
+    margin they have at the grid points, and lines need no interior samples. Neither need the
+    arc intervals that ``_arc_intervals_within`` shows to be within the limits throughout
+    (``ends``: the path's first and second derivatives at both ends of every interval): their
+    samples could not raise the factor above 1, nor above a larger one found elsewhere.
     """
     t_grid = timing.t_grid
     frac = np.arange(1, samples + 1) / (samples + 1.0)
     arcs = np.flatnonzero(path.is_blend(seg))
+    arcs = arcs[~_arc_intervals_within(path, timing, seg[arcs], arcs, ends, v, a)]
     t = np.concatenate([t_grid, (t_grid[arcs, None] + (t_grid[arcs + 1] - t_grid[arcs])[:, None]
                                  * frac).ravel()])
     s, sd, sdd, _ = timing.profile(t)
@@ -273,6 +294,29 @@ def _within_limits(path, timing, traj, v, a, seg, samples=6):
     if factor <= 1.0:
         return traj
     return PathTrajectory(path, ScaledTiming(timing, factor * (1.0 + 1e-4)))
+
+
+def _arc_intervals_within(path, timing, segment, k, ends, v, a):
+    """
+    Return which arc intervals ``k`` (m,) (on arcs ``segment``) keep ``v``, ``a`` throughout.
+
+    On an arc of radius r each joint's path derivative ``q'`` is a sinusoid of amplitude
+    ``R <= 1`` in the angle ``phi = s / r``, so inside an interval spanning ``dphi`` it exceeds
+    the larger of its end values by at most ``R dphi^2 / 8``; the speed ``sdot`` lies between
+    its end values (u is constant). The joint's acceleration ``g(s) = u q' + x q''`` (``x =
+    sdot^2``, ``dx / ds = 2 u``) has the second derivative ``5 u q^(3) + x q^(4)``, at most
+    ``R (5 |u| / r^2 + x / r^3)``, so it exceeds the larger of its end values by at most
+    ``R dphi^2 / 8 (5 |u| + x / r)``. Both bounds within the limits: no samples needed.
+    """
+    dq0, ddq0, dq1, ddq1 = (d[k] for d in ends)
+    amplitude, radius = path.arc_shape(segment)
+    bump = amplitude * ((timing.s_grid[k + 1] - timing.s_grid[k]) / radius)[:, None] ** 2 / 8.0
+    sd0, sd1, u = timing.sd[k, None], timing.sd[k + 1, None], timing.u[k, None]
+    speed = (np.maximum(np.abs(dq0), np.abs(dq1)) + bump) * np.maximum(sd0, sd1)
+    x_top = np.maximum(sd0, sd1) ** 2
+    accel = (np.maximum(np.abs(u * dq0 + sd0 ** 2 * ddq0), np.abs(u * dq1 + sd1 ** 2 * ddq1))
+             + bump * (5.0 * np.abs(u) + x_top / radius[:, None]))
+    return np.all((speed <= v) & (accel <= a), axis=1)
 
 
 def _jerk_limited(path, timing, v, a, j):
