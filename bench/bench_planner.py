@@ -16,6 +16,7 @@ from geometry_msgs.msg import PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import pose_from_xyzabc
 from mover6_control.nodes import conversions
+from mover6_control.nodes.demand_messages import demand_options_from_msg
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import rclpy
@@ -32,9 +33,17 @@ def measure(client, n_waypoints, repeats):
     problem = client.set_planner_parameters({'n_waypoints': n_waypoints})
     if problem:
         raise RuntimeError(problem)
-    received = []
-    sub = client.create_subscription(Float32MultiArray, 'joint_demands',
-                                     lambda m: received.append(time.perf_counter()), 10)
+    received, seen = [], set()
+
+    def on_demand(msg):
+        # The planner sends a goal's demand again until a controller acknowledges it (none
+        # runs here): count only the first arrival of each goal's demand, of this size.
+        goal = demand_options_from_msg(msg).get('goal')
+        if goal not in seen and msg.layout.dim and msg.layout.dim[0].size == n_waypoints:
+            seen.add(goal)
+            received.append(time.perf_counter())
+
+    sub = client.create_subscription(Float32MultiArray, 'joint_demands', on_demand, 10)
     latencies = []
     for i in range(repeats):
         received.clear()
