@@ -21,6 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
+# Ramps still running below which the rest are stepped on Python floats.
+_FEW = 8
+
 
 def greedy_scan(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray) -> np.ndarray:
     """
@@ -41,16 +44,18 @@ def greedy_scan(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray) -> np.
     if short.size == 0:
         return x
     starts, first = short + 1, value[short]
-    ends = _walk(A, B, cap, starts, first)
+    ends, visits = _walk(A, B, cap, starts, first)
     # A ramp is real when the arm is on a cap where it starts: the first one, then the first
     # to start after the end of the last real one (inside it the arm is below the caps and
     # its values hold).
     after = np.searchsorted(starts, ends, side='right').tolist()
-    real, i = [], 0
+    real, i = np.zeros(starts.size, dtype=bool), 0
     while i < starts.size:
-        real.append(i)
+        real[i] = True
         i = after[i]
-    _walk(A, B, cap, starts[real], first[real], x)
+    ramp, position, values = visits
+    mine = real[ramp]
+    x[position[mine]] = values[mine]
     return x
 
 
@@ -59,26 +64,43 @@ def _step(A, B, cap, x):
     return np.minimum(cap, np.min(A * x[:, None] + B, axis=1))
 
 
-def _walk(A, B, cap, starts, first, out=None):
+def _walk(A, B, cap, starts, first):
     """
     Step every ramp from its start (positions (W,), values ``first``) until it lands on a cap.
 
-    One array operation per step for all ramps still running. Return each ramp's last
-    position (W,); with ``out`` (N + 1,), also write the values it passes into it.
+    One array operation per step for all ramps still running; the last few run on Python
+    floats (an array operation on a handful of entries costs more than the floats). Return
+    each ramp's last position (W,) and every value a ramp passes: ramp, position and value
+    (each (V,)).
     """
     N = cap.size
     ends = starts.copy()
     ramp = np.flatnonzero(starts < N)
     step, cur = starts[ramp], first[ramp]
-    while ramp.size:
+    visits = [(ramp, step, cur)]
+    while ramp.size > _FEW:
         low = np.min(A[step] * cur[:, None] + B[step], axis=1)
-        nxt = np.maximum(np.minimum(cap[step], low), 0.0)
-        landed = cap[step] <= low
+        here = cap[step]
+        nxt = np.maximum(np.minimum(here, low), 0.0)
+        landed = here <= low
         step = step + 1
-        if out is not None:
-            out[step] = nxt
+        visits.append((ramp, step, nxt))
         done = landed | (step >= N)
         ends[ramp[done]] = step[done]
         keep = ~done
         ramp, step, cur = ramp[keep], step[keep], nxt[keep]
-    return ends
+    tail = ([], [], [])
+    for k, i, x in zip(ramp.tolist(), step.tolist(), cur.tolist()):
+        while True:
+            low = min(a * x + b for a, b in zip(A[i].tolist(), B[i].tolist()))
+            here = float(cap[i])
+            x = max(min(here, low), 0.0)
+            i += 1
+            tail[0].append(k)
+            tail[1].append(i)
+            tail[2].append(x)
+            if here <= low or i >= N:
+                ends[k] = i
+                break
+    visits.append(tuple(np.array(v, dtype=t) for v, t in zip(tail, (np.intp, np.intp, float))))
+    return ends, tuple(np.concatenate(v) for v in zip(*visits))
