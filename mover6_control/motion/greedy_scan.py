@@ -69,7 +69,8 @@ def _walk(A, B, cap, starts, first):
     Step every ramp from its start (positions (W,), values ``first``) until it lands on a cap.
 
     One array operation per step for all ramps still running; the last few run on Python
-    floats (an array operation on a handful of entries costs more than the floats). Return
+    floats (an array operation on a handful of entries costs more than the floats), a stretch
+    of line steps at once (``_line_runs``). Return
     each ramp's last position (W,) and every value a ramp passes: ramp, position and value
     (each (V,)).
     """
@@ -90,8 +91,25 @@ def _walk(A, B, cap, starts, first):
         keep = ~done
         ramp, step, cur = ramp[keep], step[keep], nxt[keep]
     tail = ([], [], [])
+    runs = _line_runs(A, B) if ramp.size else None
     for k, i, x in zip(ramp.tolist(), step.tolist(), cur.tolist()):
         while True:
+            if runs is not None and runs[0][i] > i:
+                # A stretch of line steps: x_{i+1} = x_i + beta_i until it lands on a cap.
+                end, beta = runs[0][i], runs[1]
+                values = np.cumsum(np.concatenate([[x], beta[i:end]]))
+                landed = np.flatnonzero(cap[i:end] <= values[1:])
+                if landed.size:
+                    end = i + int(landed[0]) + 1
+                    values[end - i] = cap[end - 1]
+                tail[0].extend([k] * (end - i))
+                tail[1].extend(range(i + 1, end + 1))
+                tail[2].extend(values[1:end - i + 1].tolist())
+                i, x = end, float(values[end - i])
+                if landed.size or i >= N:
+                    ends[k] = i
+                    break
+                continue
             low = min(a * x + b for a, b in zip(A[i].tolist(), B[i].tolist()))
             here = float(cap[i])
             x = max(min(here, low), 0.0)
@@ -104,3 +122,24 @@ def _walk(A, B, cap, starts, first):
                 break
     visits.append(tuple(np.array(v, dtype=t) for v, t in zip(tail, (np.intp, np.intp, float))))
     return ends, tuple(np.concatenate(v) for v in zip(*visits))
+
+
+def _line_runs(A, B):
+    """
+    Return, per step, where its stretch of line steps ends (N,), and each step's ``beta`` (N,).
+
+    A line step has every piece of slope 1 (the path's curvature is zero there): its step is
+    ``x + min_j B_j``, with the very rounding of the loop (adding to x is monotone, so the
+    smallest sum is x plus the smallest B). Stepping a stretch of them is one cumulative sum
+    started at x: the same additions in the same order. ``end[i] == i`` where step i is no
+    line step.
+    """
+    N = A.shape[0]
+    beta = np.min(B, axis=1)
+    line = (np.all((A == 1.0) | ((A == 0.0) & np.isinf(B)), axis=1) & np.isfinite(beta)
+            & (beta >= 0.0))        # the floor at 0 never binds
+    index = np.arange(N)
+    # The first step at or after i that is no line step.
+    stop = np.where(line, N, index)
+    end = np.minimum.accumulate(stop[::-1])[::-1]
+    return end, beta

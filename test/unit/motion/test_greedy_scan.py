@@ -22,8 +22,13 @@ def loop(x0, A, B, cap):
     return np.array(x)
 
 
-def problem(seed, n=400, pieces=6, falling=0.0):
-    """Return a random recurrence: caps that dip often, so that ramps are many and overlap."""
+def problem(seed, n=400, pieces=6, falling=0.0, lines=0.0):
+    """
+    Return a random recurrence: caps that dip often, so that ramps are many and overlap.
+
+    A share ``lines`` of the steps are line steps (every piece of slope 1, as on the path's
+    lines), in stretches.
+    """
     rng = np.random.default_rng(seed)
     cap = np.abs(1.0 + 0.6 * np.sin(np.arange(n) / rng.uniform(2.0, 15.0))
                  + rng.normal(0.0, 0.3, n))
@@ -31,6 +36,8 @@ def problem(seed, n=400, pieces=6, falling=0.0):
     A = rng.uniform(0.7, 1.4, (n, pieces))
     A[rng.random((n, pieces)) < falling] *= -rng.uniform(1.0, 50.0)
     B = rng.uniform(0.001, 0.1, (n, pieces))
+    on_line = np.repeat(rng.random(n // 20) < lines, 20)[:n]
+    A[on_line] = 1.0
     unused = rng.random((n, pieces)) < 0.2
     A[unused], B[unused] = 0.0, np.inf
     return A, B, cap
@@ -38,12 +45,25 @@ def problem(seed, n=400, pieces=6, falling=0.0):
 
 @pytest.mark.parametrize('seed', range(20))
 @pytest.mark.parametrize('falling', [0.0, 0.05, 0.3])
-def test_same_numbers_as_the_loop(seed, falling):
-    A, B, cap = problem(seed, falling=falling)
+@pytest.mark.parametrize('lines', [0.0, 0.7])
+def test_same_numbers_as_the_loop(seed, falling, lines):
+    A, B, cap = problem(seed, falling=falling, lines=lines)
     x0 = float(np.random.default_rng(seed).uniform(0.0, 0.5))
     x = greedy_scan(x0, A, B, cap)
     ref = loop(x0, A, B, cap)
     assert np.array_equal(x, ref), np.flatnonzero(x != ref)[:10]
+
+
+def test_long_ramps_over_lines():
+    # Few ramps, thousands of steps each, mostly over line steps (a long, smooth path).
+    n = 5000
+    cap = np.full(n, 50.0)
+    cap[[0, 2500, n - 1]] = 0.0
+    A = np.ones((n, 3))
+    A[1200:1300] = np.linspace(0.9, 1.1, 300).reshape(100, 3)      # a blend
+    B = np.random.default_rng(1).uniform(0.001, 0.002, (n, 3))
+    x = greedy_scan(0.0, A, B, cap)
+    assert np.array_equal(x, loop(0.0, A, B, cap))
 
 
 def test_ramps_inside_ramps():
