@@ -44,17 +44,34 @@ def greedy_scan(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray) -> np.
     if short.size == 0:
         return x
     starts, first = short + 1, value[short]
-    ends, visits = _walk(A, B, cap, starts, first)
     # A ramp is real when the arm is on a cap where it starts: the first one, then the first
     # to start after the end of the last real one (inside it the arm is below the caps and
-    # its values hold).
-    after = np.searchsorted(starts, ends, side='right').tolist()
-    real, i = np.zeros(starts.size, dtype=bool), 0
-    while i < starts.size:
-        real[i] = True
-        i = after[i]
-    ramp, position, values = visits
-    mine = real[ramp]
+    # its values hold). A ramp that starts one step after another is real only when that one
+    # was not and the real one before it ended right there: walk the first of each run of
+    # starts, and any other only when the chain of real ramps comes to it.
+    count = starts.size
+    ends = np.full(count, -1)
+    walk = np.flatnonzero(np.diff(starts, prepend=-2) != 1)
+    seen = []
+    while True:
+        ends[walk], (ramp, position, values) = _walk(A, B, cap, starts[walk], first[walk])
+        seen.append((walk[ramp], position, values))
+        after = np.searchsorted(starts, ends, side='right')
+        real, i, follow = [], 0, after.tolist()
+        while i < count and ends[i] >= 0:
+            real.append(i)
+            i = follow[i]
+        if i >= count:
+            break
+        # Next: the ramps that start right after the end of one walked already (the chain
+        # comes to one of them), all at once.
+        walk = np.unique(after[ends >= 0])
+        walk = walk[walk < count]
+        walk = walk[ends[walk] < 0]
+    ramp, position, values = (np.concatenate(v) for v in zip(*seen))
+    mine = np.zeros(count, dtype=bool)
+    mine[real] = True
+    mine = mine[ramp]
     x[position[mine]] = values[mine]
     return x
 
