@@ -65,37 +65,45 @@ def residual(arm: ArmModel, q: list, R_goal: list, p_goal: tuple) -> tuple:
     Return the error ``[p_goal - p; log(R_goal R^T)]`` (6 floats) and the Jacobian (6, n).
 
     The Jacobian is the geometric one (rows [v; w], base frame), as ``pose_residual_batch``'s.
-    ``R_goal`` is row-major (9).
+    ``R_goal`` is row-major (9). One pass over the joints carries the frame (rotation R,
+    position p) of the product of exponentials: joint i's axis is ``R omega_i`` through
+    ``R r_i + p``, and its turn moves points by ``x -> turn (x - r_i) + r_i``.
     """
     joints, tip_R, tip_p = _screws(arm)
-    R, p = list(_EYE), (0.0, 0.0, 0.0)
+    R, p0, p1, p2 = _EYE, 0.0, 0.0, 0.0
     axes, points = [], []
     for (omega, r, K, KK), angle in zip(joints, q):
+        r0, r1, r2 = r
         axes.append(_apply(R, omega))
-        o = _apply(R, r)
-        points.append((o[0] + p[0], o[1] + p[1], o[2] + p[2]))
+        points.append((R[0] * r0 + R[1] * r1 + R[2] * r2 + p0,
+                       R[3] * r0 + R[4] * r1 + R[5] * r2 + p1,
+                       R[6] * r0 + R[7] * r1 + R[8] * r2 + p2))
         s, c = math.sin(angle), 1.0 - math.cos(angle)
         turn = [e + s * x + c * y for e, x, y in zip(_EYE, K, KK)]
-        # x -> turn (x - r) + r after R, p: translation R (r - turn r) + p.
-        shift = _apply(turn, r)
-        o = _apply(R, (r[0] - shift[0], r[1] - shift[1], r[2] - shift[2]))
-        p = (o[0] + p[0], o[1] + p[1], o[2] + p[2])
+        d0 = r0 - (turn[0] * r0 + turn[1] * r1 + turn[2] * r2)
+        d1 = r1 - (turn[3] * r0 + turn[4] * r1 + turn[5] * r2)
+        d2 = r2 - (turn[6] * r0 + turn[7] * r1 + turn[8] * r2)
+        p0, p1, p2 = (R[0] * d0 + R[1] * d1 + R[2] * d2 + p0,
+                      R[3] * d0 + R[4] * d1 + R[5] * d2 + p1,
+                      R[6] * d0 + R[7] * d1 + R[8] * d2 + p2)
         R = _matmul(R, turn)
     o = _apply(R, tip_p)
-    tip = (o[0] + p[0], o[1] + p[1], o[2] + p[2])
+    tip = (o[0] + p0, o[1] + p1, o[2] + p2)
     R = _matmul(R, tip_R)
     g = R_goal
     # R_goal R^T, row-major.
     E = [g[3 * i] * R[3 * j] + g[3 * i + 1] * R[3 * j + 1] + g[3 * i + 2] * R[3 * j + 2]
          for i in range(3) for j in range(3)]
     rot = _log(E)
-    J = [[0.0] * len(q) for _ in range(6)]
-    for i, (z, o) in enumerate(zip(axes, points)):
-        lever = (tip[0] - o[0], tip[1] - o[1], tip[2] - o[2])
-        J[0][i] = z[1] * lever[2] - z[2] * lever[1]
-        J[1][i] = z[2] * lever[0] - z[0] * lever[2]
-        J[2][i] = z[0] * lever[1] - z[1] * lever[0]
-        J[3][i], J[4][i], J[5][i] = z
+    J = [[], [], [], [], [], []]
+    for z, o in zip(axes, points):
+        l0, l1, l2 = tip[0] - o[0], tip[1] - o[1], tip[2] - o[2]
+        J[0].append(z[1] * l2 - z[2] * l1)
+        J[1].append(z[2] * l0 - z[0] * l2)
+        J[2].append(z[0] * l1 - z[1] * l0)
+        J[3].append(z[0])
+        J[4].append(z[1])
+        J[5].append(z[2])
     return [p_goal[0] - tip[0], p_goal[1] - tip[1], p_goal[2] - tip[2]] + rot, J
 
 
@@ -121,42 +129,42 @@ def first_start(arm: ArmModel, T: np.ndarray, q0: np.ndarray, w: np.ndarray, tol
 
     ``tols`` (position [m], orientation [rad]); ``limits`` (lo, hi) (n,) each or None;
     ``full_turn`` the joints that wrap. None: the start stalled (the batch would re-seed it)
-    or ran out of ``iterations`` before meeting both tolerances.
+    or ran out of ``iterations`` before meeting both tolerances. The step's 6 x 6 system is
+    solved by numpy; the rest runs on floats.
     """
     n = arm.n_joints
     R_goal, p_goal = T[:3, :3].reshape(-1).tolist(), tuple(T[:3, 3].tolist())
-    q = np.clip(q0, *limits) if limits is not None else np.array(q0, dtype=float)
-    eye = np.eye(n)
+    q = (np.clip(q0, *limits) if limits is not None else np.asarray(q0, dtype=float)).tolist()
+    lo, hi = (limits[0].tolist(), limits[1].tolist()) if limits is not None else (None, None)
+    wraps = set(full_turn.tolist()) if full_turn is not None else set()
+    weights = w.tolist()
+    diagonal = np.arange(n) * (n + 1)
     stall_cost, stall_count = math.inf, 0
     for it in range(1, iterations + 1):
-        e, J = residual(arm, q.tolist(), R_goal, p_goal)
+        e, J = residual(arm, q, R_goal, p_goal)
         pos2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
         rot2 = e[3] * e[3] + e[4] * e[4] + e[5] * e[5]
-        e = np.array(e)
-        cost = float((e * e) @ w)
+        cost = sum(wi * ei * ei for wi, ei in zip(weights, e))
         if pos2 < tols[0] ** 2 and rot2 < tols[1] ** 2:
-            return q, math.sqrt(pos2), math.sqrt(rot2), it, cost
+            return np.array(q), math.sqrt(pos2), math.sqrt(rot2), it, cost
+        mu = error_damping * 0.5 * cost + damping
         J = np.array(J)
-        JtW = J.T * w
-        A = JtW @ J + (error_damping * 0.5 * cost + damping) * eye
-        dq = np.linalg.solve(A, JtW @ e)
-        if limits is not None:
-            blocked = ((q <= limits[0]) & (dq < 0.0)) | ((q >= limits[1]) & (dq > 0.0))
-            if full_turn is not None:
-                blocked[full_turn] = False
-            if blocked.any():
-                Jf = J * ~blocked
-                JtW = Jf.T * w
-                A = JtW @ Jf + (error_damping * 0.5 * cost + damping) * eye
-                dq = np.linalg.solve(A, JtW @ e)
+        e = np.array(e)
+        dq = _step(J, e, w, mu, diagonal)
+        if lo is not None:
+            # Active set: a joint at a limit that the step pushes outwards is held there.
+            blocked = [j not in wraps and ((q[j] <= lo[j] and dq[j] < 0.0)
+                                           or (q[j] >= hi[j] and dq[j] > 0.0)) for j in range(n)]
+            if any(blocked):
+                dq = _step(J * ~np.array(blocked), e, w, mu, diagonal)
         if max_step is not None:
-            dq *= min(1.0, max_step / (float(np.abs(dq).max()) + 1e-300))
-        q = q + dq
-        if full_turn is not None:
-            lo = limits[0][full_turn]
-            q[full_turn] = lo + (q[full_turn] - lo) % (2.0 * np.pi)
-        if limits is not None:
-            q = np.clip(q, *limits)
+            top = max(abs(d) for d in dq)
+            dq = [d * min(1.0, max_step / (top + 1e-300)) for d in dq]
+        q = [qj + dj for qj, dj in zip(q, dq)]
+        for j in wraps:
+            q[j] = lo[j] + (q[j] - lo[j]) % (2.0 * math.pi)
+        if lo is not None:
+            q = [min(max(qj, lj), hj) for qj, lj, hj in zip(q, lo, hi)]
         if cost < 0.99 * stall_cost:
             stall_cost, stall_count = cost, 0
         else:
@@ -164,3 +172,11 @@ def first_start(arm: ArmModel, T: np.ndarray, q0: np.ndarray, w: np.ndarray, tol
             if stall_count >= stall_iterations:
                 return None
     return None
+
+
+def _step(J, e, w, mu, diagonal):
+    """Return ``dq`` (list) of ``(J^T W J + mu I) dq = J^T W e`` for ``J`` (6, n), ``e`` (6,)."""
+    JtW = J.T * w
+    A = JtW @ J
+    A.flat[diagonal] += mu
+    return np.linalg.solve(A, JtW @ e).tolist()
