@@ -22,7 +22,8 @@ import numpy as np
 if TYPE_CHECKING:
     from mover6_control.kinematics.arm import ArmModel
 
-_EYE = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+# The 3 x 3 identity, row-major.
+IDENTITY_ROWS = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
 
 def _skew(w):
@@ -70,7 +71,7 @@ def residual(arm: ArmModel, q: list, R_goal: list, p_goal: tuple) -> tuple:
     ``R r_i + p``, and its turn moves points by ``x -> turn (x - r_i) + r_i``.
     """
     joints, tip_R, tip_p = _screws(arm)
-    R, p0, p1, p2 = _EYE, 0.0, 0.0, 0.0
+    R, p0, p1, p2 = IDENTITY_ROWS, 0.0, 0.0, 0.0
     axes, points = [], []
     for (omega, r, K, KK), angle in zip(joints, q):
         r0, r1, r2 = r
@@ -79,7 +80,7 @@ def residual(arm: ArmModel, q: list, R_goal: list, p_goal: tuple) -> tuple:
                        R[3] * r0 + R[4] * r1 + R[5] * r2 + p1,
                        R[6] * r0 + R[7] * r1 + R[8] * r2 + p2))
         s, c = math.sin(angle), 1.0 - math.cos(angle)
-        turn = [e + s * x + c * y for e, x, y in zip(_EYE, K, KK)]
+        turn = [e + s * x + c * y for e, x, y in zip(IDENTITY_ROWS, K, KK)]
         d0 = r0 - (turn[0] * r0 + turn[1] * r1 + turn[2] * r2)
         d1 = r1 - (turn[3] * r0 + turn[4] * r1 + turn[5] * r2)
         d2 = r2 - (turn[6] * r0 + turn[7] * r1 + turn[8] * r2)

@@ -18,13 +18,13 @@ import math
 from typing import TYPE_CHECKING
 
 from mover6_control.kinematics.ik_closed_form import VERIFY_TOL, wrist_geometry
+from mover6_control.kinematics.ik_first_start import IDENTITY_ROWS
 import numpy as np
 
 if TYPE_CHECKING:
     from mover6_control.kinematics.arm import ArmModel
 
 _TWO_PI = 2.0 * math.pi
-_EYE = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
 
 def _dot(a, b):
@@ -221,7 +221,7 @@ def _reproduces(k, q, R, t, tol):
     for i in range(5, -1, -1):
         s, o = math.sin(q[i]), 1.0 - math.cos(q[i])
         K, KK, r = k['K'][i], k['KK'][i], k['r'][i]
-        a = [e + s * x + o * y for e, x, y in zip(_EYE, K, KK)]   # Rot(w_i, q_i)
+        a = [e + s * x + o * y for e, x, y in zip(IDENTITY_ROWS, K, KK)]   # Rot(w_i, q_i)
         d0, d1, d2 = p[0] - r[0], p[1] - r[1], p[2] - r[2]
         p = (a[0] * d0 + a[1] * d1 + a[2] * d2 + r[0], a[3] * d0 + a[4] * d1 + a[5] * d2 + r[1],
              a[6] * d0 + a[7] * d1 + a[8] * d2 + r[2])
