@@ -26,6 +26,11 @@ several runs (batch: 5; per pose: 2), the usual guard against interference.
    300 poses (20 with ``--quick``), with the ratio of median times against ``ik_numeric`` on
    those same poses.
 
+5. Peer from the package registry: ikpy (``Chain.from_urdf_file`` on the same URDF,
+   ``inverse_kinematics_frame`` with ``orientation_mode='all'``, from q0 = 0) on the same poses as
+   the baseline (Mover6 only: ikpy reads URDF, the miniBOT is a DH table), with success at the
+   same tolerance and at 1e-3 and the ratio of its median time to ``ik_numeric``'s.
+
 Anchors (issue 3): TRAC-IK 99.8-100 % at 0.2-0.4 ms; KDL 26-75 %.
 """
 
@@ -142,6 +147,31 @@ def scipy_baseline(arm, T, starts=4):
     return np.array(times) * 1e3, np.array(ok)
 
 
+def ikpy_peer(arm, T):
+    """Success (at TOL and at 1e-3) and times [ms] of ikpy on the poses ``T`` (Mover6 URDF)."""
+    import warnings
+
+    from ikpy.chain import Chain
+    from mover6_control.resources import CONFIG_DIR
+
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        chain = Chain.from_urdf_file(os.path.join(CONFIG_DIR, 'mover6.urdf'),
+                                     base_elements=['base_link'],
+                                     active_links_mask=[False] + [True] * arm.n_joints)
+    q0 = np.zeros(len(chain.links))
+    times, errors = [], []
+    for pose in T:
+        t0 = time.perf_counter()
+        full = chain.inverse_kinematics_frame(pose, initial_position=q0, orientation_mode='all')
+        times.append(time.perf_counter() - t0)
+        Tq = fk(arm, full[1:1 + arm.n_joints])
+        errors.append(pose_errors_batch(pose, Tq))
+    errors = np.array(errors, dtype=float)
+    worst = errors.max(axis=1)
+    return np.array(times) * 1e3, worst < TOL, worst < 1e-3
+
+
 def run(quick):
     """Run every part for both arms; return the results dictionary."""
     n_cf, n_single, n_num, n_base = (2000, 100, 100, 20) if quick else (10000, 2000, 10000, 300)
@@ -163,6 +193,13 @@ def run(quick):
                                'ik_numeric_median_ms_same_poses': float(ours),
                                'ik_numeric_success_same_poses': float(ok_num[:n_base].mean()),
                                'speedup': float(np.median(t_base) / ours)}
+        if arm.name == 'mover6':
+            t_ikpy, ok_ikpy, loose_ikpy = ikpy_peer(arm, T[:n_base])
+            r['ikpy'] = {'poses': n_base, 'success': float(ok_ikpy.mean()),
+                         'success_1e-3': float(loose_ikpy.mean()),
+                         'median_ms': float(np.median(t_ikpy)),
+                         'ik_numeric_median_ms_same_poses': float(ours),
+                         'speedup': float(np.median(t_ikpy) / ours)}
         out['arms'][arm.name] = r
     return out
 
@@ -194,9 +231,16 @@ def print_table(out):
          '.2f'),
         ('speed-up over scipy [x]', 'scipy_baseline', 'speedup', '.1f'),
     ]
+    rows += [
+        ('ikpy success (peer)', 'ikpy', 'success', '.4f'),
+        ('ikpy success at 1e-3', 'ikpy', 'success_1e-3', '.4f'),
+        ('ikpy median [ms]', 'ikpy', 'median_ms', '.2f'),
+        ('ikpy / ik_numeric [x]', 'ikpy', 'speedup', '.1f'),
+    ]
     for label, part, key, fmt in rows:
         print(f'{label:34s}' + ''.join(
-            f'{format(r[part][key], fmt):>18s}' for r in out['arms'].values()))
+            f'{format(r[part][key], fmt) if part in r else "-":>18s}'
+            for r in out['arms'].values()))
     for name, r in out['arms'].items():
         print(f'{name}: {r["closed_form_batch"]["poses"]} poses closed form, '
               f'{r["numeric"]["poses"]} numeric, {r["scipy_baseline"]["poses"]} scipy')

@@ -18,14 +18,18 @@ Run: ``python -m bench.bench_motion [--quick]``. Prints tables and writes
    next to the JSON): the time laws, the continuous joint trajectories against the joint limits,
    the desired against the realised tool path.
 3. Plan time: the continuous timing (``time_optimal.time_parameterize``, as the controller's
-   ``continuous`` profile calls it) through 20, 100 and 1000 random in-limit waypoints, the median
-   of several runs, with the durations (a faster timing must not change them).
+   ``continuous`` profile calls it) through 20, 100, 1000 and 10,000 random in-limit waypoints,
+   the median of several runs, with the durations (a faster timing must not change them), beside
+   toppra in the same run on identical inputs (``peer_toppra``: toppra on our path and grid, and
+   toppra on a spline through the same waypoints), with the largest sampled velocity and
+   acceleration over the limits of each and the ratios of the run times.
 """
 
 import argparse
 import os
 import time
 
+from bench import peer_toppra
 from bench.output import RESULTS, write_json
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk, fk_batch
@@ -127,16 +131,90 @@ def bench_speed(arm, quick):
 
 
 def bench_plan_time(arm, quick):
-    """Median plan time of the continuous timing at 20, 100 and 1000 waypoints."""
+    """
+    Plan time of the continuous timing beside toppra's, on identical inputs, per waypoint count.
+
+    For each set (random waypoints, seeded by their count): ours (``time_parameterize``, the
+    median of several runs), toppra on our path and grid (``peer_toppra.same_path``) and toppra
+    on a spline through the same waypoints (``peer_toppra.spline``), with every duration, the
+    largest sampled joint velocity and acceleration over their limits (1 kHz) and the ratios of
+    the run times (toppra / ours: above 1, ours is faster).
+    """
     v = arm.velocity_limits
+    a = np.full(arm.n_joints, A_MAX)
+    sets = ((20, 15), (100, 15), (1000, 3))
+    if not quick:
+        sets += ((10000, 1),)
     rows = []
-    for m, repeats in ((20, 15), (100, 15), (1000, 3)):
+    for m, repeats in sets:
+        repeats = 1 if quick else repeats
+        peer_repeats = max(1, min(repeats, 5))
         Q = _waypoints(arm, m, seed=m)
-        traj, t_plan, t_min = _plan_times(lambda: time_optimal.time_parameterize(Q, v, A_MAX),
-                                          1 if quick else repeats)
-        rows.append({'waypoints': m, 'plan_ms': 1e3 * t_plan, 'plan_ms_min': 1e3 * t_min,
-                     'duration_s': traj.duration, 'repeats': 1 if quick else repeats})
+        traj, t_plan, t_min = peer_toppra.timed(
+            lambda: time_optimal.time_parameterize(Q, v, A_MAX), repeats)
+        row = {'waypoints': m, 'plan_ms': 1e3 * t_plan, 'plan_ms_min': 1e3 * t_min,
+               'duration_s': traj.duration, 'repeats': repeats,
+               'bound_s': time_optimal.time_optimal_bound(Q, v, A_MAX)}
+        row['v_ratio'], row['a_ratio'] = peer_toppra.limit_ratios(
+            lambda t: traj.sample(t)[1:], traj.duration, v, a)
+        for name, build in (('toppra_same_path', peer_toppra.same_path(traj, v, a)),
+                            ('toppra_spline', peer_toppra.spline(Q, v, a))):
+            peer, t_peer, _ = peer_toppra.timed(build, peer_repeats)
+            v_ratio, a_ratio = peer_toppra.limit_ratios(peer_toppra.toppra_sampler(peer),
+                                                        peer.duration, v, a)
+            row[name] = {'plan_ms': 1e3 * t_peer, 'duration_s': float(peer.duration),
+                         'v_ratio': v_ratio, 'a_ratio': a_ratio, 'repeats': peer_repeats,
+                         'speed_ratio': t_peer / t_plan}
+        rows.append(row)
     return rows
+
+
+def bench_linear_goal(quick):
+    """
+    Time a 1000-waypoint linear goal as the planner plans it, beside toppra.
+
+    The planner's own plan (``plan_pose_goal``, 1000 waypoints, from home to the planner
+    bench's first goal): a smooth path, where toppra's grid is coarse. Ours (median of runs)
+    against toppra on a spline through the same waypoints with its default grid (the issue's
+    "toppra's timing alone") and on our path and grid.
+    """
+    from mover6_control.kinematics.rotations import pose_from_xyzabc
+    from mover6_control.planning.planner_core import PlannerSettings, plan_pose_goal
+
+    arm = mover6()
+    goal = pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0)
+    Q = np.asarray(plan_pose_goal(arm, np.zeros(6), goal, 'linear',
+                                  PlannerSettings(n_waypoints=1000)).q)
+    v, a = arm.velocity_limits, np.full(arm.n_joints, A_MAX)
+    repeats = 1 if quick else 5
+    traj, t_ours, _ = peer_toppra.timed(lambda: time_optimal.time_parameterize(Q, v, A_MAX),
+                                        repeats)
+    row = {'waypoints': int(Q.shape[0]), 'plan_ms': 1e3 * t_ours, 'duration_s': traj.duration}
+    for name, build in (('toppra_spline', peer_toppra.spline(Q, v, a)),
+                        ('toppra_same_path', peer_toppra.same_path(traj, v, a))):
+        peer, t_peer, _ = peer_toppra.timed(build, repeats)
+        row[name] = {'plan_ms': 1e3 * t_peer, 'duration_s': float(peer.duration),
+                     'speed_ratio': t_peer / t_ours}
+    return row
+
+
+def print_plan_time(plan):
+    """Print ``bench_plan_time``'s rows: ours, then each toppra call, side by side."""
+    print('\nPlan time of the continuous timing beside toppra on the same waypoints (random,'
+          ' hardware speed limits, a_max = 1 rad/s^2); v, a: largest sampled |qd| / v_max,'
+          ' |qdd| / a_max; x: toppra time / ours')
+    print(f'{"waypoints":>9s} | {"ours ms":>8s} {"dur s":>9s} {"v":>5s} {"a":>5s} |'
+          f' {"same path ms":>12s} {"dur s":>9s} {"v":>5s} {"a":>5s} {"x":>6s} |'
+          f' {"spline ms":>9s} {"dur s":>9s} {"v":>5s} {"a":>5s} {"x":>6s} | {"bound s":>8s}')
+    for r in plan:
+        cells = [f'{r["waypoints"]:9d} | {r["plan_ms"]:8.1f} {r["duration_s"]:9.3f}'
+                 f' {r["v_ratio"]:5.3f} {r["a_ratio"]:5.3f}']
+        for name in ('toppra_same_path', 'toppra_spline'):
+            p = r[name]
+            width = 12 if name == 'toppra_same_path' else 9
+            cells.append(f' {p["plan_ms"]:{width}.1f} {p["duration_s"]:9.3f} {p["v_ratio"]:5.3f}'
+                         f' {p["a_ratio"]:5.3f} {p["speed_ratio"]:6.1f}')
+        print(' |'.join(cells) + f' | {r["bound_s"]:8.3f}')
 
 
 def bench_report_linear(arm):
@@ -222,13 +300,14 @@ def main(argv=None):
               f' {r["sample_batch_us"]:16.3f} {r["sample_tick_us"]:8.1f}')
     print(f'lower bound on any trajectory through these waypoints: {bound100:.2f} s')
     plan = bench_plan_time(arm, args.quick)
-    print('\nPlan time of the continuous timing (random waypoints, hardware speed limits,'
-          ' a_max = 1 rad/s^2)')
-    print(f'{"waypoints":>9s} {"plan ms (median)":>16s} {"(shortest)":>10s} {"runs":>4s}'
-          f' {"duration s":>17s}')
-    for r in plan:
-        print(f'{r["waypoints"]:9d} {r["plan_ms"]:16.1f} {r["plan_ms_min"]:10.1f}'
-              f' {r["repeats"]:4d} {r["duration_s"]:17.12f}')
+    print_plan_time(plan)
+    linear = bench_linear_goal(args.quick)
+    print(f'\nThe planner\'s 1000-waypoint linear goal ({linear["waypoints"]} rows): ours'
+          f' {linear["plan_ms"]:.1f} ms ({linear["duration_s"]:.3f} s); toppra on a spline,'
+          f' its grid: {linear["toppra_spline"]["plan_ms"]:.1f} ms'
+          f' ({linear["toppra_spline"]["duration_s"]:.3f} s); toppra on our path and grid:'
+          f' {linear["toppra_same_path"]["plan_ms"]:.1f} ms'
+          f' ({linear["toppra_same_path"]["duration_s"]:.3f} s)')
     report = bench_report_linear(arm)
     print('\nThe Mover6 report linear example (0.1 m along +x, home orientation kept),'
           f' IK: {report["ik"]}')
@@ -249,6 +328,7 @@ def main(argv=None):
           f' {report["continuous_over_bound"]:.3f}; TOPP on a 20000-point grid'
           f' {report["topp_fine_grid_s"]:.3f} s')
     out = {'quick': args.quick, 'speed_100_waypoints': speed, 'plan_time': plan,
+           'linear_goal_1000': linear,
            'lower_bound_100_waypoints_s': bound100, 'report_linear': report}
     write_json('motion', out)
     print(f'figures: {", ".join(report["figures"])}')

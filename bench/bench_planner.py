@@ -16,6 +16,7 @@ from geometry_msgs.msg import PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import pose_from_xyzabc
 from mover6_control.nodes import conversions
+from mover6_control.nodes.demand_messages import demand_options_from_msg
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import rclpy
@@ -27,14 +28,26 @@ GOALS = (pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0),
          pose_from_xyzabc(0.30, -0.08, 0.32, 0.0, np.pi / 2, 0.0))
 
 
-def measure(client, n_waypoints, repeats):
-    """Return latencies [s] from goal publish to /joint_demands arrival."""
+def measure(client, n_waypoints, repeats, seen):
+    """
+    Return latencies [s] from goal publish to /joint_demands arrival.
+
+    ``seen``: the goal ids whose demand arrived already (kept from size to size).
+    """
     problem = client.set_planner_parameters({'n_waypoints': n_waypoints})
     if problem:
         raise RuntimeError(problem)
     received = []
-    sub = client.create_subscription(Float32MultiArray, 'joint_demands',
-                                     lambda m: received.append(time.perf_counter()), 10)
+
+    def on_demand(msg):
+        # The planner sends a goal's demand again until a controller acknowledges it (none
+        # runs here): count only the first arrival of each goal's demand.
+        goal = demand_options_from_msg(msg).get('goal')
+        if goal not in seen:
+            seen.add(goal)
+            received.append(time.perf_counter())
+
+    sub = client.create_subscription(Float32MultiArray, 'joint_demands', on_demand, 10)
     latencies = []
     for i in range(repeats):
         received.clear()
@@ -65,6 +78,7 @@ def main(argv=None):
     home = conversions.make_joint_state(arm.joint_names, np.zeros(6), np.zeros(6))
     client.create_timer(0.01, lambda: state_pub.publish(home))
     results = {'repeats': repeats, 'rows': []}
+    seen = set()
     try:
         if not client.spin_until(lambda: client.planner_status is not None
                                  and client.pose_pub.get_subscription_count() > 0, 30.0):
@@ -72,7 +86,7 @@ def main(argv=None):
         client.spin_until(lambda: False, 0.5)   # let /joint_states reach the planner
         print(f'{"waypoints":>10} {"median [ms]":>12} {"p95 [ms]":>10} {"max [ms]":>10}')
         for n in (20, 100, 1000):
-            lat = np.array(measure(client, n, repeats)) * 1e3
+            lat = np.array(measure(client, n, repeats, seen)) * 1e3
             row = {'waypoints': n, 'median_ms': float(np.median(lat)),
                    'p95_ms': float(np.percentile(lat, 95)), 'max_ms': float(lat.max())}
             results['rows'].append(row)

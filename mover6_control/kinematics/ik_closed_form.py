@@ -370,15 +370,17 @@ def ik_closed_form(arm: ArmModel, T: np.ndarray, within_limits: bool = True,
 
     Each row reproduces ``T`` by FK within ``tol``; duplicates (the branches that meet at a
     singularity) appear once. With ``within_limits`` only solutions inside the joint limits are
-    kept. Rows are sorted by distance to ``q_ref`` (default: zeros), nearest first.
+    kept. The same steps as ``ik_closed_form_batch``, on Python floats for the one pose
+    (``ik_one_pose``). Rows are sorted by distance to ``q_ref`` (default: zeros), nearest first.
     Raises ``InvalidInputError`` for a bad pose or an arm without a spherical wrist.
     """
+    from mover6_control.kinematics.ik_one_pose import ik_one_pose  # it builds on this module
+
     T = validate_transform(T, 'pose')
     ref = np.zeros(arm.n_joints) if q_ref is None else arm.check_q(q_ref, 'q_ref')
-    Q, ok = ik_closed_form_batch(arm, T[None], within_limits, ref, tol)
-    sols = Q[0][ok[0]]
-    if len(sols) == 0:
-        return np.zeros((0, arm.n_joints))
+    sols = np.array(ik_one_pose(arm, T.tolist(), ref.tolist(), within_limits, tol))
+    if len(sols) <= 1:
+        return sols.reshape(-1, arm.n_joints)
     # Drop repeats (branches that meet at a singularity): keep the first of each group.
     gap = np.abs(_wrap(sols[:, None] - sols[None])).max(axis=-1)
     repeat = np.tril(gap <= 1e-9, k=-1).any(axis=1)

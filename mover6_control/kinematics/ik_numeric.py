@@ -10,10 +10,11 @@ Steps are Levenberg-Marquardt with error-dependent damping (Sugihara 2011):
 ``(J^T W J + (c E + lambda_0) I) dq = J^T W e``, ``E = e^T W e / 2``, then projected onto
 the joint limits (a joint held at a limit that the step pushes outwards leaves the active set;
 a joint whose range spans a full turn wraps around instead).
-``n_seeds`` starts run side by side as one batch (the first is ``q0``, the others random in
-the limits); a start that stalls is re-seeded at random. The first start that meets
-both tolerances wins; otherwise the lowest-cost configuration seen is returned with
-``success = False`` (the closest pose found).
+The first start, ``q0``, runs alone first (``ik_first_start``, on floats: most poses end
+there); if it stalls, ``n_seeds`` starts run side by side as one batch (the first is ``q0``,
+the others random in the limits), and a start that stalls is re-seeded at random. The first
+start that meets both tolerances wins; otherwise the lowest-cost configuration seen is
+returned with ``success = False`` (the closest pose found).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.ik_first_start import first_start
 from mover6_control.kinematics.rotations import validate_transform
 from mover6_control.validation import as_finite_array
 import numpy as np
@@ -192,6 +194,14 @@ def ik_numeric(arm: ArmModel, T: np.ndarray, q0: np.ndarray, *, position_tol: fl
     full_turn = None
     if within_limits and np.any(hi - lo >= 2.0 * np.pi - 1e-9):
         full_turn = np.flatnonzero(hi - lo >= 2.0 * np.pi - 1e-9)
+    # The first start alone, on floats: most poses are solved by it (see ik_first_start).
+    first = first_start(arm, T, q0, w, (position_tol, orientation_tol),
+                        (lo, hi) if within_limits else None, full_turn, damping, error_damping,
+                        max_step, int(max_iterations), int(stall_iterations))
+    if first is not None:
+        q, pos, rot, it, cost = first
+        return NumericIKResult(q=q, success=True, position_error=pos, orientation_error=rot,
+                               iterations=it, restarts=0, cost=cost)
     chain = screw_chain(arm)
     Q = np.empty((int(n_seeds), n))
     Q[0] = np.clip(q0, lo, hi) if within_limits else q0

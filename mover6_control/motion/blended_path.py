@@ -195,6 +195,25 @@ class BlendedPath:
             return self.params[i][2]
         return float((self.starts[i + 1] - self.starts[i]) / self.params[i][1])
 
+    def arc_shape(self, segment: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the amplitudes (m, n) and radii (m,) [rad] of the arcs ``segment`` (m,).
+
+        On an arc each joint's ``q'`` and ``r q''`` are sinusoids in ``s / r`` of that
+        amplitude, ``sqrt(x_i^2 + y_i^2)`` (at most 1).
+        """
+        segment = np.asarray(segment, dtype=int)
+        x, y = self._stacks['x'][segment], self._stacks['y'][segment]
+        return np.sqrt(x * x + y * y), self._radius[segment]
+
+    def turns(self) -> np.ndarray:
+        """Return how far the tangent turns along each segment (k,) [rad] (0 on a line)."""
+        out = (self.starts[1:] - self.starts[:-1]) / self._radius
+        out[self._code == _KIND_CODE['line']] = 0.0
+        for i in np.flatnonzero(self._code == _KIND_CODE['quintic']).tolist():
+            out[i] = self.params[i][2]
+        return out
+
     def segment_of(self, s: np.ndarray) -> np.ndarray:
         """Return the segment index (m,) holding each arc length ``s`` (m,)."""
         idx = np.searchsorted(self.starts, np.asarray(s, dtype=float), side='right') - 1
@@ -251,6 +270,8 @@ def blended_path(Q: np.ndarray, max_deviation: float = 1e-2, blend: str = 'arc')
         raise InvalidInputError(f"blend must be 'arc' or 'quintic', got {blend!r}")
     Q = distinct_waypoints(Q)
     max_deviation = as_positive(max_deviation, 'max_deviation')
+    if blend == 'arc':
+        return _arc_path(Q, max_deviation)
     diffs = np.diff(Q, axis=0)
     lengths = np.linalg.norm(diffs, axis=1)
     units = diffs / lengths[:, None]
@@ -267,23 +288,10 @@ def blended_path(Q: np.ndarray, max_deviation: float = 1e-2, blend: str = 'arc')
         if alpha > _REVERSAL_ANGLE:
             stop_at[i] = True
             continue
-        half = 0.5 * alpha
-        if blend == 'quintic':
-            ell = min(0.5 * lengths[i - 1], 0.5 * lengths[i],
-                      max_deviation / _quintic_deviation(alpha))
-            cut[i] = ell
-            arcs[i] = ('quintic', (_quintic_blend(Q[i], y1, y2, ell), 2.0 * ell, alpha),
-                       2.0 * ell)
-            continue
-        # The arc's farthest point from the corner is ell tan(alpha / 4) away.
-        ell = min(0.5 * lengths[i - 1], 0.5 * lengths[i], max_deviation / np.tan(0.5 * half))
-        r = ell / np.tan(half)
-        bis = (y2 - y1) / np.linalg.norm(y2 - y1)
-        c = Q[i] + bis * r / np.cos(half)
-        start = Q[i] - ell * y1
-        x = (start - c) / np.linalg.norm(start - c)
+        ell = min(0.5 * lengths[i - 1], 0.5 * lengths[i],
+                  max_deviation / _quintic_deviation(alpha))
         cut[i] = ell
-        arcs[i] = ('arc', (c, r, x, y1), alpha * r)
+        arcs[i] = ('quintic', (_quintic_blend(Q[i], y1, y2, ell), 2.0 * ell, alpha), 2.0 * ell)
     kinds, params, seg_len, stops, waypoint_s = [], [], [], [], [0.0]
     s = 0.0
     for k in range(m - 1):
@@ -308,3 +316,62 @@ def blended_path(Q: np.ndarray, max_deviation: float = 1e-2, blend: str = 'arc')
     starts = np.concatenate([[0.0], np.cumsum(seg_len)])
     waypoint_s.append(float(starts[-1]))
     return BlendedPath(tuple(kinds), tuple(params), starts, tuple(stops), Q, tuple(waypoint_s))
+
+
+def _arc_path(Q, max_deviation):
+    """
+    Return the ``BlendedPath`` through ``Q`` (m, n) with circular arcs, every corner at once.
+
+    The corners of ``blended_path``, as array operations over all of them: a corner turning by
+    ``alpha`` gets an arc of radius ``r = ell / tan(alpha / 2)`` that takes ``ell`` (at most
+    half of either line, at most ``max_deviation / tan(alpha / 4)``) off both lines; the
+    segments are the lines and arcs in turn, those of zero length left out.
+    """
+    m, n = Q.shape
+    diffs = np.diff(Q, axis=0)
+    lengths = np.sqrt(np.einsum('ij,ij->i', diffs, diffs))
+    units = diffs / lengths[:, None]
+    y1, y2 = units[:-1], units[1:]                      # the corners 1 .. m - 2
+    turn, across = y2 - y1, y2 + y1
+    turn_len = np.sqrt(np.einsum('ij,ij->i', turn, turn))
+    alpha = 2.0 * np.arctan2(turn_len, np.sqrt(np.einsum('ij,ij->i', across, across)))
+    blend = (alpha >= _STRAIGHT_ANGLE) & (alpha <= _REVERSAL_ANGLE)
+    stop = alpha > _REVERSAL_ANGLE
+    half = 0.5 * np.where(blend, alpha, 1.0)
+    # The arc's farthest point from the corner is ell tan(alpha / 4) away.
+    ell = np.minimum(np.minimum(0.5 * lengths[:-1], 0.5 * lengths[1:]),
+                     max_deviation / np.tan(0.5 * half))
+    r = ell / np.tan(half)
+    bisector = turn / np.where(blend, turn_len, 1.0)[:, None]
+    centre = Q[1:-1] + bisector * (r / np.cos(half))[:, None]
+    radial = Q[1:-1] - ell[:, None] * y1 - centre
+    radial /= np.sqrt(np.einsum('ij,ij->i', radial, radial))[:, None]
+    cut = np.zeros(m)
+    cut[1:-1] = np.where(blend, ell, 0.0)
+    # Candidate segments: line 0, arc 1, line 1, arc 2, ..., line m - 2.
+    seg_len = np.zeros(2 * m - 3)
+    seg_len[0::2] = lengths - cut[:-1] - cut[1:]
+    seg_len[1::2] = np.where(blend, alpha * r, 0.0)
+    present = np.zeros(2 * m - 3, dtype=bool)
+    present[0::2] = seg_len[0::2] > 1e-12
+    present[1::2] = blend
+    seg_len[~present] = 0.0
+    ends = np.cumsum(seg_len)                           # after each candidate
+    corner_s = ends[0::2][:-1] + np.where(blend, 0.5 * seg_len[1::2], 0.0)
+    kept = np.flatnonzero(present)
+    code = (kept % 2).astype(int)                       # 0: line, 1: arc
+    k = kept // 2                                       # the line's index, or the arc's - 1
+    stacks = {name: np.zeros((kept.size, n)) for name in ('p', 'u', 'c', 'x', 'y')}
+    radius = np.ones(kept.size)
+    lines, arcs = code == 0, code == 1
+    stacks['u'][lines] = units[k[lines]]
+    stacks['p'][lines] = Q[k[lines]] + cut[k[lines], None] * units[k[lines]]
+    stacks['c'][arcs], stacks['x'][arcs] = centre[k[arcs]], radial[k[arcs]]
+    stacks['y'][arcs], radius[arcs] = y1[k[arcs]], r[k[arcs]]
+    path = BlendedPath.__new__(BlendedPath)
+    path.__setstate__({
+        'code': code, 'stacks': stacks, 'radius': radius, 'quintics': {},
+        'starts': np.concatenate([[0.0], ends[kept]]),
+        'stops': tuple(ends[0::2][:-1][stop].tolist()), 'waypoints': Q,
+        'waypoint_s': tuple([0.0] + corner_s.tolist() + [float(ends[-1])])})
+    return path

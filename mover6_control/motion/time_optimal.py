@@ -5,7 +5,8 @@ The path is the ``BlendedPath`` through the waypoints (``motion.blended_path``: 
 rounded within ``max_deviation``). The timing along it is TOPP-RA's (Pham and Pham, IEEE T-RO
 2018): on a grid of path positions ``s`` [rad of joint-space arc length], with ``x = sdot^2``
 and ``u = sddot`` constant per grid interval, a backward pass computes the set of controllable
-``x`` at each grid point, and a greedy forward pass takes the largest admissible ``u``. Joint
+``x`` at each grid point, and a greedy forward pass takes the largest admissible ``u``; both
+passes run as array operations, ramp by ramp (``motion.greedy_scan``). Joint
 velocity and acceleration limits are enforced at both ends of every grid interval. The result
 is the time-optimal timing of this path up to the grid resolution (a ``GridTiming``,
 ``motion.path_timing``).
@@ -25,6 +26,7 @@ from __future__ import annotations
 from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError, UnreachableError
+from mover6_control.motion import greedy_scan
 from mover6_control.motion.blended_path import blended_path, distinct_waypoints
 from mover6_control.motion.path_timing import (FilteredTiming, GridTiming, PathTrajectory,
                                                ScaledTiming)
@@ -34,8 +36,6 @@ import numpy as np
 
 # Largest tangent turn [rad] across one grid interval on a blend arc.
 _MAX_TURN = 0.05
-# Entries converted to a list per call (``_as_list``): short enough that threads switch between.
-LIST_CHUNK = 20000
 # Limits are enforced at grid points only; between them a blend arc can exceed them by
 # O(_MAX_TURN^2 / 8) = 3e-4 relative. Planning to limits this much smaller keeps the whole
 # trajectory inside the true limits.
@@ -45,23 +45,29 @@ _JERK_MARGIN = 1e-2
 
 
 def _grid(path, n_grid):
-    """Return grid arc lengths (N + 1,) and the segment of each interval (N,)."""
+    """
+    Return grid arc lengths (N + 1,) and the segment of each interval (N,).
+
+    Each segment gets ``ceil(length / ds)`` intervals (at least 2), ``ds`` the path length over
+    ``n_grid``; a blend at least enough that its tangent turns by ``_MAX_TURN`` or less per
+    interval (a quintic, which turns unevenly, twice that many, and at least 8). Segment ends
+    are grid points (the stop corners among them).
+    """
     ds = path.length / max(int(n_grid), 1)
-    pieces, segs = [], []
-    for i, kind in enumerate(path.kinds):
-        a, b = path.starts[i], path.starts[i + 1]
-        count = max(2, int(np.ceil((b - a) / ds)))
-        if kind != 'line':
-            # Keep the tangent turn per interval small: limits hold to O(turn^2) in between.
-            # A quintic blend turns unevenly, so it gets twice the points.
-            per, least = (1.0, 2) if kind == 'arc' else (2.0, 8)
-            count = max(count, least, int(np.ceil(per * path.turn(i) / _MAX_TURN)))
-        pts = np.linspace(a, b, count + 1)
-        pieces.append(pts[:-1])
-        segs.append(np.full(count, i))
-    s_grid = np.concatenate(pieces + [[path.length]])
-    seg = np.concatenate(segs)
-    # Make the stop corners grid points (they are segment boundaries already).
+    a, b = path.starts[:-1], path.starts[1:]
+    count = np.maximum(2, np.ceil((b - a) / ds)).astype(int)
+    blends = np.flatnonzero(path.is_blend(np.arange(a.size)))
+    if blends.size:
+        quintic = np.array([path.kinds[i] == 'quintic' for i in blends.tolist()])
+        per, least = np.where(quintic, 2.0, 1.0), np.where(quintic, 8, 2)
+        count[blends] = np.maximum(np.maximum(count[blends], least),
+                                   np.ceil(per * path.turns()[blends] / _MAX_TURN).astype(int))
+    seg = np.repeat(np.arange(a.size), count)
+    first = np.repeat(np.cumsum(count) - count, count)
+    step = ((b - a) / count)[seg]
+    s_grid = np.empty(seg.size + 1)
+    s_grid[:-1] = (np.arange(seg.size) - first) * step + a[seg]
+    s_grid[-1] = path.length
     return s_grid, seg
 
 
@@ -91,11 +97,11 @@ def _stage_lines(dq0, ddq0, dq1, ddq1, delta, a_max):
 
 def _static_range(gamma, slope):
     """
-    Return, per interval, the x range ``[lo, hi]`` where the acceleration lines admit some u.
+    Return, per interval, the largest x (N,) at which the acceleration lines admit some u.
 
     Some u meets ``|u - slope_j x| <= gamma_j`` for all j if and only if every pair i, j has
-    ``|slope_i - slope_j| x <= gamma_i + gamma_j``; ``lo`` is 0 (``gamma`` > 0: x = 0 always
-    admits u = 0). Rows whose slopes are all equal (lines) have no upper bound.
+    ``|slope_i - slope_j| x <= gamma_i + gamma_j``; the range starts at 0 (``gamma`` > 0:
+    x = 0 always admits u = 0). Rows whose slopes are all equal (lines) have no upper bound.
     """
     N, m = gamma.shape
     hi = np.full(N, np.inf)
@@ -109,31 +115,7 @@ def _static_range(gamma, slope):
             ratio = (g[:, :-d] + g[:, d:]) / np.where(steep, diff, 1.0)
             bound = np.minimum(bound, np.min(np.where(steep, ratio, np.inf), axis=1))
         hi[rows] = bound
-    return np.zeros(N), hi
-
-
-def _members(num, den, member):
-    """
-    Return the entries of ``num`` and ``den`` (N, m) where ``member`` holds, as flat lists.
-
-    Row k's entries are ``[bounds[k]:bounds[k + 1]]`` of each list.
-    """
-    bounds = np.concatenate([[0], np.cumsum(member.sum(axis=1))]).tolist()
-    return _as_list(num[member]), _as_list(den[member]), bounds
-
-
-def _as_list(values, chunk=LIST_CHUNK):
-    """
-    Return the 1-D array ``values`` as a list, converted ``chunk`` entries at a time.
-
-    One ``tolist`` of a long path's millions of entries holds the interpreter for up to half a
-    second on a loaded machine, and a controller planning in a thread must not stop its ticks
-    that long; between chunks the other threads run.
-    """
-    out = []
-    for start in range(0, len(values), chunk):
-        out.extend(values[start:start + chunk].tolist())
-    return out
+    return hi
 
 
 def _distinct_lines(gamma, slope):
@@ -149,104 +131,43 @@ def _distinct_lines(gamma, slope):
     return keep
 
 
-def _backward_pass(gamma, slope, delta, s_lo, s_hi, s_grid):
+def _backward_pass(gamma, slope, delta, s_hi):
     """
-    Return TOPP-RA's controllable sets ``K_k = [lo[k], hi[k]]`` (N + 1,) each; ``K_N = {0}``.
+    Return the upper ends ``hi`` (N + 1,) of TOPP-RA's controllable sets ``K_k = [0, hi[k]]``.
 
-    Besides the static range ``[s_lo[k], s_hi[k]]``, ``x_k`` must let ``x_k + 2 delta u`` land
-    in ``K_{k+1}`` with some u in ``|u - slope_j x_k| <= gamma_j``: with ``c_j = slope_j +
-    1 / (2 delta)``, ``c_j x_k <= hi[k + 1] / (2 delta) + gamma_j`` and ``c_j x_k >= lo[k + 1]
-    / (2 delta) - gamma_j``. The recurrence is sequential; all that does not depend on the next
-    set (the coefficients, which ones bound from above or below) is computed for all intervals
-    at once beforehand, and the steps run on Python floats.
+    ``K_N = {0}``. The lower ends are 0 throughout: x = 0 admits u = 0 at every interval, so
+    the next set's lower end never binds. Below the static range ``s_hi`` (N,), ``x_k + 2
+    delta u`` must land in ``K_{k+1}`` with some u in ``|u - slope_j x_k| <= gamma_j``:
+    ``hi_k = min(cap_k, min_j (hi_{k+1} + 2 delta gamma_j) / (1 + 2 delta slope_j))`` over the
+    rows with ``c_j = slope_j + 1 / (2 delta) > 0``; a row with ``c_j < 0`` caps ``hi_k`` at
+    ``gamma_j / |c_j|`` whatever comes next. The recurrence runs from the end, solved by
+    ``greedy_scan``.
     """
-    N = delta.size
     inv = 1.0 / (2.0 * delta)
     c = slope + inv[:, None]
     keep = _distinct_lines(gamma, slope)
     plus, minus = keep & (c > 1e-15), keep & (c < -1e-15)
-    # The most common step: K_{k+1} = [0, s_hi[k + 1]] (only the speed caps bind there). Its
-    # result, by the same operations as the loop's for all intervals at once, is taken where
-    # that is the state.
-    top = np.append(s_hi[1:], 0.0)
-    l2 = (top * inv)[:, None]
-    with np.errstate(invalid='ignore', over='ignore'):
-        hi_f = np.minimum(s_hi, np.min(np.where(plus, (l2 + gamma) / c, np.inf), axis=1))
-        hi_f = np.minimum(hi_f, np.min(np.where(minus, (0.0 - gamma) / c, np.inf), axis=1))
-        lo_f = np.maximum(s_lo, np.max(np.where(minus, (l2 + gamma) / c, -np.inf), axis=1))
-        fast = np.isfinite(l2[:, 0]) & ~(lo_f > hi_f * (1.0 + 1e-9) + 1e-15)
-    lo_f = np.minimum(lo_f, hi_f)
-    g_p, c_p, b_p = _members(gamma, c, plus)
-    g_m, c_m, b_m = _members(gamma, c, minus)
-    inv, s_lo, s_hi = inv.tolist(), s_lo.tolist(), s_hi.tolist()
-    top, fast, lo_f, hi_f = top.tolist(), fast.tolist(), lo_f.tolist(), hi_f.tolist()
-    lo = [0.0] * (N + 1)
-    hi = [0.0] * (N + 1)
-    inf = float('inf')
-    for k in range(N - 1, -1, -1):
-        if hi[k + 1] == top[k] and lo[k + 1] == 0.0 and fast[k]:
-            lo[k], hi[k] = lo_f[k], hi_f[k]
-            continue
-        lo_k, hi_k = s_lo[k], s_hi[k]
-        i, j = b_p[k], b_p[k + 1]
-        m_i, m_j = b_m[k], b_m[k + 1]
-        # Offsets of the next set's lines; an infinite one (never, in practice) bounds nothing.
-        l1 = lo[k + 1] * inv[k]
-        if -inf < l1 < inf:
-            # With l1 <= 0 these are all <= 0 (gamma > 0): below s_lo >= 0, they cannot bind.
-            if l1 > 0.0 and i < j:
-                lo_k = max(lo_k, max([(l1 - g) / cj for g, cj in zip(g_p[i:j], c_p[i:j])]))
-            if m_i < m_j:
-                hi_k = min(hi_k, min([(l1 - g) / cj for g, cj in zip(g_m[m_i:m_j], c_m[m_i:m_j])]))
-        l2 = hi[k + 1] * inv[k]
-        if -inf < l2 < inf:
-            if i < j:
-                hi_k = min(hi_k, min([(l2 + g) / cj for g, cj in zip(g_p[i:j], c_p[i:j])]))
-            if m_i < m_j:
-                lo_k = max(lo_k, max([(l2 + g) / cj for g, cj in zip(g_m[m_i:m_j], c_m[m_i:m_j])]))
-        if lo_k > hi_k * (1.0 + 1e-9) + 1e-15:
-            raise UnreachableError(
-                f'no admissible speed at path position {s_grid[k]:.4f} rad',
-                reason='not_controllable', details={'s': float(s_grid[k])})
-        lo[k], hi[k] = min(lo_k, hi_k), hi_k
-    return np.array(lo), np.array(hi)
+    with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
+        cap = np.minimum(s_hi, np.min(np.where(minus, gamma / -c, np.inf), axis=1))
+        A = np.where(plus, inv[:, None] / c, 0.0)
+        B = np.where(plus, gamma / c, np.inf)
+    return greedy_scan.greedy_scan(0.0, A[::-1], B[::-1], cap[::-1])[::-1].copy()
 
 
-def _forward_pass(gamma, slope, delta, lo, hi, x0):
+def _forward_pass(gamma, slope, delta, hi, x0):
     """
     Return the greedy timing: ``x`` (N + 1,) and ``u`` (N,), the largest admissible ``u``.
 
     Each step takes the largest ``u`` the upper lines ``gamma + slope x`` allow that still
-    lands in the next controllable set (``lo``, ``hi``); the steps run on Python floats.
+    lands in the next controllable set ``[0, hi[k + 1]]``: ``x_{k+1} = min(hi_{k+1}, min_j
+    ((1 + 2 delta slope_j) x_k + 2 delta gamma_j))``, solved by ``greedy_scan``.
     """
-    N = delta.size
     keep = _distinct_lines(gamma, slope)
-    two_d = 2.0 * delta
-    # The most common step starts on the upper bound, x_k = hi[k]: its result, by the same
-    # operations as the loop's for all intervals at once, is taken where that is the state.
-    at = hi[:-1]
-    u_f = np.minimum(np.min(np.where(keep, gamma + slope * at[:, None], np.inf), axis=1),
-                     (hi[1:] - at) / two_d)
-    x_f = np.minimum(np.maximum(np.maximum(at + two_d * u_f, lo[1:]), 0.0), hi[1:])
-    u_f = ((x_f - at) / two_d).tolist()
-    x_f = x_f.tolist()
-    g, s, b = _members(gamma, slope, keep)
-    two_d = two_d.tolist()
-    lo, hi = lo.tolist(), hi.tolist()
-    x = [x0] + [0.0] * N
-    u = [0.0] * N
-    inf = float('inf')
-    for k in range(N):
-        xk = x[k]
-        if xk == hi[k]:
-            x[k + 1], u[k] = x_f[k], u_f[k]
-            continue
-        i, j = b[k], b[k + 1]
-        u_hi = min([gi + si * xk for gi, si in zip(g[i:j], s[i:j])]) if i < j else inf
-        u_hi = min(u_hi, (hi[k + 1] - xk) / two_d[k])
-        x[k + 1] = x1 = min(max(xk + two_d[k] * u_hi, lo[k + 1], 0.0), hi[k + 1])
-        u[k] = (x1 - xk) / two_d[k]
-    return np.array(x), np.array(u)
+    two_d = (2.0 * delta)[:, None]
+    A = np.where(keep, 1.0 + two_d * slope, 0.0)
+    B = np.where(keep, two_d * gamma, np.inf)
+    x = greedy_scan.greedy_scan(x0, A, B, hi[1:])
+    return x, (x[1:] - x[:-1]) / (2.0 * delta)
 
 
 def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional[Limit] = None,
@@ -284,7 +205,7 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
     # third only for the jerk limits).
     orders = (1, 2) if j_max is None else (1, 2, 3)
     d0 = dict(zip(orders, path.evaluate(s_grid[:-1], seg, orders)))
-    d1 = dict(zip(orders, path.evaluate(s_grid[1:], seg, orders)))
+    d1 = _interval_ends(path, s_grid, seg, d0, orders)
     # Velocity caps at grid points: x <= (v_i / |q'_i|)^2, smallest of both sides.
     with np.errstate(divide='ignore', over='ignore'):
         cap0 = np.min((v / np.abs(d0[1])) ** 2, axis=1)
@@ -305,10 +226,9 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
         x_cap[np.argmin(np.abs(s_grid - s_stop))] = 0.0
     x_cap[-1] = 0.0
     gamma, slope, cap = _stage_lines(d0[1], d0[2], d1[1], d1[2], delta, a)
-    s_lo, s_hi = _static_range(gamma, slope)
-    s_hi = np.minimum(np.minimum(s_hi, cap), x_cap[:-1])
-    lo, hi = _backward_pass(gamma, slope, delta, s_lo, s_hi, s_grid)
-    x, u = _forward_pass(gamma, slope, delta, lo, hi, _start_x(path, qd_start, lo[0], hi[0]))
+    s_hi = np.minimum(np.minimum(_static_range(gamma, slope), cap), x_cap[:-1])
+    hi = _backward_pass(gamma, slope, delta, s_hi)
+    x, u = _forward_pass(gamma, slope, delta, hi, _start_x(path, qd_start, 0.0, hi[0]))
     sd = np.sqrt(x)
     dt = 2.0 * delta / np.maximum(sd[:-1] + sd[1:], 1e-300)
     if not np.all(np.isfinite(dt)):
@@ -321,11 +241,28 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
         if qd_start is not None and np.any(np.asarray(qd_start) != 0.0):
             return traj      # scaling time would change the start velocity it must match
         return _within_limits(path, timing, traj, v / (1.0 - _LIMIT_MARGIN),
-                              a / (1.0 - _LIMIT_MARGIN), seg)
+                              a / (1.0 - _LIMIT_MARGIN), seg, (d0[1], d0[2], d1[1], d1[2]))
     return _jerk_limited(path, timing, v, a, j)
 
 
-def _within_limits(path, timing, traj, v, a, seg, samples=6):
+def _interval_ends(path, s_grid, seg, d0, orders):
+    """
+    Return the path derivatives at the end of every interval (N, n each), on its own segment.
+
+    Inside a segment an interval's end is the next one's start, on the same segment: those are
+    ``d0``'s (the derivatives at the starts); only the ends on a segment's last point are new.
+    """
+    last = np.append(np.flatnonzero(seg[1:] != seg[:-1]), seg.size - 1)
+    new = path.evaluate(s_grid[last + 1], seg[last], orders)
+    d1 = {}
+    for order, values in zip(orders, new):
+        d1[order] = np.empty_like(d0[order])
+        d1[order][:-1] = d0[order][1:]
+        d1[order][last] = values
+    return d1
+
+
+def _within_limits(path, timing, traj, v, a, seg, ends, samples=6):
     """
     Return ``traj``, slowed down uniformly if it exceeds ``v`` or ``a`` (n,) between grid points.
 
@@ -337,11 +274,15 @@ def _within_limits(path, timing, traj, v, a, seg, samples=6):
     and the rest-to-rest ends. On a line the path's derivative is constant and its curvature
     zero: the joint rates move monotonically between their values at the grid points and the
     accelerations are those at the interval's start, so the limits hold in between with the
-    margin they have at the grid points, and lines need no interior samples.
+    margin they have at the grid points, and lines need no interior samples. Neither need the
+    arc intervals that ``_arc_intervals_within`` shows to be within the limits throughout
+    (``ends``: the path's first and second derivatives at both ends of every interval): their
+    samples could not raise the factor above 1, nor above a larger one found elsewhere.
     """
     t_grid = timing.t_grid
     frac = np.arange(1, samples + 1) / (samples + 1.0)
     arcs = np.flatnonzero(path.is_blend(seg))
+    arcs = arcs[~_arc_intervals_within(path, timing, seg[arcs], arcs, ends, v, a)]
     t = np.concatenate([t_grid, (t_grid[arcs, None] + (t_grid[arcs + 1] - t_grid[arcs])[:, None]
                                  * frac).ravel()])
     s, sd, sdd, _ = timing.profile(t)
@@ -353,6 +294,29 @@ def _within_limits(path, timing, traj, v, a, seg, samples=6):
     if factor <= 1.0:
         return traj
     return PathTrajectory(path, ScaledTiming(timing, factor * (1.0 + 1e-4)))
+
+
+def _arc_intervals_within(path, timing, segment, k, ends, v, a):
+    """
+    Return which arc intervals ``k`` (m,) (on arcs ``segment``) keep ``v``, ``a`` throughout.
+
+    On an arc of radius r each joint's path derivative ``q'`` is a sinusoid of amplitude
+    ``R <= 1`` in the angle ``phi = s / r``, so inside an interval spanning ``dphi`` it exceeds
+    the larger of its end values by at most ``R dphi^2 / 8``; the speed ``sdot`` lies between
+    its end values (u is constant). The joint's acceleration ``g(s) = u q' + x q''`` (``x =
+    sdot^2``, ``dx / ds = 2 u``) has the second derivative ``5 u q^(3) + x q^(4)``, at most
+    ``R (5 |u| / r^2 + x / r^3)``, so it exceeds the larger of its end values by at most
+    ``R dphi^2 / 8 (5 |u| + x / r)``. Both bounds within the limits: no samples needed.
+    """
+    dq0, ddq0, dq1, ddq1 = (d[k] for d in ends)
+    amplitude, radius = path.arc_shape(segment)
+    bump = amplitude * ((timing.s_grid[k + 1] - timing.s_grid[k]) / radius)[:, None] ** 2 / 8.0
+    sd0, sd1, u = timing.sd[k, None], timing.sd[k + 1, None], timing.u[k, None]
+    speed = (np.maximum(np.abs(dq0), np.abs(dq1)) + bump) * np.maximum(sd0, sd1)
+    x_top = np.maximum(sd0, sd1) ** 2
+    accel = (np.maximum(np.abs(u * dq0 + sd0 ** 2 * ddq0), np.abs(u * dq1 + sd1 ** 2 * ddq1))
+             + bump * (5.0 * np.abs(u) + x_top / radius[:, None]))
+    return np.all((speed <= v) & (accel <= a), axis=1)
 
 
 def _jerk_limited(path, timing, v, a, j):
