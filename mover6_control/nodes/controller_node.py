@@ -45,6 +45,7 @@ from mover6_control.control.status import StatusKey
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes import cdr, conversions, params, shutdown
+from mover6_control.nodes.callback_guard import CallbackGuard
 from mover6_control.nodes.controller_actions import ActionThread
 from mover6_control.nodes.controller_demands import DemandThread
 from mover6_control.nodes.controller_ticks import TickLoop
@@ -71,11 +72,12 @@ class ControllerNode(TickLoop, DemandThread, Node):
     def __init__(self, **kwargs):
         """Declare the parameters, build the core, start the topics, services and threads."""
         super().__init__('controller', **kwargs)
+        self.guard = CallbackGuard(self)     # no callback ends the node (bad input: refused)
         # Refuses invalid values, each and as a whole config (check_config), before a set is
         # accepted; an accepted set is handed to the core (at once, or after the motion).
-        params.declare(self, CONTROLLER, self.check_config)
+        params.declare(self, CONTROLLER, self.check_config, guard=self.guard)
         limit_set, config = config_from_parameters(lambda n: self.get_parameter(n).value)
-        self.add_post_set_parameters_callback(self.on_parameters_set)
+        self.guard.after_set(self.on_parameters_set)
         self.lock = threading.RLock()        # the core's state and the goal ledger
         self.status_lock = threading.Lock()  # one status publication at a time (before lock)
         self.core = ControllerCore(mover6(limit_set), config)
@@ -102,13 +104,13 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.jog_pub = self.create_publisher(JointJog, 'JointJog', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'controller/status',
                                                 STATUS_QOS)
-        self.create_subscription(JointState, 'joint_states', self.on_joint_states,
-                                 STREAM_READER_QOS, raw=True)
-        self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
-        self.create_subscription(TwistStamped, '~/delta_twist_cmds', self.on_twist, 10)
-        self.create_subscription(JointJog, '~/delta_joint_cmds', self.on_joint_jog, 10)
-        self.create_service(Trigger, '~/stop', self.on_stop)
-        self.create_service(Trigger, '~/reset', self.on_reset)
+        self.guard.subscription(JointState, 'joint_states', self.on_joint_states,
+                                STREAM_READER_QOS, raw=True)
+        self.guard.subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
+        self.guard.subscription(TwistStamped, '~/delta_twist_cmds', self.on_twist, 10)
+        self.guard.subscription(JointJog, '~/delta_joint_cmds', self.on_joint_jog, 10)
+        self.guard.service(Trigger, '~/stop', self.on_stop)
+        self.guard.service(Trigger, '~/reset', self.on_reset)
         self.actions = ActionThread(self)   # the action server (its own node and thread)
 
         # Started once every attribute exists (a real-time tick runs at once and publishes a
@@ -123,10 +125,8 @@ class ControllerNode(TickLoop, DemandThread, Node):
 
     def log_start(self, limit_set: str, config: ControllerConfig) -> None:
         """Say what the controller runs with (before its threads start: no lock needed)."""
-        ticks = ''
-        if config.jog_units == 'fraction_of_max':
-            ticks = (' (whole ticks; goal tolerance '
-                     + ' '.join(f'{t:.4f}' for t in self.core.goal_tolerance) + ' rad)')
+        ticks = ('' if config.jog_units != 'fraction_of_max' else ' (whole ticks; goal tolerance '
+                 + ' '.join(f'{t:.4f}' for t in self.core.goal_tolerance) + ' rad)')
         self.get_logger().info(
             f'controller: {config.law.profile} at {config.rate:g} Hz, jog_units '
             f'{config.jog_units}{ticks}, limit_set {limit_set}; waiting for /joint_states')
