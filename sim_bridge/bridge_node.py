@@ -221,18 +221,14 @@ class SimBridgeNode(PhysicsLoop, SimControls, Node):
         except InvalidInputError as exc:
             self.rejected += 1
             self.last_rejection = str(exc)
-            self.get_logger().warning(f'/JointJog rejected: {exc}', throttle_duration_sec=1.0)
-            return
+            raise                        # refused: the guard logs and counts it
         for text in warnings:
             self.get_logger().warning(f'/JointJog speed clamped: {text}',
                                       throttle_duration_sec=1.0)
 
     def on_reset_to(self, msg: JointState) -> None:
-        """Reset to the positions of a JointState (by name; unnamed joints go home)."""
-        try:
-            self.reset_to(self.named_positions(list(msg.name), list(msg.position)))
-        except InvalidInputError as exc:
-            self.get_logger().warning(f'~/reset_to rejected: {exc}')
+        """Reset to the positions of a JointState (by name; unnamed joints go home; or refused)."""
+        self.reset_to(self.named_positions(list(msg.name), list(msg.position)))
 
     def on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Reset to ``initial_q``, at rest, commands dropped."""

@@ -9,8 +9,9 @@ its subscriptions, services, timers and parameter callbacks through it (``subscr
 server's goal and cancel callbacks). A callback that raises is then one refused input:
 
 - the reason is logged (at most once a second per source, with how many were refused since);
-- it is counted by source, and the counts, the last reason and its code are published on
-  ``~/guard`` (diagnostic_msgs/DiagnosticStatus, transient local) within a second of a change;
+- it is counted by source (the resolved topic or service name), and the counts, the last
+  reason and its code are published on ``~/guard`` (diagnostic_msgs/DiagnosticStatus,
+  transient local) once a second;
 - a service answers with ``success`` false and the reason (where its response has them), a
   parameter set is refused with it, an action goal or cancel request is rejected;
 - nothing else: the callback checks its input before it changes anything or publishes (a
@@ -35,7 +36,7 @@ from rclpy.action import CancelResponse, GoalResponse
 from rclpy.node import Node
 
 LOG_PERIOD = 1.0          # [s] at most one log line per source this often
-GUARD_STATUS_PERIOD = 1.0  # [s] ~/guard is published this often while the counts change
+GUARD_STATUS_PERIOD = 1.0  # [s] ~/guard is published this often
 
 
 class CallbackGuard:
@@ -49,7 +50,6 @@ class CallbackGuard:
         self.failed = 0              # of those, refused for an internal error (a bug)
         self.last = ('', '', '')     # (source, code, reason) of the latest refusal
         self._logged = {}            # source -> (monotonic time of its last log, refused then)
-        self._published = None       # the counts last published
         self.pub = node.create_publisher(DiagnosticStatus, '~/guard', STATUS_QOS)
         self.timer(GUARD_STATUS_PERIOD, self.publish)
         self.publish()
@@ -100,14 +100,16 @@ class CallbackGuard:
                      on: Optional[Node] = None, **kwargs: Any) -> Any:
         """Create a subscription of ``on`` (default the node) whose callback is guarded."""
         node = on or self.node
-        return node.create_subscription(msg_type, topic, self.wrap(topic, callback), qos,
+        source = node.resolve_topic_name(topic)
+        return node.create_subscription(msg_type, topic, self.wrap(source, callback), qos,
                                         **kwargs)
 
     def service(self, srv_type: type, name: str, callback: Callable,
                 on: Optional[Node] = None, **kwargs: Any) -> Any:
         """Create a service whose callback is guarded: a refusal answers with the reason."""
         node = on or self.node
-        return node.create_service(srv_type, name, self.wrap(name, callback, refused_response),
+        source = node.resolve_service_name(name)
+        return node.create_service(srv_type, name, self.wrap(source, callback, refused_response),
                                    **kwargs)
 
     def timer(self, period: float, callback: Callable, on: Optional[Node] = None,
@@ -149,11 +151,8 @@ class CallbackGuard:
         return values
 
     def publish(self) -> None:
-        """Publish ``~/guard`` when the counts changed since it was last published."""
+        """Publish ``~/guard``: the counts so far."""
         counts = (self.total(), self.failed)
-        if counts == self._published:
-            return
-        self._published = counts
         level = 'OK' if not counts[0] else 'WARN'
         text = (f'{counts[0]} inputs refused ({counts[1]} internal errors)' if counts[0]
                 else 'no input refused')

@@ -187,16 +187,13 @@ class ControllerNode(TickLoop, DemandThread, Node):
 
         Other joints (a gripper) are ignored; a missing or repeated joint or a non-finite value
         makes the states invalid with that reason: the core faults. A sample that cannot be read
-        is dropped with the reason, as rclpy drops one (the states go stale if no other comes).
+        is refused (the guard logs and counts it; the states go stale if no other comes).
         """
         now = self.now()
-        try:
-            fields = conversions.joint_state_fields_from_raw(raw, self.states_reader)
-            with self.lock:
-                self.core.on_named_joint_states(now, *fields)   # names, positions, velocities
-                self.last_q = self.core.robot.q
-        except InvalidInputError as err:
-            self.get_logger().warning(f'bad /joint_states: {err}', throttle_duration_sec=1.0)
+        fields = conversions.joint_state_fields_from_raw(raw, self.states_reader)
+        with self.lock:
+            self.core.on_named_joint_states(now, *fields)   # names, positions, velocities
+            self.last_q = self.core.robot.q
 
     def on_twist(self, msg: TwistStamped) -> None:
         """Take a jog twist (~/delta_twist_cmds) or say why not."""
@@ -208,8 +205,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         except InvalidInputError as err:
             with self.lock:
                 self.core.note_jog_refused(str(err))
-            self.get_logger().warning(f'refused ~/delta_twist_cmds: {err}',
-                                      throttle_duration_sec=1.0)
+            raise                   # refused: the guard logs and counts it
 
     def on_joint_jog(self, msg: JointJog) -> None:
         """Take a joint jog (~/delta_joint_cmds) or say why not."""
@@ -221,8 +217,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         except InvalidInputError as err:
             with self.lock:
                 self.core.note_jog_refused(str(err))
-            self.get_logger().warning(f'refused ~/delta_joint_cmds: {err}',
-                                      throttle_duration_sec=1.0)
+            raise                   # refused: the guard logs and counts it
 
     def on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Decelerate to rest and hold (std_srvs/Trigger)."""

@@ -220,7 +220,7 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
             plan_fn = prepare()
         except (Mover6Error, ValueError) as err:
             self.refuse(motion, str(err), 'invalid_goal', {}, goal)
-            return
+            raise                   # refused: the guard counts it too
         self.jobs.put((goal, motion, plan_fn, time.monotonic()))
 
     # --- status ----------------------------------------------------------------------------

@@ -67,13 +67,13 @@ def test_a_raising_subscription_callback_is_a_refused_input(harness):
     for word in ('bad', 'bug', 'bad', 'good'):
         pub.publish(String(data=word))
     assert spin_until(executor, lambda: taken == ['good'], LIMIT), (taken, guard.values())
-    assert guard.refused == {'words': 3} and guard.failed == 1
-    assert guard.last[:2] == ('words', 'invalid_input')
+    assert guard.refused == {'/words': 3} and guard.failed == 1
+    assert guard.last[:2] == ('/words', 'invalid_input')
     # ~/guard says so within a second (transient local: the latest is there).
     assert spin_until(executor, lambda: statuses and status_values(statuses[-1]).get(
         'refused') == '3', LIMIT), [status_values(s) for s in statuses]
     values = status_values(statuses[-1])
-    assert values['internal_errors'] == '1' and values['refused words'] == '3'
+    assert values['internal_errors'] == '1' and values['refused /words'] == '3'
     assert values['last_reason'] == 'bad is not a word here'
 
 
@@ -89,7 +89,7 @@ def test_a_raising_service_answers_with_the_reason(harness):
     assert spin_until(executor, future.done, LIMIT)
     assert not future.result().success
     assert future.result().message == 'refused (invalid_input): not now'
-    assert guard.refused == {'~/act': 1}
+    assert guard.refused == {'/guarded/act': 1}
 
 
 def test_a_raising_parameter_check_refuses_the_set(harness):

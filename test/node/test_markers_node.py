@@ -146,11 +146,11 @@ def test_a_malformed_goal_is_refused_and_the_node_goes_on():
         published = len(h.received)
         assert wait_until(lambda: h.goal.publish(bad) or h.markers.guard.total() >= 3, LIMIT,
                           h.spin)
-        assert h.markers.guard.refused['pose_goal'] >= 3
-        assert h.markers.guard.last[:2] == ('pose_goal', 'invalid_input')
+        assert h.markers.guard.refused['/pose_goal'] >= 3
+        assert h.markers.guard.last[:2] == ('/pose_goal', 'invalid_input')
         assert 'quaternion' in h.markers.guard.last[2], h.markers.guard.last
         assert wait_until(lambda: h.demands.publish(Float32MultiArray(data=[0.1] * 5))
-                          or 'joint_demands' in h.markers.guard.refused, LIMIT, h.spin)
+                          or '/joint_demands' in h.markers.guard.refused, LIMIT, h.spin)
         assert len(h.received) == published and h.latest('goal') == []
         good = PoseStamped()
         good.header.frame_id = 'base_link'
