@@ -34,7 +34,7 @@ from mover6_control.nodes.qos import LATCHED_QOS
 from mover6_control.parameters import MARKERS
 from mover6_control.validation import as_finite_array
 import numpy as np
-from rcl_interfaces.msg import ParameterEvent
+from rcl_interfaces.msg import ParameterEvent, ParameterValue
 from rcl_interfaces.srv import GetParameters
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
@@ -113,6 +113,14 @@ def path_marker(positions: np.ndarray) -> Marker:
     return m
 
 
+def followed_value(value: ParameterValue) -> object:
+    """Return a ``ParameterValue`` as Python; raise ``InvalidInputError`` on an unknown type."""
+    try:
+        return parameter_value_to_python(value)
+    except RuntimeError as err:         # rclpy's error for a type it does not know
+        raise InvalidInputError(f'parameter event: {err}') from None
+
+
 class MarkersNode(Node):
     """Publish the planner's world and motions as markers; see the module docstring."""
 
@@ -157,13 +165,13 @@ class MarkersNode(Node):
         if result is None or len(result.values) != len(FOLLOWED):
             return
         self.planner_answered = True
-        self.follow({n: parameter_value_to_python(v) for n, v in zip(FOLLOWED, result.values)})
+        self.follow({n: followed_value(v) for n, v in zip(FOLLOWED, result.values)})
 
     def on_event(self, msg: ParameterEvent) -> None:
         """Follow a change of the planner's table margin or keep-out boxes."""
         if msg.node.lstrip('/') != self.planner_full_name():
             return
-        changed = {p.name: parameter_value_to_python(p.value)
+        changed = {p.name: followed_value(p.value)
                    for p in list(msg.new_parameters) + list(msg.changed_parameters)
                    if p.name in FOLLOWED}
         if changed:
@@ -185,8 +193,9 @@ class MarkersNode(Node):
         new = dict(self.followed)
         for name, value in values.items():
             if name == 'keep_out_boxes':
-                keep_out_boxes(value)            # raises on a malformed list
-                new[name] = [float(v) for v in value]
+                boxes = as_finite_array(value, (None,), name)
+                keep_out_boxes(boxes)            # raises on a malformed list
+                new[name] = boxes.tolist()
             else:
                 new[name] = as_finite_array(value, (), name).item()
         self.followed = new
