@@ -13,7 +13,8 @@ server's goal and cancel callbacks). A callback that raises is then one refused 
   reason and its code are published on ``~/guard`` (diagnostic_msgs/DiagnosticStatus,
   transient local) once a second;
 - a service answers with ``success`` false and the reason (where its response has them), a
-  parameter set is refused with it, an action goal or cancel request is rejected;
+  parameter set is refused with it, an action goal or cancel request is rejected; rclpy's own
+  parameter services, made with the node, are guarded the same way when the guard is made;
 - nothing else: the callback checks its input before it changes anything or publishes (a
   message is converted and validated where it enters), so a refused input changes nothing.
 
@@ -51,6 +52,10 @@ class CallbackGuard:
         self.last = ('', '', '')     # (source, code, reason) of the latest refusal
         self._logged = {}            # source -> (monotonic time of its last log, refused then)
         self.pub = node.create_publisher(DiagnosticStatus, '~/guard', STATUS_QOS)
+        # rclpy's own services (the parameter services made with the node): a SetParameters
+        # whose value has an unknown type raised ValueError in them and ended the node.
+        for service in node.services:
+            service.callback = self.wrap(service.service_name, service.callback, refused_response)
         self.timer(GUARD_STATUS_PERIOD, self.publish)
         self.publish()
 
@@ -160,11 +165,21 @@ class CallbackGuard:
 
 
 def refused_response(code: str, reason: str, request: Any, response: Any) -> Any:
-    """Return a service's response after a refusal: ``success`` false, ``message`` why."""
+    """
+    Return a service's response after a refusal: ``success`` false, ``message`` why.
+
+    A parameter set (SetParameters, SetParametersAtomically) answers each parameter refused.
+    """
+    text = f'refused ({code}): {reason}'
     if hasattr(response, 'success'):
         response.success = False
     if hasattr(response, 'message'):
-        response.message = f'refused ({code}): {reason}'
+        response.message = text
+    if hasattr(response, 'results') and hasattr(request, 'parameters'):
+        response.results = [SetParametersResult(successful=False, reason=text)
+                            for _ in request.parameters]
+    if hasattr(response, 'result') and hasattr(request, 'parameters'):
+        response.result = SetParametersResult(successful=False, reason=text)
     return response
 
 

@@ -18,6 +18,8 @@ from mover6_control.nodes.callback_guard import CallbackGuard  # noqa: E402
 from mover6_control.nodes.conversions import status_values  # noqa: E402
 from mover6_control.nodes.qos import STATUS_READER_QOS  # noqa: E402
 import pytest  # noqa: E402
+from rcl_interfaces.msg import Parameter as RosParameter, ParameterValue  # noqa: E402
+from rcl_interfaces.srv import SetParameters  # noqa: E402
 import rclpy  # noqa: E402
 from rclpy.experimental.events_executor import EventsExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
@@ -104,3 +106,27 @@ def test_a_raising_parameter_check_refuses_the_set(harness):
     assert result.reason == 'refused (internal_error): ZeroDivisionError: division by zero'
     assert node.get_parameter('gain').value == 1.0
     assert guard.failed == 1
+
+
+def test_rclpy_s_own_parameter_service_refuses_an_unknown_type(harness):
+    """
+    A SetParameters whose value has type 255 raised ValueError in rclpy and ended the node.
+
+    Found by the generated requests of test_e2e_hostile: every node of the stack died of it.
+    """
+    node, guard, tester, executor = harness
+    node.declare_parameter('gain', 1.0)
+    client = tester.create_client(SetParameters, '/guarded/set_parameters')
+    assert spin_until(executor, client.service_is_ready, LIMIT)
+    odd = RosParameter(name='gain', value=ParameterValue(type=255, double_value=2.0))
+    future = client.call_async(SetParameters.Request(parameters=[odd, odd]))
+    assert spin_until(executor, future.done, LIMIT)
+    results = future.result().results
+    assert [r.successful for r in results] == [False, False]
+    assert results[0].reason.startswith('refused (internal_error): ValueError: 255')
+    assert node.get_parameter('gain').value == 1.0
+    assert guard.refused == {'/guarded/set_parameters': 1}
+    future = client.call_async(SetParameters.Request(parameters=[
+        Parameter('gain', value=3.0).to_parameter_msg()]))
+    assert spin_until(executor, future.done, LIMIT)
+    assert future.result().results[0].successful and node.get_parameter('gain').value == 3.0
