@@ -274,7 +274,7 @@ def test_every_service_survives_generated_requests(stack, client):
                 wrong.append((node_name, name, str(err)[:120]))
         changed = [Parameter(n, value=values[n]) for n in values if not same(values[n], now[n])]
         if changed:
-            print(f'{node_name}: generated requests set {[(p.name, now[p.name]) for p in changed]}')
+            print(f'{node_name}: the requests set {[(p.name, now[p.name]) for p in changed]}')
             results = done(node, params.set_parameters(changed)).results
             assert all(r.successful for r in results), [r.reason for r in results]
     assert not wrong, wrong
