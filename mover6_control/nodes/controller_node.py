@@ -54,6 +54,7 @@ from mover6_control.nodes.node_clock import now_ns
 from mover6_control.nodes.node_configs import collision_settings, config_from_parameters
 from mover6_control.nodes.plan_worker import PlanWorker
 from mover6_control.nodes.qos import STATUS_QOS, STREAM_READER_QOS
+from mover6_control.nodes.states_sources import StatesSources
 from mover6_control.parameters import CONTROLLER
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -85,8 +86,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.apply_collision_parameters()
         self.joint_names = list(self.core.arm.joint_names)
         self.status_period = 1.0 / max(self.get_parameter('status_rate').value, 1e-3)
-        self.last_status = None
-        self.last_state = None           # the core's state after the latest tick
+        self.last_status = self.last_state = None   # the core's state after the latest tick
         self.has_states = threading.Event()  # set while the core has valid states
         self.last_tick = None            # node clock [ns] of the latest tick
         self.max_tick_gap = self.max_states_age = 0.0   # [s] so far (tick_figures)
@@ -111,6 +111,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.guard.subscription(JointJog, '~/delta_joint_cmds', self.on_joint_jog, 10)
         self.guard.service(Trigger, '~/stop', self.on_stop)
         self.guard.service(Trigger, '~/reset', self.on_reset)
+        self.sources = StatesSources(self, 'joint_states')   # a second publisher: hold
         self.actions = ActionThread(self)   # the action server (its own node and thread)
 
         # Started once every attribute exists (a real-time tick runs at once and publishes a

@@ -145,6 +145,8 @@ def fuzz(client, topic, type_name, seed):
         pub.publish(msg)
         sent += 1
         rclpy.spin_once(client, timeout_sec=0.001)   # the probe's own callbacks meanwhile
+    # Gone once its stream is sent: a second /joint_states publisher holds the controller.
+    client.destroy_publisher(pub)
     return sent
 
 
