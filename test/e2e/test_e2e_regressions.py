@@ -8,10 +8,14 @@ The sim bridge, the controller and the planner as processes with their shipped p
   publishers; once the rogue is gone it takes the states again and a goal arrives.
 - A parameter set during a motion is never applied mid-motion: the motion keeps its profile
   and the set applies to the next motion.
+- A cancel of a 10,000-point FollowJointTrajectory goal while the controller still plans it:
+  the goal ends canceled, the arm at rest short of its end, and the next goal arrives.
 """
 
 import time
 
+from action_msgs.msg import GoalStatus
+from control_msgs.action import FollowJointTrajectory
 from control_msgs.msg import JointJog
 from mover6_control.control.status import StatusKey
 from mover6_control.nodes.demand_messages import make_demands
@@ -19,10 +23,12 @@ from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import pytest
 import rclpy
+from rclpy.action import ActionClient
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from ros_testing import ready_client, Stack, wait_until
 from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectoryPoint
 
 pytestmark = pytest.mark.e2e
 NAMES = [f'joint{k}' for k in range(1, 7)]
@@ -98,3 +104,29 @@ def test_a_parameter_set_during_a_motion_applies_after_it(stack, client):
     assert client.values(client.controller_status).get(StatusKey.MOTION_PROFILE) == \
         'trapezoidal'
     done(params.set_parameters([Parameter('profile', value=profile)]))
+
+
+def test_a_cancel_while_a_large_goal_is_planned_stops_it(stack, client):
+    action = ActionClient(client, FollowJointTrajectory, '/controller/follow_joint_trajectory')
+    assert action.wait_for_server(timeout_sec=20.0)
+
+    def done(future, timeout=60.0):
+        assert wait_until(future.done, timeout, lambda t: rclpy.spin_once(client, timeout_sec=t))
+        return future.result()
+    q0 = client.q.copy()
+    end = q0 + np.array([0.8, 0.0, 0.0, 0.0, 0.0, 0.0])
+    goal = FollowJointTrajectory.Goal()
+    goal.trajectory.joint_names = NAMES
+    goal.trajectory.points = [JointTrajectoryPoint(positions=[float(v) for v in q])
+                              for q in np.linspace(q0, end, 10000)]
+    handle = done(action.send_goal_async(goal))
+    assert handle.accepted
+    done(handle.cancel_goal_async())               # at once: the goal is still being planned
+    response = done(handle.get_result_async(), 120.0)
+    assert response.status == GoalStatus.STATUS_CANCELED, response.result.error_string
+    assert client.spin_until(lambda: state(client) == 'idle', 30.0), client.controller_status
+    q_stop = client.q.copy()
+    assert np.abs(q_stop - end).max() > 0.1, q_stop            # stopped short of its end
+    outcome = client.send_joints([np.full(6, 0.05)], timeout=60.0)
+    assert outcome.arrived, f'{outcome}\n{stack.report()}'
+    action.destroy()
