@@ -356,7 +356,12 @@ case "$cmd" in
             log "pytest wrote no results: the test run did not happen (see $WS/log)"
             exit 1
         fi
-        colcon test-result --test-result-base "$WS/build/mover6_control" --verbose
+        rc=0
+        colcon test-result --test-result-base "$WS/build/mover6_control" --verbose || rc=$?
+        # Skips that say so: every skipped test with its reason, by tier; a tier that skips more
+        # than test/skips_allowed.json (a whole run's counts) fails the run.
+        python "$ROOT/test/skip_budget.py" "$WS/build/mover6_control/pytest.xml" || rc=1
+        exit "$rc"
         ;;
     demo)
         ensure

@@ -16,6 +16,10 @@ launch.sh), the markers node, and RViz with rviz/mover6.rviz on ``rviz:=true``:
     ros2 launch mover6_control mover6.launch.py hardware:=can can_interface:=socketcan \
         can_channel:=can0
 
+Essential nodes (the arm, the driver, the controller) end the launch when they exit; helpers
+(planner, state publisher, markers, RViz) are started again (``role``, from the one table
+``mover6_control.node_roles``, which scripts/launch.sh reads too).
+
 ``hardware``: ``sim`` (default) runs sim_bridge; ``can_sim`` runs the CAN-level Mover6
 (``can_sim``) on a pty and, once it is up, the driver on that pty, enabled at start; ``can``
 runs the driver on ``can_interface`` / ``can_channel`` (default the CPR USB2CAN adapter on
@@ -40,13 +44,14 @@ import tempfile
 from ament_index_python.packages import get_package_prefix, PackageNotFoundError
 from launch import LaunchDescription
 from launch.actions import (DeclareLaunchArgument, ExecuteProcess, LogInfo, OpaqueFunction,
-                            RegisterEventHandler, SetEnvironmentVariable)
+                            RegisterEventHandler, SetEnvironmentVariable, Shutdown)
 from launch.conditions import IfCondition
 from launch.event_handlers import OnProcessIO, OnShutdown
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution, PythonExpression
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
+from mover6_control.node_roles import is_essential, RESTART_DELAY
 from mover6_control.nodes import local_dds
 from mover6_control.nodes.names import check_namespace
 from mover6_control.parameters import CONTROLLER
@@ -57,6 +62,18 @@ STATE_TIMEOUT = {'sim': str(CONTROLLER['state_timeout'].default), 'can_sim': '0.
 # Every node in the ``namespace`` argument; TF frames prefixed with it (/arm1 -> arm1/).
 NAMESPACE = LaunchConfiguration('namespace')
 TF_PREFIX = PythonExpression(["(lambda n: n + '/' if n else '')('", NAMESPACE, "'.strip('/'))"])
+
+
+def role(name):
+    """
+    Return the launch keywords of a node by its kind: essential or helper (node_roles).
+
+    A helper is started again ``RESTART_DELAY`` after it exits (launch_ros's respawn; launch.sh
+    doubles the delay each time); an essential node's exit ends the launch, every node with it.
+    """
+    if is_essential(name):
+        return {'on_exit': Shutdown(reason=f'{name} exited: an essential node, the stack stops')}
+    return {'respawn': True, 'respawn_delay': float(RESTART_DELAY)}
 
 
 def config_file(name):
@@ -83,14 +100,14 @@ def robot_state_publisher(context):
         return [LogInfo(msg="robot_state_publisher is not installed: the package's own "
                             'state_publisher publishes /robot_description and /tf'),
                 Node(package=PACKAGE, executable='state_publisher', name='state_publisher',
-                     output='screen', namespace=NAMESPACE,
+                     output='screen', namespace=NAMESPACE, **role('state_publisher'),
                      parameters=[LaunchConfiguration('state_publisher_params'),
                                  {'frame_prefix': TF_PREFIX}],
                      ros_arguments=extra_ros_args('MOVER6_STATE_PUBLISHER_ARGS'))]
     with open(urdf) as f:
         description = ParameterValue(f.read(), value_type=str)    # a string, not YAML
     return [Node(package='robot_state_publisher', executable='robot_state_publisher',
-                 output='screen', namespace=NAMESPACE,
+                 output='screen', namespace=NAMESPACE, **role('robot_state_publisher'),
                  parameters=[{'robot_description': description, 'frame_prefix': TF_PREFIX}])]
 
 
@@ -109,7 +126,7 @@ def driver(can_interface, can_channel, enable_on_start):
     """Return the driver node on ``can_interface`` / ``can_channel``."""
     return Node(
         package=PACKAGE, executable='driver', name='driver', output='screen',
-        namespace=NAMESPACE,
+        namespace=NAMESPACE, **role('driver'),
         parameters=[LaunchConfiguration('driver_params'),
                     {'can_interface': can_interface, 'can_channel': can_channel,
                      'jog_units': LaunchConfiguration('jog_units'),
@@ -137,7 +154,7 @@ def hardware_nodes(context):
     can_sim = ExecuteProcess(
         cmd=[os.path.join(get_package_prefix(PACKAGE), 'lib', PACKAGE, 'can_sim'), '--link',
              link] + shlex.split(os.environ.get('MOVER6_CAN_SIM_ARGS', '')),
-        name='can_sim', output='screen')
+        name='can_sim', output='screen', **role('can_sim'))
     started = []
 
     def on_output(event):
@@ -223,14 +240,14 @@ def generate_launch_description():
         OpaqueFunction(function=local_dds_environment),
         Node(
             package=PACKAGE, executable='sim_bridge', name='sim_bridge', output='screen',
-            namespace=NAMESPACE,
+            namespace=NAMESPACE, **role('sim_bridge'),
             condition=IfCondition(with_sim),
             parameters=[LaunchConfiguration('sim_bridge_params'),
                         {'limit_set': limit_set, 'mode': sim_mode}],
             ros_arguments=extra_ros_args('MOVER6_SIM_ARGS')),
         Node(
             package=PACKAGE, executable='controller', name='controller', output='screen',
-            namespace=NAMESPACE,
+            namespace=NAMESPACE, **role('controller'),
             parameters=[LaunchConfiguration('controller_params'),
                         {'profile': profile, 'jog_units': jog_units, 'limit_set': limit_set,
                          'state_timeout': ParameterValue(state_timeout, value_type=float),
@@ -238,17 +255,17 @@ def generate_launch_description():
             ros_arguments=extra_ros_args('MOVER6_CONTROLLER_ARGS')),
         Node(
             package=PACKAGE, executable='planner', name='planner', output='screen',
-            namespace=NAMESPACE,
+            namespace=NAMESPACE, **role('planner'),
             parameters=[LaunchConfiguration('planner_params'),
                         {'profile': profile, 'limit_set': limit_set}],
             ros_arguments=extra_ros_args('MOVER6_PLANNER_ARGS')),
         Node(
             package=PACKAGE, executable='markers', name='markers', output='screen',
-            namespace=NAMESPACE,
+            namespace=NAMESPACE, **role('markers'),
             parameters=[LaunchConfiguration('markers_params'), {'frame_prefix': TF_PREFIX}],
             ros_arguments=extra_ros_args('MOVER6_MARKERS_ARGS')),
         Node(
-            package='rviz2', executable='rviz2', name='rviz2', output='screen',
+            package='rviz2', executable='rviz2', name='rviz2', output='screen', **role('rviz2'),
             condition=IfCondition(LaunchConfiguration('rviz')),
             arguments=['-d', PathJoinSubstitution([FindPackageShare(PACKAGE), 'rviz',
                                                    'mover6.rviz'])]),

@@ -39,11 +39,15 @@ REASONS = {
 
 
 class Mover6Error(Exception):
-    """Base of every exception the core raises on purpose."""
+    """Base of every exception the core raises on purpose; ``code`` says which kind."""
+
+    code = 'refused'
 
 
 class InvalidInputError(Mover6Error, ValueError):
     """An argument has the wrong shape, a non-finite value or an out-of-range setting."""
+
+    code = 'invalid_input'
 
 
 class UnreachableError(Mover6Error, ValueError):
@@ -53,4 +57,15 @@ class UnreachableError(Mover6Error, ValueError):
                  details: dict | None = None) -> None:
         super().__init__(message)
         self.reason = reason
+        self.code = reason
         self.details = dict(details or {})
+
+
+def error_code(err: BaseException) -> str:
+    """
+    Return the code of ``err``: its ``code`` for a ``Mover6Error``, else ``internal_error``.
+
+    What a caller branches on (never the error's text): an exception that is no ``Mover6Error``
+    was not raised on purpose, a bug of the input checks.
+    """
+    return err.code if isinstance(err, Mover6Error) else 'internal_error'

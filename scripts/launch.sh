@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Start the mover6_control nodes (the arm: sim_bridge or the CAN driver; controller, planner; the
 # state publisher: /robot_description, /tf) and keep them running until Ctrl-C. Stops all of them
-# on exit, on Ctrl-C / SIGTERM, and as soon as one dies.
+# on exit, on Ctrl-C / SIGTERM, and as soon as an essential node (the arm, the driver, the
+# controller) dies; a helper that dies (planner, state publisher, markers, RViz) is reported and
+# started again after a back-off delay, the arm going on (mover6_control/node_roles.py).
 #
 # Usage: scripts/launch.sh [--hardware H] [--can-interface I] [--can-channel C] [--no-sim]
 #                          [--profile P] [--jog-units U] [--limit-set L] [--log-dir DIR] [--rviz]
@@ -72,7 +74,7 @@ while [ $# -gt 0 ]; do
         --hardware) hardware=${2:-}; shift ;;
         --can-interface) can_interface=${2:-}; shift ;;
         --can-channel) can_channel=${2:-}; shift ;;
-        -h | --help) sed -n '2,32p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h | --help) sed -n '2,37p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "launch.sh: unknown argument '$1'" >&2; exit 2 ;;
     esac
     shift
@@ -116,6 +118,10 @@ prefix=$(python3 -c 'from ament_index_python.packages import get_package_prefix 
 dds=$(python3 -m mover6_control.nodes.local_dds env) || exit 1
 eval "$dds"
 bin="$prefix/lib/mover6_control"
+# Which nodes are essential (their exit stops the stack) and which are helpers (started again
+# with back-off): the one table, mover6_control/node_roles.py.
+roles=$(python3 -m mover6_control.node_roles shell) || exit 1
+eval "$roles"
 # The namespace, checked by ROS's naming rules, and its TF frame prefix (/arm1 -> arm1/).
 checked=$(python3 -m mover6_control.nodes.names "$namespace") || exit 2
 read -r namespace tf_prefix <<<"$checked"
@@ -126,6 +132,7 @@ share="$prefix/share/mover6_control/config"
 
 pids=()
 names=()
+declare -A cmd_of since_of restarts_of    # per node: its command line, start time, restarts
 tmp_dir=''
 start_can_sim() {
     # The CAN-level Mover6 on a pty linked at $can_channel; wait until the link is there.
@@ -152,21 +159,53 @@ start_can_sim() {
     echo "launch.sh: can_sim did not open $can_channel" >&2
     exit 1
 }
+run() {
+    # run NAME: run NAME's command line (cmd_of) in the background; LAST_PID gets its pid.
+    local name=$1
+    if [ -n "$log_dir" ]; then
+        eval "${cmd_of[$name]}"' > >(tee -a "$log_dir/$name.log") 2>&1 &'
+    else
+        eval "${cmd_of[$name]}"' &'
+    fi
+    LAST_PID=$!
+    since_of[$name]=$SECONDS
+}
+start_command() {
+    # start_command NAME COMMAND...: start a node (or RViz) and keep its command for a restart
+    local name=$1
+    shift
+    cmd_of[$name]=$(printf '%q ' "$@")
+    [ -n "$log_dir" ] && : >"$log_dir/$name.log"
+    run "$name"
+    pids+=("$LAST_PID")
+    names+=("$name")
+    echo "launch.sh: started $name (pid $LAST_PID)" >&2
+}
 start() {
     # start NAME EXECUTABLE [ros args...]
     local name=$1 exe=$2
     shift 2
     local params=()
     [ -f "$share/$name.yaml" ] && params=(--params-file "$share/$name.yaml")
-    if [ -n "$log_dir" ]; then
-        "$bin/$exe" --ros-args "${params[@]}" "${ns_args[@]}" "$@" \
-            > >(tee "$log_dir/$name.log") 2>&1 &
-    else
-        "$bin/$exe" --ros-args "${params[@]}" "${ns_args[@]}" "$@" &
-    fi
-    pids+=($!)
-    names+=("$name")
-    echo "launch.sh: started $name (pid $!)" >&2
+    start_command "$name" "$bin/$exe" --ros-args "${params[@]}" "${ns_args[@]}" "$@"
+}
+restart() {
+    # restart INDEX: start the helper pids[INDEX] again after its back-off delay (node_roles)
+    local i=$1 name=${names[$1]} rc=$2
+    local ran=$(( SECONDS - ${since_of[$name]} )) n delay=$RESTART_DELAY
+    [ "$ran" -ge "$STEADY_RUN" ] && restarts_of[$name]=0
+    n=${restarts_of[$name]:-0}
+    for (( k = 0; k < n; k++ )); do
+        delay=$(( 2 * delay > MAX_RESTART_DELAY ? MAX_RESTART_DELAY : 2 * delay ))
+    done
+    restarts_of[$name]=$(( n + 1 ))
+    echo "launch.sh: $name exited (code $rc) after $ran s; a helper: the arm and the" \
+         "controller go on, $name starts again in $delay s" >&2
+    sleep "$delay" &
+    wait $!
+    run "$name"
+    pids[$i]=$LAST_PID
+    echo "launch.sh: started $name (pid $LAST_PID) again, restart $(( n + 1 ))" >&2
 }
 
 stopping=0
@@ -214,21 +253,22 @@ start state_publisher state_publisher -p "frame_prefix:='$tf_prefix'" \
 # The goal, the planned tool path, the table and the keep-out boxes on /markers.
 # shellcheck disable=SC2086
 start markers markers -p "frame_prefix:='$tf_prefix'" ${MOVER6_MARKERS_ARGS:-}
-if [ "$rviz" = 1 ]; then
-    "$(command -v rviz2)" -d "$prefix/share/mover6_control/rviz/mover6.rviz" &
-    pids+=($!)
-    names+=(rviz2)
-    echo "launch.sh: started rviz2 (pid $!)" >&2
-fi
+[ "$rviz" = 1 ] && start_command rviz2 "$(command -v rviz2)" \
+    -d "$prefix/share/mover6_control/rviz/mover6.rviz"
 
-# Wait until any node exits; then stop the rest and report which one it was.
-wait -n "${pids[@]}"
-rc=$?
-for i in "${!pids[@]}"; do
-    if ! kill -0 "${pids[$i]}" 2>/dev/null; then
+# Wait until a node exits. An essential one stops the rest (reported); a helper is reported and
+# started again after its back-off delay, the others going on.
+while true; do
+    wait -n "${pids[@]}"
+    rc=$?
+    for i in "${!pids[@]}"; do
+        kill -0 "${pids[$i]}" 2>/dev/null && continue
+        if [[ " $HELPERS " == *" ${names[$i]} "* ]]; then
+            restart "$i" "$rc"
+            continue 2
+        fi
         echo "launch.sh: ${names[$i]} exited (code $rc); stopping the others" >&2
-        break
-    fi
+        stop_all
+        exit $(( rc == 0 ? 1 : rc ))
+    done
 done
-stop_all
-exit $(( rc == 0 ? 1 : rc ))

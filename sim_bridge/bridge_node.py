@@ -43,6 +43,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import LIMIT_SETS, load_urdf, mover6
 from mover6_control.nodes import cdr, conversions, params, shutdown
+from mover6_control.nodes.callback_guard import CallbackGuard
 from mover6_control.nodes.qos import STATUS_QOS, STREAM_READER_QOS
 from mover6_control.parameters import SIM_BRIDGE
 import numpy as np
@@ -73,9 +74,10 @@ class SimBridgeNode(PhysicsLoop, SimControls, Node):
     def __init__(self, **kwargs):
         """Declare the parameters, build the simulator, start the physics thread."""
         super().__init__('sim_bridge', **kwargs)
+        self.guard = CallbackGuard(self)     # no callback ends the node (bad input: refused)
         # Refuses invalid values, each and as the simulator's config, at start and later.
-        params.declare(self, SIM_BRIDGE, sim_config_from_parameters)
-        self.add_post_set_parameters_callback(self.on_parameters_set)
+        params.declare(self, SIM_BRIDGE, sim_config_from_parameters, guard=self.guard)
+        self.guard.after_set(self.on_parameters_set)
         self._reanchor = False           # real_time_factor changed: pace from now on
         p = {name: self.get_parameter(name).value for name in SIM_BRIDGE}
         self.arm = self._make_arm(p['limit_set'], p['urdf_path'])
@@ -123,12 +125,12 @@ class SimBridgeNode(PhysicsLoop, SimControls, Node):
         self._status_mark = None         # (wall, sim) time of the last ~/status
         self.clock_pub = (self.create_publisher(Clock, 'clock', 10)
                           if self.publish_clock else None)
-        self.create_subscription(JointJog, 'JointJog', self.on_joint_jog, STREAM_READER_QOS,
-                                 raw=True)
-        self.create_subscription(JointState, '~/reset_to', self.on_reset_to, 10)
-        self.create_service(Trigger, '~/reset', self.on_reset)
-        self.create_service(SetBool, '~/pause', self.on_pause)
-        self.create_service(Trigger, '~/step', self.on_step)
+        self.guard.subscription(JointJog, 'JointJog', self.on_joint_jog, STREAM_READER_QOS,
+                                raw=True)
+        self.guard.subscription(JointState, '~/reset_to', self.on_reset_to, 10)
+        self.guard.service(Trigger, '~/reset', self.on_reset)
+        self.guard.service(SetBool, '~/pause', self.on_pause)
+        self.guard.service(Trigger, '~/step', self.on_step)
 
         self.viewer = self._open_viewer() if p['viewer'] else None
         self.thread = threading.Thread(target=self._run, name='sim_bridge_physics', daemon=True)
@@ -219,18 +221,14 @@ class SimBridgeNode(PhysicsLoop, SimControls, Node):
         except InvalidInputError as exc:
             self.rejected += 1
             self.last_rejection = str(exc)
-            self.get_logger().warning(f'/JointJog rejected: {exc}', throttle_duration_sec=1.0)
-            return
+            raise                        # refused: the guard logs and counts it
         for text in warnings:
             self.get_logger().warning(f'/JointJog speed clamped: {text}',
                                       throttle_duration_sec=1.0)
 
     def on_reset_to(self, msg: JointState) -> None:
-        """Reset to the positions of a JointState (by name; unnamed joints go home)."""
-        try:
-            self.reset_to(self.named_positions(list(msg.name), list(msg.position)))
-        except InvalidInputError as exc:
-            self.get_logger().warning(f'~/reset_to rejected: {exc}')
+        """Reset to the positions of a JointState (by name; unnamed joints go home; or refused)."""
+        self.reset_to(self.named_positions(list(msg.name), list(msg.position)))
 
     def on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Reset to ``initial_q``, at rest, commands dropped."""

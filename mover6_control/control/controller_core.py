@@ -163,6 +163,10 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
         """
         self.robot.measure(now, names, positions, velocities)
 
+    def distrust_states(self, now: float, reason: str, hold: float) -> None:
+        """Refuse the joint states for ``hold`` [s] from ``now`` for ``reason``: fault, hold."""
+        self.robot.conflict = (float(now) + float(hold), str(reason))
+
     def request_stop(self, now: float) -> tuple[bool, str]:
         """Decelerate to rest and hold; return ``(True, message)`` or why nothing moved."""
         if self.core_state.state not in (sm.EXECUTING, sm.SETTLING, sm.JOGGING):

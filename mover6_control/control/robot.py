@@ -69,6 +69,7 @@ class Robot:
         self.t_states = None             # [s] when the latest valid states came (None: none)
         self.n_states = 0                # valid states taken so far
         self.invalid_reason = None       # why the latest states were refused (None: valid)
+        self.conflict = None             # (until [s], why): the states are not to be trusted
         self.plan = None                 # the running MotionPlan (None: none)
         self.t_plan = 0.0                # [s] when it started
         self.reference = None            # (q_ref, qd_ref) followed at the last command
@@ -247,6 +248,8 @@ class Robot:
         """Return why the states cannot be used at ``now`` [s] (invalid, or stale), or None."""
         if self.invalid_reason is not None:
             return f'invalid /joint_states: {self.invalid_reason}'
+        if self.conflict is not None and now < self.conflict[0]:
+            return self.conflict[1]
         if self.t_states is not None and now - self.t_states > timeout:
             return (f'/joint_states stale: last valid {now - self.t_states:.3f} s ago '
                     f'(timeout {timeout} s)')

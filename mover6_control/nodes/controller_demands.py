@@ -133,7 +133,9 @@ class DemandThread:
         except Exception as err:  # noqa: B902 - no demand is dropped without a status
             reason = str(err) if isinstance(err, Mover6Error) else f'{type(err).__name__}: {err}'
             reason = short_text(reason)   # hostile demands quote little
-            self.get_logger().warning(f'rejected /joint_demands: {reason}')
+            # Logged once a second and counted on ~/guard by source, as any refused input.
+            self.guard.refuse('follow_joint_trajectory' if goal_id.startswith('fjt-')
+                              else self.resolve_topic_name('joint_demands'), err)
             with self.lock:
                 if goal_id:
                     self.goals.refused(goal_id, reason)

@@ -45,6 +45,7 @@ from mover6_control.control.status import StatusKey
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes import cdr, conversions, params, shutdown
+from mover6_control.nodes.callback_guard import CallbackGuard
 from mover6_control.nodes.controller_actions import ActionThread
 from mover6_control.nodes.controller_demands import DemandThread
 from mover6_control.nodes.controller_ticks import TickLoop
@@ -53,6 +54,7 @@ from mover6_control.nodes.node_clock import now_ns
 from mover6_control.nodes.node_configs import collision_settings, config_from_parameters
 from mover6_control.nodes.plan_worker import PlanWorker
 from mover6_control.nodes.qos import STATUS_QOS, STREAM_READER_QOS
+from mover6_control.nodes.states_sources import StatesSources
 from mover6_control.parameters import CONTROLLER
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -71,11 +73,12 @@ class ControllerNode(TickLoop, DemandThread, Node):
     def __init__(self, **kwargs):
         """Declare the parameters, build the core, start the topics, services and threads."""
         super().__init__('controller', **kwargs)
+        self.guard = CallbackGuard(self)     # no callback ends the node (bad input: refused)
         # Refuses invalid values, each and as a whole config (check_config), before a set is
         # accepted; an accepted set is handed to the core (at once, or after the motion).
-        params.declare(self, CONTROLLER, self.check_config)
+        params.declare(self, CONTROLLER, self.check_config, guard=self.guard)
         limit_set, config = config_from_parameters(lambda n: self.get_parameter(n).value)
-        self.add_post_set_parameters_callback(self.on_parameters_set)
+        self.guard.after_set(self.on_parameters_set)
         self.lock = threading.RLock()        # the core's state and the goal ledger
         self.status_lock = threading.Lock()  # one status publication at a time (before lock)
         self.core = ControllerCore(mover6(limit_set), config)
@@ -83,8 +86,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.apply_collision_parameters()
         self.joint_names = list(self.core.arm.joint_names)
         self.status_period = 1.0 / max(self.get_parameter('status_rate').value, 1e-3)
-        self.last_status = None
-        self.last_state = None           # the core's state after the latest tick
+        self.last_status = self.last_state = None   # the core's state after the latest tick
         self.has_states = threading.Event()  # set while the core has valid states
         self.last_tick = None            # node clock [ns] of the latest tick
         self.max_tick_gap = self.max_states_age = 0.0   # [s] so far (tick_figures)
@@ -102,13 +104,14 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.jog_pub = self.create_publisher(JointJog, 'JointJog', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'controller/status',
                                                 STATUS_QOS)
-        self.create_subscription(JointState, 'joint_states', self.on_joint_states,
-                                 STREAM_READER_QOS, raw=True)
-        self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
-        self.create_subscription(TwistStamped, '~/delta_twist_cmds', self.on_twist, 10)
-        self.create_subscription(JointJog, '~/delta_joint_cmds', self.on_joint_jog, 10)
-        self.create_service(Trigger, '~/stop', self.on_stop)
-        self.create_service(Trigger, '~/reset', self.on_reset)
+        self.guard.subscription(JointState, 'joint_states', self.on_joint_states,
+                                STREAM_READER_QOS, raw=True)
+        self.guard.subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
+        self.guard.subscription(TwistStamped, '~/delta_twist_cmds', self.on_twist, 10)
+        self.guard.subscription(JointJog, '~/delta_joint_cmds', self.on_joint_jog, 10)
+        self.guard.service(Trigger, '~/stop', self.on_stop)
+        self.guard.service(Trigger, '~/reset', self.on_reset)
+        self.sources = StatesSources(self, 'joint_states')   # a second publisher: hold
         self.actions = ActionThread(self)   # the action server (its own node and thread)
 
         # Started once every attribute exists (a real-time tick runs at once and publishes a
@@ -123,10 +126,8 @@ class ControllerNode(TickLoop, DemandThread, Node):
 
     def log_start(self, limit_set: str, config: ControllerConfig) -> None:
         """Say what the controller runs with (before its threads start: no lock needed)."""
-        ticks = ''
-        if config.jog_units == 'fraction_of_max':
-            ticks = (' (whole ticks; goal tolerance '
-                     + ' '.join(f'{t:.4f}' for t in self.core.goal_tolerance) + ' rad)')
+        ticks = ('' if config.jog_units != 'fraction_of_max' else ' (whole ticks; goal tolerance '
+                 + ' '.join(f'{t:.4f}' for t in self.core.goal_tolerance) + ' rad)')
         self.get_logger().info(
             f'controller: {config.law.profile} at {config.rate:g} Hz, jog_units '
             f'{config.jog_units}{ticks}, limit_set {limit_set}; waiting for /joint_states')
@@ -187,16 +188,13 @@ class ControllerNode(TickLoop, DemandThread, Node):
 
         Other joints (a gripper) are ignored; a missing or repeated joint or a non-finite value
         makes the states invalid with that reason: the core faults. A sample that cannot be read
-        is dropped with the reason, as rclpy drops one (the states go stale if no other comes).
+        is refused (the guard logs and counts it; the states go stale if no other comes).
         """
         now = self.now()
-        try:
-            fields = conversions.joint_state_fields_from_raw(raw, self.states_reader)
-            with self.lock:
-                self.core.on_named_joint_states(now, *fields)   # names, positions, velocities
-                self.last_q = self.core.robot.q
-        except InvalidInputError as err:
-            self.get_logger().warning(f'bad /joint_states: {err}', throttle_duration_sec=1.0)
+        fields = conversions.joint_state_fields_from_raw(raw, self.states_reader)
+        with self.lock:
+            self.core.on_named_joint_states(now, *fields)   # names, positions, velocities
+            self.last_q = self.core.robot.q
 
     def on_twist(self, msg: TwistStamped) -> None:
         """Take a jog twist (~/delta_twist_cmds) or say why not."""
@@ -208,8 +206,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         except InvalidInputError as err:
             with self.lock:
                 self.core.note_jog_refused(str(err))
-            self.get_logger().warning(f'refused ~/delta_twist_cmds: {err}',
-                                      throttle_duration_sec=1.0)
+            raise                   # refused: the guard logs and counts it
 
     def on_joint_jog(self, msg: JointJog) -> None:
         """Take a joint jog (~/delta_joint_cmds) or say why not."""
@@ -221,8 +218,7 @@ class ControllerNode(TickLoop, DemandThread, Node):
         except InvalidInputError as err:
             with self.lock:
                 self.core.note_jog_refused(str(err))
-            self.get_logger().warning(f'refused ~/delta_joint_cmds: {err}',
-                                      throttle_duration_sec=1.0)
+            raise                   # refused: the guard logs and counts it
 
     def on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Decelerate to rest and hold (std_srvs/Trigger)."""

@@ -41,10 +41,8 @@ class JogInput:
             self.refused += 1
             self.refused_by[err.reason] = self.refused_by.get(err.reason, 0) + 1
             self.last_refusal = str(err)[:200]
-            self.get_logger().warning(f'JointJog refused: {self.last_refusal}',
-                                      throttle_duration_sec=1.0)
             self._notify()
-            return
+            raise                       # refused: the node's guard logs and counts it
         self.clipped += clipped
         if self._jog_pending:
             self.superseded += 1

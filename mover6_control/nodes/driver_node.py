@@ -44,6 +44,7 @@ from mover6_control.hardware.bus import open_bus, open_frame_log
 from mover6_control.hardware.driver import ArmDriver
 from mover6_control.hardware.scaling import JOINTS_YAML, load_joints
 from mover6_control.nodes import shutdown
+from mover6_control.nodes.callback_guard import CallbackGuard
 from mover6_control.nodes.driver_jog import JogInput
 from mover6_control.nodes.driver_publish import ReportPublisher
 from mover6_control.nodes.params import declare
@@ -66,8 +67,9 @@ class DriverNode(JogInput, ReportPublisher, Node):
 
     def __init__(self, **kwargs):
         super().__init__('driver', **kwargs)
-        declare(self, DRIVER)
-        self.add_post_set_parameters_callback(self.on_parameters_set)
+        self.guard = CallbackGuard(self)     # no callback ends the node (bad input: refused)
+        declare(self, DRIVER, guard=self.guard)
+        self.guard.after_set(self.on_parameters_set)
         p = {name: self.get_parameter(name).value for name in DRIVER}
         self.jog_units = p['jog_units']
         firmware, joints = load_joints(p['joints_file'] or JOINTS_YAML)
@@ -103,7 +105,7 @@ class DriverNode(JogInput, ReportPublisher, Node):
         self._closing = False
         self.pub_states = self.create_publisher(JointState, 'joint_states', 10)
         self.pub_diag = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
-        self.create_subscription(JointJog, 'JointJog', self.on_jog, 10)
+        self.guard.subscription(JointJog, 'JointJog', self.on_jog, 10)
         # The services wait for the modules (seconds; referencing minutes): they are served by a
         # node and executor of their own, so the node's single-threaded executor never waits
         # and /JointJog arrives within a millisecond (a multi-threaded executor for everything
@@ -113,7 +115,8 @@ class DriverNode(JogInput, ReportPublisher, Node):
                                   use_global_arguments=False)
         base = self.get_fully_qualified_name()
         for kind in ('reset', 'enable', 'disable', 'reference', 'set_zero'):
-            self._service_node.create_service(Trigger, f'{base}/{kind}', self._service(kind))
+            self.guard.service(Trigger, f'{base}/{kind}', self._service(kind),
+                               on=self._service_node)
         self._service_executor = MultiThreadedExecutor(num_threads=2, context=self.context)
         self._service_executor.add_node(self._service_node)
         self._service_thread = threading.Thread(target=self._serve, name='driver_services',

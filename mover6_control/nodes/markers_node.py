@@ -22,17 +22,19 @@ from typing import Optional, Sequence
 
 from geometry_msgs.msg import Point, PoseArray, PoseStamped
 from mover6_control.collision.geometry import keep_out_boxes, KeepOutBox
-from mover6_control.errors import InvalidInputError, Mover6Error
+from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk_batch
 from mover6_control.nodes import shutdown
+from mover6_control.nodes.callback_guard import CallbackGuard
 from mover6_control.nodes.conversions import pose_to_matrix
 from mover6_control.nodes.demand_messages import demands_from_msg
 from mover6_control.nodes.params import declare
 from mover6_control.nodes.qos import LATCHED_QOS
 from mover6_control.parameters import MARKERS
+from mover6_control.validation import as_finite_array
 import numpy as np
-from rcl_interfaces.msg import ParameterEvent
+from rcl_interfaces.msg import ParameterEvent, ParameterValue
 from rcl_interfaces.srv import GetParameters
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
@@ -42,6 +44,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 FOLLOWED = ('keep_out_boxes', 'table_margin')
 AXIS_LENGTH = 0.06      # [m] of the goal's axes
+MAX_POSES = 101         # a path goal's poses shown at most (the planner's 100 vias and the goal)
 COLOURS = {'table': (0.6, 0.5, 0.4, 1.0), 'margin': (0.9, 0.8, 0.2, 0.15),
            'keep_out': (0.9, 0.1, 0.1, 0.35), 'path': (0.1, 0.6, 1.0, 1.0),
            'via': (1.0, 0.6, 0.0, 1.0)}
@@ -110,12 +113,22 @@ def path_marker(positions: np.ndarray) -> Marker:
     return m
 
 
+def followed_value(value: ParameterValue) -> object:
+    """Return a ``ParameterValue`` as Python; raise ``InvalidInputError`` on an unknown type."""
+    try:
+        return parameter_value_to_python(value)
+    except RuntimeError as err:         # rclpy's error for a type it does not know
+        raise InvalidInputError(f'parameter event: {err}') from None
+
+
 class MarkersNode(Node):
     """Publish the planner's world and motions as markers; see the module docstring."""
 
     def __init__(self, **kwargs):
         super().__init__('markers', **kwargs)
-        declare(self, MARKERS, check_config=lambda get: keep_out_boxes(get('keep_out_boxes')))
+        self.guard = CallbackGuard(self)     # no callback ends the node (a bad goal is refused)
+        declare(self, MARKERS, check_config=lambda get: keep_out_boxes(get('keep_out_boxes')),
+                guard=self.guard)
         p = {name: self.get_parameter(name).value for name in MARKERS}
         self.frame = p['frame_prefix'] + p['frame_id']
         self.table_size = p['table_size']
@@ -125,15 +138,15 @@ class MarkersNode(Node):
         self.goal = []
         self.path = []
         self.pub = self.create_publisher(MarkerArray, 'markers', LATCHED_QOS)
-        self.create_subscription(PoseStamped, 'pose_goal', self.on_pose_goal, 10)
-        self.create_subscription(PoseArray, 'path_goal', self.on_path_goal, 10)
-        self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
+        self.guard.subscription(PoseStamped, 'pose_goal', self.on_pose_goal, 10)
+        self.guard.subscription(PoseArray, 'path_goal', self.on_path_goal, 10)
+        self.guard.subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
         self.planner = p['planner_node']
         self.planner_answered = False
         if self.planner:
             self.client = self.create_client(GetParameters, f'{self.planner}/get_parameters')
-            self.create_subscription(ParameterEvent, '/parameter_events', self.on_event, 10)
-            self.ask_timer = self.create_timer(1.0, self.ask_planner)
+            self.guard.subscription(ParameterEvent, '/parameter_events', self.on_event, 10)
+            self.ask_timer = self.guard.timer(1.0, self.ask_planner)
         self.publish()
 
     def ask_planner(self) -> None:
@@ -144,7 +157,7 @@ class MarkersNode(Node):
         if not self.client.service_is_ready():
             return
         future = self.client.call_async(GetParameters.Request(names=list(FOLLOWED)))
-        future.add_done_callback(self.on_planner_answer)
+        future.add_done_callback(self.guard.wrap('planner answer', self.on_planner_answer))
 
     def on_planner_answer(self, future: Future) -> None:
         """Take the planner's values and publish."""
@@ -152,13 +165,13 @@ class MarkersNode(Node):
         if result is None or len(result.values) != len(FOLLOWED):
             return
         self.planner_answered = True
-        self.follow({n: parameter_value_to_python(v) for n, v in zip(FOLLOWED, result.values)})
+        self.follow({n: followed_value(v) for n, v in zip(FOLLOWED, result.values)})
 
     def on_event(self, msg: ParameterEvent) -> None:
         """Follow a change of the planner's table margin or keep-out boxes."""
         if msg.node.lstrip('/') != self.planner_full_name():
             return
-        changed = {p.name: parameter_value_to_python(p.value)
+        changed = {p.name: followed_value(p.value)
                    for p in list(msg.new_parameters) + list(msg.changed_parameters)
                    if p.name in FOLLOWED}
         if changed:
@@ -172,13 +185,24 @@ class MarkersNode(Node):
         return f'{ns}/{self.planner}' if ns else self.planner
 
     def follow(self, values: dict[str, object]) -> None:
-        """Take the planner's ``values`` (names in ``FOLLOWED``) and publish."""
+        """
+        Take the planner's ``values`` (names in ``FOLLOWED``) and publish.
+
+        Checked whole first (keep-out boxes, a finite margin): a malformed value changes nothing.
+        """
+        new = dict(self.followed)
         for name, value in values.items():
-            self.followed[name] = list(value) if name == 'keep_out_boxes' else float(value)
+            if name == 'keep_out_boxes':
+                boxes = as_finite_array(value, (None,), name)
+                keep_out_boxes(boxes)            # raises on a malformed list
+                new[name] = boxes.tolist()
+            else:
+                new[name] = as_finite_array(value, (), name).item()
+        self.followed = new
         self.publish()
 
     def on_pose_goal(self, msg: PoseStamped) -> None:
-        """Show a pose goal; the path of the goal before is cleared."""
+        """Show a pose goal; the path of the goal before is cleared (a malformed pose: refused)."""
         self.goal = goal_markers(pose_to_matrix(msg.pose))
         self.path = []
         self.publish()
@@ -187,17 +211,17 @@ class MarkersNode(Node):
         """Show a path goal: its last pose is the goal, the others its via poses."""
         if not msg.poses:
             return
+        if len(msg.poses) > MAX_POSES:
+            raise InvalidInputError(f'a path goal has at most {MAX_POSES} poses to show, got '
+                                    f'{len(msg.poses)}')
         poses = [pose_to_matrix(p) for p in msg.poses]
         self.goal = goal_markers(poses[-1], poses[:-1])
         self.path = []
         self.publish()
 
     def on_demands(self, msg: Float32MultiArray) -> None:
-        """Show the tool path of the demanded waypoints (forward kinematics of each)."""
-        try:
-            Q = demands_from_msg(msg, self.arm.n_joints)
-        except Mover6Error:
-            return        # the controller refuses it and says why; nothing to show
+        """Show the tool path of the demanded waypoints; malformed ones are refused (guard)."""
+        Q = demands_from_msg(msg, self.arm.n_joints)     # the controller refuses them too
         self.path = [path_marker(fk_batch(self.arm, Q)[:, :3, 3])]
         self.publish()
 

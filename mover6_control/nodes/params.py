@@ -11,6 +11,7 @@ node that needs none (the bridge, the state publisher) does not load the planner
 from typing import Callable, Optional
 
 from mover6_control.errors import InvalidInputError, Mover6Error
+from mover6_control.nodes.callback_guard import CallbackGuard
 from mover6_control.parameters import check_value, ParameterSpec
 from mover6_control.validation import short_text
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
@@ -48,7 +49,8 @@ def ros_value(value: object) -> object:
     return list(value) if isinstance(value, tuple) else value
 
 
-def declare(node: Node, table: dict, check_config: Optional[Callable] = None) -> Callable:
+def declare(node: Node, table: dict, check_config: Optional[Callable] = None, *,
+            guard: CallbackGuard) -> Callable:
     """
     Declare every parameter of ``table`` on ``node`` and refuse invalid values from then on.
 
@@ -59,10 +61,10 @@ def declare(node: Node, table: dict, check_config: Optional[Callable] = None) ->
     after-set callback applies only what this check built successfully. The set-parameters
     check is in place before the declarations, and the start values are checked as a whole once
     all are declared, so a bad start value (from a parameter file or ``-p``) stops the node
-    too. Raises ``InvalidInputError`` (a ValueError) saying why.
+    too. Raises ``InvalidInputError`` (a ValueError) saying why. The check is added through the
+    node's ``guard`` (``callback_guard``): one that raises refuses the set, the node goes on.
     """
-    callback = make_set_callback(table, node, check_config)
-    node.add_on_set_parameters_callback(callback)
+    callback = guard.set_check(make_set_callback(table, node, check_config))
     for spec in table.values():
         try:
             node.declare_parameter(spec.name, ros_value(spec.default), descriptor(spec))

@@ -46,6 +46,7 @@ from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 from mover6_control.nodes import conversions, params, shutdown
+from mover6_control.nodes.callback_guard import CallbackGuard
 from mover6_control.nodes.node_clock import now_ns
 from mover6_control.nodes.node_configs import planner_settings_from_parameters
 from mover6_control.nodes.planner_delivery import CONTROLLER_STATUS_QOS, DemandDelivery
@@ -69,8 +70,9 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
     def __init__(self, **kwargs):
         """Declare the parameters, build the arm, start the topics and the planning thread."""
         super().__init__('planner', **kwargs)
+        self.guard = CallbackGuard(self)     # no callback ends the node (bad input: refused)
         # Refuses invalid values, each and as the planner's settings, at start and later.
-        params.declare(self, PLANNER, planner_settings_from_parameters)
+        params.declare(self, PLANNER, planner_settings_from_parameters, guard=self.guard)
         limit_set = self.get_parameter('limit_set').value
         self.arm = mover6(limit_set)
         self.state = WAITING
@@ -89,20 +91,20 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
         self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
         self.status_pub = self.create_publisher(DiagnosticStatus, 'planner/status', STATUS_QOS)
         # Raw: 100 messages a second only need keeping; one is converted when a goal needs it.
-        self.create_subscription(JointState, 'joint_states', self.on_joint_states,
-                                 LATEST_READER_QOS, raw=True)
-        self.create_subscription(DiagnosticStatus, 'controller/status', self.on_controller_status,
-                                 CONTROLLER_STATUS_QOS)
-        self.create_subscription(PoseStamped, 'pose_goal', self.on_pose_goal, 10)
-        self.create_subscription(PoseArray, 'path_goal', self.on_path_goal, 10)
+        self.guard.subscription(JointState, 'joint_states', self.on_joint_states,
+                                LATEST_READER_QOS, raw=True)
+        self.guard.subscription(DiagnosticStatus, 'controller/status', self.on_controller_status,
+                                CONTROLLER_STATUS_QOS)
+        self.guard.subscription(PoseStamped, 'pose_goal', self.on_pose_goal, 10)
+        self.guard.subscription(PoseArray, 'path_goal', self.on_path_goal, 10)
         for shape in POSE_MOTIONS:
-            self.create_subscription(PoseStamped, f'pose_goal/{shape}',
-                                     lambda msg, shape=shape: self.on_pose_goal(msg, shape), 10)
+            self.guard.subscription(PoseStamped, f'pose_goal/{shape}',
+                                    lambda msg, shape=shape: self.on_pose_goal(msg, shape), 10)
         for shape in PATH_MOTIONS:
-            self.create_subscription(PoseArray, f'path_goal/{shape}',
-                                     lambda msg, shape=shape: self.on_path_goal(msg, shape), 10)
-        self.create_subscription(PoseArray, 'path_goal/joint', self.on_via_joint_goal, 10)
-        self.create_service(Trigger, '~/stop', self.on_stop)
+            self.guard.subscription(PoseArray, f'path_goal/{shape}',
+                                    lambda msg, shape=shape: self.on_path_goal(msg, shape), 10)
+        self.guard.subscription(PoseArray, 'path_goal/joint', self.on_via_joint_goal, 10)
+        self.guard.service(Trigger, '~/stop', self.on_stop)
         self.publish_status('WARN', 'waiting for /joint_states', {})
         self.worker = threading.Thread(target=self.plan_loop, daemon=True)
         self.worker.start()
@@ -218,7 +220,7 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
             plan_fn = prepare()
         except (Mover6Error, ValueError) as err:
             self.refuse(motion, str(err), 'invalid_goal', {}, goal)
-            return
+            raise                   # refused: the guard counts it too
         self.jobs.put((goal, motion, plan_fn, time.monotonic()))
 
     # --- status ----------------------------------------------------------------------------

@@ -25,6 +25,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.errors import InvalidInputError
 from mover6_control.nodes import shutdown
 from mover6_control.nodes.bag_writer import BagWriter
+from mover6_control.nodes.callback_guard import CallbackGuard
 from mover6_control.nodes.conversions import make_status
 from mover6_control.nodes.params import declare
 from mover6_control.nodes.qos import STATUS_QOS
@@ -87,7 +88,8 @@ class RecorderNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__('recorder', **kwargs)
-        declare(self, RECORDER)
+        self.guard = CallbackGuard(self)     # no callback ends the node
+        declare(self, RECORDER, guard=self.guard)
         path = self.get_parameter('path').value or default_path()
         self.wanted = [self.resolve_topic_name(t)
                        for t in self.get_parameter('topics').value.split()]
@@ -97,8 +99,8 @@ class RecorderNode(Node):
         self.stopped = ''                    # why the recording stopped ('' while it runs)
         self.subscriptions_by_topic = {}
         self.pub_status = self.create_publisher(DiagnosticStatus, '~/status', STATUS_QOS)
-        self.create_timer(self.get_parameter('discovery_period').value, self.discover)
-        self.create_timer(1.0, self.publish_status)
+        self.guard.timer(self.get_parameter('discovery_period').value, self.discover)
+        self.guard.timer(1.0, self.publish_status)
         self.get_logger().info(f'recording {len(self.wanted)} topics into {self.bag.path}')
         self.discover()
         self.publish_status()
@@ -126,7 +128,7 @@ class RecorderNode(Node):
             except OSError as err:
                 self.stop(f'recording stopped: {err}')
                 return
-            self.subscriptions_by_topic[topic] = self.create_subscription(
+            self.subscriptions_by_topic[topic] = self.guard.subscription(
                 kind, topic, lambda data, topic=topic: self.on_message(topic, data), qos,
                 raw=True)
 

@@ -13,6 +13,7 @@ The transforms come from ``kinematics.urdf_tree`` (the URDF's own tree, every li
 checks the flange's chain against the package's forward kinematics.
 """
 
+import math
 import os
 from typing import Optional
 
@@ -22,6 +23,7 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import matrices_to_quaternions
 from mover6_control.kinematics.urdf_tree import fixed_transforms, moving_transforms, parse_urdf
 from mover6_control.nodes import shutdown
+from mover6_control.nodes.callback_guard import CallbackGuard
 from mover6_control.nodes.node_clock import now_ns
 from mover6_control.nodes.params import declare
 from mover6_control.nodes.qos import LATCHED_QOS
@@ -66,14 +68,15 @@ class StatePublisherNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__('state_publisher', **kwargs)
-        declare(self, STATE_PUBLISHER)
+        self.guard = CallbackGuard(self)     # a malformed message is refused, the node goes on
+        declare(self, STATE_PUBLISHER, guard=self.guard)
         self.description = self.get_parameter('robot_description').value or shipped_description()
         self.tree = parse_urdf(self.description)
+        self.joint_names = {j.name for j in self.tree.moving}
         self.prefix = self.get_parameter('frame_prefix').value
         self.last_publish = None        # [ns] of the node clock
         self.period_ns = self.frequency_period_ns()
-        self.add_post_set_parameters_callback(
-            lambda _: setattr(self, 'period_ns', self.frequency_period_ns()))
+        self.guard.after_set(lambda _: setattr(self, 'period_ns', self.frequency_period_ns()))
         self.published = 0
         self.pub_description = self.create_publisher(String, 'robot_description', LATCHED_QOS)
         self.pub_static = self.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)
@@ -85,7 +88,7 @@ class StatePublisherNode(Node):
             for j, T in fixed_transforms(self.tree)]))
         # Raw: a message is deserialized only when /tf is due (at most publish_frequency), not
         # at the 100 Hz of /joint_states (the planner reads its states the same way).
-        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10, raw=True)
+        self.guard.subscription(JointState, 'joint_states', self.on_joint_states, 10, raw=True)
         self.get_logger().info(
             f'{self.tree.name}: {len(self.tree.moving)} moving and {len(self.tree.fixed)} fixed '
             f'joints from {self.tree.root}')
@@ -95,15 +98,24 @@ class StatePublisherNode(Node):
         return round(1e9 / self.get_parameter('publish_frequency').value)
 
     def on_joint_states(self, data: bytes) -> None:
-        """Publish /tf for the joints a message names (at most ``publish_frequency`` a second)."""
+        """
+        Publish /tf for the joints a message names (at most ``publish_frequency`` a second).
+
+        A message with unequal name and position counts, or a non-finite position of a joint
+        of the tree, is refused (``InvalidInputError``, through the guard): no /tf from it.
+        """
         # 100 messages a second, most of them dropped here: no Time object, no parameter read.
         now = now_ns(self.get_clock())
         if self.last_publish is not None and now - self.last_publish < self.period_ns:
             return
         msg = deserialize_message(data, JointState)
-        if len(msg.position) != len(msg.name):
-            return              # robot_state_publisher, too, drops such a message
+        if len(msg.position) != len(msg.name):   # robot_state_publisher, too, drops it
+            raise InvalidInputError(f'/joint_states has {len(msg.name)} names but '
+                                    f'{len(msg.position)} positions')
         positions = dict(zip(msg.name, msg.position))
+        bad = [n for n in self.joint_names if n in positions and not math.isfinite(positions[n])]
+        if bad:
+            raise InvalidInputError(f'/joint_states has non-finite positions of {bad}')
         stamp = msg.header.stamp
         if stamp.sec == 0 and stamp.nanosec == 0:
             stamp = Time(sec=now // 1_000_000_000, nanosec=now % 1_000_000_000)

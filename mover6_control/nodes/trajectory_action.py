@@ -81,11 +81,11 @@ class FollowJointTrajectoryServer:
         self.executor = executor
         self.group = ReentrantCallbackGroup()
         self.active = None       # the goal handle being executed
+        # Through the controller's guard (callback_guard); rclpy's own catches what execute raises.
         self.server = ActionServer(
             server_node, FollowJointTrajectory, name, self.execute,
-            goal_callback=lambda goal: GoalResponse.ACCEPT,
-            cancel_callback=lambda handle: CancelResponse.ACCEPT,
-            callback_group=self.group)
+            callback_group=self.group, **node.guard.action_callbacks(
+                lambda goal: GoalResponse.ACCEPT, lambda handle: CancelResponse.ACCEPT))
 
     def destroy(self) -> None:
         """Destroy the action server."""
@@ -94,9 +94,9 @@ class FollowJointTrajectoryServer:
     async def sleep(self, seconds: float, future: Optional[Future] = None) -> None:
         """Wait ``seconds`` on the node's clock, or until ``future`` is done, not holding it."""
         future = Future() if future is None else future
-        timer = self.server_node.create_timer(
-            seconds, lambda: future.done() or future.set_result(None),
-            callback_group=self.group, clock=self.node.get_clock())
+        timer = self.node.guard.timer(
+            seconds, lambda: future.done() or future.set_result(None), on=self.server_node,
+            source='action wait', callback_group=self.group, clock=self.node.get_clock())
         try:
             await future
         finally:

@@ -1,35 +1,37 @@
 """
 End to end: hostile parameter values, service requests and action goals change nothing.
 
-The three nodes run as processes. Their parameters and services are listed at run time (as
+The nodes run as processes. Their parameters and services are listed at run time (as
 ``ros2 param list`` and ``ros2 service list`` see them), so a parameter or service added later
-is tried too. Each parameter gets values of the wrong type, wrong lengths, NaN, infinities,
-huge values and values that break a relation between entries or parameters: every one is
-refused with a reason, the parameter keeps its value and every node stays alive. Then
+is tried too. The values and requests are generated (``hostile_messages``, walking the
+parameter's value type or the request type's fields; issue 31), not listed: wrong types, wrong
+lengths, NaN, infinities, huge values, 100,000-element lists, odd strings. A value taken must be
+one the package's table allows (it is set back at once), every refusal carries a reason, and
+every node stays alive. The relations between entries or parameters are tried by name. Then
 malformed and oversized FollowJointTrajectory goals and /joint_demands are refused with short
 reasons, and a valid goal afterwards arrives.
 """
 
+import importlib
 import math
 import os
 
 from control_msgs.action import FollowJointTrajectory
+from hostile_messages import HostileMessages
+from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
-from mover6_control.parameters import NODES
+from mover6_control.parameters import check_value, NODES
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import pytest
 from rcl_interfaces.msg import ParameterType
-from rcl_interfaces.srv import (DescribeParameters, GetParameters, GetParameterTypes,
-                                ListParameters, SetParameters, SetParametersAtomically)
 import rclpy
 from rclpy.action import ActionClient
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from ros_testing import ready_client, Stack, wait_until
-from std_srvs.srv import SetBool, Trigger
+from std_srvs.srv import SetBool
 from trajectory_msgs.msg import JointTrajectoryPoint
-from type_description_interfaces.srv import GetTypeDescription
 
 pytestmark = pytest.mark.e2e
 
@@ -38,29 +40,18 @@ NAMES = list(ARM.joint_names)
 Result = FollowJointTrajectory.Result
 # Longest reason [characters] a refusal may carry (the nodes cut theirs at 500).
 SHORT = 600
-HUGE = 1e308
 
-# Values by declared type; each must be refused (every parameter is typed, none is free).
-BY_TYPE = {
-    ParameterType.PARAMETER_DOUBLE: [math.nan, math.inf, -math.inf, HUGE, -HUGE, 3, 'x',
-                                     [1.0], True],
-    ParameterType.PARAMETER_INTEGER: [2 ** 62, -2 ** 62, 1.5, 'x', [1], True],
-    ParameterType.PARAMETER_BOOL: [1, 1.0, 'true', [True]],
-    ParameterType.PARAMETER_STRING: [1, 2.5, True, ['a']],
-    ParameterType.PARAMETER_DOUBLE_ARRAY: [[], [math.nan] * 6, [HUGE] * 6, [-math.inf] * 3,
-                                           [0.05], [0.05] * 7, [0.05] * 1000, [1, 2, 3], 'x',
-                                           1.0],
-}
-# Values of the right type and length that break a relation (between entries, or with the
-# other parameters in force), or a list of allowed names.
-RELATIONS = {
-    'tool_size': [[0.205, 0.655, 0.415], [1.0, 1.0, 0.001]],     # capsule shorter than wide
-    'keep_out_boxes': [[0.0] * 5, [0.5, 0.5, 0.5, 0.1, 0.1, 0.1],  # max below min
-                       [0.0] * 6 + [0.1, 0.1, 0.1, 0.2, 0.2, -0.1]],
-    'driver_tick_size': [[1e-3], [1e-3] * 5, [1e-3] * 7],
-    'servo_lower_singularity_threshold': [100.0],               # above the hard stop (30)
-    't_blend': [200.0],                                          # above t_max / 2
-}
+# The rosidl field type of each parameter type: the values tried are generated from it
+# (hostile_messages), every type for every parameter.
+KINDS = {ParameterType.PARAMETER_BOOL: 'boolean', ParameterType.PARAMETER_INTEGER: 'int64',
+         ParameterType.PARAMETER_DOUBLE: 'double', ParameterType.PARAMETER_STRING: 'string',
+         ParameterType.PARAMETER_BYTE_ARRAY: 'sequence<octet>',
+         ParameterType.PARAMETER_BOOL_ARRAY: 'sequence<boolean>',
+         ParameterType.PARAMETER_INTEGER_ARRAY: 'sequence<int64>',
+         ParameterType.PARAMETER_DOUBLE_ARRAY: 'sequence<double>',
+         ParameterType.PARAMETER_STRING_ARRAY: 'sequence<string>'}
+PER_KIND = 2              # values of every other type tried on each parameter
+OWN_KIND = 8              # values of its own type
 NOT_ALLOWED = 'no-such-value'
 DRIVER_NS = '/hostile'
 
@@ -122,9 +113,25 @@ def all_alive(stack):
     assert not dead, f'{dead} died\n{stack.report()}'
 
 
-def hostile_values(name, descriptor):
-    """Return the values to try on one parameter (listed at run time)."""
-    values = list(BY_TYPE[descriptor.type]) + RELATIONS.get(name, [])
+def hostile_values(stream, descriptor, spec):
+    """
+    Return the values to try on one parameter: generated, of every type, most of its own.
+
+    From ``hostile_messages`` (the fields' generator): non-finite, huge and extreme numbers,
+    empty, wrong-length and 100,000-element lists, odd strings; of those only the values the
+    package's table refuses for the parameter (``parameters.check_value``): a valid value taken
+    and set back is not a hostile one (and set back it did not always leave the stack as it
+    was: issue 31's report).
+    """
+    values = []
+    for kind, field in KINDS.items():
+        for _ in range(OWN_KIND if kind == descriptor.type else PER_KIND):
+            value = stream.value(field)
+            value = value if isinstance(value, (str, bool, int, float)) else list(value)
+            try:
+                check_value(spec, value)
+            except InvalidInputError:
+                values.append(value)
     if descriptor.additional_constraints.startswith('one of'):
         values.append(NOT_ALLOWED)
     return values
@@ -143,7 +150,12 @@ def same(a, b):
 
 @pytest.mark.parametrize('node_name', sorted(NODES))
 def test_every_parameter_refuses_hostile_values(stack, client, node_name):
-    """Every listed parameter: each hostile value refused with a reason, the value unchanged."""
+    """
+    Every listed parameter refuses a generated stream of values its spec does not allow.
+
+    Each refusal carries a short reason, the parameter keeps its value (read-only parameters
+    take nothing, not even their own value) and every node stays alive.
+    """
     node, _ = client
     params = AsyncParameterClient(node, full_name(node_name))
     assert params.wait_for_services(timeout_sec=20.0), stack.report()
@@ -151,11 +163,12 @@ def test_every_parameter_refuses_hostile_values(stack, client, node_name):
     assert set(NODES[node_name]) <= set(names), names
     descriptors = done(node, params.describe_parameters(names)).descriptors
     before = values_of(node, params, names)
+    stream = HostileMessages(sorted(NODES).index(node_name))
     tried, accepted = 0, []
     for name, descriptor in zip(names, descriptors):
-        if name == 'use_sim_time':      # rclpy's own, switches the clock: not ours to break
+        if name not in NODES[node_name]:    # rclpy's own (use_sim_time ...): not ours to break
             continue
-        values = hostile_values(name, descriptor)
+        values = hostile_values(stream, descriptor, NODES[node_name][name])
         if descriptor.read_only:
             values.append(before[name])     # even its own value: read-only while running
         for value in values:
@@ -163,14 +176,14 @@ def test_every_parameter_refuses_hostile_values(stack, client, node_name):
             outcome = result.results[0]
             tried += 1
             if outcome.successful:
-                accepted.append((name, value))
+                accepted.append((name, str(value)[:80]))
             else:
                 assert outcome.reason and len(outcome.reason) < SHORT, (name, outcome.reason)
     assert not accepted, f'accepted: {accepted}'
     after = values_of(node, params, names)
     changed = [n for n in names if not same(before[n], after[n])]
     assert not changed, changed
-    assert tried > 5 * len(NODES[node_name])
+    assert tried > 10 * len(NODES[node_name]), tried
     all_alive(stack)
 
 
@@ -201,56 +214,71 @@ def test_parameter_relations_are_refused_with_the_reason(stack, client):
     all_alive(stack)
 
 
-def service_requests(srv_type):
-    """Return bad and edge requests for one service type (None: a type not known here)."""
-    if srv_type == 'std_srvs/srv/Trigger':
-        return Trigger, [Trigger.Request()] * 3
-    if srv_type == 'std_srvs/srv/SetBool':
-        return SetBool, [SetBool.Request(data=d) for d in (True, True, False, False)]
-    if srv_type == 'type_description_interfaces/srv/GetTypeDescription':
-        return GetTypeDescription, [GetTypeDescription.Request(
-            type_name='no_such/msg/Type', type_hash='x' * 1000, include_type_sources=True)]
-    bad = Parameter('no_such_parameter', value=math.nan).to_parameter_msg()
-    hostile = Parameter('rate', value=math.nan).to_parameter_msg()
-    return {
-        'rcl_interfaces/srv/SetParameters': (SetParameters, [
-            SetParameters.Request(), SetParameters.Request(parameters=[bad, hostile] * 50)]),
-        'rcl_interfaces/srv/SetParametersAtomically': (SetParametersAtomically, [
-            SetParametersAtomically.Request(parameters=[hostile, bad])]),
-        'rcl_interfaces/srv/GetParameters': (GetParameters, [
-            GetParameters.Request(names=['no_such', '', 'x' * 1000])]),
-        'rcl_interfaces/srv/GetParameterTypes': (GetParameterTypes, [
-            GetParameterTypes.Request(names=['no_such', ''])]),
-        'rcl_interfaces/srv/DescribeParameters': (DescribeParameters, [
-            DescribeParameters.Request(names=['no_such', ''])]),
-        'rcl_interfaces/srv/ListParameters': (ListParameters, [
-            ListParameters.Request(prefixes=['no_such', ''], depth=2 ** 63)]),
-    }.get(srv_type)
+def service_class(type_name):
+    """Return the service class of ``pkg/srv/Type``."""
+    package, _, name = type_name.split('/')
+    return getattr(importlib.import_module(f'{package}.srv'), name)
 
 
-def test_every_service_survives_bad_and_edge_requests(stack, client):
-    """Every service of every node (listed at run time) answers bad requests; all stay alive."""
+# Requests generated per service (its request type's fields walked, hostile_messages).
+REQUESTS = 20
+EMPTY_REQUESTS = 3        # of a request type without fields (std_srvs/Trigger): all the same
+
+
+def test_every_service_survives_generated_requests(stack, client):
+    """
+    Every service of every node (listed at run time) answers generated requests; all live.
+
+    The requests are generated from the request type's fields (``hostile_messages``). A
+    parameter set they make is checked by the test above; here every parameter of every node
+    must afterwards hold a value its spec allows, and is set back.
+    """
     node, _ = client
     called = []
+    before = {}
     for node_name in sorted(NODES):
+        params = AsyncParameterClient(node, full_name(node_name))
+        assert params.wait_for_services(timeout_sec=20.0)
+        before[node_name] = (params, values_of(node, params, list(NODES[node_name])))
+    for k, node_name in enumerate(sorted(NODES)):
         services = node.get_service_names_and_types_by_node(node_name, namespace(node_name))
+        stream = HostileMessages(100 + k)
         for service, types in services:
             if '/_action/' in service:          # the action's own: tried through the action
                 continue
-            known = service_requests(types[0])
-            assert known is not None, f'{service} ({types[0]}): no requests for this type'
-            srv, requests = known
+            srv = service_class(types[0])
             caller = node.create_client(srv, service)
             assert caller.wait_for_service(timeout_sec=10.0), service
-            for request in requests:
-                response = done(node, caller.call_async(request))
-                assert response is not None, service
+            fields = srv.Request.get_fields_and_field_types()
+            for _ in range(REQUESTS if fields else EMPTY_REQUESTS):
+                request = stream.message(srv.Request)
+                future = caller.call_async(request)
+                assert wait_until(future.done, 20.0, lambda t: rclpy.spin_once(
+                    node, timeout_sec=t)), f'{service}: no answer to {str(request)[:300]}'
+                assert future.result() is not None, service
             called.append(service)
             node.destroy_client(caller)
     assert {'/controller/stop', '/controller/reset', '/sim_bridge/pause',
-            '/sim_bridge/reset', '/sim_bridge/step'} <= set(called), called
+            '/sim_bridge/reset', '/sim_bridge/step', '/planner/set_parameters'} <= set(called)
     all_alive(stack)
-    # The sim runs again (pause false came last): the controller recovers from the pause.
+    wrong = []
+    for node_name, (params, values) in before.items():
+        now = values_of(node, params, list(values))
+        for name, value in now.items():
+            try:
+                check_value(NODES[node_name][name], value)
+            except InvalidInputError as err:
+                wrong.append((node_name, name, str(err)[:120]))
+        changed = [Parameter(n, value=values[n]) for n in values if not same(values[n], now[n])]
+        if changed:
+            print(f'{node_name}: the requests set {[(p.name, now[p.name]) for p in changed]}')
+            results = done(node, params.set_parameters(changed)).results
+            assert all(r.successful for r in results), [r.reason for r in results]
+    assert not wrong, wrong
+    # The sim runs (a generated pause may have come last): resume it; the controller recovers.
+    resume = node.create_client(SetBool, '/sim_bridge/pause')
+    assert resume.wait_for_service(timeout_sec=10.0)
+    done(node, resume.call_async(SetBool.Request(data=False)))
     assert node.spin_until(
         lambda: node.values(node.controller_status).get('state') == 'idle', 30.0), \
         node.values(node.controller_status)

@@ -93,3 +93,65 @@ def test_ctrl_c_stops_every_node(tmp_path):
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
+
+
+@pytest.mark.skipif(not installed(), reason='needs the built package (./run.sh test)')
+def test_a_helper_that_dies_is_started_again_and_the_motion_arrives(tmp_path):
+    """
+    Kill each helper in turn (by pid, SIGKILL) while the arm moves: the motion arrives.
+
+    launch.sh reports the helper's exit and starts it again after its back-off delay
+    (mover6_control/node_roles.py); the sim bridge and the controller are never restarted, and
+    the planner, started again, plans the next goal.
+    """
+    import numpy as np
+    import rclpy
+    from mover6_control.kinematics.forward import fk
+    from mover6_control.node_roles import HELPERS
+    from mover6_control.tools.goal_cli import GoalClient
+    proc, log = start(tmp_path)
+    rclpy.init()
+    client = None
+    try:
+        pids = node_pids(log)
+        client = GoalClient(name='helper_killer')
+        problem = client.wait_ready(timeout=60.0)
+        assert problem is None, f'{problem}\n{log.read_text()}'
+        helpers = [n for n in sorted(STARTED) if n in HELPERS]
+        assert helpers == ['markers', 'planner', 'state_publisher']
+        for k, name in enumerate(helpers):
+            killed = []
+
+            def kill_once(_, name=name, killed=killed):
+                if not killed:
+                    killed.append(node_pids(log)[name])
+                    os.kill(killed[0], signal.SIGKILL)
+            q = np.full(6, 0.3 if k % 2 == 0 else -0.3)
+            outcome = client.send_joints([q], progress=kill_once, timeout=60.0)
+            assert killed, f'{name}: the motion ended before it could be killed'
+            assert outcome.arrived, f'{name} killed: {outcome}\n{log.read_text()}'
+            assert wait_for(lambda: node_pids(log)[name] != killed[0], 30.0), log.read_text()
+            assert alive(node_pids(log)[name])
+            assert f'{name} exited (code' in log.read_text()
+        text = log.read_text()
+        assert 'stopping the others' not in text and proc.poll() is None, text
+        for name in ('sim_bridge', 'controller'):
+            assert node_pids(log)[name] == pids[name] and alive(pids[name]), text
+        # The planner started again plans: a pose goal through it arrives.
+        assert client.spin_until(lambda: client.values(client.planner_status).get('state')
+                                 == 'ready', 60.0), client.planner_status
+        # The goal's writer matched with every reader the graph shows (the planner's is new).
+        assert client.spin_until(lambda: client.pose_pub.get_subscription_count() >= len(
+            client.get_subscriptions_info_by_topic('/pose_goal')) >= 2, 30.0)
+        outcome = client.send_pose(fk(client.arm, np.full(6, 0.1)), timeout=60.0)
+        assert outcome.arrived, f'{outcome}\n{log.read_text()}'
+    finally:
+        if client is not None:
+            client.destroy_node()
+        rclpy.try_shutdown()
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(30)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)

@@ -127,3 +127,35 @@ def test_keep_out_boxes_follow_the_planner():
         assert wait_until(lambda: len(h.latest('keep_out')) == 2, LIMIT, h.spin)
     finally:
         h.close()
+
+
+def test_a_malformed_goal_is_refused_and_the_node_goes_on():
+    """
+    A /pose_goal with a NaN in its quaternion (issue 31: it ended the node) is refused.
+
+    The guard counts it with its code and reason, nothing is published because of it, and the
+    next valid goal is shown. The same for a path goal with a NaN position and a demand with
+    too few values.
+    """
+    h = Harness(planner_node='')
+    try:
+        assert wait_until(lambda: h.latest('table'), LIMIT, h.spin)
+        bad = PoseStamped()
+        bad.header.frame_id = 'base_link'
+        bad.pose.orientation.w, bad.pose.orientation.x = 1.0, float('nan')
+        published = len(h.received)
+        assert wait_until(lambda: h.goal.publish(bad) or h.markers.guard.total() >= 3, LIMIT,
+                          h.spin)
+        assert h.markers.guard.refused['/pose_goal'] >= 3
+        assert h.markers.guard.last[:2] == ('/pose_goal', 'invalid_input')
+        assert 'quaternion' in h.markers.guard.last[2], h.markers.guard.last
+        assert wait_until(lambda: h.demands.publish(Float32MultiArray(data=[0.1] * 5))
+                          or '/joint_demands' in h.markers.guard.refused, LIMIT, h.spin)
+        assert len(h.received) == published and h.latest('goal') == []
+        good = PoseStamped()
+        good.header.frame_id = 'base_link'
+        good.pose = conversions.matrix_to_pose(np.eye(4))
+        assert wait_until(lambda: h.goal.publish(good) or h.latest('goal'), LIMIT, h.spin)
+        assert h.markers.guard.failed == 0
+    finally:
+        h.close()

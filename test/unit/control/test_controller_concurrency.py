@@ -286,6 +286,19 @@ class DemandHarness(DemandThread):
     def publish_status(self, now, **kwargs):
         pass
 
+    @property
+    def guard(self):
+        """Return the node's callback guard as a refused demand uses it: noted in the log."""
+        harness = self
+
+        class Guard:
+            def refuse(self, source, err):
+                harness.logged.append(f'{source}: refused: {err}')
+        return Guard()
+
+    def resolve_topic_name(self, topic):
+        return '/' + topic
+
     def tick(self, states=True):
         with self.lock:
             self.t += DT

@@ -233,7 +233,8 @@ def stub_modules():
     names = {
         'launch': ['LaunchDescription'],
         'launch.actions': ['DeclareLaunchArgument', 'ExecuteProcess', 'LogInfo',
-                           'OpaqueFunction', 'RegisterEventHandler', 'SetEnvironmentVariable'],
+                           'OpaqueFunction', 'RegisterEventHandler', 'SetEnvironmentVariable',
+                           'Shutdown'],
         'launch.conditions': ['IfCondition'],
         'launch.event_handlers': ['OnProcessIO', 'OnShutdown'],
         'launch.substitutions': ['PathJoinSubstitution', 'PythonExpression'],
@@ -300,3 +301,29 @@ def test_the_hardware_argument_starts_what_launch_sh_starts(launch_module):
     assert (given['can_interface'], given['can_channel'], given['enable_on_start']) == \
         ('cpr_usb2can', '/tmp/x/mover6-can', True)
     assert on_output(Event(b'ready')) is None                             # once only
+
+
+def test_every_node_has_its_role(tree, launch_module):
+    """
+    Each node and process the launch file starts takes the keywords of its role (node_roles).
+
+    Helpers (planner, state publishers, markers, RViz) respawn after ``RESTART_DELAY``; an
+    essential node (sim_bridge, can_sim, driver, controller) ends the launch when it exits.
+    """
+    from mover6_control.node_roles import ESSENTIAL, HELPERS, RESTART_DELAY
+    starts = calls(tree, 'Node') + calls(tree, 'ExecuteProcess')
+    named = []
+    for call in starts:
+        name = ast.literal_eval(keyword(call, 'name') or keyword(call, 'executable'))
+        spread = [k.value for k in call.keywords if k.arg is None]
+        assert [ast.unparse(v) for v in spread] == [f"role('{name}')"], name
+        named.append(name)
+    assert set(named) == {'sim_bridge', 'controller', 'planner', 'markers', 'rviz2', 'driver',
+                          'can_sim', 'state_publisher', 'robot_state_publisher'}
+    for name in named:
+        given = launch_module.role(name)
+        if name in ESSENTIAL:
+            assert set(given) == {'on_exit'} and 'essential' in given['on_exit'].kwargs['reason']
+        else:
+            assert name in HELPERS
+            assert given == {'respawn': True, 'respawn_delay': float(RESTART_DELAY)}

@@ -1,0 +1,61 @@
+"""
+Skips that say so (issue 31): each tier's skipped tests with their reasons, against a budget.
+
+``./run.sh test`` runs ``python test/skip_budget.py <pytest.xml>`` after the tests: it prints
+every skipped test of the run by tier with its reason (a test that cannot run here: no network
+namespace, no root, no real-time right ...) and the count of each tier against
+``test/skips_allowed.json``, the counts of a whole run kept in the repository. A tier that skips
+more than its count fails the run (exit code 1): a test that quietly stopped running is seen.
+A run of part of the suite skips fewer, never more. When a skip is meant (a new test that cannot
+run on the CI machine), raise the count in the same commit, saying why.
+"""
+
+import json
+import os
+import sys
+import xml.etree.ElementTree as ElementTree
+
+ALLOWED = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'skips_allowed.json')
+TIERS = {'unit': 'unit', 'node': 'node', 'e2e': 'e2e', 'lint': 'lint', 'architecture': 'lint'}
+
+
+def skipped(xml_path):
+    """Return {tier: [(test, reason)]} of the skipped tests in a pytest junit XML file."""
+    out = {tier: [] for tier in sorted(set(TIERS.values()))}
+    for case in ElementTree.parse(xml_path).getroot().iter('testcase'):
+        skip = case.find('skipped')
+        if skip is None or skip.get('type') == 'pytest.xfail':
+            continue
+        parts = case.get('classname', '').split('.')
+        tier = TIERS.get(parts[1] if len(parts) > 1 and parts[0] == 'test' else '', 'unit')
+        name = f'{case.get("classname")}::{case.get("name")}'
+        out[tier].append((name, skip.get('message', '').strip() or '(no reason given)'))
+    return out
+
+
+def over_budget(found, allowed):
+    """Return the lines that say which tiers skip more than ``allowed``."""
+    return [f'{tier}: {len(tests)} skipped, {allowed.get(tier, 0)} allowed '
+            f'({os.path.basename(ALLOWED)})'
+            for tier, tests in sorted(found.items()) if len(tests) > allowed.get(tier, 0)]
+
+
+def main(argv):
+    """Print the skips of the run ``argv[0]`` by tier; return 1 when a tier is over budget."""
+    with open(ALLOWED) as f:
+        allowed = json.load(f)
+    found = skipped(argv[0])
+    counts = ', '.join(f'{tier} {len(tests)}/{allowed.get(tier, 0)}'
+                       for tier, tests in sorted(found.items()))
+    print(f'skipped tests by tier (skipped/allowed): {counts}')
+    for tier, tests in sorted(found.items()):
+        for name, reason in tests:
+            print(f'  skipped ({tier}) {name}: {reason}')
+    over = over_budget(found, allowed)
+    for line in over:
+        print(f'more skips than before: {line}')
+    return 1 if over else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv[1:]))
