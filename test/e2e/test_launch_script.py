@@ -119,6 +119,11 @@ def test_a_helper_that_dies_is_started_again_and_the_motion_arrives(tmp_path):
         assert problem is None, f'{problem}\n{log.read_text()}'
         helpers = [n for n in sorted(STARTED) if n in HELPERS]
         assert helpers == ['markers', 'planner', 'state_publisher']
+
+        def planner_goal_readers():
+            return {bytes(i.endpoint_gid) for i in client.get_subscriptions_info_by_topic(
+                '/pose_goal') if i.node_name == 'planner'}
+        first_planner = planner_goal_readers()
         for k, name in enumerate(helpers):
             killed = []
 
@@ -140,9 +145,13 @@ def test_a_helper_that_dies_is_started_again_and_the_motion_arrives(tmp_path):
         # The planner started again plans: a pose goal through it arrives.
         assert client.spin_until(lambda: client.values(client.planner_status).get('state')
                                  == 'ready', 60.0), client.planner_status
-        # The goal's writer matched with every reader the graph shows (the planner's is new).
+        # The new planner's reader is in the graph (a reader the first planner did not have:
+        # a killed one stays listed until its lease ends) and the goal's writer matched every
+        # reader the graph shows: a goal sent before that would be lost on the way.
+        assert client.spin_until(lambda: planner_goal_readers() - first_planner, 60.0), \
+            'the new planner never subscribed /pose_goal'
         assert client.spin_until(lambda: client.pose_pub.get_subscription_count() >= len(
-            client.get_subscriptions_info_by_topic('/pose_goal')) >= 2, 30.0)
+            client.get_subscriptions_info_by_topic('/pose_goal')) >= 2, 60.0)
         outcome = client.send_pose(fk(client.arm, np.full(6, 0.1)), timeout=60.0)
         assert outcome.arrived, f'{outcome}\n{log.read_text()}'
     finally:
