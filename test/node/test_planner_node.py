@@ -622,9 +622,9 @@ def test_a_demand_the_controller_refuses_ends_the_goal_on_the_planners_status(no
     assert not spin_until(executor, lambda: len(probe.demands) > 1, 2.0 * RESEND_AFTER + 0.5)
 
 
-def goal_answers(probe, goal_id):
+def goal_answers(statuses, goal_id):
     """Return the results the planner's status said for ``goal_id``, in order."""
-    return [conversions.status_values(m).get('result') for m in probe.statuses
+    return [conversions.status_values(m).get('result') for m in statuses
             if conversions.status_values(m).get('goal_id') == goal_id
             and conversions.status_values(m).get('result') in ANSWERS]
 
@@ -646,6 +646,11 @@ def test_a_refusal_as_soon_as_the_demand_arrives_comes_after_planned(nodes):
     connected(executor, probe)
     assert spin_until(executor, lambda: controller_status.get_subscription_count() > 0)
     assert spin_until(executor, stop.service_is_ready)
+    # 'planned' and the refusal can come back to back: a queue deep enough for both (the
+    # probe's own keeps the last status only).
+    statuses = []
+    probe.create_subscription(DiagnosticStatus, 'planner/status', statuses.append, QoSProfile(
+        depth=50, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     reason = 'cannot take a demand while waiting_for_states: waiting for /joint_states'
     calls = []
 
@@ -669,9 +674,9 @@ def test_a_refusal_as_soon_as_the_demand_arrives_comes_after_planned(nodes):
                                            pose=conversions.matrix_to_pose(GOAL)))
         assert spin_until(executor, lambda: len(calls) > n, 30.0)
         goal_id = calls[n]
-        assert spin_until(executor, lambda: len(goal_answers(probe, goal_id)) == 2, 30.0)
-        assert goal_answers(probe, goal_id) == ['planned', 'refused']
-        said = [conversions.status_values(m) for m in probe.statuses
+        assert spin_until(executor, lambda: len(goal_answers(statuses, goal_id)) == 2, 30.0)
+        assert goal_answers(statuses, goal_id) == ['planned', 'refused']
+        said = [conversions.status_values(m) for m in statuses
                 if conversions.status_values(m).get('goal_id') == goal_id]
         planned = next(v for v in said if v.get('result') == 'planned')
         assert int(planned['waypoints']) >= 1000
