@@ -3,8 +3,8 @@ Goal-to-/joint_demands latency of the planner node over DDS (issue 7).
 
 Starts the planner as its own process, publishes /joint_states (home pose) from this process,
 sends /pose_goal linear goals and measures the time from publishing the goal to receiving the
-N x 6 /joint_demands, for 20, 100 and 1000 waypoints. Prints a table, writes
-bench/results/planner.json.
+N x 6 /joint_demands, for 20, 100 and 1000 waypoints. Each goal goes to an idle planner: after
+the planner's 'planned' for the one before. Prints a table, writes bench/results/planner.json.
 """
 
 import argparse
@@ -12,6 +12,7 @@ import tempfile
 import time
 
 from bench.output import write_json
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import pose_from_xyzabc
@@ -20,10 +21,12 @@ from mover6_control.nodes.demand_messages import demand_options_from_msg
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import rclpy
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from ros_testing import NodeProcess
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 
+STATUS_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 GOALS = (pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0),
          pose_from_xyzabc(0.30, -0.08, 0.32, 0.0, np.pi / 2, 0.0))
 
@@ -37,7 +40,7 @@ def measure(client, n_waypoints, repeats, seen):
     problem = client.set_planner_parameters({'n_waypoints': n_waypoints})
     if problem:
         raise RuntimeError(problem)
-    received = []
+    received, ids, answered = [], [], set()
 
     def on_demand(msg):
         # The planner sends a goal's demand again until a controller acknowledges it (none
@@ -46,8 +49,16 @@ def measure(client, n_waypoints, repeats, seen):
         if goal not in seen:
             seen.add(goal)
             received.append(time.perf_counter())
+            ids.append(goal)
+
+    def on_status(msg):
+        values = conversions.status_values(msg)
+        if values.get('result') == 'planned':
+            answered.add(values.get('goal_id'))
 
     sub = client.create_subscription(Float32MultiArray, 'joint_demands', on_demand, 10)
+    status_sub = client.create_subscription(DiagnosticStatus, 'planner/status', on_status,
+                                            STATUS_QOS)
     latencies = []
     for i in range(repeats):
         received.clear()
@@ -59,7 +70,13 @@ def measure(client, n_waypoints, repeats, seen):
         if not client.spin_until(lambda: bool(received), 10.0):
             raise RuntimeError(f'no /joint_demands for {n_waypoints} waypoints')
         latencies.append(received[0] - t0)
+        # The next goal goes to an idle planner: after this one's answer ('planned' with the
+        # predicted duration, which the planner may say after the demand is out).
+        if not client.spin_until(lambda: ids[0] in answered, 10.0):
+            raise RuntimeError(f'no planned status for goal {ids[0]}')
+        ids.clear()
     client.destroy_subscription(sub)
+    client.destroy_subscription(status_sub)
     return latencies
 
 

@@ -7,6 +7,12 @@ known readers of /joint_demands are matched (or after ``match_timeout``), and se
 ``RESEND_AFTER`` until the controller's status names its goal (taken, or refused: the goal's end),
 at most ``RESENDS`` more times; then the goal fails (``not_acknowledged``).
 
+The demand goes out before its duration is predicted (``control.planners.predicted_duration``,
+the controller's own timing of the plan: at 1000 waypoints most of the planning time, and no
+check: every refusal comes before the demand). The status then says 'planned' with that
+duration; a controller's refusal or a ~/stop that comes meanwhile is held (``Unconfirmed.held``)
+and said after 'planned', in the order the status always had.
+
 ``DemandDelivery`` is a part of ``planner_node.PlannerNode`` (its state is the node's, set in
 ``PlannerNode.__init__``); it is not used on its own.
 """
@@ -16,10 +22,13 @@ import time
 from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticStatus
+from mover6_control.control.planners import predicted_duration
 from mover6_control.control.status import PlannerResult
+from mover6_control.errors import Mover6Error
 from mover6_control.nodes import conversions, demand_messages
 from mover6_control.nodes.planner_thread import POLL
 from mover6_control.planning.planner_core import JointPlan
+import numpy as np
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import Float32MultiArray
 
@@ -45,6 +54,8 @@ class Unconfirmed:
     sent: float        # [s] monotonic time of the last send
     count: int         # times sent
     first: float       # [s] monotonic time of the first send
+    announced: bool = False   # the status has said 'planned'
+    held: Optional[tuple] = None   # (text, reason) of a refusal said once announced
 
 
 class DemandDelivery:
@@ -62,6 +73,11 @@ class DemandDelivery:
         with self.lock:
             taken = self.unconfirmed.pop(values.get('goal_id') or None, None)
             refused = self.unconfirmed.pop(values.get('rejected_goal_id') or None, None)
+            if refused is not None and not refused.announced:
+                # Said by ``deliver`` after 'planned' (module docstring).
+                refused.held = ('the controller refused the demand: '
+                                + values.get('rejected', ''), 'controller_refused')
+                refused = None
         if taken is not None:
             self.get_logger().info(f'goal {taken.goal["goal_id"]}: the controller took it '
                                    f'(motion {values.get("motion_id", "?")})')
@@ -79,8 +95,14 @@ class DemandDelivery:
         known = len(self.get_subscriptions_info_by_topic(self.demands_pub.topic_name))
         return self.demands_pub.get_subscription_count(), known
 
-    def deliver(self, goal: dict, motion: str, plan: JointPlan) -> None:
-        """Publish the plan once every known reader of /joint_demands is matched; say planned."""
+    def deliver(self, goal: dict, motion: str, plan: JointPlan, profile: str,
+                q_start: np.ndarray) -> None:
+        """
+        Publish the plan once every known reader of /joint_demands is matched; say planned.
+
+        The duration ``profile`` takes from ``q_start`` is predicted after the demand is out
+        (module docstring).
+        """
         since = time.monotonic()
         while True:
             matched, known = self.subscribers_matched()
@@ -99,8 +121,20 @@ class DemandDelivery:
             return
         msg = demand_messages.make_demands(plan.q, goal['goal_id'], goal.get('profile', ''))
         now = time.monotonic()
+        entry = Unconfirmed(goal, motion, msg, now, 1, now)
         with self.lock:
-            self.unconfirmed[goal['goal_id']] = Unconfirmed(goal, motion, msg, now, 1, now)
+            self.unconfirmed[goal['goal_id']] = entry
+        self.demands_pub.publish(msg)
+        # One timing model: the controller's law times the waypoints from the same start.
+        try:
+            plan = dataclasses.replace(plan, predicted_duration=predicted_duration(
+                profile, q_start, plan.q, self.arm.velocity_limits))
+        except (Mover6Error, ValueError) as err:
+            # Not a check (the controller times the demand and says if it refuses it): the
+            # status keeps the planner's rough estimate.
+            self.get_logger().warning(
+                f'goal {goal["goal_id"]}: the duration was not predicted ({err}); the '
+                f'estimate says {plan.predicted_duration:.2f} s')
         values = {'result': PlannerResult.PLANNED, 'motion': motion, 'waypoints': plan.n_waypoints,
                   'path_length': f'{plan.path_length:.6f}',
                   'predicted_duration': f'{plan.predicted_duration:.3f}',
@@ -109,9 +143,13 @@ class DemandDelivery:
         text = (f'planned {motion} move: {plan.n_waypoints} waypoints, '
                 f'{plan.path_length * 1e3:.1f} mm, about {plan.predicted_duration:.2f} s')
         self.get_logger().info(f'goal {goal["goal_id"]}: {text}')
-        # The status first: a controller's refusal of the demand then comes after it.
+        # The status first: a controller's refusal of the demand, or a stop, comes after it.
         self.publish_status('OK', text, values, goal)
-        self.demands_pub.publish(msg)
+        with self.lock:
+            entry.announced = True
+            held = entry.held
+        if held is not None:
+            self.refuse(motion, held[0], held[1], {}, goal)
 
     def resend_due(self) -> Optional[float]:
         """Return the time [s] until the next demand is due again (None: none waits)."""

@@ -191,6 +191,10 @@ class PlannerNode(PlanningThread, DemandDelivery, Node):
             self.stopped_seq = self.goal_seq
             dropped = list(self.unconfirmed.values())
             self.unconfirmed.clear()
+            for entry in dropped:
+                if not entry.announced:       # said after 'planned' (planner_delivery)
+                    entry.held = ('stopped before any controller named it', 'stopped')
+            dropped = [entry for entry in dropped if entry.announced]
         response.success = True
         response.message = (f'goals up to {self.stopped_seq} dropped: none of them is planned '
                             "or sent from now on (the controller's ~/stop stops the arm)")

@@ -11,13 +11,12 @@ reading states, answering ~/stop and the controller's status while a goal is pla
 ``PlannerNode.__init__``); it is not used on its own.
 """
 
-import dataclasses
 import queue
 import time
 from typing import Callable, Optional
 
 from mover6_control.collision.checker import CollisionChecker
-from mover6_control.control.planners import predicted_duration
+from mover6_control.control.profiles import LawConfig
 from mover6_control.control.status import PlannerState
 from mover6_control.errors import Mover6Error, UnreachableError
 from mover6_control.nodes.node_clock import now_ns
@@ -92,17 +91,17 @@ class PlanningThread:
             if q_now is None:
                 return
             plan = plan_fn(q_now, self.settings())
-            # One timing model: the controller's law times the waypoints from the same start.
-            plan = dataclasses.replace(plan, predicted_duration=predicted_duration(
-                goal.get('profile') or self.get_parameter('profile').value, q_now, plan.q,
-                self.arm.velocity_limits))
+            # The profile's name is checked before anything is sent (an unknown one is refused
+            # here, as it was by the prediction); the duration is predicted once the demand is
+            # out (``deliver``): the prediction refuses nothing.
+            law = LawConfig(profile=goal.get('profile') or self.get_parameter('profile').value)
         except UnreachableError as err:
             self.refuse(motion, str(err), err.reason, err.details, goal)
             return
         except (Mover6Error, ValueError) as err:
             self.refuse(motion, str(err), 'invalid_goal', {}, goal)
             return
-        self.deliver(goal, motion, plan)
+        self.deliver(goal, motion, plan, law.profile, q_now)
 
     def wait_for_states(self, goal: dict, motion: str, received: float) -> Optional[np.ndarray]:
         """

@@ -22,7 +22,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from ros_testing import spin_until
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float32MultiArray
+from std_msgs.msg import Float32MultiArray, Header
 
 pytestmark = pytest.mark.node
 ARM = mover6()
@@ -620,3 +620,65 @@ def test_a_demand_the_controller_refuses_ends_the_goal_on_the_planners_status(no
     assert values['goal_id'] == goal_id and reason in status.message
     assert len(probe.statuses) > n
     assert not spin_until(executor, lambda: len(probe.demands) > 1, 2.0 * RESEND_AFTER + 0.5)
+
+
+def goal_answers(statuses, goal_id):
+    """Return the results the planner's status said for ``goal_id``, in order."""
+    return [conversions.status_values(m).get('result') for m in statuses
+            if conversions.status_values(m).get('goal_id') == goal_id
+            and conversions.status_values(m).get('result') in ANSWERS]
+
+
+def test_a_refusal_as_soon_as_the_demand_arrives_comes_after_planned(nodes):
+    """
+    The demand goes out before the duration is predicted; the status keeps its order.
+
+    The controller refuses a 1000-waypoint demand the moment it arrives, and a ~/stop comes the
+    moment the next one arrives (while the planner may still predict the duration): each goal
+    is 'planned' with its predicted duration, then refused (controller_refused, stopped).
+    """
+    executor, planner, probe = nodes
+    planner.set_parameters([Parameter('n_waypoints', value=1000)])
+    qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    controller_status = probe.create_publisher(DiagnosticStatus, 'controller/status', qos)
+    from std_srvs.srv import Trigger
+    stop = probe.create_client(Trigger, 'planner/stop')
+    connected(executor, probe)
+    assert spin_until(executor, lambda: controller_status.get_subscription_count() > 0)
+    assert spin_until(executor, stop.service_is_ready)
+    # 'planned' and the refusal can come back to back: a queue deep enough for both (the
+    # probe's own keeps the last status only).
+    statuses = []
+    probe.create_subscription(DiagnosticStatus, 'planner/status', statuses.append, QoSProfile(
+        depth=50, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    reason = 'cannot take a demand while waiting_for_states: waiting for /joint_states'
+    calls = []
+
+    def on_demand(msg):
+        goal_id = demand_messages.demand_id_from_msg(msg)
+        if goal_id in calls:
+            return                              # sent again: not acknowledged yet
+        if not calls:
+            controller_status.publish(conversions.make_status(
+                'controller', 'WARN', f'rejected demand: {reason}',
+                {'state': 'waiting_for_states', 'goal_id': '', 'rejected': reason,
+                 'rejected_goal_id': goal_id}))
+        elif len(calls) == 1:
+            stop.call_async(Trigger.Request())
+        calls.append(goal_id)
+    probe.create_subscription(Float32MultiArray, 'joint_demands', on_demand, 10)
+    for expected in ('controller_refused', 'stopped'):
+        give_state(executor, planner, probe, HOME)
+        n = len(calls)
+        probe.pose_pub.publish(PoseStamped(header=Header(frame_id='base_link'),
+                                           pose=conversions.matrix_to_pose(GOAL)))
+        assert spin_until(executor, lambda: len(calls) > n, 30.0)
+        goal_id = calls[n]
+        assert spin_until(executor, lambda: len(goal_answers(statuses, goal_id)) == 2, 30.0)
+        assert goal_answers(statuses, goal_id) == ['planned', 'refused']
+        said = [conversions.status_values(m) for m in statuses
+                if conversions.status_values(m).get('goal_id') == goal_id]
+        planned = next(v for v in said if v.get('result') == 'planned')
+        assert int(planned['waypoints']) >= 1000
+        assert float(planned['predicted_duration']) > 0.0
+        assert [v['reason'] for v in said if v.get('result') == 'refused'] == [expected]
