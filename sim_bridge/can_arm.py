@@ -33,7 +33,7 @@ jonaitken/cpr_ros2; and the Mover6 user guide's CAN pages):
   When the reference runs more than ``lag_limit`` ahead of the position, the module raises
   position lag (0x10). ``max_setpoint_gap`` keeps the largest distance between a set-point an
   enabled module was sent (or kept, at enable) and its position then [wire ticks]: what a test
-  reads to see a jump.
+  reads to see a jump; ``setpoint_range`` the lowest and highest set-point taken.
 - Communication watchdog: an enabled module that gets no set-point for ``watchdog_timeout``
   raises 0x08 and stops.
 - Start referencing and set zero take effect on the second of two commands; set zero's second
@@ -120,6 +120,7 @@ class MotorModule:
         self.top_speed = float(top_speed)
         self.answers_commands = bool(answers_commands)
         self.max_setpoint_gap = 0      # [wire ticks] the largest set-point an enabled one met
+        self.setpoint_range = None     # (lowest, highest) set-point taken [wire ticks]
         self.flags = POWER_UP_FLAGS
         self.enabled = False
         self.referenced = False
@@ -215,6 +216,8 @@ class MotorModule:
     def _take_setpoint(self, command, now, position):
         """Store a set-point and start the reference's ramp to it."""
         self.setpoints += 1
+        lo, hi = self.setpoint_range or (command.position, command.position)
+        self.setpoint_range = (min(lo, command.position), max(hi, command.position))
         if self.enabled:
             self.max_setpoint_gap = max(self.max_setpoint_gap,
                                         abs(command.position - position))
@@ -288,7 +291,8 @@ class MotorModule:
                 'silent': self.silent, 'setpoint': self.last_setpoint, 'bias': self.bias,
                 'setpoints': self.setpoints, 'setpoint_changed': self.setpoint_changed,
                 'replies': self.replies, 'ignored': self.ignored,
-                'digital_out': self.digital_out, 'max_setpoint_gap': self.max_setpoint_gap}
+                'digital_out': self.digital_out, 'max_setpoint_gap': self.max_setpoint_gap,
+                'setpoint_range': self.setpoint_range}
 
 
 class CanArm:

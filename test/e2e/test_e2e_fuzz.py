@@ -12,7 +12,8 @@ lengths and names, empty and 100,000-element arrays, odd frames, stamps past and
 
 - every node process still runs, and the launcher reported no exit;
 - nothing unsafe was commanded: every /JointJog not sent by this test (theirs carry
-  ``TAG`` in the frame id) is finite and within the arm's velocity limits;
+  ``TAG`` in the frame id) is finite and within the arm's velocity limits, and with can-sim no
+  set-point the simulated modules took lies outside the joint's hardware limits;
 - each node's guard (``~/guard``) counted what it refused, by topic: the figures are printed
   (``./run.sh test -m e2e -k fuzz -rA`` shows them);
 - after the planner's and the controller's ~/stop drop what the stream queued, a valid joint
@@ -27,6 +28,7 @@ import time
 
 from hostile_messages import HostileMessages, message_class
 from mover6_control.control.status import StatusKey
+from mover6_control.hardware.scaling import load_joints
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.nodes.conversions import status_values
@@ -39,6 +41,7 @@ import pytest
 import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from ros_testing import installed, NodeProcess, wait_until
+from sim_bridge.can_sim import control as can_sim_control
 
 pytestmark = [pytest.mark.e2e,
               pytest.mark.skipif(not installed(), reason='needs the built package')]
@@ -203,6 +206,14 @@ def test_every_subscription_survives_a_hostile_stream(tmp_path, config):
         assert not dead, f'{dead} died\n{report}\n{log.read_text()}'
         assert 'exited' not in log.read_text(), log.read_text()
         assert probe.unsafe == [], f'{probe.unsafe[:5]}\n{report}'
+        if config == 'can_sim':          # no set-point on the bus outside the joint limits
+            link = re.search(r'started can_sim \(pid \d+\) on (\S+)', log.read_text()).group(1)
+            modules = can_sim_control(link + '.control', 'status')['modules']
+            _, scales = load_joints()
+            for scale, module in zip(scales, modules):
+                lo, hi = (scale.to_wire(t) for t in scale.tick_limits('hardware'))
+                low, high = module['setpoint_range']
+                assert lo <= low <= high <= hi, (scale.name, module['setpoint_range'], lo, hi)
         assert probe.commands > 0, report
         # Every refusal was the input's (a Mover6Error with its code), none a node's own bug.
         assert all(probe.guards[n][1].get('internal_errors') == '0' for n in names), report
