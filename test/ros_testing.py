@@ -44,6 +44,15 @@ def without_the_right():
     ctypes.CDLL(None, use_errno=True).prctl(PR_CAPBSET_DROP, CAP_SYS_NICE, 0, 0, 0)
 
 
+def pid_alive(pid):
+    """Return True while process ``pid`` exists."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
 def node_command(name):
     """Return the command that starts node ``name``: installed executable or ``python -m``."""
     try:

@@ -40,7 +40,7 @@ import numpy as np
 import pytest
 import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile
-from ros_testing import installed, NodeProcess, wait_until
+from ros_testing import installed, NodeProcess, pid_alive, wait_until
 from sim_bridge.can_sim import control as can_sim_control
 
 pytestmark = [pytest.mark.e2e,
@@ -69,15 +69,6 @@ def start_launcher(tmp_path, args):
 def started(log):
     """Return {name: pid} of the nodes launch.sh says it started."""
     return {n: int(p) for n, p in re.findall(r'started (\w+) \(pid (\d+)\)', log.read_text())}
-
-
-def alive(pid):
-    """Return True while process ``pid`` runs."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    return True
 
 
 class Probe:
@@ -187,7 +178,7 @@ def test_every_subscription_survives_a_hostile_stream(tmp_path, config):
         assert client.spin_until(lambda: all(probe.guards.get(n, (0.0,))[0] > end + 0.1
                                              for n in names), 20.0), probe.guards.keys()
         dead = [n for n in names if not (recorder.alive() if n == 'recorder'
-                                         else alive(pids[n]))]
+                                         else pid_alive(pids[n]))]
         lines = [f'{config}: {len(topics)} topics, {sum(f[3] for f in figures)} messages; '
                  f'nodes alive {len(names) - len(dead)}/{len(names)}; /JointJog commands '
                  f'{probe.commands}, unsafe {len(probe.unsafe)}']

@@ -12,22 +12,13 @@ import time
 
 from mover6_control.resources import CONFIG_DIR
 import pytest
-from ros_testing import installed
+from ros_testing import installed, pid_alive
 
 pytestmark = pytest.mark.e2e
 
 SCRIPT = os.path.join(os.path.dirname(CONFIG_DIR), 'scripts', 'launch.sh')
 # What a plain launch.sh (the simulator) starts.
 STARTED = {'sim_bridge', 'controller', 'planner', 'state_publisher', 'markers'}
-
-
-def alive(pid):
-    """Return True while process ``pid`` exists."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    return True
 
 
 def wait_for(predicate, timeout):
@@ -66,10 +57,10 @@ def test_one_node_dying_stops_the_others(tmp_path):
     try:
         pids = node_pids(log)
         assert set(pids) == STARTED
-        assert all(alive(p) for p in pids.values())
+        assert all(pid_alive(p) for p in pids.values())
         os.kill(pids['controller'], signal.SIGKILL)
         assert proc.wait(30) != 0
-        assert wait_for(lambda: not any(alive(p) for p in pids.values()), 15.0)
+        assert wait_for(lambda: not any(pid_alive(p) for p in pids.values()), 15.0)
         assert 'controller exited' in log.read_text()
     finally:
         if proc.poll() is None:
@@ -88,7 +79,7 @@ def test_ctrl_c_stops_every_node(tmp_path):
                         30.0)
         proc.send_signal(signal.SIGINT)
         proc.wait(30)
-        assert wait_for(lambda: not any(alive(p) for p in pids.values()), 15.0)
+        assert wait_for(lambda: not any(pid_alive(p) for p in pids.values()), 15.0)
         assert 'all nodes stopped' in log.read_text()
     finally:
         if proc.poll() is None:
@@ -136,12 +127,12 @@ def test_a_helper_that_dies_is_started_again_and_the_motion_arrives(tmp_path):
             assert killed, f'{name}: the motion ended before it could be killed'
             assert outcome.arrived, f'{name} killed: {outcome}\n{log.read_text()}'
             assert wait_for(lambda: node_pids(log)[name] != killed[0], 30.0), log.read_text()
-            assert alive(node_pids(log)[name])
+            assert pid_alive(node_pids(log)[name])
             assert f'{name} exited (code' in log.read_text()
         text = log.read_text()
         assert 'stopping the others' not in text and proc.poll() is None, text
         for name in ('sim_bridge', 'controller'):
-            assert node_pids(log)[name] == pids[name] and alive(pids[name]), text
+            assert node_pids(log)[name] == pids[name] and pid_alive(pids[name]), text
         # The planner started again plans: a pose goal through it arrives.
         assert client.spin_until(lambda: client.values(client.planner_status).get('state')
                                  == 'ready', 60.0), client.planner_status
