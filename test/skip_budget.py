@@ -30,8 +30,10 @@ def skipped(xml_path):
         skip = case.find('skipped')
         if skip is None or skip.get('type') == 'pytest.xfail':
             continue
+        # 'test.e2e.test_x' from pytest, 'mover6_control.test.e2e.test_x' from colcon test.
         parts = case.get('classname', '').split('.')
-        tier = TIERS.get(parts[1] if len(parts) > 1 and parts[0] == 'test' else '', 'unit')
+        folder = parts[parts.index('test') + 1] if 'test' in parts[:-1] else ''
+        tier = TIERS.get(folder, 'unit')
         name = f'{case.get("classname")}::{case.get("name")}'
         out[tier].append((name, skip.get('message', '').strip() or '(no reason given)'))
     return out
