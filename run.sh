@@ -245,8 +245,8 @@ local_dds() {
     # DDS stays on this machine unless the user chose their own setup (a robot network): the
     # package's Fast DDS profile, UDP on 127.0.0.1 only, no shared memory (README, "DDS").
     local exports
-    exports=$(python -m mover6_control.nodes.local_dds env) || {
-        log 'cannot set up DDS (python -m mover6_control.nodes.local_dds env failed)'
+    exports=$(python -m mover6_control.nodes.runtime.local_dds env) || {
+        log 'cannot set up DDS (python -m mover6_control.nodes.runtime.local_dds env failed)'
         exit 1
     }
     eval "$exports"

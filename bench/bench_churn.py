@@ -109,7 +109,7 @@ LOG_STAMP = re.compile(r'^\[\w+\] \[(\d+\.\d+)\]')   # a ROS log line: [LEVEL] [
 # Every process of a row, the churn processes and this benchmark's own included, runs in the
 # row's DDS configuration: ``localhost`` is ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST as before
 # issue 22 (rmw_fastrtps adds shared memory), ``local`` the package's local configuration
-# (``mover6_control.nodes.local_dds``: UDP on 127.0.0.1 only, no shared memory). Parameters not
+# (``nodes.runtime.local_dds``: UDP on 127.0.0.1 only, no shared memory). Parameters not
 # given are the shipped files' (config/*.yaml): ``local`` is the product as it ships (the tick and
 # the physics thread at SCHED_FIFO 50 where allowed), ``localhost`` the product before issue 22
 # (both at normal scheduling, priority 0); ``local_prio0`` and ``localhost_prio50`` swap one of
@@ -228,8 +228,8 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False, bridge_pa
     """
     from control_msgs.msg import JointJog
     from diagnostic_msgs.msg import DiagnosticStatus
-    from mover6_control.nodes import conversions, demand_messages
-    from mover6_control.nodes.qos import STATUS_QOS
+    from mover6_control.nodes.messages import conversions, demand_messages
+    from mover6_control.nodes.runtime.qos import STATUS_QOS
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from ros_testing import NodeProcess
@@ -391,7 +391,7 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False, bridge_pa
 
 def dds_environment(dds, environ):
     """Return ``environ`` with DDS configuration ``dds`` (``localhost`` or ``local``) only."""
-    from mover6_control.nodes import local_dds
+    from mover6_control.nodes.runtime import local_dds
     env = {k: v for k, v in environ.items() if k not in local_dds.USER_DDS_ENV}
     if dds == 'local':
         env.update(local_dds.local_environment())

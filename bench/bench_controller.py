@@ -28,7 +28,7 @@ from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.profiles import LawConfig, PROFILES
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes import local_dds
+from mover6_control.nodes.runtime import local_dds
 import numpy as np
 
 DT = 0.01
@@ -90,7 +90,7 @@ class SourceNode(NodeProcess):
 def bench_node(rate, seconds, log_dir):
     """Start the controller node at ``rate`` [Hz]; return jitter and CPU figures."""
     from control_msgs.msg import JointJog
-    from mover6_control.nodes import conversions, demand_messages
+    from mover6_control.nodes.messages import conversions, demand_messages
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node

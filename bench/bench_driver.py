@@ -50,8 +50,8 @@ from bench.processes import NodeProcess
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.hardware import protocol
-from mover6_control.nodes.conversions import make_joint_jog
-from mover6_control.nodes.qos import STATUS_QOS
+from mover6_control.nodes.messages.conversions import make_joint_jog
+from mover6_control.nodes.runtime.qos import STATUS_QOS
 import numpy as np
 import rclpy
 from sim_bridge.can_sim import build_arm, SerialArm

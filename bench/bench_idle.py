@@ -39,7 +39,7 @@ import tempfile
 import time
 
 from bench.output import write_json
-from mover6_control.nodes import local_dds
+from mover6_control.nodes.runtime import local_dds
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -69,7 +69,7 @@ class Probe:
     def __init__(self, namespace):
         """Create the node in its own context, with the status readers and the demand writer."""
         from diagnostic_msgs.msg import DiagnosticStatus
-        from mover6_control.nodes import conversions, demand_messages
+        from mover6_control.nodes.messages import conversions, demand_messages
         from mover6_control.nodes.controller_node import STATUS_QOS
         import rclpy
         from rclpy.executors import SingleThreadedExecutor

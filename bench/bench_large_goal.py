@@ -30,7 +30,7 @@ import tempfile
 import time
 
 from bench.output import write_json
-from mover6_control.nodes import local_dds
+from mover6_control.nodes.runtime import local_dds
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -65,8 +65,8 @@ class Probe:
         from control_msgs.action import FollowJointTrajectory
         from control_msgs.msg import JointJog
         from diagnostic_msgs.msg import DiagnosticStatus
-        from mover6_control.nodes import conversions
-        from mover6_control.nodes.qos import STATUS_QOS
+        from mover6_control.nodes.messages import conversions
+        from mover6_control.nodes.runtime.qos import STATUS_QOS
         import rclpy
         from rclpy.action import ActionClient
         from rclpy.executors import SingleThreadedExecutor

@@ -28,7 +28,7 @@ import time
 
 from bench.bench_churn import Churn
 from bench.output import write_json
-from mover6_control.nodes import local_dds
+from mover6_control.nodes.runtime import local_dds
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -49,8 +49,8 @@ def run_once(dds, total, log_dir):
     """Launch the can-sim stack, churn during motions; return the figures."""
     from control_msgs.msg import JointJog
     from diagnostic_msgs.msg import DiagnosticStatus
-    from mover6_control.nodes import conversions, demand_messages
-    from mover6_control.nodes.qos import STATUS_QOS
+    from mover6_control.nodes.messages import conversions, demand_messages
+    from mover6_control.nodes.runtime.qos import STATUS_QOS
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState

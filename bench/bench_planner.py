@@ -16,8 +16,8 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import pose_from_xyzabc
-from mover6_control.nodes import conversions
-from mover6_control.nodes.demand_messages import demand_options_from_msg
+from mover6_control.nodes.messages import conversions
+from mover6_control.nodes.messages.demand_messages import demand_options_from_msg
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import rclpy

@@ -50,7 +50,7 @@ import tempfile
 import time
 
 from bench.output import write_json
-from mover6_control.nodes import local_dds
+from mover6_control.nodes.runtime import local_dds
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -159,7 +159,7 @@ def graph_ready(client):
 def run_once(profile, T_goal, log_dir, timeout):
     """Start the stack with ``profile``, send the goal, return the figures of the run."""
     from geometry_msgs.msg import PoseStamped
-    from mover6_control.nodes import conversions
+    from mover6_control.nodes.messages import conversions
     from ros_testing import Stack
 
     with Stack(log_dir, controller={'profile': profile}, planner={'profile': profile}) as stack:

@@ -28,7 +28,7 @@ from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.controller_core import ControllerCore
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import jacobian
-from mover6_control.nodes import local_dds
+from mover6_control.nodes.runtime import local_dds
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -81,7 +81,7 @@ def bench_latency(samples, log_dir):
     """Return the twist-to-JointJog latencies [s] (to the tick, to arrival here) of samples."""
     from control_msgs.msg import JointJog
     from geometry_msgs.msg import TwistStamped
-    from mover6_control.nodes import conversions
+    from mover6_control.nodes.messages import conversions
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node

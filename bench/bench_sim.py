@@ -24,7 +24,7 @@ import threading
 import time
 
 from bench.output import write_json
-from mover6_control.nodes import local_dds
+from mover6_control.nodes.runtime import local_dds
 
 local_dds.apply_default(os.environ)   # the launchers' DDS (loopback only), before rclpy
 os.environ.setdefault('ROS_DOMAIN_ID', os.environ.get('BENCH_SIM_DOMAIN_ID', '31'))

@@ -52,8 +52,8 @@ from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
 from mover6_control.node_roles import is_essential, RESTART_DELAY
-from mover6_control.nodes import local_dds
-from mover6_control.nodes.names import check_namespace
+from mover6_control.nodes.runtime import local_dds
+from mover6_control.nodes.runtime.names import check_namespace
 from mover6_control.parameters import CONTROLLER
 
 PACKAGE = 'mover6_control'

@@ -115,7 +115,7 @@ prefix=$(python3 -c 'from ament_index_python.packages import get_package_prefix 
 }
 # DDS stays on this machine (UDP on 127.0.0.1, no shared memory: the package's Fast DDS profile)
 # unless the user chose their own DDS setup (robot network); README, "DDS".
-dds=$(python3 -m mover6_control.nodes.local_dds env) || exit 1
+dds=$(python3 -m mover6_control.nodes.runtime.local_dds env) || exit 1
 eval "$dds"
 bin="$prefix/lib/mover6_control"
 # Which nodes are essential (their exit stops the stack) and which are helpers (started again
@@ -123,7 +123,7 @@ bin="$prefix/lib/mover6_control"
 roles=$(python3 -m mover6_control.node_roles shell) || exit 1
 eval "$roles"
 # The namespace, checked by ROS's naming rules, and its TF frame prefix (/arm1 -> arm1/).
-checked=$(python3 -m mover6_control.nodes.names "$namespace") || exit 2
+checked=$(python3 -m mover6_control.nodes.runtime.names "$namespace") || exit 2
 read -r namespace tf_prefix <<<"$checked"
 ns_args=()
 [ "$namespace" != / ] && ns_args=(-r "__ns:=$namespace")

@@ -42,9 +42,10 @@ from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import LIMIT_SETS, load_urdf, mover6
-from mover6_control.nodes import cdr, conversions, params, shutdown
-from mover6_control.nodes.callback_guard import CallbackGuard
-from mover6_control.nodes.qos import STATUS_QOS, STREAM_READER_QOS
+from mover6_control.nodes.messages import cdr, conversions
+from mover6_control.nodes.runtime import params, shutdown
+from mover6_control.nodes.runtime.callback_guard import CallbackGuard
+from mover6_control.nodes.runtime.qos import STATUS_QOS, STREAM_READER_QOS
 from mover6_control.parameters import SIM_BRIDGE
 import numpy as np
 from rclpy.node import Node

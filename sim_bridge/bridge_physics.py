@@ -15,8 +15,8 @@ runs the steps due before it acts) under its ``step_lock``. Each step publishes 
 import math
 import time
 
-from mover6_control.nodes import conversions
-from mover6_control.nodes.node_clock import now_ns
+from mover6_control.nodes.messages import conversions
+from mover6_control.nodes.runtime.node_clock import now_ns
 from mover6_control.realtime import raise_this_thread, run_normal
 from sim_bridge.pacing import steps_due
 

@@ -14,7 +14,7 @@ import os
 import random
 
 from hypothesis import core, settings
-from mover6_control.nodes import local_dds
+from mover6_control.nodes.runtime import local_dds
 
 # Before anything imports rclpy: these are read when a context is created. DDS as the launchers
 # set it (./run.sh test has already): the package's loopback-only configuration unless the user

@@ -19,7 +19,7 @@ from mover6_control.control.demand_intake import NotAcceptingError, PendingDeman
 from mover6_control.control.state_machine import FAULT, WAITING_FOR_STATES
 from mover6_control.control.timed_plan import Timing
 from mover6_control.errors import InvalidInputError, Mover6Error
-from mover6_control.nodes import demand_messages
+from mover6_control.nodes.messages import demand_messages
 from mover6_control.validation import short_text
 from std_msgs.msg import Float32MultiArray
 

@@ -15,7 +15,7 @@ flood), with the last refusal's reason.
 
 from control_msgs.msg import JointJog
 from mover6_control.errors import InvalidInputError
-from mover6_control.nodes.conversions import joint_jog_from_msg
+from mover6_control.nodes.messages.conversions import joint_jog_from_msg
 
 JOG_REFUSE_FACTOR = 2.0
 """rad_per_s: a JointJog faster than this many times a joint's maximum speed is refused."""

@@ -43,11 +43,11 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.hardware.bus import open_bus, open_frame_log
 from mover6_control.hardware.driver import ArmDriver
 from mover6_control.hardware.scaling import JOINTS_YAML, load_joints
-from mover6_control.nodes import shutdown
-from mover6_control.nodes.callback_guard import CallbackGuard
 from mover6_control.nodes.driver_jog import JogInput
 from mover6_control.nodes.driver_publish import ReportPublisher
-from mover6_control.nodes.params import declare
+from mover6_control.nodes.runtime import shutdown
+from mover6_control.nodes.runtime.callback_guard import CallbackGuard
+from mover6_control.nodes.runtime.params import declare
 from mover6_control.parameters import DRIVER
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node

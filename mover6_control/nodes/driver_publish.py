@@ -17,7 +17,7 @@ from typing import Iterable, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
 from mover6_control.hardware.driver_state import ArmReport, ModuleState
-from mover6_control.nodes.conversions import make_joint_state, make_status
+from mover6_control.nodes.messages.conversions import make_joint_state, make_status
 
 LEVELS = {ModuleState.FAULT: 'ERROR', ModuleState.ERROR: 'ERROR',
           ModuleState.DISCONNECTED: 'WARN', ModuleState.CONNECTED: 'WARN',

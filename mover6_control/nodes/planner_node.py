@@ -45,13 +45,14 @@ from mover6_control.control.status import PlannerResult, PlannerState
 from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
-from mover6_control.nodes import conversions, params, shutdown
-from mover6_control.nodes.callback_guard import CallbackGuard
-from mover6_control.nodes.node_clock import now_ns
-from mover6_control.nodes.node_configs import planner_settings_from_parameters
+from mover6_control.nodes.messages import conversions
 from mover6_control.nodes.planner_delivery import CONTROLLER_STATUS_QOS, DemandDelivery
 from mover6_control.nodes.planner_thread import PlanningThread, READY, WAITING
-from mover6_control.nodes.qos import LATEST_READER_QOS, STATUS_QOS
+from mover6_control.nodes.runtime import params, shutdown
+from mover6_control.nodes.runtime.callback_guard import CallbackGuard
+from mover6_control.nodes.runtime.node_clock import now_ns
+from mover6_control.nodes.runtime.node_configs import planner_settings_from_parameters
+from mover6_control.nodes.runtime.qos import LATEST_READER_QOS, STATUS_QOS
 from mover6_control.parameters import PLANNER
 from mover6_control.planning.planner_core import (check_path_shape, PATH_MOTIONS,
                                                   plan_path_goal, plan_pose_goal, POSE_MOTIONS)

@@ -19,8 +19,8 @@ from mover6_control.collision.checker import CollisionChecker
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.status import PlannerState
 from mover6_control.errors import Mover6Error, UnreachableError
-from mover6_control.nodes.node_clock import now_ns
-from mover6_control.nodes.node_configs import planner_settings_from_parameters
+from mover6_control.nodes.runtime.node_clock import now_ns
+from mover6_control.nodes.runtime.node_configs import planner_settings_from_parameters
 from mover6_control.planning.planner_core import PlannerSettings
 import numpy as np
 

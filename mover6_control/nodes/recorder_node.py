@@ -23,12 +23,12 @@ from typing import Optional, Sequence
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.errors import InvalidInputError
-from mover6_control.nodes import shutdown
 from mover6_control.nodes.bag_writer import BagWriter
-from mover6_control.nodes.callback_guard import CallbackGuard
-from mover6_control.nodes.conversions import make_status
-from mover6_control.nodes.params import declare
-from mover6_control.nodes.qos import STATUS_QOS
+from mover6_control.nodes.messages.conversions import make_status
+from mover6_control.nodes.runtime import shutdown
+from mover6_control.nodes.runtime.callback_guard import CallbackGuard
+from mover6_control.nodes.runtime.params import declare
+from mover6_control.nodes.runtime.qos import STATUS_QOS
 from mover6_control.parameters import RECORDER
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy

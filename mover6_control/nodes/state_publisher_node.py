@@ -22,11 +22,11 @@ from geometry_msgs.msg import TransformStamped
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import matrices_to_quaternions
 from mover6_control.kinematics.urdf_tree import fixed_transforms, moving_transforms, parse_urdf
-from mover6_control.nodes import shutdown
-from mover6_control.nodes.callback_guard import CallbackGuard
-from mover6_control.nodes.node_clock import now_ns
-from mover6_control.nodes.params import declare
-from mover6_control.nodes.qos import LATCHED_QOS
+from mover6_control.nodes.runtime import shutdown
+from mover6_control.nodes.runtime.callback_guard import CallbackGuard
+from mover6_control.nodes.runtime.node_clock import now_ns
+from mover6_control.nodes.runtime.params import declare
+from mover6_control.nodes.runtime.qos import LATCHED_QOS
 from mover6_control.parameters import STATE_PUBLISHER
 from mover6_control.resources import CONFIG_DIR
 import numpy as np

@@ -45,7 +45,7 @@ from mover6_control.control.motion_plan import MotionPlan
 from mover6_control.control.status import (FINAL_RESULTS, MotionResult, State, StatusKey,
                                            TIMING_AS_GIVEN)
 from mover6_control.control.timed_plan import Timing
-from mover6_control.nodes import demand_messages
+from mover6_control.nodes.messages import demand_messages
 from mover6_control.nodes.trajectory_goal import (ended_code, map_goal, map_timing, Result,
                                                   tolerances, violations)
 from mover6_control.validation import short_text

@@ -31,8 +31,8 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk_batch
 from mover6_control.motion.metrics import max_deviation_from_polyline
-from mover6_control.nodes import local_dds
-from mover6_control.nodes.qos import STATUS_QOS
+from mover6_control.nodes.runtime import local_dds
+from mover6_control.nodes.runtime.qos import STATUS_QOS
 from mover6_control.resources import CONFIG_DIR
 from mover6_control.tools.goal_cli import GoalClient
 from mover6_control.tools.goal_convention import (EXIT_REFUSED, format_numbers, format_outcome,

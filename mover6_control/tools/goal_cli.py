@@ -22,9 +22,9 @@ from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_error
-from mover6_control.nodes import conversions, demand_messages
-from mover6_control.nodes.names import namespace_from
-from mover6_control.nodes.qos import STATUS_READER_QOS
+from mover6_control.nodes.messages import conversions, demand_messages
+from mover6_control.nodes.runtime.names import namespace_from
+from mover6_control.nodes.runtime.qos import STATUS_READER_QOS
 from mover6_control.tools.goal_convention import (EXIT_ARRIVED, EXIT_FAILED, EXIT_NO_NODES,
                                                   EXIT_REFUSED, format_outcome, Outcome,
                                                   poses_from_numbers)

@@ -14,7 +14,7 @@ from typing import Callable, Optional
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.control.status import PlannerState, State, StatusKey
-from mover6_control.nodes import conversions
+from mover6_control.nodes.messages import conversions
 import rclpy
 
 # The controller is not ready in these states: a demand would be refused.

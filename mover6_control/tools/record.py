@@ -14,8 +14,8 @@ from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.nodes.bag_writer import check_bag_path
-from mover6_control.nodes.names import check_namespace
 from mover6_control.nodes.recorder_node import default_path
+from mover6_control.nodes.runtime.names import check_namespace
 from mover6_control.parameters import RECORDED_TOPICS
 
 

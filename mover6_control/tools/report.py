@@ -24,8 +24,8 @@ from mover6_control.kinematics.arm import ArmModel, LIMIT_SETS, mover6
 from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.rotations import pose_error
 from mover6_control.motion.metrics import max_deviation_from_polyline
-from mover6_control.nodes.conversions import pose_to_matrix
-from mover6_control.nodes.demand_messages import demand_id_from_msg, demands_from_msg
+from mover6_control.nodes.messages.conversions import pose_to_matrix
+from mover6_control.nodes.messages.demand_messages import demand_id_from_msg, demands_from_msg
 from mover6_control.tools.goal_convention import format_numbers, goal_from_pose
 import numpy as np
 import yaml

@@ -38,8 +38,8 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
 from mover6_control.control.servo import FRAMES
 from mover6_control.control.status import StatusKey
-from mover6_control.nodes import conversions
-from mover6_control.nodes.qos import STATUS_QOS
+from mover6_control.nodes.messages import conversions
+from mover6_control.nodes.runtime.qos import STATUS_QOS
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node

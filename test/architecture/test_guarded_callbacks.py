@@ -1,5 +1,5 @@
 """
-Every callback of every node goes through the one guard (``nodes/callback_guard.py``, issue 31).
+Every callback of every node goes through the one guard (``nodes/runtime/callback_guard.py``).
 
 Read from the source: in the node modules (``mover6_control/nodes/`` and the bridge's node) no
 subscription, service, timer or parameter callback is created but through a ``CallbackGuard``;
@@ -18,7 +18,7 @@ from source_tree import ROOT
 
 pytestmark = pytest.mark.lint
 
-GUARD = 'mover6_control/nodes/callback_guard.py'
+GUARD = 'mover6_control/nodes/runtime/callback_guard.py'
 # The calls that register a callback with rclpy: only the guard makes them.
 REGISTERING = ('create_subscription', 'create_service', 'create_timer',
                'add_on_set_parameters_callback', 'add_post_set_parameters_callback',
@@ -28,7 +28,8 @@ REGISTERING = ('create_subscription', 'create_service', 'create_timer',
 def node_modules():
     """Return the paths (relative, with '/') of the node modules the rule covers."""
     folder = os.path.join(ROOT, 'mover6_control', 'nodes')
-    paths = [f'mover6_control/nodes/{n}' for n in sorted(os.listdir(folder)) if n.endswith('.py')]
+    paths = sorted(os.path.relpath(os.path.join(here, n), ROOT).replace(os.sep, '/')
+                   for here, _, names in os.walk(folder) for n in names if n.endswith('.py'))
     bridge = ('bridge_node.py', 'bridge_physics.py', 'bridge_controls.py')
     return paths + [f'sim_bridge/{n}' for n in bridge]
 

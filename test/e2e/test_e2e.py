@@ -13,7 +13,7 @@ import sys
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc
-from mover6_control.nodes.conversions import status_values
+from mover6_control.nodes.messages.conversions import status_values
 from mover6_control.resources import CONFIG_DIR
 from mover6_control.tools.goal_cli import GoalClient
 from mover6_control.tools.goal_convention import EXIT_REFUSED, pose_from_goal

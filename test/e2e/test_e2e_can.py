@@ -20,7 +20,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from mover6_control.hardware.scaling import load_joints
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes.conversions import matrix_to_pose, status_values
+from mover6_control.nodes.messages.conversions import matrix_to_pose, status_values
 from mover6_control.parameters import DRIVER
 from mover6_control.tools.goal_cli import GoalClient
 from mover6_control.tools.goal_convention import poses_from_numbers

@@ -31,9 +31,9 @@ from mover6_control.control.status import StatusKey
 from mover6_control.hardware.scaling import load_joints
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
-from mover6_control.nodes.conversions import status_values
-from mover6_control.nodes.demand_messages import make_demands
-from mover6_control.nodes.qos import STATUS_READER_QOS
+from mover6_control.nodes.messages.conversions import status_values
+from mover6_control.nodes.messages.demand_messages import make_demands
+from mover6_control.nodes.runtime.qos import STATUS_READER_QOS
 from mover6_control.resources import CONFIG_DIR
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np

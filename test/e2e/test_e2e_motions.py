@@ -16,8 +16,8 @@ from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.rotations import pose_from_xyzabc
 from mover6_control.motion.metrics import max_deviation_from_polyline
-from mover6_control.nodes import conversions
-from mover6_control.nodes.conversions import status_values
+from mover6_control.nodes.messages import conversions
+from mover6_control.nodes.messages.conversions import status_values
 from mover6_control.parameters import CONTROLLER, PROFILES
 from mover6_control.tools.goal_cli import GoalClient
 from mover6_control.tools.goal_convention import EXIT_REFUSED

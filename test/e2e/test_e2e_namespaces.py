@@ -20,7 +20,7 @@ os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 from mover6_control.kinematics.arm import mover6  # noqa: E402
 from mover6_control.kinematics.forward import fk  # noqa: E402
-from mover6_control.nodes import conversions  # noqa: E402
+from mover6_control.nodes.messages import conversions  # noqa: E402
 from mover6_control.resources import CONFIG_DIR  # noqa: E402
 from mover6_control.tools.goal_convention import (  # noqa: E402
     EXIT_ARRIVED, EXIT_REFUSED, pose_from_goal)

@@ -18,7 +18,7 @@ from action_msgs.msg import GoalStatus
 from control_msgs.action import FollowJointTrajectory
 from control_msgs.msg import JointJog
 from mover6_control.control.status import StatusKey
-from mover6_control.nodes.demand_messages import make_demands
+from mover6_control.nodes.messages.demand_messages import make_demands
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import pytest

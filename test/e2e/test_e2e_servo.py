@@ -24,7 +24,7 @@ from geometry_msgs.msg import TwistStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk, jacobian
 from mover6_control.kinematics.rotations import rotation_angle_between
-from mover6_control.nodes import conversions
+from mover6_control.nodes.messages import conversions
 import numpy as np
 import pytest
 import rclpy

@@ -16,7 +16,7 @@ from geometry_msgs.msg import PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_from_xyzabc
-from mover6_control.nodes import conversions
+from mover6_control.nodes.messages import conversions
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import pytest

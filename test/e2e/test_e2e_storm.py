@@ -19,7 +19,7 @@ import time
 from hostile_messages import HostileMessages, message_class
 from mover6_control.control.status import StatusKey
 from mover6_control.errors import InvalidInputError
-from mover6_control.nodes.demand_messages import make_demands
+from mover6_control.nodes.messages.demand_messages import make_demands
 from mover6_control.parameters import check_value, NODES
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np

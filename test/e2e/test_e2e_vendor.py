@@ -10,7 +10,7 @@ from control_msgs.msg import JointJog
 from mover6_control.kinematics.arm import mover6, MOVER6_TICK_SIZE
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_from_xyzabc
-from mover6_control.nodes.conversions import status_values
+from mover6_control.nodes.messages.conversions import status_values
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
 import pytest

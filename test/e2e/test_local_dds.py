@@ -17,7 +17,7 @@ import socket
 import subprocess
 import sys
 
-from mover6_control.nodes import local_dds
+from mover6_control.nodes.runtime import local_dds
 from mover6_control.resources import CONFIG_DIR
 import pytest
 import rclpy
@@ -182,20 +182,21 @@ def test_the_launchers_keep_a_users_dds_setup():
     assert not local_dds.user_chose_dds({'HOME': '/'})
     for name in local_dds.USER_DDS_ENV:
         assert local_dds.user_chose_dds({name: 'x'}), name
-    out = subprocess.run([sys.executable, '-m', 'mover6_control.nodes.local_dds', 'env'],
+    out = subprocess.run([sys.executable, '-m', 'mover6_control.nodes.runtime.local_dds', 'env'],
                          env=local_env(ROS_AUTOMATIC_DISCOVERY_RANGE='SUBNET'),
                          capture_output=True, text=True, timeout=30).stdout
     assert out == ''
     bare = {k: v for k, v in os.environ.items() if k not in local_dds.USER_DDS_ENV}
     for env in (bare, dict(bare, MOVER6_DDS='local')):
         # The local configuration, on this machine's network as in a namespace.
-        out = subprocess.run([sys.executable, '-m', 'mover6_control.nodes.local_dds', 'env'],
+        module = 'mover6_control.nodes.runtime.local_dds'
+        out = subprocess.run([sys.executable, '-m', module, 'env'],
                              env=env, capture_output=True, text=True, timeout=30).stdout
         assert "export MOVER6_DDS='local'" in out
         assert "export ROS_AUTOMATIC_DISCOVERY_RANGE='SYSTEM_DEFAULT'" in out
         assert f"export FASTRTPS_DEFAULT_PROFILES_FILE='{local_dds.PROFILE}'" in out
     # MOVER6_DDS=localhost: ROS's LOCALHOST discovery, as before.
-    out = subprocess.run([sys.executable, '-m', 'mover6_control.nodes.local_dds', 'env'],
+    out = subprocess.run([sys.executable, '-m', 'mover6_control.nodes.runtime.local_dds', 'env'],
                          env=dict(bare, MOVER6_DDS='localhost'), capture_output=True, text=True,
                          timeout=30).stdout
     assert out == "export ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'\n", out

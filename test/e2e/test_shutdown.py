@@ -17,7 +17,7 @@ import time
 
 from control_msgs.msg import JointJog
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes import conversions, demand_messages
+from mover6_control.nodes.messages import conversions, demand_messages
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor

@@ -14,9 +14,9 @@ os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from mover6_control.errors import InvalidInputError  # noqa: E402
-from mover6_control.nodes.callback_guard import CallbackGuard  # noqa: E402
-from mover6_control.nodes.conversions import status_values  # noqa: E402
-from mover6_control.nodes.qos import STATUS_READER_QOS  # noqa: E402
+from mover6_control.nodes.messages.conversions import status_values  # noqa: E402
+from mover6_control.nodes.runtime.callback_guard import CallbackGuard  # noqa: E402
+from mover6_control.nodes.runtime.qos import STATUS_READER_QOS  # noqa: E402
 import pytest  # noqa: E402
 from rcl_interfaces.msg import Parameter as RosParameter, ParameterValue  # noqa: E402
 from rcl_interfaces.srv import SetParameters  # noqa: E402

@@ -3,7 +3,7 @@
 from builtin_interfaces.msg import Time
 from control_msgs.msg import JointJog
 from hypothesis import given, strategies as st
-from mover6_control.nodes import cdr
+from mover6_control.nodes.messages import cdr
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message

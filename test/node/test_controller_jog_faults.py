@@ -21,9 +21,10 @@ from control_msgs.msg import JointJog
 from geometry_msgs.msg import TwistStamped
 from mover6_control.control.robot import Robot
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes import conversions, local_dds
 from mover6_control.nodes.controller_node import ControllerNode
 from mover6_control.nodes.controller_ticks import MAX_TICK_FAILURES
+from mover6_control.nodes.messages import conversions
+from mover6_control.nodes.runtime import local_dds
 import numpy as np
 import pytest
 import rclpy

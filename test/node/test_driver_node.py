@@ -16,8 +16,8 @@ import can
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticArray
 from mover6_control.hardware.scaling import load_joints
-from mover6_control.nodes import conversions
 from mover6_control.nodes.driver_node import DriverNode
+from mover6_control.nodes.messages import conversions
 import pytest
 import rclpy
 from rclpy.executors import MultiThreadedExecutor

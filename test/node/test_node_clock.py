@@ -1,10 +1,10 @@
-"""The node clock's time and sleep (``nodes/node_clock.py``): on the system clock, on sim time."""
+"""The node clock's time and sleep (``nodes/runtime/node_clock.py``): system clock, sim time."""
 
 import threading
 import time
 import types
 
-from mover6_control.nodes import node_clock
+from mover6_control.nodes.runtime import node_clock
 import pytest
 import rclpy
 from rclpy.clock import ClockType, ROSClock

@@ -8,7 +8,7 @@ from mover6_control.control.planners import plan_motion
 from mover6_control.control.profiles import LawConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes import conversions, demand_messages
+from mover6_control.nodes.messages import conversions, demand_messages
 from mover6_control.tools.goal_cli import run
 from mover6_control.tools.goal_convention import EXIT_ARRIVED, EXIT_REFUSED, Outcome
 import numpy as np

@@ -14,8 +14,8 @@ os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 from control_msgs.msg import JointJog  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
-from mover6_control.nodes import conversions  # noqa: E402
-from mover6_control.nodes.qos import STATUS_QOS  # noqa: E402
+from mover6_control.nodes.messages import conversions  # noqa: E402
+from mover6_control.nodes.runtime.qos import STATUS_QOS  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 import rclpy  # noqa: E402

@@ -17,8 +17,8 @@ from mover6_control.kinematics.arm import mover6  # noqa: E402
 from mover6_control.kinematics.forward import fk  # noqa: E402
 from mover6_control.kinematics.rotations import quaternion_to_matrix  # noqa: E402
 from mover6_control.kinematics.urdf_tree import parse_urdf  # noqa: E402
-from mover6_control.nodes import conversions  # noqa: E402
-from mover6_control.nodes.qos import LATCHED_QOS  # noqa: E402
+from mover6_control.nodes.messages import conversions  # noqa: E402
+from mover6_control.nodes.runtime.qos import LATCHED_QOS  # noqa: E402
 from mover6_control.nodes.state_publisher_node import (  # noqa: E402
     shipped_description, StatePublisherNode)
 import numpy as np  # noqa: E402

@@ -27,8 +27,8 @@ from mover6_control.control.robot import Robot
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes.controller_demands import DemandThread, WAIT_FOR_STATES, WORKER_POINTS
-from mover6_control.nodes.demand_messages import make_demands
 from mover6_control.nodes.goal_ledger import GoalLedger
+from mover6_control.nodes.messages.demand_messages import make_demands
 import numpy as np
 import pytest
 

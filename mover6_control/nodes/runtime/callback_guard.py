@@ -29,8 +29,8 @@ from typing import Any, Callable, Optional
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.errors import error_code
-from mover6_control.nodes.conversions import make_status
-from mover6_control.nodes.qos import STATUS_QOS
+from mover6_control.nodes.messages.conversions import make_status
+from mover6_control.nodes.runtime.qos import STATUS_QOS
 from mover6_control.validation import short_text
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import CancelResponse, GoalResponse

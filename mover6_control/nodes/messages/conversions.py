@@ -2,7 +2,7 @@
 Conversion between ROS messages and the core's plain numpy values: the one place that does it.
 
 One message family has a module of its own: /joint_demands (the waypoints and the label that
-carries a goal id and a profile) in ``nodes/demand_messages.py``.
+carries a goal id and a profile) in ``nodes/messages/demand_messages.py``.
 
 Every ``*_from_msg`` function validates and raises ``InvalidInputError`` with a reason a person can
 read; the nodes log that reason and drop the message. Every ``make_*`` function builds a message.
@@ -17,7 +17,7 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped, TwistStamped
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import matrix_to_quaternion, quaternion_to_matrix
-from mover6_control.nodes import cdr
+from mover6_control.nodes.messages import cdr
 import numpy as np
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock

@@ -8,7 +8,7 @@ separators, no token starting with a digit, no ``//``, no trailing ``/``, at mos
 characters...). ``frame_prefix`` is the TF frame prefix of a namespace (``/arm1`` ->
 ``arm1/``), as robot_state_publisher's ``frame_prefix`` takes it.
 
-``python -m mover6_control.nodes.names NS`` prints the checked namespace, or the reason and
+``python -m mover6_control.nodes.runtime.names NS`` prints the checked namespace, or the reason and
 exit code 2 (what launch.sh calls).
 """
 

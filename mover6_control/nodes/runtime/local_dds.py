@@ -242,7 +242,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     """``env``: print the shell exports of ``default_environment`` (none: the user chose)."""
     argv = sys.argv[1:] if argv is None else argv
     if argv != ['env']:
-        print('usage: python -m mover6_control.nodes.local_dds env', file=sys.stderr)
+        print('usage: python -m mover6_control.nodes.runtime.local_dds env', file=sys.stderr)
         return 2
     try:
         exports = default_environment(os.environ)

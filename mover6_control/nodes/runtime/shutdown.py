@@ -21,7 +21,7 @@ import sys
 from types import FrameType
 from typing import Callable, Optional
 
-from mover6_control.nodes import local_dds
+from mover6_control.nodes.runtime import local_dds
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.experimental.events_executor import EventsExecutor

@@ -5,7 +5,7 @@ A demand's first dimension is labelled ``waypoints``, then any of ``goal <id>`` 
 <name>``: the goal it was planned for and the controller's law for it alone (``make_demands``
 writes them, ``demand_options_from_msg`` reads them back). ``demands_from_msg`` validates and
 raises ``InvalidInputError`` with a reason a person can read, as every ``*_from_msg`` of
-``nodes/conversions.py``.
+``nodes/messages/conversions.py``.
 """
 
 from mover6_control.errors import InvalidInputError

@@ -11,7 +11,7 @@ node that needs none (the bridge, the state publisher) does not load the planner
 from typing import Callable, Optional
 
 from mover6_control.errors import InvalidInputError, Mover6Error
-from mover6_control.nodes.callback_guard import CallbackGuard
+from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.parameters import check_value, ParameterSpec
 from mover6_control.validation import short_text
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,

@@ -1,0 +1,1 @@
+"""Message codecs: ROS messages to and from the core's values, and raw CDR readers."""

@@ -1,0 +1,1 @@
+"""What every node shares: DDS set-up, parameters, the callback guard, clock, QoS, shutdown."""
