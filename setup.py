@@ -25,7 +25,7 @@ setup(
     maintainer_email='dev@mover6-control.invalid',
     description='Pose-goal planner, JointJog controller and MuJoCo bridge for the Mover6 arm.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    tests_require=['pytest', 'hypothesis'],
     entry_points={
         'console_scripts': [
             'planner = mover6_control.nodes.planner_node:main',

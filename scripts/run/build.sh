@@ -1,0 +1,32 @@
+# shellcheck shell=bash
+# colcon build of this package (and of the message packages the environment lacks), skipped
+# when nothing changed (sourced by run.sh).
+
+colcon_build() {
+    # Build control_msgs and tf2_msgs only when the environment has none, then this package. Skipped when
+    # nothing changed since the last build.
+    local stamp="$WS/.built" paths=(".")
+    if ! python -c 'from control_msgs.msg import JointJog' >/dev/null 2>&1 \
+        || [ -d "$WS/install/control_msgs" ]; then
+        paths+=("interfaces/control_msgs")
+    fi
+    # tf2_msgs (/tf, /tf_static) likewise: the PyPI wheels have none.
+    if ! python -c 'from tf2_msgs.msg import TFMessage' >/dev/null 2>&1 \
+        || [ -d "$WS/install/tf2_msgs" ]; then
+        paths+=("interfaces/tf2_msgs")
+    fi
+    if [ -f "$stamp" ] && [ -z "$(cd "$ROOT" && find package.xml setup.py setup.cfg \
+            mover6_control sim_bridge config scripts interfaces launch -newer "$stamp" \
+            -not -name '*.pyc' -print -quit 2>/dev/null)" ]; then
+        return 0
+    fi
+    log "colcon build (${paths[*]})"
+    (cd "$ROOT" && colcon --log-base "$WS/log" build --base-paths "${paths[@]}" \
+        --build-base "$WS/build" --install-base "$WS/install" \
+        --event-handlers console_cohesion- status- summary- >"$WS/build.log" 2>&1) || {
+        tail -n 40 "$WS/build.log" >&2
+        log "colcon build failed; full log: $WS/build.log"
+        return 1
+    }
+    touch "$stamp"
+}
