@@ -42,6 +42,7 @@ case "$cmd" in
     goal)   ensure; exec python -m mover6_control.tools.goal_cli "$@" ;;
     record) ensure; exec python -m mover6_control.tools.record "$@" ;;
     report) ensure; exec python -m mover6_control.tools.report "$@" ;;
+    generate) ensure; exec python -m mover6_control.tools.generate "$ROOT" "$@" ;;
     bench)
         ensure
         in_private_netns bench "$@"

@@ -4,8 +4,9 @@ The parameters of the three nodes, declared once: name, type, default, unit, ran
 ``PLANNER``, ``CONTROLLER`` and ``SIM_BRIDGE`` map each parameter name to a frozen
 ``ParameterSpec``. The nodes declare their ROS parameters from these tables (with the range or
 the allowed values in the descriptor, ``ros2 param describe`` shows them) and refuse a value that
-``check_value`` refuses; ``config/<node>.yaml``, the README's Parameters table and the defaults of
-the core's settings dataclasses are checked against them by the tests.
+``check_value`` refuses; ``config/<node>.yaml`` and ``docs/parameters.md`` are generated from
+them (``./run.sh generate``, ``parameter_files``) and the defaults of the core's settings
+dataclasses are checked against them by the tests.
 
 ROS-free and in the base layer, so every layer can import it: the tables of allowed values are
 defined here once (``PROFILES``, ``LIMIT_SETS``, ``JOG_UNITS``, ``TOOL_SHAPES``, ``POSE_MOTIONS``,

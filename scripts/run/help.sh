@@ -13,6 +13,8 @@ mover6_control: the one entry point.
   ./run.sh record [-o BAG] [TOPICS]  record the stack's topics (rosbag2 MCAP) until Ctrl-C
   ./run.sh report BAG      the demo's report (plots, metrics, gif) of a recording
   ./run.sh bench [--quick] the benchmarks: tables on the console, JSON in bench/results/
+  ./run.sh generate [--check]  write config/<node>.yaml and docs/parameters.md from the
+                           parameter table (mover6_control/parameters.py)
   ./run.sh setup           only set up (also done on first use of any other command)
   ./run.sh exec CMD ...    run CMD inside the project environment
 

@@ -2,8 +2,8 @@
 One source of truth per parameter: ``mover6_control.parameters`` against everything else.
 
 The tables must agree with the core (allowed values, the Mover6's encoder ticks, the defaults of
-the settings dataclasses), with ``config/<node>.yaml`` and with the README's Parameters table;
-``check_value`` must refuse what a node must refuse.
+the settings dataclasses); ``check_value`` must refuse what a node must refuse. The parameter
+files and docs/parameters.md are made from the tables (test/lint/test_generated_files.py).
 """
 
 import dataclasses
@@ -118,92 +118,6 @@ def test_mover6_driver_constants_are_the_arms():
     """The controller's driver defaults are the Mover6's ticks and cycle from the arm model."""
     assert CONTROLLER['driver_tick_size'].default == MOVER6_TICK_SIZE
     assert CONTROLLER['driver_cycle'].default == MOVER6_DRIVER_CYCLE
-
-
-@pytest.mark.parametrize('node', sorted(NODES))
-def test_config_file_matches_the_table(node):
-    """config/<node>.yaml: every parameter, no other key, each valid and the default."""
-    with open(os.path.join(ROOT, 'config', f'{node}.yaml')) as f:
-        values = yaml.safe_load(f)[f'/**/{node}']['ros__parameters']
-    table = NODES[node]
-    assert list(values) == list(table), 'same parameters, in the same order'
-    for name, value in values.items():
-        check_value(table[name], value)
-        default = table[name].default
-        assert (tuple(value) if isinstance(value, list) else value) == default, name
-
-
-def yaml_comments(path):
-    """
-    Return {parameter: its comment} of a parameter file.
-
-    A parameter's comment is the one on its line, the comment lines indented under it that
-    follow it (and a comment on a continued value's line), and the comment lines right above it.
-    """
-    out, above, current = {}, [], None
-    with open(path) as f:
-        lines = f.read().splitlines()
-    for line in lines:
-        entry = re.match(r'^    (\w+):\s*(?:[^#]*?)(?:\s+#\s?(.*))?$', line)
-        comment = re.match(r'^(\s*)#\s?(.*)$', line)
-        if entry:
-            current = entry.group(1)
-            out[current] = ' '.join(above + [entry.group(2) or ''])
-            above = []
-        elif comment and current and len(comment.group(1)) > 4:
-            out[current] += ' ' + comment.group(2)
-        elif comment:
-            above.append(comment.group(2))
-            current = None
-        elif line.strip() and current and '#' in line:
-            out[current] += ' ' + line.split('#', 1)[1]
-        else:
-            above = []
-    return out
-
-
-@pytest.mark.lint
-@pytest.mark.parametrize('node', sorted(NODES))
-def test_config_file_comments_agree_with_the_table(node):
-    """
-    config/<node>.yaml's comments: each parameter's unit in brackets and every allowed value.
-
-    The table is the source (``parameters``); a file's comments may say more, never otherwise.
-    """
-    comments = yaml_comments(os.path.join(ROOT, 'config', f'{node}.yaml'))
-    units = {spec.unit for table in NODES.values() for spec in table.values()} - {''}
-    assert set(comments) == set(NODES[node])
-    for name, spec in NODES[node].items():
-        text = comments[name]
-        assert text.strip(), f'{name} has no comment'
-        if spec.unit:
-            assert f'[{spec.unit}]' in text, f'{name}: unit [{spec.unit}] missing: {text}'
-        else:
-            wrong = [unit for unit in units if f'[{unit}]' in text]
-            assert not wrong, f'{name} has no unit, its comment says {wrong}: {text}'
-        missing = [value for value in spec.allowed if not re.search(rf'\b{value}\b', text)]
-        assert not missing, f'{name}: the comment does not name {missing}: {text}'
-
-
-def readme_parameters_section():
-    """Return the README's '## Parameters' section."""
-    with open(os.path.join(ROOT, 'README.md')) as f:
-        text = f.read()
-    match = re.search(r'^## Parameters\n(.*?)(?=^## )', text, re.M | re.S)
-    assert match, 'README has no Parameters section'
-    return match.group(1)
-
-
-@pytest.mark.parametrize('node', sorted(NODES))
-def test_readme_lists_every_parameter(node):
-    """Every parameter of the node appears in a row of its node in the README's table."""
-    rows = [line for line in readme_parameters_section().splitlines()
-            if line.startswith(f'| {node} |')]
-    names = set()
-    for row in rows:
-        names.update(re.findall(r'`(\w+)`', row.split('|')[2]))
-    assert names == set(NODES[node]), f'missing {set(NODES[node]) - names}, ' \
-                                      f'unknown {names - set(NODES[node])}'
 
 
 def test_descriptions_use_words_a_user_knows():

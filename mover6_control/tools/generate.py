@@ -1,0 +1,59 @@
+"""
+Write the files made from the package's tables: ``./run.sh generate``.
+
+``python -m mover6_control.tools.generate ROOT`` writes ``config/<node>.yaml`` and
+``docs/parameters.md`` (``mover6_control.parameter_files``, from ``mover6_control.parameters``)
+under the repository ``ROOT``; with ``--check`` it writes nothing and lists the files that
+differ from what it would write (exit 1). The files are committed; a test checks them.
+"""
+
+import argparse
+import os
+import sys
+
+from mover6_control.parameter_files import generated_files
+
+
+def differing(root):
+    """Return the generated files under ``root`` whose text is not the generator's output."""
+    out = []
+    for path, text in generated_files().items():
+        try:
+            with open(os.path.join(root, path)) as f:
+                if f.read() == text:
+                    continue
+        except FileNotFoundError:
+            pass
+        out.append(path)
+    return out
+
+
+def write(root):
+    """Write every generated file under ``root``; return the paths that changed."""
+    changed = differing(root)
+    for path, text in generated_files().items():
+        if path in changed:
+            with open(os.path.join(root, path), 'w') as f:
+                f.write(text)
+    return changed
+
+
+def main(argv=None):
+    """Write the generated files (or, with --check, list those that differ)."""
+    parser = argparse.ArgumentParser(prog='generate', description=__doc__.strip().split('\n')[0])
+    parser.add_argument('root', help='the repository (the folder of run.sh)')
+    parser.add_argument('--check', action='store_true',
+                        help='write nothing; list the files that differ and exit 1 if any')
+    args = parser.parse_args(argv)
+    if args.check:
+        stale = differing(args.root)
+        for path in stale:
+            print(f'generate: {path} is not the generated text (./run.sh generate)')
+        return 1 if stale else 0
+    for path in write(args.root):
+        print(f'generate: wrote {path}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
