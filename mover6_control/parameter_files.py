@@ -85,8 +85,8 @@ def _comment_lines(text, indent):
 def yaml_text(node):
     """Return the parameter file of ``node`` (a key of ``NODES``): every parameter, its default."""
     lines = _comment_lines(GENERATED, 0)
-    lines += _comment_lines(f'Parameters of {NODE_TEXT[node]} The values are the node\'s own '
-                            'defaults; a file of your own may set any of them.', 0)
+    lines += _comment_lines(f'Parameters of {NODE_TEXT[node]} The values are the defaults of the '
+                            'node; a file of your own may set any of them.', 0)
     lines += [f'/**/{node}:   # in any namespace (launch.sh --namespace, namespace:=)',
               '  ros__parameters:']
     for name, spec in NODES[node].items():

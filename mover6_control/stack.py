@@ -17,15 +17,15 @@ evaluates the shell lines it prints: the options' values, then a ``start`` line 
 ROS-free (the base layer); the namespace is checked by ROS's naming rules in the launchers.
 """
 
-from dataclasses import dataclass, field
 import argparse
+from dataclasses import dataclass, field
 import shlex
 import sys
 
 from mover6_control.parameters import CONTROLLER
 import yaml
 
-HARDWARE = ('sim', 'can_sim', 'can')
+HARDWARE_CHOICES = ('sim', 'can_sim', 'can')
 # [s] the controller's state timeout: its parameter's on the simulator, 0.5 s behind the driver
 # (it publishes /joint_states at its 20 Hz cycle).
 STATE_TIMEOUT = {'sim': CONTROLLER['state_timeout'].default, 'can_sim': 0.5, 'can': 0.5}
@@ -81,7 +81,7 @@ OPTIONS = (
            'sim: the MuJoCo bridge; can_sim: the CAN-level Mover6 on a pty (can_sim) and the '
            "driver on it, enabled at start; can: the driver on a real arm's bus "
            '(can_interface, can_channel), enable it with its ~/reset, ~/enable',
-           HARDWARE, dashed=True),
+           HARDWARE_CHOICES, dashed=True),
     Option('can_interface', '--can-interface', 'cpr_usb2can',
            'bus of the driver with hardware can: cpr_usb2can, socketcan, pcan, ...'),
     Option('can_channel', '--can-channel', '',
@@ -227,7 +227,7 @@ def shell_lines(starts):
 
 
 def parser():
-    """Return launch.sh's argument parser (its --help)."""
+    """Return the argument parser of launch.sh (its ``--help``)."""
     p = argparse.ArgumentParser(
         prog='scripts/launch.sh', epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -10,11 +10,12 @@ differ from what it would write (exit 1). The files are committed; a test checks
 import argparse
 import os
 import sys
+from typing import Optional
 
 from mover6_control.parameter_files import generated_files
 
 
-def differing(root):
+def differing(root: str) -> list[str]:
     """Return the generated files under ``root`` whose text is not the generator's output."""
     out = []
     for path, text in generated_files().items():
@@ -28,7 +29,7 @@ def differing(root):
     return out
 
 
-def write(root):
+def write(root: str) -> list[str]:
     """Write every generated file under ``root``; return the paths that changed."""
     changed = differing(root)
     for path, text in generated_files().items():
@@ -38,7 +39,7 @@ def write(root):
     return changed
 
 
-def main(argv=None):
+def main(argv: Optional[list[str]] = None) -> int:
     """Write the generated files (or, with --check, list those that differ)."""
     parser = argparse.ArgumentParser(prog='generate', description=__doc__.strip().split('\n')[0])
     parser.add_argument('root', help='the repository (the folder of run.sh)')

@@ -8,8 +8,6 @@ files and docs/parameters.md are made from the tables (test/lint/test_generated_
 
 import dataclasses
 import math
-import os
-import re
 
 from mover6_control.collision.checker import CollisionSettings
 from mover6_control.collision.geometry import ToolVolume
@@ -25,8 +23,6 @@ from mover6_control.planning.planner_core import PlannerSettings
 import pytest
 from sim_bridge.model import ModelOptions
 from sim_bridge.simulator import SimConfig
-from source_tree import ROOT
-import yaml
 
 
 # (dataclass, field, table, parameter): each dataclass default that a parameter sets.

@@ -1,6 +1,4 @@
-"""
-The stack both launchers start (``mover6_control.stack``): its options and its plan.
-"""
+"""The stack both launchers start (``mover6_control.stack``): its options and its plan."""
 
 import shlex
 

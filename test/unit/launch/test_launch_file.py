@@ -171,8 +171,8 @@ def test_the_launch_file_starts_the_stacks_plan(launch_module, choices, monkeypa
             assert given == start.parameters
             expected = ['-p', 't_max:=2.0'] if start.name == 'controller' else []
             assert action.kwargs['ros_arguments'] == expected
-        given = {k: v for k, v in action.kwargs.items() if k in ('on_exit', 'respawn',
-                                                                  'respawn_delay')}
+        keys = ('on_exit', 'respawn', 'respawn_delay')
+        given = {k: v for k, v in action.kwargs.items() if k in keys}
         if start.name in ESSENTIAL:
             assert set(given) == {'on_exit'}, start.name
             assert 'essential' in given['on_exit'].kwargs['reason']
