@@ -4,13 +4,15 @@ The files made from the parameter tables: ``config/<node>.yaml`` and ``docs/para
 ``mover6_control.parameters`` is the one source; this module renders it (ROS-free text, no file
 access): ``yaml_text(node)`` is a node's parameter file, every parameter at its default with its
 unit, range or allowed values and description as a comment above it; ``markdown_text()`` is the
-page with one table per node. ``python -m mover6_control.tools.generate`` (``./run.sh
-generate``) writes them; a test checks that the committed files are this module's output.
+page with one table per node and one of the launchers' options (``mover6_control.stack``).
+``python -m mover6_control.tools.generate`` (``./run.sh generate``) writes them; a test checks
+that the committed files are this module's output.
 """
 
 import textwrap
 
 from mover6_control.parameters import NODES
+from mover6_control.stack import OPTIONS
 import yaml
 
 WIDTH = 99
@@ -54,8 +56,7 @@ during a motion from the end of that motion (it logs "applies to the next motion
 shows `pending_parameters` until then; the status shows the values in force: `profile`, `rate`,
 `goal_tolerance` ...); a set whose values together make no valid configuration is refused with
 the reason; the sim bridge applies `real_time_factor`, `publish_rate` and `rest_publish_rate` at
-once. The launchers' own arguments (`--profile`, `jog_units:=` ...) override some of these: see
-`python -m mover6_control.stack --help` or `scripts/launch.sh --help`.
+once. The launchers' options (last section) set some of them for the whole stack.
 """
 
 
@@ -122,7 +123,29 @@ def markdown_text():
                         f'{_cell(spec.unit)} | {_cell(spec.constraints())} | '
                         f"{'yes' if spec.read_only else ''} | {_cell(spec.description)} |")
         parts.append('\n'.join(rows) + '\n')
+    parts.append(launcher_options())
     return '\n'.join(parts)
+
+
+def launcher_options():
+    """Return the page's section on the launchers' options (``mover6_control.stack``)."""
+    rows = ['## Launcher options', '',
+            'Both launchers take these (`mover6_control/stack.py`, the one stack definition): '
+            '`scripts/launch.sh --profile P`, `ros2 launch mover6_control mover6.launch.py '
+            'profile:=P`. The launch file also takes a parameter file per node '
+            '(`controller_params:=FILE`, default the installed `config/<node>.yaml`).', '',
+            '| scripts/launch.sh | ros2 launch | values (default first) | what |',
+            '|---|---|---|---|']
+    for option in OPTIONS:
+        shell = f'`{option.flag}`' if option.in_shell else ''
+        shell += ' (a flag)' if option.switch else ''
+        launch = f'`{option.name}:=`' if option.in_launch else ''
+        values = ', '.join(f'`{c}`' + (f" (launch.sh: `{c.replace('_', '-')}`)"
+                                       if option.dashed and '_' in c else '')
+                           for c in option.choices) or (
+            f'default `{option.default}`' if option.default else 'default empty')
+        rows.append(f'| {shell} | {launch} | {_cell(values)} | {_cell(option.help)} |')
+    return '\n'.join(rows) + '\n'
 
 
 def generated_files():
