@@ -44,9 +44,6 @@ from mover6_control.nodes.runtime import local_dds
 from mover6_control.nodes.runtime.names import check_namespace
 
 PACKAGE = 'mover6_control'
-# The nodes that take a parameter file: an argument ``<node>_params`` each.
-PARAMETER_FILES = ('sim_bridge', 'driver', 'controller', 'planner', 'state_publisher',
-                   'markers')
 
 
 def role(name):
@@ -174,5 +171,5 @@ def generate_launch_description():
                  for option in stack.OPTIONS if option.in_launch]
     files = [DeclareLaunchArgument(f'{name}_params', default_value=config_file(f'{name}.yaml'),
                                    description=f'parameter file of {name}')
-             for name in PARAMETER_FILES]
+             for name in stack.PARAMETER_FILES]
     return LaunchDescription(arguments + files + [OpaqueFunction(function=start_stack)])

@@ -30,6 +30,10 @@ HARDWARE_CHOICES = ('sim', 'can_sim', 'can')
 # (it publishes /joint_states at its 20 Hz cycle).
 STATE_TIMEOUT = {'sim': CONTROLLER['state_timeout'].default, 'can_sim': 0.5, 'can': 0.5}
 DEFAULT_CAN_CHANNEL = '/dev/ttyUSB0'
+# The nodes of the stack, each with its parameter file config/<node>.yaml (the launch file's
+# ``<node>_params`` arguments; launch.sh passes the installed file).
+PARAMETER_FILES = ('sim_bridge', 'driver', 'controller', 'planner', 'state_publisher',
+                   'markers')
 
 
 @dataclass(frozen=True)
@@ -122,15 +126,15 @@ class Start:
     """
     One thing to start: a node of this package (``kind`` 'node'), ``can_sim`` or RViz.
 
-    A node gets ``config/<name>.yaml`` when ``params_file``, then ``parameters`` (the choices'
-    values, in order), then the ROS arguments in environment variable ``extra_args``.
+    A node gets its parameter file (``config/<name>.yaml``, one of ``PARAMETER_FILES``), then
+    ``parameters`` (the choices' values, in order), then the ROS arguments in environment
+    variable ``extra_args``; can_sim gets ``--link`` ``parameters['link']`` and those.
     """
 
     name: str
     executable: str
     kind: str = 'node'
     parameters: dict = field(default_factory=dict)
-    params_file: bool = True
     extra_args: str = ''
 
 
@@ -171,7 +175,7 @@ def plan(choices):
             # The simulator stands in for the vendor driver when the controller speaks its units.
             'mode': 'vendor_driver' if v['jog_units'] == 'fraction_of_max' else 'rad_per_s'}))
     if hardware == 'can_sim':
-        starts.append(Start('can_sim', 'can_sim', kind='process', params_file=False,
+        starts.append(Start('can_sim', 'can_sim', kind='process',
                             extra_args='MOVER6_CAN_SIM_ARGS',
                             parameters={'link': v['can_channel']}))
     if with_driver:
@@ -196,7 +200,7 @@ def plan(choices):
               parameters={'frame_prefix': prefix}),
     ]
     if v['rviz'] == 'true':
-        starts.append(Start('rviz2', 'rviz2', kind='rviz', params_file=False))
+        starts.append(Start('rviz2', 'rviz2', kind='rviz'))
     return starts
 
 
@@ -253,6 +257,11 @@ def parser():
     return p
 
 
+def spelled(option, value):
+    """Return a value as launch.sh spells it ('-' for '_' in a dashed option's choice)."""
+    return value.replace('_', '-') if option.dashed else value
+
+
 def parse_shell(argv):
     """Return the option values of launch.sh's arguments ``argv`` (exit 2 when malformed)."""
     p = parser()
@@ -260,7 +269,7 @@ def parse_shell(argv):
     for option in OPTIONS:
         value = args.get(option.name)
         if option.in_shell and option.choices and not option.switch:
-            shown = [c.replace('_', '-') if option.dashed else c for c in option.choices]
+            shown = [spelled(option, c) for c in option.choices]
             if value not in shown:
                 p.exit(2, f'launch.sh: {option.flag} must be one of: {" ".join(shown)}; got '
                        f"'{value}'\n")
@@ -278,9 +287,8 @@ def shell(argv, can_channel=None):
     values = parse_shell(argv)
     if can_channel is not None:
         values['can_channel'] = can_channel
-    out = [f'{name}={shlex.quote(value)}' for name, value in values.items()]
-    out[[o.name for o in OPTIONS].index('hardware')] = \
-        f"hardware={shlex.quote(values['hardware'].replace('_', '-'))}"
+    out = [f'{name}={shlex.quote(spelled(OPTION[name], value))}'
+           for name, value in values.items()]
     starts = plan({k: v for k, v in values.items() if OPTION[k].in_launch})
     body = '\n'.join(f'    {line}' for line in shell_lines(starts))
     out.append(f'start_stack() {{\n{body}\n}}')

@@ -57,6 +57,12 @@ def test_no_sim_and_the_hardware_choices():
         ('cpr_usb2can', '/t/l', True)
 
 
+def test_every_node_has_its_parameter_file():
+    for choices in ({}, {'hardware': 'can_sim', 'rviz': 'true'}):
+        nodes = {s.name for s in stack.plan(choices) if s.kind == 'node'}
+        assert nodes <= set(stack.PARAMETER_FILES) <= set(NODES)
+
+
 def test_the_namespace_prefixes_the_frames():
     for namespace, prefix in (('', ''), ('/', ''), ('arm2', 'arm2/'), ('/arm1', 'arm1/')):
         by_name = {s.name: s for s in stack.plan({'namespace': namespace})}

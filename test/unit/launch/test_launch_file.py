@@ -133,13 +133,13 @@ def test_launch_file_is_installed():
 def test_the_arguments_are_the_stacks_options_and_a_file_per_node(launch_module):
     arguments = declared(launch_module)
     options = [o for o in stack.OPTIONS if o.in_launch]
-    files = [f'{name}_params' for name in launch_module.PARAMETER_FILES]
+    files = [f'{name}_params' for name in stack.PARAMETER_FILES]
     assert list(arguments) == [o.name for o in options] + files
     for option in options:
         given = arguments[option.name]
         assert given['default_value'] == option.default
         assert given.get('choices', []) == list(option.choices)
-    for name in launch_module.PARAMETER_FILES:
+    for name in stack.PARAMETER_FILES:
         assert arguments[f'{name}_params']['default_value'].args[0][1:] == \
             ['config', f'{name}.yaml']
         assert os.path.isfile(os.path.join(CONFIG_DIR, f'{name}.yaml'))
