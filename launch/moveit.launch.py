@@ -17,57 +17,14 @@ and says so: the configuration was written and checked statically on a machine w
 (docs/moveit.md says what was and was not run).
 """
 
-import os
-
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
-import yaml
+from mover6_control.tools.moveit_config import move_group_parameters, MOVEIT_DIR
 
-PACKAGE = 'mover6_control'
 MOVE_GROUP_PACKAGE = 'moveit_ros_move_group'
-PIPELINES = {'ompl': 'ompl_planning.yaml',
-             'pilz_industrial_motion_planner': 'pilz_industrial_motion_planner_planning.yaml'}
-DEFAULT_PIPELINE = 'ompl'
-
-
-def moveit_dir() -> str:
-    """Return the folder of the MoveIt configuration (installed share, else the source tree)."""
-    try:
-        return os.path.join(get_package_share_directory(PACKAGE), 'config', 'moveit')
-    except PackageNotFoundError:
-        return os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                            'config', 'moveit')
-
-
-def read(folder: str, name: str) -> str:
-    """Return the text of ``name`` in ``folder``."""
-    with open(os.path.join(folder, name)) as f:
-        return f.read()
-
-
-def move_group_parameters(folder: str) -> dict:
-    """Return the parameters of ``move_group`` from the files in ``folder``."""
-    def load(name):
-        return yaml.safe_load(read(folder, name))
-
-    planning = load('joint_limits.yaml')
-    planning.update(load('pilz_cartesian_limits.yaml'))
-    parameters = {
-        'robot_description': read(folder, 'mover6_collision.urdf'),
-        'robot_description_semantic': read(folder, 'mover6.srdf'),
-        'robot_description_kinematics': load('kinematics.yaml'),
-        'robot_description_planning': planning,
-        'planning_pipelines': list(PIPELINES),
-        'default_planning_pipeline': DEFAULT_PIPELINE,
-        'publish_robot_description_semantic': True,
-    }
-    for pipeline, name in PIPELINES.items():
-        parameters[pipeline] = load(name)
-    parameters.update(load('moveit_controllers.yaml'))
-    return parameters
 
 
 def moveit_installed() -> bool:
@@ -87,7 +44,7 @@ def start(context, *args, **kwargs):
                             'again. The configuration is in config/moveit/ (docs/moveit.md).')]
     namespace = LaunchConfiguration('namespace').perform(context)
     use_sim_time = LaunchConfiguration('use_sim_time').perform(context) == 'true'
-    parameters = move_group_parameters(moveit_dir())
+    parameters = move_group_parameters(MOVEIT_DIR)
     parameters['use_sim_time'] = use_sim_time
     return [Node(package=MOVE_GROUP_PACKAGE, executable='move_group', namespace=namespace,
                  output='screen', parameters=[parameters])]
