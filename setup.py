@@ -14,7 +14,9 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        (os.path.join('share', package_name, 'config'), glob('config/*')),
+        (os.path.join('share', package_name, 'config'),
+         [path for path in glob('config/*') if os.path.isfile(path)]),
+        (os.path.join('share', package_name, 'config', 'moveit'), glob('config/moveit/*')),
         (os.path.join('share', package_name, 'launch'), glob('launch/*.launch.py')),
         (os.path.join('share', package_name, 'scripts'), glob('scripts/*.sh')),
         (os.path.join('share', package_name, 'rviz'), glob('rviz/*.rviz')),

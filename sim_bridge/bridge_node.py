@@ -28,20 +28,25 @@ Physics runs in its own thread, paced against the monotonic wall clock at
 (one per 50 ms cycle) and ``publish_rate`` is not used. Stamps are sim time with
 ``publish_clock`` (the bridge drives the clock), the node's clock otherwise. Parameters are
 read at start; ``real_time_factor``, ``publish_rate`` and ``rest_publish_rate`` also apply live
-when set (``ros2 param set``), the others are read-only. The physics thread (pacing, stepping,
-publishing) is ``sim_bridge/bridge_physics.py``, the reset, pause and step behind the services
-``sim_bridge/bridge_controls.py`` (no ROS): parts of this node.
+when set (``ros2 param set``), the others are read-only.
+
+The node is built from parts, each given what it needs in its constructor: the ``Simulator``;
+the ``PhysicsThread`` (``sim_bridge/bridge_physics.py``: pacing, stepping, publishing through
+its ``BridgeOutputs``, the node's publishers); ``SimControls`` (``sim_bridge/bridge_controls.py``,
+no ROS: reset, pause and step on the physics thread); ``JogIntake`` (here: /JointJog into the
+physics thread, refusals counted in the ``Rejections`` the physics thread reports). The node's
+callbacks take the requests apart and call them.
 """
 
 import os
 import threading
 import time
-from typing import Callable, Optional
+from typing import Any, Callable, Optional
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.arm import LIMIT_SETS, load_urdf, mover6
+from mover6_control.kinematics.arm import ArmModel, LIMIT_SETS, load_urdf, mover6
 from mover6_control.nodes.messages import cdr, conversions
 from mover6_control.nodes.runtime import params, shutdown
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
@@ -53,7 +58,7 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from sim_bridge.bridge_controls import SimControls
-from sim_bridge.bridge_physics import PhysicsLoop
+from sim_bridge.bridge_physics import BridgeOutputs, Pacing, PhysicsThread, Rejections
 from sim_bridge.model import ModelOptions
 from sim_bridge.simulator import SimConfig, Simulator
 from std_srvs.srv import SetBool, Trigger
@@ -69,79 +74,168 @@ def sim_config_from_parameters(get: Callable[[str], object]) -> SimConfig:
                                         kv=float(get('kv')), damping=float(get('damping'))))
 
 
-class SimBridgeNode(PhysicsLoop, SimControls, Node):
+def make_arm(limit_set: str, urdf_path: str) -> ArmModel:
+    """Return the arm: the shipped Mover6 with ``limit_set``, or a given URDF."""
+    if limit_set not in LIMIT_SETS:
+        raise InvalidInputError(f'limit_set must be one of {LIMIT_SETS}, got {limit_set!r}')
+    if urdf_path:
+        return load_urdf(urdf_path)
+    return mover6(limit_set)
+
+
+def pacing_from_parameters(p: dict, config: SimConfig) -> Pacing:
+    """Return the ``Pacing`` of the parameters ``p`` (name: value); raise when invalid."""
+    rtf = float(p['real_time_factor'])
+    if not (np.isfinite(rtf) and rtf >= 0.0):
+        raise InvalidInputError(f'real_time_factor must be >= 0, got {rtf}')
+    rate = float(p['publish_rate'])
+    if not (0.0 < rate <= MAX_PUBLISH_RATE):
+        raise InvalidInputError(
+            f'publish_rate must be in (0, {MAX_PUBLISH_RATE}] Hz, got {rate}')
+    vendor = config.mode == 'vendor_driver'
+    return Pacing(dt=config.physics_dt, rtf=rtf,
+                  publish_period=config.vendor_cycle if vendor else 1.0 / rate,
+                  rest_period=1.0 / float(p['rest_publish_rate']),   # at least publish_period
+                  vendor=vendor, publish_clock=bool(p['publish_clock']),
+                  priority=int(p['physics_priority']))
+
+
+def open_viewer(sim: Simulator, logger: Any) -> Optional[Any]:
+    """Return a passive MuJoCo viewer, or None (with a warning) when there is no display."""
+    if not (os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')):
+        logger.warning('viewer asked for but no display: running headless')
+        return None
+    try:
+        import mujoco.viewer
+        return mujoco.viewer.launch_passive(sim.model, sim.data)
+    except Exception as exc:  # noqa: B902 - any GL/GLFW failure: stay headless
+        logger.warning(f'viewer failed ({exc}): running headless')
+        return None
+
+
+class JogIntake:
+    """
+    /JointJog (serialized) into the simulator: read, validate, hand over; count refusals.
+
+    The same command as the last one taken (the controller at rest sends zeros every tick)
+    only restarts its timeout, at the sim time the steps due would reach
+    (``PhysicsThread.refresh``): the steps run at the next wake-up as they would have, without
+    a wake-up of their own.
+    """
+
+    def __init__(self, physics: PhysicsThread, rejections: Rejections, logger: Any):
+        """Hand commands to ``physics``; count refusals in ``rejections``."""
+        self.physics = physics
+        self.rejections = rejections
+        self.logger = logger
+        self.reader = cdr.JointJogReader()
+        self.last = None                 # (names, velocities) of the last command taken
+
+    def take(self, raw: bytes) -> None:
+        """Take one /JointJog; a refused one raises (the guard logs and counts it)."""
+        arrival = time.monotonic()
+        try:
+            try:
+                names, _, values = self.reader.read_jog(raw)
+                if (names, values) == self.last and self.physics.refresh(arrival):
+                    return
+            except ValueError:
+                pass                     # conversions reads it (or says why not)
+            names, velocities = conversions.joint_jog_from_raw(raw, self.reader)
+            warnings = self.physics.command(names, velocities, arrival)
+            self.last = (tuple(names), tuple(velocities.tolist()))
+        except InvalidInputError as exc:
+            self.rejections.add(str(exc))
+            raise                        # refused: the guard logs and counts it
+        for text in warnings:
+            self.logger.warning(f'/JointJog speed clamped: {text}', throttle_duration_sec=1.0)
+
+
+class SimBridgeNode(Node):
     """The simulated arm on ROS 2; see the module docstring."""
 
     def __init__(self, **kwargs):
-        """Declare the parameters, build the simulator, start the physics thread."""
+        """Declare the parameters, build the simulator and its parts, start the physics."""
         super().__init__('sim_bridge', **kwargs)
         self.guard = CallbackGuard(self)     # no callback ends the node (bad input: refused)
         # Refuses invalid values, each and as the simulator's config, at start and later.
         params.declare(self, SIM_BRIDGE, sim_config_from_parameters, guard=self.guard)
         self.guard.after_set(self.on_parameters_set)
-        self._reanchor = False           # real_time_factor changed: pace from now on
         p = {name: self.get_parameter(name).value for name in SIM_BRIDGE}
-        self.arm = self._make_arm(p['limit_set'], p['urdf_path'])
-        self.rtf = float(p['real_time_factor'])
-        if not (np.isfinite(self.rtf) and self.rtf >= 0.0):
-            raise InvalidInputError(f'real_time_factor must be >= 0, got {self.rtf}')
-        rate = float(p['publish_rate'])
-        if not (0.0 < rate <= MAX_PUBLISH_RATE):
-            raise InvalidInputError(
-                f'publish_rate must be in (0, {MAX_PUBLISH_RATE}] Hz, got {rate}')
+        self.arm = make_arm(p['limit_set'], p['urdf_path'])
         config = sim_config_from_parameters(p.get)
+        self.pacing = pacing_from_parameters(p, config)
         self.sim = Simulator(self.arm, config, home_q=list(p['initial_q']))
-        self.vendor = config.mode == 'vendor_driver'
-        self.dt = config.physics_dt
-        self.publish_period = config.vendor_cycle if self.vendor else 1.0 / rate
-        self.rest_period = 1.0 / float(p['rest_publish_rate'])   # at least publish_period
-        self.publish_clock = bool(p['publish_clock'])
-
-        self.lock = threading.Lock()
-        self.step_lock = threading.Lock()    # pacing and stepping: physics thread or a callback
-        self.stop_event = threading.Event()
-        self._wake = threading.Event()       # a command or a stop: the physics thread looks now
-        self._anchor = None                  # (wall, sim) time the pace counts from
-        self.paused = False
-        self.rejected = 0                # bad /JointJog messages
-        self.last_rejection = ''
-        self.latencies = []              # [s] JointJog arrival to the end of its first step
-        self.overruns = 0                # times pacing fell behind and re-anchored
-        self.failure = None              # why the physics thread stopped, if it did
-        self._pending = None             # (command_count, wall arrival) awaiting its first step
-        self._was_stale = True
-        self._next_publish = self.sim.time
-        self._last_reading_time = None
-        self._mujoco_warnings = {}
-        self._contact_report = None      # (contact_steps, touching) last reported
-        # /joint_states go as bytes (cdr): building and converting a message object per sample
-        # was most of the idle bridge's CPU; /JointJog is read from its bytes likewise.
-        self._state_writer = cdr.JointStateWriter(self.arm.joint_names)
-        self._jog_reader = cdr.JointJogReader()
-        self._last_jog = None            # (names, velocities) of the last command taken
-        self.contacts_pub = self.create_publisher(DiagnosticStatus, '~/contacts', STATUS_QOS)
-        self.joint_states_pub = self.create_publisher(JointState, 'joint_states', 10)
-        self.status_pub = self.create_publisher(DiagnosticStatus, '~/status', STATUS_QOS)
-        self._status_due = 0.0           # [s] monotonic: the next ~/status
-        self._status_mark = None         # (wall, sim) time of the last ~/status
-        self.clock_pub = (self.create_publisher(Clock, 'clock', 10)
-                          if self.publish_clock else None)
-        self.guard.subscription(JointJog, 'JointJog', self.on_joint_jog, STREAM_READER_QOS,
+        self.rejections = Rejections()
+        self.physics = PhysicsThread(self.sim, self.pacing, self.make_outputs(), self.rejections)
+        self.controls = SimControls(self.physics, self.arm.joint_names, self.get_logger())
+        self.jogs = JogIntake(self.physics, self.rejections, self.get_logger())
+        self.guard.subscription(JointJog, 'JointJog', self.jogs.take, STREAM_READER_QOS,
                                 raw=True)
         self.guard.subscription(JointState, '~/reset_to', self.on_reset_to, 10)
         self.guard.service(Trigger, '~/reset', self.on_reset)
         self.guard.service(SetBool, '~/pause', self.on_pause)
         self.guard.service(Trigger, '~/step', self.on_step)
-
-        self.viewer = self._open_viewer() if p['viewer'] else None
-        self.thread = threading.Thread(target=self._run, name='sim_bridge_physics', daemon=True)
-        self.thread.start()
+        if p['viewer']:
+            self.physics.viewer = open_viewer(self.sim, self.get_logger())
+        self.physics.start()
+        pacing = self.pacing
         self.get_logger().info(
-            f'{self.arm.name}: mode {config.mode}, physics_dt {self.dt} s, real-time factor '
-            f'{self.rtf}, /joint_states every {self.publish_period:.4f} s'
-            + ('' if self.vendor or self.rest_period <= self.publish_period else
-               f' ({self.rest_period:.4f} s while the arm rests)') + ', command timeout '
-            f'{config.command_timeout} s' + (', publishing /clock' if self.publish_clock else ''))
+            f'{self.arm.name}: mode {config.mode}, physics_dt {pacing.dt} s, real-time factor '
+            f'{pacing.rtf}, /joint_states every {pacing.publish_period:.4f} s'
+            + ('' if pacing.vendor or pacing.rest_period <= pacing.publish_period else
+               f' ({pacing.rest_period:.4f} s while the arm rests)') + ', command timeout '
+            f'{config.command_timeout} s' + (', publishing /clock' if pacing.publish_clock
+                                             else ''))
+
+    def make_outputs(self) -> BridgeOutputs:
+        """Return the publishers of /joint_states, /clock, ~/status and ~/contacts."""
+        # /joint_states go as bytes (cdr): building and converting a message object per sample
+        # was most of the idle bridge's CPU; /JointJog is read from its bytes likewise.
+        contacts = self.create_publisher(DiagnosticStatus, '~/contacts', STATUS_QOS)
+        joint_states = self.create_publisher(JointState, 'joint_states', 10)
+        status = self.create_publisher(DiagnosticStatus, '~/status', STATUS_QOS)
+        clock = (self.create_publisher(Clock, 'clock', 10) if self.pacing.publish_clock
+                 else None)
+        return BridgeOutputs(self.get_logger(), joint_states, status, contacts, clock,
+                             cdr.JointStateWriter(self.arm.joint_names), self.get_clock(),
+                             sim_stamps=self.pacing.publish_clock)
+
+    # What tests and benchmarks read of the parts.
+    @property
+    def dt(self) -> float:
+        """Return the physics step [s]."""
+        return self.pacing.dt
+
+    @property
+    def failure(self) -> Optional[str]:
+        """Return why the physics thread stopped (None while it runs)."""
+        return self.physics.failure
+
+    @property
+    def latencies(self) -> list:
+        """Return the latest /JointJog latencies [s] (arrival to the end of its first step)."""
+        return self.physics.latencies
+
+    @property
+    def thread(self) -> threading.Thread:
+        """Return the physics thread."""
+        return self.physics.thread
+
+    @property
+    def viewer(self) -> Optional[Any]:
+        """Return the physics thread's MuJoCo viewer, or None when headless."""
+        return self.physics.viewer
+
+    @property
+    def rejected(self) -> int:
+        """Return how many /JointJog messages were refused."""
+        return self.rejections.count
+
+    @property
+    def last_rejection(self) -> str:
+        """Return why the last refused /JointJog was refused."""
+        return self.rejections.last
 
     def on_parameters_set(self, parameters: list[Parameter]) -> None:
         """
@@ -151,96 +245,35 @@ class SimBridgeNode(PhysicsLoop, SimControls, Node):
         /joint_states comes at most one new period of sim time after the change (vendor_driver
         publishes at the driver's cycle, whatever ``publish_rate`` says).
         """
-        self._wake.set()                 # the next wake-up is computed anew
+        self.physics.wake.set()          # the next wake-up is computed anew
         for parameter in parameters:
             if parameter.name == 'real_time_factor':
-                self.rtf = float(parameter.value)
-                self._reanchor = True
-            elif parameter.name in ('publish_rate', 'rest_publish_rate') and not self.vendor:
-                with self.lock:
-                    if parameter.name == 'publish_rate':
-                        self.publish_period = 1.0 / float(parameter.value)
-                    else:
-                        self.rest_period = 1.0 / float(parameter.value)
-                    self._next_publish = min(self._next_publish,
-                                             self.sim.time + self.publish_period)
+                self.physics.set_rtf(float(parameter.value))
+            elif parameter.name == 'publish_rate' and not self.pacing.vendor:
+                self.physics.set_periods(publish_period=1.0 / float(parameter.value))
+            elif parameter.name == 'rest_publish_rate' and not self.pacing.vendor:
+                self.physics.set_periods(rest_period=1.0 / float(parameter.value))
             else:
                 continue
             self.get_logger().info(f'{parameter.name} {parameter.value}: in force')
 
-    # --- setup -------------------------------------------------------------------------------
-
-    def _make_arm(self, limit_set, urdf_path):
-        """Return the arm: the shipped Mover6 with ``limit_set``, or a given URDF."""
-        if limit_set not in LIMIT_SETS:
-            raise InvalidInputError(f'limit_set must be one of {LIMIT_SETS}, got {limit_set!r}')
-        if urdf_path:
-            return load_urdf(urdf_path)
-        return mover6(limit_set)
-
-    def _open_viewer(self):
-        """Return a passive MuJoCo viewer, or None (with a warning) when there is no display."""
-        if not (os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')):
-            self.get_logger().warning('viewer asked for but no display: running headless')
-            return None
-        try:
-            import mujoco.viewer
-            return mujoco.viewer.launch_passive(self.sim.model, self.sim.data)
-        except Exception as exc:  # noqa: B902 - any GL/GLFW failure: stay headless
-            self.get_logger().warning(f'viewer failed ({exc}): running headless')
-            return None
-
     # --- callbacks ---------------------------------------------------------------------------
-
-    def on_joint_jog(self, raw: bytes) -> None:
-        """
-        Take a /JointJog (serialized): validate, clamp, hand to the simulator; log rejections.
-
-        The same command as the last one taken (the controller at rest sends zeros every tick)
-        only restarts its timeout, at the sim time the steps due would reach (``_refresh``):
-        the steps run at the next wake-up as they would have, without a wake-up of their own.
-        """
-        arrival = time.monotonic()
-        try:
-            try:
-                names, _, values = self._jog_reader.read_jog(raw)
-                if (names, values) == self._last_jog and self._refresh(arrival):
-                    return
-            except ValueError:
-                pass                     # conversions reads it (or says why not)
-            names, velocities = conversions.joint_jog_from_raw(raw, self._jog_reader)
-            with self.step_lock:
-                self._catch_up()         # the steps due before it came: the command before
-                with self.lock:
-                    warnings = self.sim.set_command(names, velocities, self.sim.time)
-                    self._pending = (self.sim.command_count, arrival)
-                    # A resting arm's slower /joint_states: the full rate from this command on.
-                    self._next_publish = min(self._next_publish,
-                                             self.sim.time + self.publish_period)
-                    self._last_jog = (tuple(names), tuple(velocities.tolist()))
-            self._wake.set()             # its first step when due, not at the next publication
-        except InvalidInputError as exc:
-            self.rejected += 1
-            self.last_rejection = str(exc)
-            raise                        # refused: the guard logs and counts it
-        for text in warnings:
-            self.get_logger().warning(f'/JointJog speed clamped: {text}',
-                                      throttle_duration_sec=1.0)
 
     def on_reset_to(self, msg: JointState) -> None:
         """Reset to the positions of a JointState (by name; unnamed joints go home; or refused)."""
-        self.reset_to(self.named_positions(list(msg.name), list(msg.position)))
+        self.controls.reset_to(self.controls.named_positions(list(msg.name),
+                                                             list(msg.position)))
 
     def on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Reset to ``initial_q``, at rest, commands dropped."""
-        self.reset_to(None)
+        self.controls.reset_to(None)
         response.success = True
         response.message = f'reset to {np.round(self.sim.home_q, 4).tolist()}'
         return response
 
     def on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
         """Pause (data true) or resume (data false) the physics."""
-        t = self.pause(bool(request.data))
+        t = self.controls.pause(bool(request.data))
         response.success = True
         response.message = f'{"paused" if request.data else "running"} at t = {t:.4f} s'
         self.get_logger().info(response.message)
@@ -248,23 +281,17 @@ class SimBridgeNode(PhysicsLoop, SimControls, Node):
 
     def on_step(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """While paused, run one control period and publish; refuse when running."""
-        response.success = self.paused
-        if not self.paused:
+        response.success = self.physics.paused
+        if not self.physics.paused:
             response.message = 'not paused: ~/pause first'
             return response
-        n = self.step_period()
-        response.message = f'stepped {n} x {self.dt} s to t = {self.sim.time:.4f} s'
+        n = self.controls.step_period()
+        response.message = f'stepped {n} x {self.pacing.dt} s to t = {self.sim.time:.4f} s'
         return response
 
     def destroy_node(self) -> None:
         """Stop the physics thread and the viewer, then destroy the node."""
-        self.stop_event.set()
-        self._wake.set()
-        if self.thread.is_alive():
-            self.thread.join(timeout=5.0)
-        if self.viewer is not None:
-            self.viewer.close()
-            self.viewer = None
+        self.physics.stop()
         return super().destroy_node()
 
 

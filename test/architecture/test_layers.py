@@ -175,7 +175,12 @@ MODULE_LIMIT = 500         # lines, any module of mover6_control/ or sim_bridge/
 NODE_LIMIT = 300           # lines, a node file: nodes/*.py and the bridge's node (two files)
 # Files over their limit for now, each with its reason; the test fails when one is back under
 # its limit, so an allowance never outlives its need.
-OVER_LIMIT = {}
+OVER_LIMIT = {
+    # The bridge node's parts built with explicit arguments (issue 33) instead of mixins
+    # sharing self; the line-count test itself goes (issue 33), these with it.
+    'sim_bridge/bridge_node.py': 'the node, its JogIntake and the parameter readers',
+    'sim_bridge/bridge_physics.py': 'PhysicsThread with its Pacing, BridgeOutputs, Rejections',
+}
 
 
 def size_limit(path):
