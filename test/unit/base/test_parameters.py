@@ -162,7 +162,6 @@ def yaml_comments(path):
     return out
 
 
-@pytest.mark.lint
 @pytest.mark.parametrize('node', sorted(NODES))
 def test_config_file_comments_agree_with_the_table(node):
     """
