@@ -76,7 +76,7 @@ def tier_of(path):
 
 
 def pytest_collection_modifyitems(config, items):
-    """Mark every test with its folder's tier (unit, node, e2e, lint); refuse another tier's mark."""
+    """Mark every test with its folder's tier (unit, node, e2e, lint); refuse another's mark."""
     import pytest
     for item in items:
         try:
@@ -87,7 +87,7 @@ def pytest_collection_modifyitems(config, items):
                  if item.get_closest_marker(t) and t not in TIER_MARKERS[tier]]
         if wrong:
             raise pytest.UsageError(f'{item.nodeid}: marked {wrong[0]} in the {tier} folder; '
-                                    'a test\'s folder is its tier: move it')
+                                    "a test's folder is its tier: move it")
         for marker in TIER_MARKERS[tier]:
             if not item.get_closest_marker(marker):
                 item.add_marker(getattr(pytest.mark, marker))

@@ -1,6 +1,7 @@
 """
-The CAN-level Mover6 as its own process on a pty (in-process on a virtual bus: the unit test
-test/unit/sim_bridge/test_can_sim_bus.py).
+The CAN-level Mover6 as its own process on a pty.
+
+In-process on a virtual bus: the unit test test/unit/sim_bridge/test_can_sim_bus.py.
 
 As a process (``can_sim``) it speaks the CPR USB2CAN framing on a pty, reached through the
 package's own ``Usb2CanBus`` exactly as the driver reaches the real adapter.

@@ -11,7 +11,6 @@ import subprocess
 import sys
 
 from mover6_control.realtime import run_at_priority
-import pytest
 from ros_testing import without_the_right
 
 CHILD = """
