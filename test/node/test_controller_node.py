@@ -313,14 +313,16 @@ def test_a_blocked_publish_holds_up_neither_states_nor_status(ros):
 
     def blocking_publish(msg):
         if not blocked:
-            blocked.append(time.monotonic())
-            time.sleep(0.4)                        # longer than state_timeout (0.25 s)
+            blocked.append(len(arm.jogs))
+            time.sleep(0.4)                        # the blocked write: longer than state_timeout
+            blocked.append(True)                   # (0.25 s), in the tick thread
         publish(msg)
 
     seen = len(arm.statuses)
     controller.jog_pub.publish = blocking_publish
     try:
-        spin_until(lambda: blocked and time.monotonic() - blocked[0] > 1.0)
+        # Fifty ticks after the blocked one: a fault it caused would have been published.
+        spin_until(lambda: len(blocked) == 2 and len(arm.jogs) > blocked[0] + 50)
     finally:
         del controller.jog_pub.publish
     # The states that came meanwhile were taken, so the late tick found them fresh: no fault.
