@@ -19,9 +19,9 @@ jonaitken/cpr_ros2; and the Mover6 user guide's CAN pages):
 - It answers every position set-point at once with its error flags, its encoder position (ticks
   plus the joint's offset, int32 big-endian), the set-point's counter byte as its timestamp (the
   user guide: the module copies the command's timestamp into its answer) and its inputs (0x80 once
-  referenced). With ``answers_commands`` (design.md: a module answers every command it takes) it
-  answers reset, enable, disable, referencing and set zero too, with timestamp 0 (those frames
-  carry none); without it only set-points are answered, the worst a driver may meet.
+  referenced). With ``answers_commands`` (a module answers every command it takes) it answers
+  reset, enable, disable, referencing and set zero too, with timestamp 0 (those frames carry
+  none); without it only set-points are answered, the worst a driver may meet.
 - Error flags: 0x1C after power-up (motor not enabled, communication watchdog, position lag),
   0x04 after a reset, 0x00 after an enable. Enable is taken only when nothing but 0x04 is set
   (after a reset); otherwise it changes nothing. Any error flag stops the motor and sets 0x04.

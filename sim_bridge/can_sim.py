@@ -310,7 +310,7 @@ def parse_args(argv: Optional[list[str]]) -> argparse.Namespace:
     parser.add_argument('--lag-limit', type=float, default=ModuleTiming.lag_limit,
                         help='[rad] position lag before 0x10 (default: %(default)s)')
     parser.add_argument('--command-replies', choices=('on', 'off'), default='on',
-                        help='on: the modules answer every command they take (design.md); off: '
+                        help='on: the modules answer every command they take; off: '
                         'only set-points, the worst a driver may meet (default: %(default)s)')
     parser.add_argument('--priority', type=int, default=SIM_PRIORITY,
                         help='SCHED_FIFO priority of the simulated modules where the system '

@@ -57,10 +57,10 @@ def pytest_terminal_summary(terminalreporter):
 
 
 # Tiers (./run.sh test -m unit | node | e2e | lint, or a folder: ./run.sh test test/unit): a
-# test's folder is its tier. unit/<layer>/ tests the ROS-free core layer by layer; node/ spins
-# real rclpy nodes (or ROS messages) in this process; e2e/ starts processes; lint/ and
-# architecture/ check the source itself (style; layers and schema), both marked lint. A test
-# marked with a tier itself keeps it (a file whose tests span tiers sits with most of them).
+# test's folder is its tier, and a tier marker that names another tier is refused at collection.
+# unit/<layer>/ tests the ROS-free core layer by layer in this process (no rclpy, no process);
+# node/ spins real rclpy nodes (or ROS messages) in this process; e2e/ starts processes; lint/
+# and architecture/ check the source itself (style; layers and schema), both marked lint.
 TIER_MARKERS = {'unit': ('unit',), 'node': ('node',), 'e2e': ('e2e',), 'lint': ('lint',),
                 'architecture': ('lint', 'architecture')}
 TEST_DIR = os.path.dirname(os.path.abspath(__file__))
@@ -76,14 +76,18 @@ def tier_of(path):
 
 
 def pytest_collection_modifyitems(config, items):
-    """Mark every test with its folder's tier (unit, node, e2e, lint) unless marked already."""
+    """Mark every test with its folder's tier (unit, node, e2e, lint); refuse another's mark."""
     import pytest
     for item in items:
-        if any(item.get_closest_marker(t) for t in ('e2e', 'node', 'lint', 'unit')):
-            continue
         try:
             tier = tier_of(item.path)
         except ValueError as err:
             raise pytest.UsageError(str(err)) from None
+        wrong = [t for t in ('e2e', 'node', 'lint', 'unit')
+                 if item.get_closest_marker(t) and t not in TIER_MARKERS[tier]]
+        if wrong:
+            raise pytest.UsageError(f'{item.nodeid}: marked {wrong[0]} in the {tier} folder; '
+                                    "a test's folder is its tier: move it")
         for marker in TIER_MARKERS[tier]:
-            item.add_marker(getattr(pytest.mark, marker))
+            if not item.get_closest_marker(marker):
+                item.add_marker(getattr(pytest.mark, marker))

@@ -26,12 +26,16 @@ class SlowJob:
 
     waypoints = np.zeros((1, 6))
 
-    def __init__(self, seconds):
-        """Plan for ``seconds``."""
+    def __init__(self, seconds, started=None):
+        """Plan for ``seconds``; first create the file ``started`` (a path; None: none)."""
         self.seconds = seconds
+        self.started = started
 
     def run(self, guard=None):
-        """Sleep."""
+        """Say it started (the file), then sleep."""
+        if self.started is not None:
+            with open(self.started, 'w'):
+                pass
         time.sleep(self.seconds)
 
 

@@ -27,31 +27,39 @@ Behind a driver with a cycle (``jog_units`` 'fraction_of_max', the Mover6's vend
 ``cycle_driver``) the commands are compensated for its whole ticks and for what is still in
 flight (``driver_compensation``).
 
-One concept a module: this one holds the inputs and the tick; its parts are the settings
-(``controller_config``), the demand protocol (``demand_intake``), jogging (``jogging``), the
-per-state ticks of a motion (``motion_ticks``) and the status (``status_report``). What the
-parts share lives in one record, the core's ``core_state`` (``core_state.CoreState``: the state
-machine's state and message, the motion, how it ended, the settings in force and pending); what
-only jogging keeps, in ``jog_session``; the arm's model, in ``robot``.
+One class built from parts, each a class made here with what it needs and that a test builds
+alone (one concept a module): ``core_settings.CoreSettings`` (the config in force and pending),
+``states_check.StatesCheck`` (the states' check opening each tick), ``demand_intake.DemandIntake``
+(the demand protocol), ``jogging.Jogging``, ``motion_ticks.MotionTicks`` (the per-state ticks of
+a motion) and ``status_report.StatusReport``. What they share is one record they are each given,
+``core_state.CoreState`` (the state machine's state and message, the motion, how it ended, the
+settings in force and pending, the collision guard); the arm's model is the ``Robot`` they are
+each given. This class holds the inputs, the stop and reset, and the tick that dispatches to
+the part of the state; its other methods hand the call to the part named in their docstring.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import Callable, Optional, Sequence
 
 from mover6_control.control import state_machine as sm
 from mover6_control.control.commands import guard_position_limits, to_jog_units
 from mover6_control.control.controller_config import ControllerConfig, derive_config
+from mover6_control.control.core_settings import CoreSettings
 from mover6_control.control.core_state import CoreState
-from mover6_control.control.demand_intake import DemandIntake
+from mover6_control.control.demand_intake import (DemandIntake, NotAcceptingError,
+                                                  PendingDemand, Planner, Snapshot)
 from mover6_control.control.driver_compensation import DriverCompensation
 from mover6_control.control.jogging import Jogging, JogSession
 from mover6_control.control.motion_plan import MotionPlan, plan_stop
 from mover6_control.control.motion_ticks import MotionTicks
+from mover6_control.control.profiles import LawConfig
 from mover6_control.control.robot import Robot
+from mover6_control.control.states_check import StatesCheck
 from mover6_control.control.status import Cause, MotionResult, StatusKey as K
-from mover6_control.control.status_report import StatusReport
+from mover6_control.control.status_report import Status, StatusReport
+from mover6_control.control.timed_plan import Timing
 from mover6_control.kinematics.arm import ArmModel
 import numpy as np
 
@@ -71,8 +79,8 @@ class TickOutput:
     status_changed: bool
 
 
-class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
-    """The controller's logic for one arm; see the module docstring."""
+class ControllerCore:
+    """The controller's logic for one arm, built from its parts; see the module docstring."""
 
     def __init__(self, arm: ArmModel, config: Optional[ControllerConfig] = None):
         """Make a controller for ``arm`` (an ``ArmModel``) with ``config``."""
@@ -80,59 +88,56 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
         self.robot = Robot.from_arm(arm)  # the model: joints, states, demand, reference
         # A driver with a cycle behind the commands (control.driver_compensation).
         self.driver_compensation = DriverCompensation(arm.n_joints)
-        derived = derive_config(self.arm, ControllerConfig() if config is None else config)
+        derived = derive_config(arm, ControllerConfig() if config is None else config)
         # What the parts share: the state machine, the motion, its result, the settings.
         self.core_state = CoreState(derived)
-        self._apply(derived)
-        self.jog_session = JogSession()  # jogging's own state (control.jogging)
-        # A callable(plan) that raises on a colliding motion (collision_guard.CollisionGuard);
-        # the node sets it. None: no collision check.
-        self.collision_guard = None
+        self.settings = CoreSettings(arm, self.robot, self.driver_compensation, self.core_state)
+        self.settings.apply(derived)
+        self.states_check = StatesCheck(self.robot, self.core_state)
+        self.demands = DemandIntake(arm, self.robot, self.core_state)
+        self.jogging = Jogging(arm, self.robot, self.core_state)
+        self.motions = MotionTicks(self.robot, self.core_state, self.driver_compensation)
+        self.report = StatusReport(arm, self.robot, self.core_state, self.jogging.session)
         self.tick_failures = 0           # ticks in a row that raised (a fault each)
 
-    def _apply(self, derived):
-        """Install a ``DerivedConfig``: the robot's limits, the driver's ticks, then it whole."""
-        self.robot.set_limits(derived.goal_tolerance, derived.config.law.a_max, derived.ticks)
-        self.driver_compensation.configure(derived)
-        self.core_state.derived = derived
+    # --- settings (core_settings.CoreSettings) ------------------------------------------------
 
     @property
     def config(self) -> ControllerConfig:
         """Return the ``ControllerConfig`` in force (``core_state.derived``'s)."""
-        return self.core_state.derived.config
+        return self.core_state.config
 
     def check_config(self, config: ControllerConfig) -> None:
         """Raise ``InvalidInputError`` saying why ``config`` cannot drive this arm."""
-        derive_config(self.arm, config)
+        self.settings.check(config)
 
     def reconfigure(self, config: ControllerConfig) -> bool:
-        """
-        Use ``config`` from now on, or from the end of the running motion; return True if now.
-
-        Idle (or waiting, or in fault) it applies at once: tolerances, velocity limits, the
-        control period, the driver's ticks. While executing, settling or stopping it is kept
-        pending (``pending_parameters`` in the status) and applied on the first tick after the
-        motion ends, so a motion runs with one config from start to end; a later call replaces
-        a pending config. Raises ``InvalidInputError`` (nothing changed) when it does not fit.
-        """
-        derived = derive_config(self.arm, config)
-        self.core_state.changed = True
-        if self.core_state.state in sm.MOVING_STATES:
-            self.core_state.pending = derived
-            return False
-        self.core_state.pending = None
-        self._apply(derived)
-        return True
+        """Use ``config`` now (True) or once the motion ends: ``CoreSettings.reconfigure``."""
+        return self.settings.reconfigure(config)
 
     @property
     def pending_config(self) -> Optional[ControllerConfig]:
         """Return the config waiting for the running motion to end (None when none)."""
-        return None if self.core_state.pending is None else self.core_state.pending.config
+        return self.settings.pending_config
 
     @property
     def goal_tolerance(self) -> np.ndarray:
         """Return the goal tolerance (n,) [rad] in use (at least one tick in fraction_of_max)."""
         return self.robot.goal_tolerances
+
+    @property
+    def collision_guard(self) -> Optional[Callable[[MotionPlan], None]]:
+        """
+        Return the collision check of demands and jogs (None: none).
+
+        A callable(plan) that raises on a colliding motion (``collision_guard.CollisionGuard``,
+        whose ``veto`` jogging uses); the node sets it.
+        """
+        return self.core_state.collision_guard
+
+    @collision_guard.setter
+    def collision_guard(self, guard: Optional[Callable[[MotionPlan], None]]) -> None:
+        self.core_state.collision_guard = guard
 
     # --- inputs -------------------------------------------------------------------------------
 
@@ -150,6 +155,11 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
     def plan(self) -> Optional[MotionPlan]:
         """Return the running ``MotionPlan`` (None when none)."""
         return self.robot.plan
+
+    @property
+    def jog_session(self) -> JogSession:
+        """Return what jogging keeps between commands and ticks (``Jogging.session``)."""
+        return self.jogging.session
 
     def on_named_joint_states(self, now: float, names: Sequence[str],
                               positions: Sequence[float],
@@ -169,21 +179,81 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
 
     def request_stop(self, now: float) -> tuple[bool, str]:
         """Decelerate to rest and hold; return ``(True, message)`` or why nothing moved."""
-        if self.core_state.state not in (sm.EXECUTING, sm.SETTLING, sm.JOGGING):
-            return True, f'not moving ({self.core_state.state}); command is zero'
+        shared = self.core_state
+        if shared.state not in (sm.EXECUTING, sm.SETTLING, sm.JOGGING):
+            return True, f'not moving ({shared.state}); command is zero'
         ref = self.robot.reference
         q_ref, qd_ref = ref if ref is not None else (self.robot.q, self.robot.commanded)
-        self.robot.give(plan_stop(q_ref, qd_ref, self.config.law.a_max), now)
-        self.core_state.result = {K.RESULT: MotionResult.STOPPED,
-                                  K.CAUSE: Cause.STOP_REQUESTED, K.REASON: 'stop requested'}
-        self._set(sm.STOP, 'OK', f'stopping motion {self.core_state.motion_id} on request')
+        self.robot.give(plan_stop(q_ref, qd_ref, shared.config.law.a_max), now)
+        shared.result = {K.RESULT: MotionResult.STOPPED,
+                         K.CAUSE: Cause.STOP_REQUESTED, K.REASON: 'stop requested'}
+        shared.step(sm.STOP, 'OK', f'stopping motion {shared.motion_id} on request')
         return True, f'stopping within {self.robot.plan.duration:.2f} s'
 
     def reset(self, now: float) -> None:
         """Leave fault: wait for fresh joint states again."""
         if self.core_state.state == sm.FAULT:
             self.robot.forget_states()
-            self._set(sm.RESET, 'WARN', 'reset: waiting for /joint_states')
+            self.core_state.step(sm.RESET, 'WARN', 'reset: waiting for /joint_states')
+
+    # --- demands (demand_intake.DemandIntake) -------------------------------------------------
+
+    def snapshot(self) -> Snapshot:
+        """Return the ``Snapshot`` a demand is planned from: ``DemandIntake.snapshot``."""
+        return self.demands.snapshot()
+
+    def check_demand(self, waypoints: np.ndarray) -> np.ndarray:
+        """Return the demand (N, n) [rad] inside the limits: ``DemandIntake.check_demand``."""
+        return self.demands.check_demand(waypoints)
+
+    def prepare_demand(self, now: float, waypoints: np.ndarray, snapshot: Snapshot,
+                       demand_id: str = '', timing: Optional[Timing] = None,
+                       profile: str = '', planner: Optional[Planner] = None) -> PendingDemand:
+        """Check and plan a demand from ``snapshot``: ``DemandIntake.prepare_demand``."""
+        return self.demands.prepare_demand(now, waypoints, snapshot, demand_id, timing,
+                                           profile, planner)
+
+    def law_for(self, profile: str = '', config: Optional[ControllerConfig] = None) -> LawConfig:
+        """Return a demand's law with its own ``profile``: ``DemandIntake.law_for``."""
+        return self.demands.law_for(profile, config)
+
+    def is_current(self, pending: PendingDemand) -> bool:
+        """Return whether ``pending`` still fits: ``DemandIntake.is_current``."""
+        return self.demands.is_current(pending)
+
+    def commit_demand(self, pending: PendingDemand, start: Optional[float] = None) -> int:
+        """Start a prepared demand; return its motion id: ``DemandIntake.commit_demand``."""
+        return self.demands.commit_demand(pending, start)
+
+    def reject(self, now: float, reason: str, demand_id: str = '') -> None:
+        """Note a refused demand in the status: ``DemandIntake.reject``."""
+        self.demands.reject(now, reason, demand_id)
+
+    def refusal(self) -> Optional[NotAcceptingError]:
+        """Return why no demand is taken now (None: one is): ``DemandIntake.refusal``."""
+        return self.demands.refusal()
+
+    # --- jogging (jogging.Jogging) ------------------------------------------------------------
+
+    def on_twist(self, now: float, stamp: float, linear: Sequence[float],
+                 angular: Sequence[float], frame: str = 'base_link') -> None:
+        """Take a flange twist [m/s, rad/s] stamped ``stamp``: ``Jogging.on_twist``."""
+        self.jogging.on_twist(now, stamp, linear, angular, frame)
+
+    def on_joint_jog(self, now: float, stamp: float, names: Sequence[str],
+                     velocities: Sequence[float]) -> None:
+        """Take joint velocities [rad/s] by name: ``Jogging.on_joint_jog``."""
+        self.jogging.on_joint_jog(now, stamp, names, velocities)
+
+    def note_jog_refused(self, reason: str) -> None:
+        """Keep why a jog command was refused: ``Jogging.note_jog_refused``."""
+        self.jogging.note_jog_refused(reason)
+
+    # --- the status (status_report.StatusReport) ----------------------------------------------
+
+    def status(self) -> Status:
+        """Return the ``Status`` to publish now: ``StatusReport.status``."""
+        return self.report.status()
 
     # --- the tick -----------------------------------------------------------------------------
 
@@ -206,28 +276,29 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
 
     def _tick_fault(self, now, reason):
         """Fault at ``now``: drop the motion or jog, a zero command, ``reason`` on the status."""
-        if self.core_state.state in sm.MOVING_STATES:
-            self.core_state.result = {K.RESULT: MotionResult.FAULT, K.REASON: reason}
+        shared = self.core_state
+        if shared.state in sm.MOVING_STATES:
+            shared.result = {K.RESULT: MotionResult.FAULT, K.REASON: reason}
         self.robot.drop_plan()
-        self.core_state.t_fault = now
-        self._set(sm.TICK_FAULT, 'ERROR', reason)
+        shared.t_fault = now
+        shared.step(sm.TICK_FAULT, 'ERROR', reason)
         zero = np.zeros(self.arm.n_joints)
         self.robot.commanded = zero
-        return TickOutput(zero, zero.copy(), self.core_state.state, True)
+        return TickOutput(zero, zero.copy(), shared.state, True)
 
     def _tick(self, now):
-        self._check_states(now)
+        self.states_check.check(now)
         shared = self.core_state
         state = shared.state
         qd = None
         if state == sm.EXECUTING:
-            qd = self._tick_executing(now)
+            qd = self.motions.executing(now)
         elif state == sm.SETTLING:
-            qd = self._tick_settling(now)
+            qd = self.motions.settling(now)
         elif state == sm.STOPPING:
-            qd = self._tick_stopping(now)
+            qd = self.motions.stopping(now)
         elif state == sm.JOGGING:
-            qd = self._tick_jogging(now)
+            qd = self.jogging.tick(now)
         if qd is None or shared.state not in sm.MOVING_STATES:
             qd = np.zeros(self.arm.n_joints)
             self.robot.reference = None
@@ -242,41 +313,9 @@ class ControllerCore(DemandIntake, Jogging, MotionTicks, StatusReport):
                                              f'while {state}: not sent')
         self.driver_compensation.end_tick(now, qd, self.robot.n_states)
         self.robot.commanded = qd
-        jog = to_jog_units(qd, self.arm.velocity_limits, self.config.jog_units,
-                           self.config.speed_override)
-        if shared.pending is not None and shared.state not in sm.MOVING_STATES:
-            self._apply(shared.pending)      # the motion ended: the new config now
-            shared.pending = None
-            shared.changed = True
+        config = shared.config
+        jog = to_jog_units(qd, self.arm.velocity_limits, config.jog_units,
+                           config.speed_override)
+        self.settings.apply_pending()     # the motion ended: a pending config now
         changed, shared.changed = shared.changed, False
         return TickOutput(qd, jog, shared.state, changed)
-
-    def _check_states(self, now):
-        shared = self.core_state
-        if not self.robot.measured:
-            if self.robot.invalid_reason is not None:
-                message = f'waiting for valid /joint_states: {self.robot.invalid_reason}'
-                if message != shared.message:
-                    shared.message, shared.changed = message, True
-            return
-        reason = self.robot.states_problem(now, self.config.state_timeout)
-        if reason is not None:
-            if shared.state != sm.FAULT and sm.accepts(shared.state, sm.STATES_INVALID):
-                if shared.state in sm.MOVING_STATES:
-                    shared.result = {K.RESULT: MotionResult.FAULT, K.CAUSE: Cause.STATES_INVALID,
-                                     K.REASON: reason}
-                self.robot.drop_plan()
-                shared.t_fault = now
-                self._set(sm.STATES_INVALID, 'ERROR', reason)
-            return
-        if shared.state == sm.WAITING_FOR_STATES:
-            self._set(sm.STATES_VALID, 'OK', 'joint states received; idle')
-        elif shared.state == sm.FAULT and self.robot.t_states > shared.t_fault:
-            self._set(sm.STATES_VALID, 'OK', 'valid joint states again; idle')
-
-    def _set(self, event, level, message):
-        """Step the state machine by ``event``; the status says ``message`` at ``level``."""
-        shared = self.core_state
-        shared.state = sm.step(shared.state, event)
-        shared.level, shared.message = level, message
-        shared.changed = True

@@ -1,14 +1,16 @@
 """
 What the controller keeps between calls: the one record its parts share (``CoreState``).
 
-``ControllerCore`` is built of parts, one concept each (``demand_intake``, ``jogging``,
-``motion_ticks``, ``status_report``); what more than one of them reads or writes lives here, in
-the core's ``core_state``, and nowhere else. Four groups: the state machine (state, level,
-message, whether the status changed, when the fault began), the motion (its id, its waypoints,
-its profile and timing note, when it settled and arrived), how the latest motion ended and the
+``ControllerCore`` is built of parts, each a class made in its constructor with what it needs
+(``demand_intake.DemandIntake``, ``jogging.Jogging``, ``motion_ticks.MotionTicks``,
+``states_check.StatesCheck``, ``core_settings.CoreSettings``, ``status_report.StatusReport``);
+what more than one of them reads or writes lives here, in the one ``CoreState`` each is given,
+and nowhere else. Four groups: the state machine (state, level, message, whether the status
+changed, when the fault began; ``step`` moves it), the motion (its id, its waypoints, its
+profile and timing note, when it settled and arrived), how the latest motion ended and the
 latest refused demand (status values), and the settings in force and pending
-(``controller_config.DerivedConfig``). What only jogging keeps is its own
-(``jogging.JogSession``); the model of the arm is the core's ``Robot`` (``control.robot``).
+(``controller_config.DerivedConfig``) with the collision guard. What only jogging keeps is its
+own (``jogging.JogSession``); the model of the arm is the core's ``Robot`` (``control.robot``).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from mover6_control.control import state_machine as sm
-from mover6_control.control.controller_config import DerivedConfig
+from mover6_control.control.controller_config import ControllerConfig, DerivedConfig
 
 
 @dataclass(eq=False)
@@ -41,8 +43,10 @@ class CoreState:
     latest refused demand ({} once one is taken).
 
     The settings: ``derived`` the ``DerivedConfig`` in force (its config, tolerances, velocity
-    limits in the driver's units, control period), installed whole by ``ControllerCore``;
-    ``pending`` the one waiting for the running motion to end (None: none).
+    limits in the driver's units, control period), installed whole by ``CoreSettings``;
+    ``pending`` the one waiting for the running motion to end (None: none);
+    ``collision_guard`` a callable(plan) that raises on a colliding motion
+    (``collision_guard.CollisionGuard``; the node sets it; None: no collision check).
     """
 
     derived: DerivedConfig
@@ -61,3 +65,15 @@ class CoreState:
     arrived_at: Optional[float] = None
     result: dict = field(default_factory=dict)
     rejection: dict = field(default_factory=dict)
+    collision_guard: Optional[object] = None
+
+    @property
+    def config(self) -> ControllerConfig:
+        """Return the ``ControllerConfig`` in force (``derived``'s)."""
+        return self.derived.config
+
+    def step(self, event: str, level: str, message: str) -> None:
+        """Step the state machine by ``event``; the status says ``message`` at ``level``."""
+        self.state = sm.step(self.state, event)
+        self.level, self.message = level, message
+        self.changed = True

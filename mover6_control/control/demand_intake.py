@@ -13,9 +13,10 @@ The planning itself is a ``PlanJob`` (its inputs, read from the snapshot and the
 for the controller's state raises ``NotAcceptingError``, so the node can tell it from a bad
 demand (it waits for fresh states and asks again: the refusal names the state it is in then).
 
-``DemandIntake`` is a part of ``controller_core.ControllerCore``: the state it shares with the
-other parts is the core's ``core_state`` (``control.core_state.CoreState``); it is not used on
-its own.
+``DemandIntake`` is made with what it reads and changes: the arm (its limits), the robot (the
+measured states, the reference a demand starts from, the plan it gives) and the ``CoreState``
+it shares with the other parts of ``controller_core.ControllerCore`` (the state machine, the
+motion's figures, the settings and the collision guard). A test builds it alone from those.
 """
 
 from __future__ import annotations
@@ -25,11 +26,14 @@ from typing import Callable, Optional
 
 from mover6_control.control import state_machine as sm
 from mover6_control.control.controller_config import ControllerConfig
+from mover6_control.control.core_state import CoreState
 from mover6_control.control.motion_plan import MotionPlan
 from mover6_control.control.profiles import LawConfig
+from mover6_control.control.robot import Robot
 from mover6_control.control.status import StatusKey as K
 from mover6_control.control.timed_plan import plan_demand, Timing
 from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.arm import ArmModel
 from mover6_control.validation import short_text
 import numpy as np
 
@@ -121,7 +125,13 @@ def _and_more(count):
 
 
 class DemandIntake:
-    """The demand protocol of ``ControllerCore`` (module docstring)."""
+    """The demand protocol of one arm's controller (module docstring)."""
+
+    def __init__(self, arm: ArmModel, robot: Robot, core_state: CoreState):
+        """Take demands for ``arm`` into ``robot``, stepping ``core_state``'s state machine."""
+        self.arm = arm
+        self.robot = robot
+        self.core_state = core_state
 
     def snapshot(self) -> Snapshot:
         """Return the ``Snapshot`` a demand is planned from (call it under the node's lock)."""
@@ -161,7 +171,7 @@ class DemandIntake:
                                     f'states yet')
         job = PlanJob(self.law_for(profile, config), q_start, Q, vlim, qd_start, timing,
                       self.arm.lower, self.arm.upper)
-        guard = self.collision_guard    # raises InvalidInputError: the motion collides
+        guard = self.core_state.collision_guard   # raises InvalidInputError: the motion collides
         plan, note = job.run(guard) if planner is None else planner(job, guard)
         return PendingDemand(now, Q, plan, snapshot.moving, snapshot.motion_id, demand_id,
                              config, timing, note, profile)
@@ -173,7 +183,7 @@ class DemandIntake:
         A demand's profile ('' : none) changes that demand's law only, never the configuration;
         an unknown one raises ``InvalidInputError`` (the demand is refused with the reason).
         """
-        law = (self.config if config is None else config).law
+        law = (self.core_state.config if config is None else config).law
         if not profile or profile == law.profile:
             return law
         return replace(law, profile=profile)
@@ -225,7 +235,7 @@ class DemandIntake:
             job = PlanJob(self.law_for(pending.profile), q_start, pending.waypoints,
                           shared.derived.velocity_limits, qd_start, pending.timing,
                           self.arm.lower, self.arm.upper)
-            plan, note = job.run(self.collision_guard)   # checked as before
+            plan, note = job.run(self.core_state.collision_guard)   # checked as before
         shared.timing = note
         self.robot.give(plan, pending.now if start is None else start)
         shared.motion_id += 1
@@ -233,10 +243,10 @@ class DemandIntake:
         shared.result = {}
         shared.rejection = {}
         shared.arrived_at = None
-        shared.motion_profile = pending.profile or self.config.law.profile
-        self._set(sm.DEMAND, 'OK', f'motion {shared.motion_id}: {len(pending.waypoints)} '
-                                   f'waypoint(s), {shared.motion_profile}, '
-                                   f'{plan.duration:.2f} s')
+        shared.motion_profile = pending.profile or shared.config.law.profile
+        shared.step(sm.DEMAND, 'OK', f'motion {shared.motion_id}: {len(pending.waypoints)} '
+                                     f'waypoint(s), {shared.motion_profile}, '
+                                     f'{plan.duration:.2f} s')
         return shared.motion_id
 
     def is_current(self, pending: PendingDemand) -> bool:
@@ -250,7 +260,7 @@ class DemandIntake:
         snapshot = self.snapshot()
         return (snapshot.moving == pending.moving and snapshot.motion_id == pending.motion_id
                 and self.core_state.state in sm.ACCEPTS_DEMANDS
-                and pending.config is self.config)
+                and pending.config is self.core_state.config)
 
     def reject(self, now: float, reason: str, demand_id: str = '') -> None:
         """Note a refused demand: reason, time [s] and id stay in the status until one is taken."""

@@ -6,10 +6,11 @@ The commands are a flange twist (``on_twist``) or joint velocities (``on_joint_j
 Idle, a fresh command starts jogging; jogging, the next replaces it; it ends, at rest, once the
 command goes stale. While a collision guard is set, the jog's next poses are checked by it too.
 
-``Jogging`` is a part of ``controller_core.ControllerCore`` (the state it shares with the other
-parts is the core's ``core_state``, a ``control.core_state.CoreState``); it is not used on its
-own. What only jogging keeps between commands and ticks is its own ``JogSession``
-(``ControllerCore.jog_session``), which the status reads.
+``Jogging`` is made with what it reads and changes: the arm (the servo's kinematics), the robot
+(the measured position, the reference a demand would start from) and the ``CoreState`` it
+shares with the other parts of ``controller_core.ControllerCore`` (the state machine, the
+result, the settings and the collision guard). What only jogging keeps between commands and
+ticks is its own ``JogSession`` (``session``), which the status reads. A test builds it alone.
 """
 
 from __future__ import annotations
@@ -18,10 +19,13 @@ from dataclasses import dataclass, field, replace
 from typing import Optional, Sequence
 
 from mover6_control.control import state_machine as sm
+from mover6_control.control.core_state import CoreState
+from mover6_control.control.robot import Robot
 from mover6_control.control.servo import (command_age, initial_state, joint_jog_command,
                                           servo_step, TwistCommand)
 from mover6_control.control.status import Cause, MotionResult, StatusKey as K
 from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.arm import ArmModel
 
 
 @dataclass(eq=False)
@@ -45,7 +49,14 @@ class JogSession:
 
 
 class Jogging:
-    """The jogging of ``ControllerCore`` (module docstring)."""
+    """The jogging of one arm's controller (module docstring)."""
+
+    def __init__(self, arm: ArmModel, robot: Robot, core_state: CoreState):
+        """Jog ``arm`` (its model ``robot``), stepping ``core_state``'s state machine."""
+        self.arm = arm
+        self.robot = robot
+        self.core_state = core_state
+        self.session = JogSession()
 
     def on_twist(self, now: float, stamp: float, linear: Sequence[float],
                  angular: Sequence[float], frame: str = 'base_link') -> None:
@@ -74,14 +85,14 @@ class Jogging:
                     hint = '; stop the motion first' if state in sm.MOVING_STATES else ''
                     raise InvalidInputError(f'jogging refused while {state}: '
                                             f'{self.core_state.message}{hint}')
-                timeout = self.config.servo.command_timeout
+                timeout = self.core_state.config.servo.command_timeout
                 if command_age(command, now) > timeout:
                     raise InvalidInputError(f'jog command older than the timeout {timeout:g} s '
                                             'by its stamp')
         except InvalidInputError as err:
             self.note_jog_refused(str(err))
             raise
-        session, shared = self.jog_session, self.core_state
+        session, shared = self.session, self.core_state
         session.command = command
         if session.refused:
             session.refused, shared.changed = '', True
@@ -89,18 +100,18 @@ class Jogging:
             session.servo_state = initial_state(self.arm)
             session.kind = ''
             shared.result = {}
-            self._set(sm.JOG, 'OK', 'jogging')
+            self.core_state.step(sm.JOG, 'OK', 'jogging')
 
     def note_jog_refused(self, reason: str) -> None:
         """Keep why a jog command was refused (status: ``jog_refused``) until one is taken."""
-        session = self.jog_session
+        session = self.session
         if session.refused != reason:     # a stream of the same refusal: one status change
             session.refused, self.core_state.changed = reason, True
 
-    def _tick_jogging(self, now):
+    def tick(self, now: float):
         """Return this tick's jogging command; back to idle once stale and at rest."""
-        q, session, shared = self.robot.q, self.jog_session, self.core_state
-        servo, guard = self.config.servo, self.collision_guard
+        q, session, shared = self.robot.q, self.session, self.core_state
+        servo, guard = shared.config.servo, shared.collision_guard
         if guard is not None and servo.veto is None:     # the jog's next poses are checked too
             if session.vetoed[0] is not servo or session.vetoed[1] is not guard:
                 session.vetoed = (servo, guard, replace(servo, veto=guard.veto))
@@ -120,6 +131,6 @@ class Jogging:
         if out.stale and out.at_rest:
             shared.result = {K.RESULT: MotionResult.JOG_STOPPED, K.CAUSE: Cause.JOG_ENDED,
                              K.REASON: out.reason}
-            self._set(sm.JOG_DONE, 'OK', f'jog ended, at rest: {out.reason}; idle')
+            self.core_state.step(sm.JOG_DONE, 'OK', f'jog ended, at rest: {out.reason}; idle')
             return None
         return out.qd

@@ -7,16 +7,21 @@ goal tolerance (result 'arrived'), then closes the last of the error down to the
 tolerance (behind a driver with a cycle, counting what is in flight: ``driver_compensation``);
 stopping follows the stop plan to rest.
 
-``MotionTicks`` is a part of ``controller_core.ControllerCore``: the state it shares with the
-other parts is the core's ``core_state`` (``control.core_state.CoreState``), the arm's model its
-``robot`` and the compensation of a driver with a cycle its ``driver_compensation``; it is not
-used on its own.
+``MotionTicks`` is made with what it reads and changes: the robot (the plan, its reference, the
+measured states), the ``CoreState`` it shares with the other parts of
+``controller_core.ControllerCore`` (the state machine, the motion's figures, the settings) and
+the ``DriverCompensation`` of a driver with a cycle. A test builds it alone from those.
 """
 
 from __future__ import annotations
 
+from typing import Optional
+
 from mover6_control.control import state_machine as sm
+from mover6_control.control.core_state import CoreState
+from mover6_control.control.driver_compensation import DriverCompensation
 from mover6_control.control.motion_plan import plan_stop
+from mover6_control.control.robot import Robot
 from mover6_control.control.status import Cause, MotionResult, StatusKey as K
 import numpy as np
 
@@ -25,29 +30,37 @@ FINE_GAIN_PER_TICK = 0.25
 
 
 class MotionTicks:
-    """The per-state ticks of a motion of ``ControllerCore`` (module docstring)."""
+    """The per-state ticks of a motion of one arm's controller (module docstring)."""
 
-    def _tick_executing(self, now):
+    def __init__(self, robot: Robot, core_state: CoreState,
+                 driver_compensation: DriverCompensation):
+        """Tick ``robot``'s motions, stepping ``core_state``, behind ``driver_compensation``."""
+        self.robot = robot
+        self.core_state = core_state
+        self.driver_compensation = driver_compensation
+
+    def executing(self, now: float) -> Optional[np.ndarray]:
+        """Follow the plan's reference; on to stopping (path error) or settling (its end)."""
         shared = self.core_state
         t = self.robot.follow(now)
         q_ref, qd_ref = self.robot.reference
         shared.waypoint = self.robot.plan.waypoints_reached(t)
         worst = float(np.max(np.abs(self.robot.error)))
-        if worst > self.config.path_tolerance:
-            self.robot.give(plan_stop(q_ref, qd_ref, self.config.law.a_max), now)
+        if worst > shared.config.path_tolerance:
+            self.robot.give(plan_stop(q_ref, qd_ref, shared.config.law.a_max), now)
             reason = (f'tracking error {worst:.3f} rad above path tolerance '
-                      f'{self.config.path_tolerance} rad')
+                      f'{shared.config.path_tolerance} rad')
             shared.result = {K.RESULT: MotionResult.ABORTED, K.CAUSE: Cause.PATH_TOLERANCE,
                              K.REASON: reason}
-            self._set(sm.PATH_ERROR, 'WARN', f'aborting motion {shared.motion_id}: {reason}')
-            return self._tick_stopping(now)
+            shared.step(sm.PATH_ERROR, 'WARN', f'aborting motion {shared.motion_id}: {reason}')
+            return self.stopping(now)
         if t >= self.robot.plan.duration:
             shared.t_settle = now
-            self._set(sm.REFERENCE_DONE, 'OK', f'motion {shared.motion_id}: settling')
-            return self._tick_settling(now)
-        return self.robot.command(self.config.position_gain, shared.derived.velocity_limits)
+            shared.step(sm.REFERENCE_DONE, 'OK', f'motion {shared.motion_id}: settling')
+            return self.settling(now)
+        return self.robot.command(shared.config.position_gain, shared.derived.velocity_limits)
 
-    def _tick_settling(self, now):
+    def settling(self, now: float) -> Optional[np.ndarray]:
         """
         Converge on the goal: 'arrived' inside the goal tolerance, then on to the fine one.
 
@@ -69,27 +82,27 @@ class MotionTicks:
                 shared.message = (f'motion {shared.motion_id} arrived (max joint error '
                                   f'{worst:.4f} rad); settling')
                 shared.changed = True
-            elif now - shared.t_settle > self.config.settle_timeout:
-                reason = (f'not within goal tolerance after {self.config.settle_timeout} s '
+            elif now - shared.t_settle > shared.config.settle_timeout:
+                reason = (f'not within goal tolerance after {shared.config.settle_timeout} s '
                           f'(max joint error {worst:.4f} rad)')
                 shared.result = {K.RESULT: MotionResult.ABORTED, K.CAUSE: Cause.GOAL_TOLERANCE,
                                  K.REASON: reason, K.FINAL_JOINT_ERROR: f'{worst:.6f}'}
-                self._set(sm.SETTLE_TIMEOUT, 'WARN', f'motion {shared.motion_id}: {reason}')
+                shared.step(sm.SETTLE_TIMEOUT, 'WARN', f'motion {shared.motion_id}: {reason}')
                 return None
         if shared.arrived_at is not None:
             fine = np.all(self._within(shared.derived.settle_tolerance))
-            if fine or now - shared.arrived_at >= self.config.settle_time:
+            if fine or now - shared.arrived_at >= shared.config.settle_time:
                 if self.driver_compensation.active and np.any(self._in_flight() != 0.0):
                     # Settle time over: command zero until what is in flight has landed, so
                     # the arm is still once idle (the driver lags up to two cycles).
                     return np.zeros_like(goal)
                 shared.result = {**shared.result, K.SETTLED_JOINT_ERROR: f'{worst:.6f}'}
-                how = 'settled' if fine else f'settle time {self.config.settle_time} s over'
-                self._set(sm.SETTLED, 'OK', f'motion {shared.motion_id} arrived; {how} '
-                                            f'(max joint error {worst:.6f} rad); holding')
+                how = 'settled' if fine else f'settle time {shared.config.settle_time} s over'
+                shared.step(sm.SETTLED, 'OK', f'motion {shared.motion_id} arrived; {how} '
+                                              f'(max joint error {worst:.6f} rad); holding')
                 return None
             return self._fine_command(now)
-        return self.robot.command(self.config.position_gain, shared.derived.velocity_limits)
+        return self.robot.command(shared.config.position_gain, shared.derived.velocity_limits)
 
     def _in_flight(self):
         """Return the motion (n,) [rad] commanded that the latest reading cannot show yet."""
@@ -118,17 +131,19 @@ class MotionTicks:
         """
         derived = self.core_state.derived
         if not self.driver_compensation.active:
-            gain = max(self.config.position_gain, FINE_GAIN_PER_TICK / derived.dt)
+            gain = max(derived.config.position_gain, FINE_GAIN_PER_TICK / derived.dt)
             return self.robot.command(gain, derived.velocity_limits)
         return self.driver_compensation.tick_pulses(now, self.robot, derived.velocity_limits)
 
-    def _tick_stopping(self, now):
+    def stopping(self, now: float) -> Optional[np.ndarray]:
+        """Follow the stop plan to rest; then at rest (None: the state machine moved on)."""
+        shared = self.core_state
         t = self.robot.follow(now)
         qd_ref = self.robot.reference[1]
         if t >= self.robot.plan.duration:
             self.robot.drop_plan()
-            result = self.core_state.result.get(K.RESULT, MotionResult.STOPPED)
-            self._set(sm.AT_REST, 'OK' if result == MotionResult.STOPPED else 'WARN',
-                      f'motion {self.core_state.motion_id} {result}: at rest, holding')
+            result = shared.result.get(K.RESULT, MotionResult.STOPPED)
+            shared.step(sm.AT_REST, 'OK' if result == MotionResult.STOPPED else 'WARN',
+                        f'motion {shared.motion_id} {result}: at rest, holding')
             return None
         return qd_ref.copy()

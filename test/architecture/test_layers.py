@@ -104,27 +104,35 @@ def test_every_folder_has_a_layer():
     assert seen == set(MAY_IMPORT), f'layers without modules: {set(MAY_IMPORT) - seen}'
 
 
-def test_the_check_can_fail():
-    """The rule is not vacuous: a reach upwards is caught, a reach downwards is not."""
-    assert layer_of('mover6_control.nodes.messages.conversions') not in MAY_IMPORT['control']
-    assert layer_of('mover6_control.control.robot') not in MAY_IMPORT['kinematics']
-    assert layer_of('sim_bridge.model') not in MAY_IMPORT['planning']
-    assert layer_of('mover6_control.kinematics.arm') in MAY_IMPORT['motion']
-    assert layer_of('mover6_control.hardware.driver') not in MAY_IMPORT['control']
-    assert layer_of('mover6_control.control.robot') not in MAY_IMPORT['hardware']
+def upward_imports(module, path):
+    """Return the imports in ``path`` (module ``module``) that name a layer above its own."""
+    layer = layer_of(module)
+    allowed = MAY_IMPORT[layer] | {layer}
+    return [f'{name} ({layer_of(name)})' for name in imports_of(module, path)
+            if layer_of(name) is not None and layer_of(name) not in allowed]
+
+
+def test_the_check_reports_a_bad_import(tmp_path):
+    """A synthetic control module that reaches up to the nodes is reported; its own layer not."""
+    path = tmp_path / 'reaches_up.py'
+    path.write_text(
+        'import numpy\n'
+        'from mover6_control.control.robot import Robot\n'
+        'from ..kinematics import arm\n'
+        'from mover6_control import nodes\n'
+        'def later():\n'
+        '    from ..hardware.driver import ArmDriver\n'
+        '    import mover6_control.nodes.messages.conversions\n')
+    bad = upward_imports('mover6_control.control.reaches_up', str(path))
+    assert bad == ['mover6_control.nodes (nodes)', 'mover6_control.hardware.driver (hardware)',
+                   'mover6_control.nodes.messages.conversions (nodes)'], bad
 
 
 @pytest.mark.parametrize('module,path', project_modules(), ids=lambda v: str(v))
 def test_imports_only_downwards(module, path):
     """Every import names the module's own layer, a layer below it, or a third party."""
-    layer = layer_of(module)
-    allowed = MAY_IMPORT[layer] | {layer}
-    bad = []
-    for name in imports_of(module, path):
-        target = layer_of(name)
-        if target is not None and target not in allowed:
-            bad.append(f'{name} ({target})')
-    assert bad == [], f'{module} ({layer} layer) imports from above: {bad}'
+    bad = upward_imports(module, path)
+    assert bad == [], f'{module} ({layer_of(module)} layer) imports from above: {bad}'
 
 
 def test_the_harness_is_not_product():
@@ -168,54 +176,3 @@ def test_the_architecture_page_names_every_module():
         if stem not in boxes[box_of.get(layer, layer)]:
             unnamed.append(module)
     assert unnamed == [], f'modules the diagram does not name: {unnamed}'
-
-
-# Size limits (issue 19): one concept per module keeps a module short, a node file shorter.
-MODULE_LIMIT = 500         # lines, any module of mover6_control/ or sim_bridge/
-NODE_LIMIT = 300           # lines, a node file: nodes/*.py and the bridge's node (two files)
-# Files over their limit for now, each with its reason; the test fails when one is back under
-# its limit, so an allowance never outlives its need.
-OVER_LIMIT = {
-    # The bridge node's parts built with explicit arguments (issue 33) instead of mixins
-    # sharing self; the line-count test itself goes (issue 33), these with it.
-    'sim_bridge/bridge_node.py': 'the node, its JogIntake and the parameter readers',
-    'sim_bridge/bridge_physics.py': 'PhysicsThread with its Pacing, BridgeOutputs, Rejections',
-}
-
-
-def size_limit(path):
-    """Return the line limit of a module (``path`` relative to the package root)."""
-    node = (path.startswith('mover6_control/nodes/') and not path.endswith('__init__.py')
-            or path in ('sim_bridge/bridge_node.py', 'sim_bridge/bridge_physics.py',
-                        'sim_bridge/bridge_controls.py'))
-    return NODE_LIMIT if node else MODULE_LIMIT
-
-
-def line_counts():
-    """Return ``{path: lines}`` of every module of the two packages (paths with '/')."""
-    counts = {}
-    for _, path in project_modules():
-        with open(path) as f:
-            counts[os.path.relpath(path, ROOT).replace(os.sep, '/')] = len(f.read().splitlines())
-    return counts
-
-
-def test_no_module_is_over_its_size_limit():
-    """No module over 500 lines, no node file over 300, except the listed ones."""
-    counts = line_counts()
-    assert 'mover6_control/nodes/controller_node.py' in counts      # the walk finds the nodes
-    over = {path: n for path, n in counts.items() if n > size_limit(path)}
-    assert {p: n for p, n in over.items() if p not in OVER_LIMIT} == {}, \
-        f'over the limit ({MODULE_LIMIT} lines, {NODE_LIMIT} for a node file): split by concept'
-    stale = sorted(set(OVER_LIMIT) - set(over))
-    assert stale == [], f'within the limit now: take them off OVER_LIMIT: {stale}'
-
-
-def test_the_size_limits_tell_nodes_from_modules():
-    assert size_limit('mover6_control/nodes/planner_node.py') == NODE_LIMIT
-    assert size_limit('sim_bridge/bridge_node.py') == NODE_LIMIT
-    assert size_limit('sim_bridge/bridge_physics.py') == NODE_LIMIT
-    assert size_limit('sim_bridge/bridge_controls.py') == NODE_LIMIT
-    assert size_limit('sim_bridge/simulator.py') == MODULE_LIMIT
-    assert size_limit('mover6_control/tools/goal_cli.py') == MODULE_LIMIT
-    assert size_limit('mover6_control/motion/time_optimal.py') == MODULE_LIMIT

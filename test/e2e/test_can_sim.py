@@ -1,82 +1,19 @@
 """
-The CAN-level Mover6 on a wire: in-process on a virtual bus, and as its own process on a pty.
+The CAN-level Mover6 as its own process on a pty.
 
-In-process it answers over python-can's ``virtual`` interface; as a process (``can_sim``) it
-speaks the CPR USB2CAN framing on a pty, reached through the package's own ``Usb2CanBus``
-exactly as the driver reaches the real adapter.
+In-process on a virtual bus: the unit test test/unit/sim_bridge/test_can_sim_bus.py.
+
+As a process (``can_sim``) it speaks the CPR USB2CAN framing on a pty, reached through the
+package's own ``Usb2CanBus`` exactly as the driver reaches the real adapter.
 """
 
 import os
-import threading
-import uuid
 
-import can
+from can_frames import replies_of, send_all, setpoint_all
 from mover6_control.hardware import protocol
 from mover6_control.hardware.bus import open_bus
 import pytest
 from ros_testing import CanSimProcess, wait_until
-from sim_bridge.can_sim import build_arm, BusServer
-
-
-def replies_of(bus, count, stamp, timeout=5.0):
-    """
-    Receive ``count`` replies with timestamp ``stamp`` within ``timeout`` [s].
-
-    Return {reply ID: Reply}. A module echoes a set-point's counter and answers a command with 0:
-    ``stamp`` picks the answers to one round of frames.
-    """
-    out = {}
-
-    def more():
-        msg = bus.recv(0.05)
-        if msg is not None:
-            reply = protocol.decode_reply(bytes(msg.data[:msg.dlc]))
-            if reply.timestamp == stamp:
-                out[msg.arbitration_id] = reply
-        return len(out) >= count
-    wait_until(more, timeout, period=0.0)
-    return out
-
-
-def send_all(bus, data):
-    """Send ``data`` to every module."""
-    for joint in protocol.JOINTS:
-        bus.send(can.Message(arbitration_id=protocol.command_id(joint), data=data,
-                             is_extended_id=False))
-
-
-def setpoint_all(bus, arm_positions, counter):
-    """Send every module a set-point at the given wire positions."""
-    for joint, p in zip(protocol.JOINTS, arm_positions):
-        bus.send(can.Message(arbitration_id=protocol.command_id(joint),
-                             data=protocol.encode_setpoint(int(p), counter),
-                             is_extended_id=False))
-
-
-@pytest.mark.unit     # in this process; the others start can_sim
-def test_the_arm_answers_on_a_virtual_bus():
-    channel = f'can_sim_test_{uuid.uuid4().hex}'
-    arm = build_arm()
-    server_bus = can.Bus(interface='virtual', channel=channel)
-    client = open_bus('virtual', channel)
-    stop = threading.Event()
-    thread = threading.Thread(target=BusServer(arm, server_bus).serve, args=(stop,))
-    thread.start()
-    try:
-        setpoint_all(client, [0, 0, 0, 0, 500, 509], 1)
-        got = replies_of(client, 6, 1)
-        assert sorted(got) == [protocol.reply_id(j) for j in protocol.JOINTS]
-        assert [got[protocol.reply_id(j)].error_flags for j in protocol.JOINTS] == [0x1C] * 6
-        assert got[protocol.reply_id(6)].position == 509
-        send_all(client, protocol.RESET_ERRORS)
-        setpoint_all(client, [0, 0, 0, 0, 500, 509], 2)
-        got = replies_of(client, 6, 2)
-        assert [got[protocol.reply_id(j)].error_flags for j in protocol.JOINTS] == [0x04] * 6
-    finally:
-        stop.set()
-        thread.join(5.0)
-        client.shutdown()
-        server_bus.shutdown()
 
 
 @pytest.fixture(scope='module')

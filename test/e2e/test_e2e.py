@@ -138,7 +138,8 @@ def test_goal_cli_runs_the_mover6_reports_examples(stack, client):
         # Progress shows this goal's motion only: not the one-waypoint move home (issue 13).
         counts = set(re.findall(r'waypoint \d+ of (\d+)', out))
         assert counts and '1' not in counts and len(counts) == 1, out
-        client.spin_until(lambda: False, 0.5)   # a fresh /joint_states
+        client.q = None                         # a fresh /joint_states
+        assert client.spin_until(lambda: client.q is not None, 10.0), stack.report()
         T_goal = pose_from_goal(ARM, *(float(v) for v in numbers))
         position_error, orientation_error = pose_error(fk(ARM, client.q), T_goal)
         assert position_error < 1e-3 and orientation_error < 0.01, (

@@ -200,7 +200,8 @@ def test_bridge_dies_mid_motion_fault_zero_then_recovery(stack, client):
     outcome = client.send_pose(goal, timeout=60.0)
     while (outcome.code == EXIT_REFUSED and 'old (limit' in outcome.text
            and time.monotonic() < deadline):
-        client.spin_until(lambda: False, 0.2)
+        client.q = None                     # after the next /joint_states
+        assert client.spin_until(lambda: client.q is not None, 10.0), stack.report()
         outcome = client.send_pose(goal, timeout=60.0)
     arrived(client, stack, outcome, goal)
     assert client.set_planner_parameters({'n_waypoints': 20}) is None

@@ -147,9 +147,9 @@ def test_states_diagnostics_enable_and_jog(rig):
             abs(last[0].position[0] - last[-1].position[0]) <= tick and \
             report is not None and abs(report.joints[0].lag) <= tick
     assert wait_for(held_still, 10.0)
-    held = operator.q()[0]
-    time.sleep(0.5)
-    assert abs(operator.q()[0] - held) < 1e-3
+    held, seen = operator.q()[0], len(operator.states)
+    assert wait_for(lambda: len(operator.states) >= seen + 10)     # ten more readings
+    assert all(abs(m.position[0] - held) < 1e-3 for m in operator.states[seen:])
     assert all(abs(a - b) < 1e-3 for a, b in zip(operator.q()[1:], start[1:]))
 
 

@@ -178,20 +178,24 @@ def test_a_job_longer_than_the_timeout_is_refused_and_the_next_is_planned():
         planner.close()
 
 
-def test_close_ends_the_worker_and_a_waiting_job_is_refused():
+def test_close_ends_the_worker_and_a_waiting_job_is_refused(tmp_path):
     """close() while a job runs: the job raises 'closing', the process is gone, none restarts."""
     planner = PlanWorker()
     pid = planner.process.pid
     raised = []
+    started = tmp_path / 'started'
 
     def plan():
         try:
-            planner(SlowJob(60.0))
+            planner(SlowJob(60.0, str(started)))
         except PlanWorkerError as err:
             raised.append(str(err))
     thread = threading.Thread(target=plan)
     thread.start()
-    time.sleep(0.5)
+    deadline = time.monotonic() + 60.0
+    while not started.exists() and time.monotonic() < deadline:   # the job runs in the worker
+        time.sleep(0.01)
+    assert started.exists()
     planner.close()
     thread.join(10.0)
     assert not thread.is_alive() and raised == ['the controller is closing'], raised

@@ -68,9 +68,13 @@ class Harness:
         """Spin until ``predicate()`` holds; return whether it did."""
         return spin_until(self.executor, predicate, timeout) is not None
 
-    def spin_for(self, duration):
-        """Spin for ``duration`` [s] (only to show that something does not happen)."""
-        self.spin_until(lambda: False, duration)
+    def stream(self, velocities, period=0.01):
+        """Publish a JointJog of ``velocities`` every ``period`` [s] until ``stop_stream``."""
+        return self.node.create_timer(period, lambda: self.jog(velocities))
+
+    def stop_stream(self, timer):
+        """End a stream ``stream`` started."""
+        self.node.destroy_timer(timer)
 
     def call(self, name, request):
         """Call one of the bridge's services and return the response."""
@@ -143,10 +147,9 @@ def test_joint_states_are_complete_and_at_the_rate(harness):
     h.jog(v)
     assert h.spin_until(lambda: abs(h.states[-1].velocity[0] - v[0]) < 1e-3)
     moving = len(h.states)
-    t_end = time.monotonic() + 1.5
-    while time.monotonic() < t_end:
-        h.jog(v)
-        h.spin_until(lambda: False, 0.01)
+    stream = h.stream(v)
+    assert h.spin_until(lambda: len(h.states) >= moving + 150)     # 1.5 s at 100 Hz
+    h.stop_stream(stream)
     assert h.states[moving:][-1].velocity[0] == pytest.approx(v[0], abs=1e-3)
     rate = stamp_rate(h.states[moving:])
     assert 90.0 < rate < 110.0, rate
@@ -182,10 +185,10 @@ def test_jog_moves_at_the_commanded_speed_then_halts_when_stale(harness):
     """A JointJog stream moves the joints at its speed; without it they halt after 0.2 s."""
     h = harness
     v = np.array([0.2, -0.1, 0.15, 0.3, -0.25, 0.5])
-    t_end = time.monotonic() + 0.6
-    while time.monotonic() < t_end:
-        h.jog(v)
-        h.spin_until(lambda: False, 0.02)
+    start = len(h.states)
+    stream = h.stream(v, 0.02)
+    assert h.spin_until(lambda: len(h.states) >= start + 60)     # 0.6 s at 100 Hz
+    h.stop_stream(stream)
     _, q_moving, qd_moving, _ = h.latest()
     np.testing.assert_allclose(qd_moving, v, atol=1e-3)
     assert np.all(np.sign(q_moving) == np.sign(v))
@@ -265,9 +268,14 @@ def test_pause_step_resume_and_clock(harness):
     clock = np.array([conversions.stamp_to_seconds(c.clock) for c in h.clocks[-50:]])
     np.testing.assert_allclose(np.diff(clock), h.bridge.dt, atol=1e-9)
     assert not h.call('step', Trigger.Request()).success      # refused while running
+    statuses = []
+    h.node.create_subscription(DiagnosticStatus, 'sim_bridge/status', statuses.append,
+                               STATUS_QOS)
     assert h.call('pause', SetBool.Request(data=True)).success
     t_paused = h.bridge.sim.time
-    h.spin_for(0.3)
+    # The physics thread's rounds go on while paused: two of its statuses (once a second) say
+    # so, and sim time stood all the while.
+    assert h.spin_until(lambda: sum(s.message.startswith('paused') for s in statuses) >= 2)
     assert h.bridge.sim.time == t_paused
     count = len(h.states)
     response = h.call('step', Trigger.Request())

@@ -125,7 +125,7 @@ def test_flange_transform_is_forward_kinematics(harness, q):
     T = chain(msg.transforms, 'base_link', 'link6')
     expected = fk(mover6(), np.array(q))
     np.testing.assert_allclose(T, expected, atol=1e-6)
-    if q == [0.0] * 6:      # design.md: the flange at (0.345, 0, 0.4425) at home
+    if q == [0.0] * 6:      # the flange at (0.345, 0, 0.4425) at home
         np.testing.assert_allclose(T[:3, 3], [0.345, 0.0, 0.4425], atol=1e-9)
 
 

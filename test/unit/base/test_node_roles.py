@@ -1,13 +1,11 @@
-"""The one table of essential and helper nodes, and the helpers' back-off (node_roles)."""
+"""
+The one table of essential and helper nodes, and the helpers' back-off (node_roles).
 
-import os
-import subprocess
-import sys
+launch.sh's reading of it (a process): test/e2e/test_node_roles_shell.py.
+"""
 
-from mover6_control import node_roles
 from mover6_control.node_roles import (ESSENTIAL, HELPERS, is_essential, MAX_RESTART_DELAY,
                                        RESTART_DELAY, restart_delay)
-from mover6_control.resources import CONFIG_DIR
 import pytest
 
 
@@ -24,16 +22,3 @@ def test_the_delay_doubles_up_to_its_limit():
     assert delays[:3] == [RESTART_DELAY, 2 * RESTART_DELAY, 4 * RESTART_DELAY]
     assert delays[-1] == MAX_RESTART_DELAY and max(delays) == MAX_RESTART_DELAY
     assert delays == sorted(delays)
-
-
-def test_launch_sh_reads_the_table():
-    """launch.sh evaluates the module's shell output: the same names and delays."""
-    out = subprocess.run([sys.executable, '-m', 'mover6_control.node_roles', 'shell'],
-                         capture_output=True, text=True, check=True,
-                         cwd=os.path.dirname(CONFIG_DIR)).stdout
-    assert out == node_roles.shell()
-    assert f"ESSENTIAL='{' '.join(ESSENTIAL)}'" in out and f'RESTART_DELAY={RESTART_DELAY}' in out
-    with open(os.path.join(os.path.dirname(CONFIG_DIR), 'scripts', 'launch.sh')) as f:
-        script = f.read()
-    assert 'python3 -m mover6_control.node_roles shell' in script
-    assert '" $HELPERS "' in script

@@ -8,7 +8,7 @@ demand thread, which takes a ``snapshot`` under the lock, plans from it without 
 
 - a regression test for the race of the old ``prepare_demand``, which read ``_ref`` (now the
   robot's ``reference``) twice outside the lock: a tick clearing it in between raised inside
-  the demand thread;
+  the demand thread (on the ``DemandIntake`` part alone, with a robot that races);
 - a seeded random schedule of those steps (thousands of interleavings, deterministic), and the
   same steps from real threads, checking the invariants: no exception, every demand accepted
   or refused with a reason (kept in the status), every command finite and inside the limits, a
@@ -18,17 +18,16 @@ demand thread, which takes a ``snapshot`` under the lock, plans from it without 
 import random
 import threading
 
-from core_testing import send_demand, send_states, send_states_lacking
+from core_testing import send_states, send_states_lacking
 from mover6_control.control import state_machine as sm
-from mover6_control.control.controller_config import ControllerConfig
+from mover6_control.control.controller_config import ControllerConfig, derive_config
 from mover6_control.control.controller_core import ControllerCore
+from mover6_control.control.core_state import CoreState
+from mover6_control.control.demand_intake import DemandIntake
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.robot import Robot
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes.controller_demands import DemandThread, WAIT_FOR_STATES, WORKER_POINTS
-from mover6_control.nodes.goal_ledger import GoalLedger
-from mover6_control.nodes.messages.demand_messages import make_demands
 import numpy as np
 import pytest
 
@@ -54,44 +53,30 @@ class RacingRobot(Robot):
         self.__dict__['_ref_value'] = value
 
 
-class RacingCore(ControllerCore):
-    """A core whose robot's reference (``_ref`` before) is cleared right after a read."""
-
-    def __init__(self, arm, config):
-        super().__init__(arm, config)
-        self.robot = RacingRobot(self.robot.name, self.robot.joints)
-
-    @property
-    def _ref(self):
-        return self.robot.__dict__.get('_ref_value')
-
-    @property
-    def clear_after_next_read(self):
-        return self.robot.clear_after_next_read
-
-    @clear_after_next_read.setter
-    def clear_after_next_read(self, value):
-        self.robot.clear_after_next_read = value
-
-
 def test_a_tick_clearing_the_reference_during_prepare_demand_changes_nothing():
     # The old prepare_demand read `_ref` for `moving`, then again for the start: a tick between
     # the two reads (the motion ended) made the second None: TypeError in the demand thread,
     # the demand dropped with no status.
-    core = RacingCore(ARM, ControllerConfig(law=LawConfig(profile='synchronised')))
+    config = ControllerConfig(law=LawConfig(profile='synchronised'))
+    shared = CoreState(derive_config(ARM, config))
+    base = Robot.from_arm(ARM)
+    robot = RacingRobot(base.name, base.joints)
+    intake = DemandIntake(ARM, robot, shared)
     q = np.zeros(6)
-    send_states(core, 0.0, q)
-    core.tick(0.0)
-    send_demand(core, 0.0, [[0.2, 0.1, 0.0, 0.0, 0.0, 0.0]])
-    core.tick(DT)
-    assert core.state == sm.EXECUTING and core._ref is not None
-    core.clear_after_next_read = True
-    pending = core.prepare_demand(DT, [[0.3, 0.0, 0.0, 0.0, 0.0, 0.0]], core.snapshot())
-    assert core._ref is None                          # the race happened
-    motion = core.commit_demand(pending)
-    assert motion == 2 and core.state == sm.EXECUTING
-    out = core.tick(2 * DT)
-    assert np.all(np.isfinite(out.qd))
+    robot.measure(0.0, ARM.joint_names, q, q)
+    shared.state = sm.IDLE
+    intake.commit_demand(intake.prepare_demand(0.0, [[0.2, 0.1, 0.0, 0.0, 0.0, 0.0]],
+                                               intake.snapshot()))
+    robot.reference = (q, np.full(6, 0.1))           # what the tick at DT followed
+    assert shared.state == sm.EXECUTING and shared.motion_id == 1
+    robot.clear_after_next_read = True
+    pending = intake.prepare_demand(DT, [[0.3, 0.0, 0.0, 0.0, 0.0, 0.0]], intake.snapshot())
+    assert pending.moving and robot.__dict__['_ref_value'] is None   # the race happened
+    assert not intake.is_current(pending)
+    motion = intake.commit_demand(pending)       # planned again, from rest at the measured q
+    assert motion == 2 and shared.state == sm.EXECUTING
+    np.testing.assert_allclose(robot.plan.q_goal, [0.3, 0.0, 0.0, 0.0, 0.0, 0.0])
+    assert np.all(np.isfinite(robot.plan.duration))
 
 
 class Harness:
@@ -224,6 +209,10 @@ def test_random_interleavings_keep_the_invariants(seed):
     assert {sm.EXECUTING, sm.FAULT, sm.IDLE} <= h.states_seen
 
 
+# Demands a run of real threads takes to the end (accepted or refused) before it stops.
+DEMANDS = 40
+
+
 def test_real_threads_keep_the_invariants():
     h = Harness(99, 'synchronised')
     errors = []
@@ -240,118 +229,15 @@ def test_real_threads_keep_the_invariants():
     def demands():
         for _ in h.demand_steps():
             pass
+        if h.accepted + h.refused >= DEMANDS:   # enough demands ended: the run is over
+            stop.set()
 
     threads = [threading.Thread(target=run, args=(f,)) for f in (h.tick, h.event, demands)]
     for t in threads:
         t.start()
-    stop.wait(2.0)
+    finished = stop.wait(60.0)        # a bound for a hung thread only; it ends by the count
     stop.set()
     for t in threads:
         t.join()
     assert not errors, errors
-    assert h.accepted + h.refused > 20
-
-
-class DemandHarness(DemandThread):
-    """
-    The node's parts a ``DemandThread`` uses, around a real core; the clock is ``self.t``.
-
-    ``tick()`` is the tick thread's step (the core's tick, then ``has_states`` as
-    ``controller_ticks.on_tick`` sets it); ``plan_worker`` plans here and runs
-    ``plan_worker.during`` first (what the ticks do while a large demand is planned).
-    """
-
-    def __init__(self):
-        self.lock = threading.RLock()
-        self.core = ControllerCore(ARM, ControllerConfig())
-        self.goals = GoalLedger(self.lock)
-        self.has_states = threading.Event()
-        self.joint_names = list(ARM.joint_names)
-        self.t = 0.0
-        self.plan_worker = DuringPlan()
-        self.logged = []
-
-    def now(self):
-        return self.t
-
-    def get_logger(self):
-        harness = self
-
-        class Logger:
-            def info(self, text):
-                harness.logged.append(text)
-            warning = info
-        return Logger()
-
-    def publish_status(self, now, **kwargs):
-        pass
-
-    @property
-    def guard(self):
-        """Return the node's callback guard as a refused demand uses it: noted in the log."""
-        harness = self
-
-        class Guard:
-            def refuse(self, source, err):
-                harness.logged.append(f'{source}: refused: {err}')
-        return Guard()
-
-    def resolve_topic_name(self, topic):
-        return '/' + topic
-
-    def tick(self, states=True):
-        with self.lock:
-            self.t += DT
-            if states:
-                send_states(self.core, self.t, np.zeros(6))
-            out = self.core.tick(self.t)
-        (self.has_states.clear if out.state in WAIT_FOR_STATES else self.has_states.set)()
-        return out.state
-
-
-class DuringPlan:
-    """The planning process's part in ``DemandHarness``: runs ``during`` once, then plans."""
-
-    def __init__(self):
-        self.during = None
-
-    def ready(self):
-        return True
-
-    def __call__(self, job, guard):
-        if self.during is not None:
-            during, self.during = self.during, None
-            during()
-        return job.run(guard)
-
-
-def test_a_fault_that_clears_while_a_demand_is_planned_does_not_refuse_it():
-    """
-    The states went stale while a large demand was planned, and came back: it is taken.
-
-    Before, the commit refused it ('cannot take a demand while fault: /joint_states stale'),
-    naming a fault that cleared a tick later (issue 21, item 6). Now the demand waits for valid
-    states (DEMAND_STATE_WAIT) and is planned again; refused only if the fault stays, and then
-    for the state the controller is in when it refuses.
-    """
-    h = DemandHarness()
-    assert h.tick() == sm.IDLE
-
-    def stale_then_back():
-        while h.tick(states=False) != sm.FAULT:       # states stale: fault
-            pass
-        timer = threading.Timer(0.3, lambda: [h.tick() for _ in range(3)])
-        timer.start()                                   # fresh states again, 0.3 s later
-    h.plan_worker.during = stale_then_back
-    Q = np.linspace(0.0, 0.3, WORKER_POINTS)[:, None] * np.ones(6)
-    h.take_demand(make_demands(Q, 'large-1'))
-    assert h.core.state == sm.EXECUTING, h.logged
-    assert h.goals.withdraw('large-1') == 1, h.logged
-    assert 'rejected' not in h.core.status().values
-
-    # The fault stays: refused after the wait, naming the fault it is in then.
-    while h.tick(states=False) != sm.FAULT:
-        pass
-    h.take_demand(make_demands(Q[::-1], 'large-2'))
-    reason = h.goals.withdraw('large-2')
-    assert reason.startswith('cannot take a demand while fault: /joint_states stale'), reason
+    assert finished and h.accepted + h.refused >= DEMANDS

@@ -1,7 +1,8 @@
 """
 ``mover6_control.realtime``: the one place that raises a timed thread to SCHED_FIFO.
 
-Tried in a child process (raising a thread of the test process would raise all its threads).
+Tried in a child process (raising a thread of the test process would raise all its threads):
+an e2e test, as every test that starts a process.
 Where the system refuses real-time scheduling, the refusal must come back as a reason.
 """
 
@@ -10,10 +11,7 @@ import subprocess
 import sys
 
 from mover6_control.realtime import run_at_priority
-import pytest
 from ros_testing import without_the_right
-
-pytestmark = pytest.mark.unit
 
 CHILD = """
 import json, threading
