@@ -165,7 +165,7 @@ def bench_node(rate, seconds, log_dir):
 
 def probe_main(argv):
     """Run the controller node, saving the monotonic time of every tick to ``argv[0]`` (.npy)."""
-    from mover6_control.nodes import controller_node
+    from mover6_control.nodes.controller import node as controller_node
     times = []
     on_tick = controller_node.ControllerNode.on_tick
 

@@ -21,8 +21,8 @@ from control_msgs.msg import JointJog
 from geometry_msgs.msg import TwistStamped
 from mover6_control.control.robot import Robot
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes.controller_node import ControllerNode
-from mover6_control.nodes.controller_ticks import MAX_TICK_FAILURES
+from mover6_control.nodes.controller.node import ControllerNode
+from mover6_control.nodes.controller.tick_loop import MAX_TICK_FAILURES
 from mover6_control.nodes.messages import conversions
 from mover6_control.nodes.runtime import local_dds
 import numpy as np
@@ -233,7 +233,7 @@ def test_a_tick_that_cannot_run_ends_the_node(ros, monkeypatch):
 BROKEN_CONTROLLER = """
 import sys
 from mover6_control.control.robot import Robot
-from mover6_control.nodes import controller_node
+from mover6_control.nodes.controller import node as controller_node
 
 
 def broken(robot):

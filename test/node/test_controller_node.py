@@ -6,7 +6,7 @@ import time
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
-from mover6_control.nodes.controller_node import ControllerNode
+from mover6_control.nodes.controller.node import ControllerNode
 from mover6_control.nodes.messages import conversions, demand_messages
 from mover6_control.nodes.runtime import local_dds
 from mover6_control.parameters import PROFILES

@@ -8,9 +8,9 @@ runs at once, in the caller, the worst order a scheduler can choose.
 
 import threading
 
-from mover6_control.nodes import controller_node
-from mover6_control.nodes.controller_actions import ActionThread
-from mover6_control.nodes.controller_node import ControllerNode
+from mover6_control.nodes.controller import node as controller_node
+from mover6_control.nodes.controller.action_thread import ActionThread
+from mover6_control.nodes.controller.node import ControllerNode
 import pytest
 import rclpy
 

@@ -11,8 +11,8 @@ from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_from_xyzabc
 from mover6_control.nodes.messages import conversions, demand_messages
-from mover6_control.nodes.planner_delivery import RESEND_AFTER, RESENDS
-from mover6_control.nodes.planner_node import PlannerNode
+from mover6_control.nodes.planner.delivery import RESEND_AFTER, RESENDS
+from mover6_control.nodes.planner.node import PlannerNode
 import numpy as np
 import pytest
 import rclpy

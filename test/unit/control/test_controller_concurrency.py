@@ -26,8 +26,9 @@ from mover6_control.control.profiles import LawConfig
 from mover6_control.control.robot import Robot
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes.controller_demands import DemandThread, WAIT_FOR_STATES, WORKER_POINTS
-from mover6_control.nodes.goal_ledger import GoalLedger
+from mover6_control.nodes.controller.demand_thread import (DemandThread, WAIT_FOR_STATES,
+                                                           WORKER_POINTS)
+from mover6_control.nodes.controller.goal_ledger import GoalLedger
 from mover6_control.nodes.messages.demand_messages import make_demands
 import numpy as np
 import pytest

@@ -64,7 +64,7 @@ class WorkerProcess:
     ``kill``, ``join`` and ``exitcode`` (negative: the signal that ended it).
     """
 
-    COMMAND = ('import sys; from mover6_control.nodes.plan_worker import main; '
+    COMMAND = ('import sys; from mover6_control.nodes.controller.plan_worker import main; '
                'main(int(sys.argv[1]))')
 
     def __init__(self, fd: int):

@@ -37,7 +37,7 @@ import traceback
 
 from mover6_control.control.state_machine import FAULT
 from mover6_control.control.status import StatusKey
-from mover6_control.nodes.controller_demands import WAIT_FOR_STATES
+from mover6_control.nodes.controller.demand_thread import WAIT_FOR_STATES
 from mover6_control.nodes.runtime.node_clock import now_ns, sleep_until_ns
 from mover6_control.realtime import raise_this_thread
 

@@ -44,18 +44,18 @@ from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.status import StatusKey
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes.controller_actions import ActionThread
-from mover6_control.nodes.controller_demands import DemandThread
-from mover6_control.nodes.controller_ticks import TickLoop
-from mover6_control.nodes.goal_ledger import GoalLedger
+from mover6_control.nodes.controller.action_thread import ActionThread
+from mover6_control.nodes.controller.demand_thread import DemandThread
+from mover6_control.nodes.controller.goal_ledger import GoalLedger
+from mover6_control.nodes.controller.plan_worker import PlanWorker
+from mover6_control.nodes.controller.states_sources import StatesSources
+from mover6_control.nodes.controller.tick_loop import TickLoop
 from mover6_control.nodes.messages import cdr, conversions
-from mover6_control.nodes.plan_worker import PlanWorker
 from mover6_control.nodes.runtime import params, shutdown
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.nodes.runtime.node_clock import now_ns
 from mover6_control.nodes.runtime.node_configs import collision_settings, config_from_parameters
 from mover6_control.nodes.runtime.qos import STATUS_QOS, STREAM_READER_QOS
-from mover6_control.nodes.states_sources import StatesSources
 from mover6_control.parameters import CONTROLLER
 from rclpy.duration import Duration
 from rclpy.node import Node

@@ -25,8 +25,8 @@ did when the controller's executor stopped: the controller closed.
 
 import threading
 
+from mover6_control.nodes.controller.trajectory_server import FollowJointTrajectoryServer
 from mover6_control.nodes.runtime.shutdown import SPIN_SLICE
-from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 

@@ -46,8 +46,8 @@ from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 from mover6_control.nodes.messages import conversions
-from mover6_control.nodes.planner_delivery import CONTROLLER_STATUS_QOS, DemandDelivery
-from mover6_control.nodes.planner_thread import PlanningThread, READY, WAITING
+from mover6_control.nodes.planner.delivery import CONTROLLER_STATUS_QOS, DemandDelivery
+from mover6_control.nodes.planner.planning_thread import PlanningThread, READY, WAITING
 from mover6_control.nodes.runtime import params, shutdown
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.nodes.runtime.node_clock import now_ns

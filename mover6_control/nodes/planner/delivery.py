@@ -26,7 +26,7 @@ from mover6_control.control.planners import predicted_duration
 from mover6_control.control.status import PlannerResult
 from mover6_control.errors import Mover6Error
 from mover6_control.nodes.messages import conversions, demand_messages
-from mover6_control.nodes.planner_thread import POLL
+from mover6_control.nodes.planner.planning_thread import POLL
 from mover6_control.planning.planner_core import JointPlan
 import numpy as np
 from rclpy.qos import DurabilityPolicy, QoSProfile
