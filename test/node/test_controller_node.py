@@ -282,7 +282,7 @@ def test_a_blocked_publish_holds_up_neither_states_nor_status(ros):
     controller, arm, spin_until = ros
     seen = len(arm.statuses)                   # fresh status: other tests may have paused us
     spin_until(lambda: len(arm.statuses) > seen + 1 and arm.status().get('state') == 'idle')
-    publish, blocked = controller.jog_pub.publish, []
+    publish, blocked = controller.jog.publisher.publish, []
 
     def blocking_publish(msg):
         if not blocked:
@@ -291,11 +291,11 @@ def test_a_blocked_publish_holds_up_neither_states_nor_status(ros):
         publish(msg)
 
     seen = len(arm.statuses)
-    controller.jog_pub.publish = blocking_publish
+    controller.jog.publisher.publish = blocking_publish
     try:
         spin_until(lambda: blocked and time.monotonic() - blocked[0] > 1.0)
     finally:
-        del controller.jog_pub.publish
+        del controller.jog.publisher.publish
     # The states that came meanwhile were taken, so the late tick found them fresh: no fault.
     states = [conversions.status_values(s)['state'] for s in arm.statuses[seen:]]
     assert 'fault' not in states and states[-1] == 'idle', [s.message for s in arm.statuses[seen:]]
@@ -486,7 +486,7 @@ def test_a_demand_before_the_first_states_waits_for_them():
         assert spin_until(lambda: arm.demand_pub.get_subscription_count() > 0
                           and arm.status().get('state') == 'waiting_for_states')
         arm.demand_pub.publish(demand_messages.make_demands(GOAL[None], 'early-1'))
-        assert spin_until(lambda: controller.demands.empty(), 10.0)   # taken off the queue
+        assert spin_until(lambda: controller.demand_thread.queue.empty(), 10.0)   # taken off the queue
         spin_until(lambda: 'rejected' in arm.status(), 0.2)
         assert 'rejected' not in arm.status(), arm.status()
         arm.publishing = True

@@ -138,7 +138,7 @@ class FollowJointTrajectoryServer:
             return (demand, mapped['timing']) if mapped['timing'].timed else demand
 
         taken = node.goals.expect(goal_id, self.executor)   # done when taken or refused
-        node.demands.put(convert)
+        node.demand_thread.put(convert)
         if node.running:
             await self.sleep(ACCEPT_TIMEOUT + ACCEPT_PER_POINT * len(goal.trajectory.points),
                              taken)
