@@ -29,6 +29,7 @@ from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes.controller.demand_thread import (DemandThread, WAIT_FOR_STATES,
                                                            WORKER_POINTS)
 from mover6_control.nodes.controller.goal_ledger import GoalLedger
+from mover6_control.nodes.messages.demand_acks import Answer
 from mover6_control.nodes.messages.demand_messages import make_demands
 import numpy as np
 import pytest
@@ -253,13 +254,14 @@ def test_real_threads_keep_the_invariants():
     assert h.accepted + h.refused > 20
 
 
-class DemandHarness(DemandThread):
+class DemandHarness:
     """
-    The node's parts a ``DemandThread`` uses, around a real core; the clock is ``self.t``.
+    A ``DemandThread`` built alone around a real core; the clock is ``self.t``.
 
     ``tick()`` is the tick thread's step (the core's tick, then ``has_states`` as
-    ``controller_ticks.on_tick`` sets it); ``plan_worker`` plans here and runs
-    ``plan_worker.during`` first (what the ticks do while a large demand is planned).
+    ``tick_loop.TickLoop.on_tick`` sets it); ``plan_worker`` plans here and runs
+    ``plan_worker.during`` first (what the ticks do while a large demand is planned). The log,
+    the guard's refusals and the answers to goal demands are recorded (``logged``, ``answers``).
     """
 
     def __init__(self):
@@ -267,38 +269,17 @@ class DemandHarness(DemandThread):
         self.core = ControllerCore(ARM, ControllerConfig())
         self.goals = GoalLedger(self.lock)
         self.has_states = threading.Event()
-        self.joint_names = list(ARM.joint_names)
         self.t = 0.0
         self.plan_worker = DuringPlan()
         self.logged = []
+        self.answers = RecordedAnswers()
+        self.demands = DemandThread(self.core, self.lock, self.goals, self.answers,
+                                    lambda now, **kwargs: None, self.has_states,
+                                    self.plan_worker, lambda: self.t, RecordedLog(self.logged),
+                                    RecordedGuard(self.logged), '/joint_demands')
 
-    def now(self):
-        return self.t
-
-    def get_logger(self):
-        harness = self
-
-        class Logger:
-            def info(self, text):
-                harness.logged.append(text)
-            warning = info
-        return Logger()
-
-    def publish_status(self, now, **kwargs):
-        pass
-
-    @property
-    def guard(self):
-        """Return the node's callback guard as a refused demand uses it: noted in the log."""
-        harness = self
-
-        class Guard:
-            def refuse(self, source, err):
-                harness.logged.append(f'{source}: refused: {err}')
-        return Guard()
-
-    def resolve_topic_name(self, topic):
-        return '/' + topic
+    def take_demand(self, msg):
+        self.demands.take_demand(msg)
 
     def tick(self, states=True):
         with self.lock:
@@ -308,6 +289,44 @@ class DemandHarness(DemandThread):
             out = self.core.tick(self.t)
         (self.has_states.clear if out.state in WAIT_FOR_STATES else self.has_states.set)()
         return out.state
+
+
+class RecordedLog:
+    """The node's logger as the demand thread uses it: the lines go to a list."""
+
+    def __init__(self, lines):
+        self.lines = lines
+
+    def info(self, text):
+        self.lines.append(text)
+
+    warning = info
+
+
+class RecordedGuard:
+    """The node's callback guard as a refused demand uses it: noted in the log."""
+
+    def __init__(self, lines):
+        self.lines = lines
+
+    def refuse(self, source, err):
+        self.lines.append(f'{source}: refused: {err}')
+
+
+class RecordedAnswers:
+    """The answers to goal demands (``DemandAnswers``), recorded: goal id -> (answer, text)."""
+
+    def __init__(self):
+        self.given = {}
+
+    def received(self, goal_id):
+        self.given[goal_id] = (Answer.RECEIVED, '')
+
+    def answer(self, goal_id, answer, text):
+        self.given[goal_id] = (answer, text)
+
+    def repeat(self, goal_id):
+        return goal_id in self.given
 
 
 class DuringPlan:
@@ -348,6 +367,7 @@ def test_a_fault_that_clears_while_a_demand_is_planned_does_not_refuse_it():
     h.take_demand(make_demands(Q, 'large-1'))
     assert h.core.state == sm.EXECUTING, h.logged
     assert h.goals.withdraw('large-1') == 1, h.logged
+    assert h.answers.given['large-1'] == (Answer.TAKEN, 'motion 1')
     assert 'rejected' not in h.core.status().values
 
     # The fault stays: refused after the wait, naming the fault it is in then.
@@ -356,3 +376,4 @@ def test_a_fault_that_clears_while_a_demand_is_planned_does_not_refuse_it():
     h.take_demand(make_demands(Q[::-1], 'large-2'))
     reason = h.goals.withdraw('large-2')
     assert reason.startswith('cannot take a demand while fault: /joint_states stale'), reason
+    assert h.answers.given['large-2'] == (Answer.NOT_READY, reason)
