@@ -486,7 +486,8 @@ def test_a_demand_before_the_first_states_waits_for_them():
         assert spin_until(lambda: arm.demand_pub.get_subscription_count() > 0
                           and arm.status().get('state') == 'waiting_for_states')
         arm.demand_pub.publish(demand_messages.make_demands(GOAL[None], 'early-1'))
-        assert spin_until(lambda: controller.demand_thread.queue.empty(), 10.0)   # taken off the queue
+        # Taken off the queue.
+        assert spin_until(lambda: controller.demand_thread.queue.empty(), 10.0)
         spin_until(lambda: 'rejected' in arm.status(), 0.2)
         assert 'rejected' not in arm.status(), arm.status()
         arm.publishing = True

@@ -10,7 +10,8 @@ at ``status_rate``). Services ~/stop and ~/reset (std_srvs/Trigger); the action
 may name the goal it is for (``layout.dim[0].label`` = ``waypoints goal <id>``, as the planner
 writes it): it is then answered on controller/demand_acks (actionlib_msgs/GoalStatus:
 received, taken, refused or not ready; ``demand_answers``), and the status carries it as
-``goal_id`` next to the ``motion_id`` it became (``goal_ledger``). A label ending in ``profile <name>`` times that demand with its own profile
+``goal_id`` next to the ``motion_id`` it became (``goal_ledger``). A label ending in
+``profile <name>`` times that demand with its own profile
 (``motion_profile`` in the status; the ``profile`` parameter does not change).
 Jogging, as MoveIt Servo names it: ~/delta_twist_cmds (geometry_msgs/TwistStamped, flange
 twist in base_link or link6) and ~/delta_joint_cmds (control_msgs/JointJog, velocities by name)
@@ -73,7 +74,7 @@ from std_srvs.srv import Trigger
 # Longest wait [s] at shutdown for the readers of /JointJog to acknowledge the last zero command.
 ZERO_ACK_TIMEOUT = 1.0
 # Longest wait [s] at shutdown for the tick and demand threads to end.
-JOIN_TIMEOUT = 1.0
+THREADS_JOIN_TIMEOUT = 1.0
 
 
 class ControllerNode(Node):
@@ -276,8 +277,8 @@ class ControllerNode(Node):
         self.plan_worker.close()    # a demand planned there is refused: its thread can end
         self.goals.close()          # an action goal waiting for its demand stops waiting
         self.actions.close()        # its thread ends, then its server and node
-        self.demand_thread.close(JOIN_TIMEOUT)   # a demand waiting for states stops waiting
-        self.ticks.close(JOIN_TIMEOUT)
+        self.demand_thread.close(THREADS_JOIN_TIMEOUT)   # a demand waiting for states: ends
+        self.ticks.close(THREADS_JOIN_TIMEOUT)
         if self.context.ok():
             self.jog.send_zero()
             # else the writer's end drops an unacknowledged zero (lost in 2 of 7, test_shutdown)

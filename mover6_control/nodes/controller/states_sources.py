@@ -26,7 +26,7 @@ class StatesSources:
 
     def __init__(self, node: Node, topic: str, core: ControllerCore, lock: threading.RLock,
                  guard: CallbackGuard, now: Callable[[], float]):
-        """Count the publishers of ``topic`` in ``node``'s graph periodically (``guard``'s timer)."""
+        """Count the publishers of ``topic`` in ``node``'s graph, on a timer of ``guard``."""
         self.node = node
         self.core = core
         self.lock = lock

@@ -17,9 +17,9 @@ warning, so a stalled tick thread shows in the controller and not only as a stal
 driver. To see what held it up, set the environment variable ``MOVER6_TICK_WATCHDOG`` to a time
 [s]: a tick later than that dumps the stack of every thread to stderr (``faulthandler``, which
 needs no interpreter lock for it; wall time, so a paused sim clock trips it too). The status
-value ``max_states_age`` [s] (``tick_figures``) is the age of the oldest valid /joint_states a tick found (node
-clock; nominal the states' period plus a tick): how long their intake was held up at most
-(``state_timeout`` faults).
+value ``max_states_age`` [s] (both in ``tick_figures``) is the age of the oldest valid
+/joint_states a tick found (node clock; nominal the states' period plus a tick): how long their
+intake was held up at most (``state_timeout`` faults).
 
 The tick never dies: an exception inside it is a fault (zero command, the reason on the
 status, cleared by fresh joint states as any fault); when ``MAX_TICK_FAILURES`` ticks in a row
@@ -222,4 +222,3 @@ class TickLoop:
                 throttle_duration_sec=1.0)
         if status_due:
             self.status.publish(now)
-

@@ -60,7 +60,7 @@ class DemandAck:
 
 
 def make_ack(ack: DemandAck, sec: int, nanosec: int) -> GoalStatus:
-    """Build the ``GoalStatus`` of ``ack``, stamped ``sec``.``nanosec`` (the controller's clock)."""
+    """Build the ``GoalStatus`` of ``ack``, stamped ``sec``.``nanosec`` (controller's clock)."""
     msg = GoalStatus(status=int(ack.answer), text=ack.text)
     msg.goal_id.id = ack.goal_id
     msg.goal_id.stamp.sec, msg.goal_id.stamp.nanosec = sec, nanosec

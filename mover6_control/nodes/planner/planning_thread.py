@@ -1,90 +1,91 @@
 """
-The planner node's planning thread: the queued goals planned one after another.
+The planner's planning thread: the queued goals planned one after another.
 
 A goal waits up to ``state_wait_timeout`` for fresh /joint_states (the planner says
 ``waiting_for_states`` meanwhile), is planned with the settings of the parameters in force
-(``planning.planner_core``, ``planning.via_joint``) and its demand delivered
-(``planner_delivery``); a goal that ~/stop dropped is refused wherever it is. The node goes on
-reading states, answering ~/stop and the controller's status while a goal is planned.
-
-``PlanningThread`` is a part of ``planner_node.PlannerNode`` (its state is the node's, set in
-``PlannerNode.__init__``); it is not used on its own.
+(``planning.planner_core``, ``planning.via_joint``) and its demand delivered (``delivery``); a
+goal that ~/stop dropped is refused wherever it is. The node goes on reading states, answering
+~/stop and the controller's answers while a goal is planned.
 """
 
 import queue
+import threading
 import time
 from typing import Callable, Optional
 
-from mover6_control.collision.checker import CollisionChecker
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.status import PlannerState
 from mover6_control.errors import Mover6Error, UnreachableError
-from mover6_control.nodes.runtime.node_clock import now_ns
-from mover6_control.nodes.runtime.node_configs import planner_settings_from_parameters
+from mover6_control.nodes.planner.delivery import DemandDelivery
+from mover6_control.nodes.planner.goal_book import GoalBook
+from mover6_control.nodes.planner.joint_states import LatestJointStates
+from mover6_control.nodes.planner.status_publisher import PlannerStatus
 from mover6_control.planning.planner_core import PlannerSettings
 import numpy as np
+from rclpy.impl.rcutils_logger import RcutilsLogger
 
 WAITING, READY = PlannerState.WAITING_FOR_STATES, PlannerState.READY
-# [s] how often a waiting planning thread looks again (states, stop, shutdown).
-POLL = 0.02
+# [s] how often a goal waiting for states looks again (stop, shutdown).
+STATES_POLL = 0.1
 
 
 class PlanningThread:
-    """The planning thread of ``PlannerNode`` (module docstring)."""
+    """Plan the queued goals in order (module docstring)."""
 
-    def frame_id(self) -> str:
-        """Return the frame goals must be given in."""
-        return self.get_parameter('frame_id').value
+    def __init__(self, states: LatestJointStates, status: PlannerStatus,
+                 delivery: DemandDelivery, goals: GoalBook,
+                 settings: Callable[[], PlannerSettings], parameter: Callable[[str], object],
+                 logger: RcutilsLogger):
+        """
+        Plan from ``states`` with ``settings()``; deliver through ``delivery``.
 
-    def settings(self) -> PlannerSettings:
-        """Return the planner settings from the current parameters."""
-        return planner_settings_from_parameters(lambda n: self.get_parameter(n).value)
+        ``parameter(name)`` reads the planner's ``state_timeout``, ``state_wait_timeout`` and
+        ``profile``; ``status`` says what became of each goal.
+        """
+        self.states = states
+        self.status = status
+        self.delivery = delivery
+        self.goals = goals
+        self.settings = settings
+        self.parameter = parameter
+        self.logger = logger
+        self.running = True
+        self.jobs = queue.SimpleQueue()   # goals not yet planned; None: the thread ends
+        self.thread = threading.Thread(target=self.plan_loop, name='planner_planning',
+                                       daemon=True)
 
-    def checker(self, settings: PlannerSettings) -> Optional[CollisionChecker]:
-        """Return the collision checker of ``settings`` (kept while they do not change)."""
-        if not settings.collision.enabled:
-            return None
-        if self._checker is None or self._checker.settings != settings.collision:
-            self._checker = CollisionChecker(self.arm, settings.collision)
-        return self._checker
+    def start(self) -> None:
+        """Start the planning thread."""
+        self.thread.start()
 
-    def current_q(self) -> np.ndarray:
-        """Return the latest joint positions, or raise when there are none or they are old."""
-        if self.states is None:
-            raise Mover6Error('no /joint_states received yet: the current pose is unknown')
-        raw, arrival = self.states
-        age = (now_ns(self.get_clock()) - arrival) * 1e-9
-        timeout = self.get_parameter('state_timeout').value
-        if age > timeout:
-            raise Mover6Error(f'/joint_states are {age:.2f} s old (limit {timeout:.2f} s): '
-                              'the current pose is uncertain')
-        return self.positions(raw).copy()
+    def put(self, goal: dict, motion: str, plan_fn: Callable, received: float) -> None:
+        """Queue ``goal`` (shape ``motion``, plan function ``plan_fn(q, settings)``)."""
+        self.jobs.put((goal, motion, plan_fn, received))
+
+    def close(self, timeout: float) -> None:
+        """End the thread (a goal being planned finishes first); wait ``timeout`` [s]."""
+        self.running = False
+        self.jobs.put(None)
+        self.states.came.set()
+        if self.thread.is_alive() and self.thread is not threading.current_thread():
+            self.thread.join(timeout=timeout)
 
     def plan_loop(self) -> None:
-        """Plan the queued goals in order; send demands again until acknowledged."""
+        """Plan the queued goals in order until the thread closes."""
         while self.running:
-            try:
-                job = self.jobs.get(timeout=self.resend_due())
-            except queue.Empty:
-                job = ()
+            job = self.jobs.get()
             if job is None or not self.running:
                 return
-            if job:
-                try:
-                    self.plan_goal(*job)
-                except Exception as err:  # noqa: B902 - no goal ends without a status
-                    self.refuse(job[1], f'{type(err).__name__}: {err}', 'internal_error', {},
-                                job[0])
-            self.confirm_delivery()
-
-    def stopped(self, goal: dict) -> bool:
-        """Return True when ~/stop dropped ``goal``."""
-        return goal['goal_seq'] <= self.stopped_seq
+            try:
+                self.plan_goal(*job)
+            except Exception as err:  # noqa: B902 - no goal ends without a status
+                self.status.refuse(job[1], f'{type(err).__name__}: {err}', 'internal_error', {},
+                                   job[0])
 
     def plan_goal(self, goal: dict, motion: str, plan_fn: Callable, received: float) -> None:
         """Plan one goal, then send its demand and say planned, or say why not."""
-        if self.stopped(goal):
-            self.refuse(motion, 'stopped before it was planned', 'stopped', {}, goal)
+        if self.goals.stopped(goal):
+            self.status.refuse(motion, 'stopped before it was planned', 'stopped', {}, goal)
             return
         try:
             q_now = self.wait_for_states(goal, motion, received)
@@ -94,14 +95,14 @@ class PlanningThread:
             # The profile's name is checked before anything is sent (an unknown one is refused
             # here, as it was by the prediction); the duration is predicted once the demand is
             # out (``deliver``): the prediction refuses nothing.
-            law = LawConfig(profile=goal.get('profile') or self.get_parameter('profile').value)
+            law = LawConfig(profile=goal.get('profile') or self.parameter('profile'))
         except UnreachableError as err:
-            self.refuse(motion, str(err), err.reason, err.details, goal)
+            self.status.refuse(motion, str(err), err.reason, err.details, goal)
             return
         except (Mover6Error, ValueError) as err:
-            self.refuse(motion, str(err), 'invalid_goal', {}, goal)
+            self.status.refuse(motion, str(err), 'invalid_goal', {}, goal)
             return
-        self.deliver(goal, motion, plan, law.profile, q_now)
+        self.delivery.deliver(goal, motion, plan, law.profile, q_now)
 
     def wait_for_states(self, goal: dict, motion: str, received: float) -> Optional[np.ndarray]:
         """
@@ -109,30 +110,29 @@ class PlanningThread:
 
         Returns None when the goal ended meanwhile (refused: no states in time, or stopped).
         """
-        wait = self.get_parameter('state_wait_timeout').value
+        wait = self.parameter('state_wait_timeout')
         said = False
         while True:
-            self.states_came.clear()
+            self.states.came.clear()
             try:
-                return self.current_q()
+                return self.states.current_q(self.parameter('state_timeout'))
             except Mover6Error as err:
                 problem = err
-            if self.state != WAITING:
-                self.set_state(WAITING)
+            self.status.set_state(WAITING)
             left = received + wait - time.monotonic()
-            if self.stopped(goal) or not self.running:
-                self.refuse(motion, 'stopped while waiting for /joint_states', 'stopped', {},
-                            goal)
+            if self.goals.stopped(goal) or not self.running:
+                self.status.refuse(motion, 'stopped while waiting for /joint_states', 'stopped',
+                                   {}, goal)
                 return None
             if left <= 0.0:
-                self.refuse(motion, f'no valid /joint_states within {wait:g} s: {problem}',
-                            'no_joint_states', {}, goal)
+                self.status.refuse(motion, f'no valid /joint_states within {wait:g} s: {problem}',
+                                   'no_joint_states', {}, goal)
                 return None
             if not said:
                 said = True
-                self.get_logger().info(f'goal {goal["goal_id"]}: waiting up to {left:.1f} s '
-                                       f'for /joint_states ({problem})')
-                self.publish_status('WARN', f'goal waits for /joint_states: {problem}',
+                self.logger.info(f'goal {goal["goal_id"]}: waiting up to {left:.1f} s '
+                                 f'for /joint_states ({problem})')
+                self.status.publish('WARN', f'goal waits for /joint_states: {problem}',
                                     {'result': WAITING, 'motion': motion,
                                      'wait_timeout': f'{wait:g}'}, goal)
-            self.states_came.wait(min(left, POLL * 5))
+            self.states.came.wait(min(left, STATES_POLL))
