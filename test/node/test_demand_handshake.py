@@ -17,7 +17,7 @@ from mover6_control.kinematics.rotations import pose_from_xyzabc
 from mover6_control.nodes.controller.demand_answers import DemandAnswers
 from mover6_control.nodes.controller.node import ControllerNode
 from mover6_control.nodes.messages import conversions, demand_messages
-from mover6_control.nodes.messages.demand_acks import ACK_QOS, ACK_TOPIC, ack_from_msg, Answer
+from mover6_control.nodes.messages.demand_acks import ack_from_msg, ACK_QOS, ACK_TOPIC, Answer
 from mover6_control.nodes.planner.handshake import DemandHandshake, HandshakeEnd
 from mover6_control.nodes.planner.node import PlannerNode
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard

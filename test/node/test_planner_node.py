@@ -10,8 +10,8 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_from_xyzabc
-from mover6_control.nodes.messages import conversions, demand_messages
 from mover6_control.nodes.controller.demand_answers import DemandAnswers
+from mover6_control.nodes.messages import conversions, demand_messages
 from mover6_control.nodes.messages.demand_acks import Answer
 from mover6_control.nodes.planner.node import PlannerNode
 import numpy as np
@@ -259,7 +259,8 @@ def test_plan_with_nobody_listening_is_refused(nodes):
     probe.destroy_subscription(probe.demands_sub)
     planner.set_parameters([Parameter('match_timeout', value=0.5)])
     connected(executor, probe)
-    assert spin_until(executor, lambda: planner.delivery.handshake.publisher.get_subscription_count() == 0)
+    publisher = planner.delivery.handshake.publisher
+    assert spin_until(executor, lambda: publisher.get_subscription_count() == 0)
     give_state(executor, planner, probe, HOME)
     status = send_pose(executor, probe, GOAL)
     assert status.level == DiagnosticStatus.ERROR, status.message
@@ -377,7 +378,8 @@ def test_malformed_latest_joint_states_refuse_the_goal_until_good_ones_come(node
     connected(executor, probe)
     give_state(executor, planner, probe, HOME)
     bad = conversions.make_joint_state(ARM.joint_names[:5], HOME[:5], np.zeros(5))
-    assert spin_until(executor, lambda: (probe.state_pub.publish(bad), planner.states.q is None)[1])
+    assert spin_until(executor,
+                      lambda: (probe.state_pub.publish(bad), planner.states.q is None)[1])
     status = send_pose(executor, probe, GOAL)
     refused(executor, probe, status, 'no_joint_states')
     assert 'malformed' in status.message and 'joint6' in status.message, status.message
@@ -595,8 +597,8 @@ def test_planner_answers_goals_and_stop_while_a_goal_is_pending(nodes):
 
 @pytest.mark.parametrize('answer, reason', [(Answer.REFUSED, 'controller_refused'),
                                             (Answer.NOT_READY, 'controller_not_ready')])
-def test_a_demand_the_controller_refuses_ends_the_goal_on_the_planners_status(nodes, answer,
-                                                                               reason):
+def test_a_demand_the_controller_refuses_ends_the_goal_on_the_planners_status(
+        nodes, answer, reason):
     """
     Issue 21: the controller refuses the demand: the planner says so, with the reason.
 

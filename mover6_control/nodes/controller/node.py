@@ -4,35 +4,31 @@ The controller node: joint waypoints and joint states in, one JointJog per tick 
 Subscribes /joint_states (sensor_msgs/JointState, mapped by name) and /joint_demands
 (std_msgs/Float32MultiArray, N x 6 with layout or flat); publishes /JointJog
 (control_msgs/JointJog: all six joints, stamped, velocities only) at ``rate`` on the node's clock
-and /controller/status (diagnostic_msgs/DiagnosticStatus, transient local, on every change and
-at ``status_rate``). Services ~/stop and ~/reset (std_srvs/Trigger); the action
-~/follow_joint_trajectory (control_msgs/FollowJointTrajectory, ``trajectory_server``). A demand
-may name the goal it is for (``layout.dim[0].label`` = ``waypoints goal <id>``, as the planner
-writes it): it is then answered on controller/demand_acks (actionlib_msgs/GoalStatus:
-received, taken, refused or not ready; ``demand_answers``), and the status carries it as
-``goal_id`` next to the ``motion_id`` it became (``goal_ledger``). A label ending in
-``profile <name>`` times that demand with its own profile
-(``motion_profile`` in the status; the ``profile`` parameter does not change).
-Jogging, as MoveIt Servo names it: ~/delta_twist_cmds (geometry_msgs/TwistStamped, flange
-twist in base_link or link6) and ~/delta_joint_cmds (control_msgs/JointJog, velocities by name)
-drive the arm live (``control.servo``); a refused command is logged and its reason is the
-status value ``jog_refused``. A jog command stamped in the future of its arrival is refused;
-each goes stale ``servo_command_timeout`` after the earlier of its stamp and its arrival.
+and /controller/status (diagnostic_msgs/DiagnosticStatus, transient local, on every change and at
+``status_rate``). Services ~/stop and ~/reset (std_srvs/Trigger); the action
+~/follow_joint_trajectory (control_msgs/FollowJointTrajectory, ``trajectory_server``). A demand may
+name the goal it is for (``layout.dim[0].label`` = ``waypoints goal <id>``, as the planner writes
+it): it is then answered on controller/demand_acks (actionlib_msgs/GoalStatus: received, taken,
+refused or not ready; ``demand_answers``), and the status carries it as ``goal_id`` next to the
+``motion_id`` it became (``goal_ledger``). A label ending in ``profile <name>`` times that demand
+with its own profile (``motion_profile`` in the status; the ``profile`` parameter does not change).
+Jogging, as MoveIt Servo names it: ~/delta_twist_cmds (geometry_msgs/TwistStamped, flange twist in
+base_link or link6) and ~/delta_joint_cmds (control_msgs/JointJog, velocities by name) drive the
+arm live (``control.servo``); a refused command is logged and its reason is the status value
+``jog_refused``. A jog command stamped in the future of its arrival is refused; each goes stale
+``servo_command_timeout`` after the earlier of its stamp and its arrival.
 
-All the logic is in ``control.controller_core`` (its model of the arm: a ``control.robot.Robot``,
-``self.core.robot``, which maps /joint_states by name); the node converts, calls it, publishes.
-For the Mover6's vendor driver set ``jog_units`` to fraction_of_max; ``driver_tick_size`` and
-``driver_cycle`` (the Mover6's by default) let the core move joints that a command under one
-encoder tick per cycle would leave standing (the goal tolerance is then one tick).
+All the logic is in ``control.controller_core``; the node converts, calls it, publishes. For the
+Mover6's vendor driver set ``jog_units`` to fraction_of_max (``driver_tick_size`` and
+``driver_cycle``: the goal tolerance is then one encoder tick).
 
 The node is built from parts, each a class given what it uses: the /JointJog output
-(``jog_output``), the status (``status_publisher``, with the tick's ``tick_figures``), the
-answers to goal demands (``demand_answers``), the tick thread (``tick_loop``), the demand thread
-(``demand_thread``; large demands are planned in ``plan_worker``'s process), the check for a
-second /joint_states publisher (``states_sources``) and the action server's thread
-(``action_thread``, on a node of its own). The executor's thread runs the callbacks of this
-module. The lock rule: the core and the goal ledger are read and changed only under ``lock``;
-nothing slow or published.
+(``jog_output``), the status (``status_publisher``, with the tick's ``tick_figures``), the answers
+to goal demands (``demand_answers``), the tick thread (``tick_loop``), the demand thread
+(``demand_thread``; large demands are planned in ``plan_worker``'s process), the check for a second
+/joint_states publisher (``states_sources``) and the action server's thread (``action_thread``, on
+a node of its own). The lock rule: the core and the goal ledger are read and changed only under
+``lock``; nothing slow or published.
 """
 
 import gc
@@ -71,10 +67,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
 
-# Longest wait [s] at shutdown for the readers of /JointJog to acknowledge the last zero command.
-ZERO_ACK_TIMEOUT = 1.0
-# Longest wait [s] at shutdown for the tick and demand threads to end.
-THREADS_JOIN_TIMEOUT = 1.0
+# Longest waits [s] at shutdown: for the readers of /JointJog to acknowledge the last zero
+# command, and for the tick and demand threads to end.
+ZERO_ACK_TIMEOUT = THREADS_JOIN_TIMEOUT = 1.0
 
 
 class ControllerNode(Node):
@@ -84,8 +79,8 @@ class ControllerNode(Node):
         """Declare the parameters, build the core and the parts, start the threads."""
         super().__init__('controller', **kwargs)
         self.guard = CallbackGuard(self)     # no callback ends the node (bad input: refused)
-        # Refuses invalid values, each and as a whole config (check_config), before a set is
-        # accepted; an accepted set is handed to the core (at once, or after the motion).
+        # Refuses invalid values (each, and the whole config: check_config) before a set; an
+        # accepted set goes to the core (at once, or after the motion).
         params.declare(self, CONTROLLER, self.check_config, guard=self.guard)
         limit_set, config = config_from_parameters(lambda n: self.get_parameter(n).value)
         self.guard.after_set(self.on_parameters_set)
@@ -94,18 +89,16 @@ class ControllerNode(Node):
         self.goals = GoalLedger(self.lock)   # which motion each goal became, or why not
         self.apply_collision_parameters()
         self.joint_names = list(self.core.arm.joint_names)
-        self.last_q = None                   # the latest valid joint positions, for the action
-        self.destroyed = False
-        self.has_states = threading.Event()  # set while the core has valid states
+        self.last_q = None          # the latest valid joint positions, for the action server
+        self.destroyed, self.has_states = False, threading.Event()   # set: valid states
         self.states_reader = cdr.JointStateReader()   # /joint_states read as bytes (issue 21)
         clock_ns = lambda: now_ns(self.get_clock())   # noqa: E731
 
-        self.jog = JogOutput(self.create_publisher(JointJog, 'JointJog', 10), self.joint_names,
-                             clock_ns)
-        figures = TickFigures()
+        jog_pub, figures = self.create_publisher(JointJog, 'JointJog', 10), TickFigures()
+        self.jog = JogOutput(jog_pub, self.joint_names, clock_ns)
         self.status = StatusPublisher(
             self.create_publisher(DiagnosticStatus, 'controller/status', STATUS_QOS),
-            self.core, self.lock, self.goals, figures, self.status_period())
+            self.core, self.lock, self.goals, figures, status_period(self.get_parameter))
         self.answers = DemandAnswers(self, clock_ns)
         self.plan_worker = PlanWorker(start=False)   # started by the first large demand
         self.ticks = TickLoop(self.core, self.lock, self.get_clock(), self.context,
@@ -124,11 +117,11 @@ class ControllerNode(Node):
         self.guard.service(Trigger, '~/stop', self.on_stop)
         self.guard.service(Trigger, '~/reset', self.on_reset)
         self.sources = StatesSources(self, 'joint_states', self.core, self.lock, self.guard,
-                                     self.now)   # a second publisher: hold
+                                     self.now)   # a second publisher of the states: hold
         self.actions = ActionThread(self)   # the action server (its own node and thread)
 
-        # Started once every part exists (a real-time tick runs at once and publishes a
-        # status); the others first, so the tick's raise puts them one below (realtime.py).
+        # Started once every part exists (a real-time tick runs at once); the others first, so
+        # the tick's raise puts them one below (realtime.py).
         self.log_start(limit_set, config)
         self.demand_thread.start()
         self.actions.start()
@@ -144,10 +137,6 @@ class ControllerNode(Node):
     def fatal(self) -> Optional[str]:
         """Return why the tick cannot run (the process exits with 1), or None."""
         return self.ticks.fatal
-
-    def status_period(self) -> float:
-        """Return the period [s] of the status from ``status_rate``."""
-        return 1.0 / max(self.get_parameter('status_rate').value, 1e-3)
 
     def log_start(self, limit_set: str, config: ControllerConfig) -> None:
         """Say what the controller runs with (before its threads start: no lock needed)."""
@@ -185,7 +174,7 @@ class ControllerNode(Node):
             return
         names = ', '.join(f'{p.name} {p.value}' for p in parameters)
         _, config = config_from_parameters(lambda n: self.get_parameter(n).value)
-        self.status.period = self.status_period()
+        self.status.period = status_period(self.get_parameter)
         self.apply_collision_parameters()
         with self.lock:
             now_applied = self.core.reconfigure(config)
@@ -284,6 +273,11 @@ class ControllerNode(Node):
             # else the writer's end drops an unacknowledged zero (lost in 2 of 7, test_shutdown)
             self.jog.wait_for_all_acked(ZERO_ACK_TIMEOUT)
         super().destroy_node()
+
+
+def status_period(get: Callable[[str], Parameter]) -> float:
+    """Return the period [s] of the status from the parameter ``status_rate``."""
+    return 1.0 / max(get('status_rate').value, 1e-3)
 
 
 def main(args: Optional[list[str]] = None) -> None:
