@@ -264,9 +264,9 @@ class ControllerNode(Node):
         self.ticks.running = False
         self.demand_thread.running = False
         self.plan_worker.close()    # a demand planned there is refused: its thread can end
+        self.demand_thread.close(THREADS_JOIN_TIMEOUT)   # a demand waiting for states: ends
         self.goals.close()          # an action goal waiting for its demand stops waiting
         self.actions.close()        # its thread ends, then its server and node
-        self.demand_thread.close(THREADS_JOIN_TIMEOUT)   # a demand waiting for states: ends
         self.ticks.close(THREADS_JOIN_TIMEOUT)
         if self.context.ok():
             self.jog.send_zero()
