@@ -43,6 +43,8 @@ class Probe(Node):
         self.path_pub = self.create_publisher(PoseArray, 'path_goal', 10)
         self.demands_sub = self.create_subscription(Float32MultiArray, 'joint_demands',
                                                     lambda m: self.demands.append(m), 10)
+        # The controller's answers, given by the tests that answer (the controller's part).
+        self.answers = DemandAnswers(self, lambda: self.get_clock().now().nanoseconds)
         qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.create_subscription(DiagnosticStatus, 'planner/status',
                                  lambda m: self.statuses.append(m), qos)
@@ -324,14 +326,14 @@ def test_bad_start_parameters_stop_the_planner():
 
 
 def as_controller(probe):
-    """Give the probe the controller's answers (``DemandAnswers``, the controller's part)."""
-    answers = DemandAnswers(probe, lambda: probe.get_clock().now().nanoseconds)
-    return answers
+    """Return the probe's ``DemandAnswers`` (the controller's part) that answer as it does."""
+    return probe.answers
 
 
 def test_an_unanswered_demand_fails_once_no_controller_answers(nodes):
     """A reader of /joint_demands but no controller answering: failed, not_acknowledged."""
     executor, planner, probe = nodes
+    probe.destroy_publisher(probe.answers.publisher)        # no controller on the graph
     planner.set_parameters([Parameter('match_timeout', value=0.5)])
     connected(executor, probe)
     give_state(executor, planner, probe, HOME)

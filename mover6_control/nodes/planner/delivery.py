@@ -1,12 +1,12 @@
 """
 The planner's delivery of a plan: its demand sent once a controller can hear it, and its end.
 
-A demand is published once the known readers of /joint_demands are matched (or after
-``match_timeout``; none matched: refused ``no_controller``), through the ``DemandHandshake``,
-which ends it once: taken (logged), or refused by the controller (``controller_refused``, with
-its reason), not ready (``controller_not_ready``, with its reason), superseded (failed,
-``superseded``) or unanswered (failed, ``not_acknowledged``: no controller on the graph for
-``match_timeout``). ~/stop drops the waiting demands (refused, ``stopped``).
+A demand is published once a controller is on the graph and the known readers of /joint_demands are
+matched (or after ``match_timeout``; none matched: refused ``no_controller``), through the
+``DemandHandshake``, which ends it once: taken (logged), or refused by the controller
+(``controller_refused``, with its reason), not ready (``controller_not_ready``, with its reason),
+superseded (failed, ``superseded``) or unanswered (failed, ``not_acknowledged``: no controller on
+the graph for ``match_timeout``). ~/stop drops the waiting demands (refused, ``stopped``).
 
 The demand goes out before its duration is predicted (``control.planners.predicted_duration``,
 the controller's own timing of the plan: at 1000 waypoints most of the planning time, and no
@@ -81,7 +81,8 @@ class DemandDelivery:
     def deliver(self, goal: dict, motion: str, plan: JointPlan, profile: str,
                 q_start: np.ndarray) -> None:
         """
-        Publish the plan once every known reader of /joint_demands is matched; say planned.
+        Publish the plan once a controller is on the graph and every known reader of
+        /joint_demands is matched (at most ``match_timeout``); say planned.
 
         The duration ``profile`` takes from ``q_start`` is predicted after the demand is out
         (module docstring).
@@ -90,7 +91,8 @@ class DemandDelivery:
         while True:
             matched, known = self.handshake.matched()
             waited = time.monotonic() - since
-            if matched >= max(known, 1) or waited >= self.match_timeout():
+            if (matched >= max(known, 1) and self.handshake.controllers() > 0
+                    or waited >= self.match_timeout()):
                 break
             if self.goals.stopped(goal) or not self.running():
                 break

@@ -102,6 +102,10 @@ class DemandHandshake:
         known = len(self.node.get_subscriptions_info_by_topic(self.publisher.topic_name))
         return self.publisher.get_subscription_count(), known
 
+    def controllers(self) -> int:
+        """Return how many controllers the graph shows (publishers of the answers)."""
+        return self.node.count_publishers(self.answers_topic)
+
     def send(self, goal_id: str, msg: Float32MultiArray, context: Any) -> None:
         """Publish the demand ``msg`` of ``goal_id``; it ends by ``on_end`` (once)."""
         with self.lock:              # waiting before it is sent: a match meanwhile resends it
@@ -159,7 +163,7 @@ class DemandHandshake:
         with self.lock:
             if not self.pending:
                 return
-        alone = self.node.count_publishers(self.answers_topic) == 0
+        alone = self.controllers() == 0
         now, wait, ended = time.monotonic(), self.wait(), []
         with self.lock:
             for goal_id, pending in list(self.pending.items()):
