@@ -81,10 +81,10 @@ class DemandDelivery:
     def deliver(self, goal: dict, motion: str, plan: JointPlan, profile: str,
                 q_start: np.ndarray) -> None:
         """
-        Publish the plan once a controller is on the graph and every known reader of
-        /joint_demands is matched (at most ``match_timeout``); say planned.
+        Publish the plan once a controller is there and the readers matched; say planned.
 
-        The duration ``profile`` takes from ``q_start`` is predicted after the demand is out
+        It waits (``match_timeout`` at most) for a controller on the graph and for every known
+        reader of /joint_demands to be matched. The duration ``profile`` takes from ``q_start`` is predicted after the demand is out
         (module docstring).
         """
         since = time.monotonic()
