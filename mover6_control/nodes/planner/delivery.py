@@ -84,8 +84,8 @@ class DemandDelivery:
         Publish the plan once a controller is there and the readers matched; say planned.
 
         It waits (``match_timeout`` at most) for a controller on the graph and for every known
-        reader of /joint_demands to be matched. The duration ``profile`` takes from ``q_start`` is predicted after the demand is out
-        (module docstring).
+        reader of /joint_demands to be matched. The duration ``profile`` takes from ``q_start``
+        is predicted after the demand is out (module docstring).
         """
         since = time.monotonic()
         while True:
