@@ -30,8 +30,8 @@ setup(
     tests_require=['pytest', 'hypothesis'],
     entry_points={
         'console_scripts': [
-            'planner = mover6_control.nodes.planner_node:main',
-            'controller = mover6_control.nodes.controller_node:main',
+            'planner = mover6_control.nodes.planner.node:main',
+            'controller = mover6_control.nodes.controller.node:main',
             'sim_bridge = sim_bridge.bridge_node:main',
             'driver = mover6_control.nodes.driver_node:main',
             'can_sim = sim_bridge.can_sim:main',

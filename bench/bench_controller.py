@@ -165,15 +165,16 @@ def bench_node(rate, seconds, log_dir):
 
 def probe_main(argv):
     """Run the controller node, saving the monotonic time of every tick to ``argv[0]`` (.npy)."""
-    from mover6_control.nodes import controller_node
+    from mover6_control.nodes.controller import node as controller_node
+    from mover6_control.nodes.controller.tick_loop import TickLoop
     times = []
-    on_tick = controller_node.ControllerNode.on_tick
+    on_tick = TickLoop.on_tick
 
-    def timed_tick(node):
+    def timed_tick(loop):
         times.append(time.monotonic())
-        on_tick(node)
+        on_tick(loop)
 
-    controller_node.ControllerNode.on_tick = timed_tick
+    TickLoop.on_tick = timed_tick
     try:
         controller_node.main(argv[1:])
     finally:

@@ -70,7 +70,7 @@ class Probe:
         """Create the node in its own context, with the status readers and the demand writer."""
         from diagnostic_msgs.msg import DiagnosticStatus
         from mover6_control.nodes.messages import conversions, demand_messages
-        from mover6_control.nodes.controller_node import STATUS_QOS
+        from mover6_control.nodes.controller.node import STATUS_QOS
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from std_msgs.msg import Float32MultiArray

@@ -71,7 +71,7 @@ class ControllerProcess(NodeProcess):
     """The controller node from this source tree in its own process, stopped by its pid."""
 
     def __init__(self, log_dir, namespace):
-        cmd = [sys.executable, '-m', 'mover6_control.nodes.controller_node', '--ros-args',
+        cmd = [sys.executable, '-m', 'mover6_control.nodes.controller.node', '--ros-args',
                '--params-file', os.path.join(ROOT, 'config', 'controller.yaml'),
                '-p', f'rate:={RATE}', '-r', f'__ns:=/{namespace}']
         super().__init__(cmd, os.path.join(log_dir, 'controller.log'), ROOT)

@@ -32,6 +32,12 @@ REASONS = {
     'no_joint_states': "no valid /joint_states came within the planner's state_wait_timeout: "
                        'the current pose is unknown',
     'controller_refused': 'the controller refused the planned demand (its reason follows)',
+    'controller_not_ready': 'the controller refused the planned demand for its state (no '
+                            'valid joint states, a fault ...; its reason follows)',
+    'not_acknowledged': 'the demand went out but no controller answered it: none on the '
+                        "graph for the planner's match_timeout",
+    'superseded': 'a demand sent after this one reached the controller first; this one never '
+                  'did and is not sent again',
     'stopped': "the planner's stop service ended the goal before its demand was sent",
     'internal_error': 'the planner failed on the goal for a reason of its own (a bug): the '
                       'message names the exception',

@@ -20,8 +20,8 @@ from mover6_control.resources import CONFIG_DIR
 
 ROOT = os.path.dirname(CONFIG_DIR)
 MODULES = {'sim_bridge': 'sim_bridge.bridge_node',
-           'controller': 'mover6_control.nodes.controller_node',
-           'planner': 'mover6_control.nodes.planner_node',
+           'controller': 'mover6_control.nodes.controller.node',
+           'planner': 'mover6_control.nodes.planner.node',
            'driver': 'mover6_control.nodes.driver_node',
            'can_sim': 'sim_bridge.can_sim',
            'recorder': 'mover6_control.nodes.recorder_node',

@@ -62,7 +62,7 @@ def test_the_core_list_is_not_empty():
                      'mover6_control.control.controller_core',
                      'mover6_control.planning.planner_core', 'sim_bridge.simulator'):
         assert expected in modules
-    for ros_side in ('mover6_control.nodes.controller_node', 'mover6_control.tools.goal_cli',
+    for ros_side in ('mover6_control.nodes.controller.node', 'mover6_control.tools.goal_cli',
                      'sim_bridge.bridge_node'):
         assert ros_side not in modules
 

@@ -11,7 +11,7 @@ import os
 from control_msgs.action import FollowJointTrajectory
 from mover6_control.control import state_machine as sm
 from mover6_control.control.status import Cause, FINAL_RESULTS, MotionResult, State, StatusKey
-from mover6_control.nodes.trajectory_goal import ended_code
+from mover6_control.nodes.controller.trajectory_goal import ended_code
 from source_tree import ROOT
 
 Result = FollowJointTrajectory.Result

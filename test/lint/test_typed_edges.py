@@ -54,16 +54,18 @@ def edge_files():
     """Return the Python files of the typed folders (relative to the package root)."""
     files = []
     for folder in FOLDERS:
-        for name in sorted(os.listdir(os.path.join(ROOT, folder))):
-            if name.endswith('.py'):
-                files.append(f'{folder}/{name}')
+        for path, dirs, names in os.walk(os.path.join(ROOT, folder)):
+            dirs[:] = sorted(d for d in dirs if d != '__pycache__')
+            relative = os.path.relpath(path, ROOT)
+            files += [f'{relative}/{name}' for name in sorted(names) if name.endswith('.py')]
     return files
 
 
 def test_the_folders_hold_the_nodes():
     """The check reads what it should (guards against a wrong folder)."""
     files = edge_files()
-    for expected in ('mover6_control/nodes/controller_node.py',
+    for expected in ('mover6_control/nodes/controller/node.py',
+                     'mover6_control/nodes/planner/node.py',
                      'mover6_control/tools/goal_cli.py', 'sim_bridge/bridge_node.py'):
         assert expected in files
 

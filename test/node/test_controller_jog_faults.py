@@ -21,8 +21,8 @@ from control_msgs.msg import JointJog
 from geometry_msgs.msg import TwistStamped
 from mover6_control.control.robot import Robot
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes.controller_node import ControllerNode
-from mover6_control.nodes.controller_ticks import MAX_TICK_FAILURES
+from mover6_control.nodes.controller.node import ControllerNode
+from mover6_control.nodes.controller.tick_loop import MAX_TICK_FAILURES
 from mover6_control.nodes.messages import conversions
 from mover6_control.nodes.runtime import local_dds
 import numpy as np
@@ -128,7 +128,7 @@ def test_a_huge_twist_at_home_publishes_no_nan_and_the_tick_goes_on(ros):
     assert np.all(np.isfinite(velocities))                   # FakeArm.on_jog raises on NaN too
     assert np.all(np.abs(velocities) <= LIMITS * (1.0 + 1e-6))
     assert np.max(np.abs(velocities)) > 0.1                   # it did jog
-    assert controller.tick_thread.is_alive() and controller.fatal is None
+    assert controller.ticks.thread.is_alive() and controller.fatal is None
     assert 'jogging' in {conversions.status_values(s)['state'] for s in arm.statuses}
     # (A loaded machine may fault on stale joint states meanwhile: not what is judged here.)
     messages = [s.message for s in arm.statuses]
@@ -214,7 +214,7 @@ def test_an_exception_in_a_tick_is_a_fault_with_the_reason_and_the_tick_goes_on(
     spin_until(lambda: arm.status().get('state') == 'idle')   # fresh states clear it
     spin_until(lambda: len(arm.jogs) > faulted + 20)          # and the ticks went on
     assert not any(any(m.velocities) for m in arm.jogs[faulted:])
-    assert guard.raised == 1 and controller.fatal is None and controller.tick_thread.is_alive()
+    assert guard.raised == 1 and controller.fatal is None and controller.ticks.thread.is_alive()
 
 
 def test_a_tick_that_cannot_run_ends_the_node(ros, monkeypatch):
@@ -223,7 +223,7 @@ def test_a_tick_that_cannot_run_ends_the_node(ros, monkeypatch):
     stream(spin_until, lambda: jogger.joints(['joint1'], [0.2]), 0.5)
     with controller.lock:
         monkeypatch.setattr(Robot, 'measured', property(always_broken))
-    spin_until(lambda: controller.fatal is not None and not controller.tick_thread.is_alive())
+    spin_until(lambda: controller.fatal is not None and not controller.ticks.thread.is_alive())
     # The core's failures, with the last one's reason (not '... failed to publish').
     assert controller.fatal == (f'{MAX_TICK_FAILURES} ticks in a row failed '
                                 '(tick failed: RuntimeError: always broken)')
@@ -233,7 +233,7 @@ def test_a_tick_that_cannot_run_ends_the_node(ros, monkeypatch):
 BROKEN_CONTROLLER = """
 import sys
 from mover6_control.control.robot import Robot
-from mover6_control.nodes import controller_node
+from mover6_control.nodes.controller import node as controller_node
 
 
 def broken(robot):

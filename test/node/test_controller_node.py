@@ -6,7 +6,7 @@ import time
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
-from mover6_control.nodes.controller_node import ControllerNode
+from mover6_control.nodes.controller.node import ControllerNode
 from mover6_control.nodes.messages import conversions, demand_messages
 from mover6_control.nodes.runtime import local_dds
 from mover6_control.parameters import PROFILES
@@ -309,7 +309,7 @@ def test_a_blocked_publish_holds_up_neither_states_nor_status(ros):
     controller, arm, spin_until = ros
     seen = len(arm.statuses)                   # fresh status: other tests may have paused us
     spin_until(lambda: len(arm.statuses) > seen + 1 and arm.status().get('state') == 'idle')
-    publish, blocked = controller.jog_pub.publish, []
+    publish, blocked = controller.jog.publisher.publish, []
 
     def blocking_publish(msg):
         if not blocked:
@@ -319,12 +319,12 @@ def test_a_blocked_publish_holds_up_neither_states_nor_status(ros):
         publish(msg)
 
     seen = len(arm.statuses)
-    controller.jog_pub.publish = blocking_publish
+    controller.jog.publisher.publish = blocking_publish
     try:
         # Fifty ticks after the blocked one: a fault it caused would have been published.
         spin_until(lambda: len(blocked) == 2 and len(arm.jogs) > blocked[0] + 50)
     finally:
-        del controller.jog_pub.publish
+        del controller.jog.publisher.publish
     # The states that came meanwhile were taken, so the late tick found them fresh: no fault.
     states = [conversions.status_values(s)['state'] for s in arm.statuses[seen:]]
     assert 'fault' not in states and states[-1] == 'idle', [s.message for s in arm.statuses[seen:]]
@@ -516,7 +516,8 @@ def test_a_demand_before_the_first_states_waits_for_them():
         assert spin_until(lambda: arm.demand_pub.get_subscription_count() > 0
                           and arm.status().get('state') == 'waiting_for_states')
         arm.demand_pub.publish(demand_messages.make_demands(GOAL[None], 'early-1'))
-        assert spin_until(lambda: controller.demands.empty(), 10.0)   # taken off the queue
+        # Taken off the queue.
+        assert spin_until(lambda: controller.demand_thread.queue.empty(), 10.0)
         spin_until(lambda: 'rejected' in arm.status(), 0.2)
         assert 'rejected' not in arm.status(), arm.status()
         arm.publishing = True

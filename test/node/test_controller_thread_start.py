@@ -8,9 +8,11 @@ runs at once, in the caller, the worst order a scheduler can choose.
 
 import threading
 
-from mover6_control.nodes import controller_node
-from mover6_control.nodes.controller_actions import ActionThread
-from mover6_control.nodes.controller_node import ControllerNode
+from mover6_control.nodes.controller import tick_loop
+from mover6_control.nodes.controller.action_thread import ActionThread
+from mover6_control.nodes.controller.demand_thread import DemandThread
+from mover6_control.nodes.controller.node import ControllerNode
+from mover6_control.nodes.controller.tick_loop import TickLoop
 import pytest
 import rclpy
 
@@ -28,13 +30,13 @@ class RunsAtOnce(threading.Thread):
 def test_threads_start_after_every_attribute_exists(monkeypatch):
     ran = []
 
-    def one_tick(node):
-        node.publish_status(node.now())      # what a real-time tick thread does first
+    def one_tick(ticks):
+        ticks.status.publish(0.0)      # what a real-time tick thread does first
         ran.append('tick')
 
-    monkeypatch.setattr(controller_node.threading, 'Thread', RunsAtOnce)
-    monkeypatch.setattr(ControllerNode, 'tick_loop', one_tick)
-    monkeypatch.setattr(ControllerNode, 'demand_loop', lambda node: ran.append('demand'))
+    monkeypatch.setattr(tick_loop.threading, 'Thread', RunsAtOnce)
+    monkeypatch.setattr(TickLoop, 'run_ticks', one_tick)
+    monkeypatch.setattr(DemandThread, 'demand_loop', lambda thread: ran.append('demand'))
     monkeypatch.setattr(ActionThread, 'serve', lambda actions: ran.append('actions'))
     context = rclpy.Context()
     rclpy.init(context=context)
@@ -42,7 +44,6 @@ def test_threads_start_after_every_attribute_exists(monkeypatch):
         node = ControllerNode(context=context, namespace=NS)
         # The tick raises the others with it: they run before it.
         assert ran == ['demand', 'actions', 'tick']
-        node.running = False
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=context)

@@ -2,7 +2,7 @@
 
 import threading
 
-from mover6_control.nodes.goal_ledger import GoalLedger
+from mover6_control.nodes.controller.goal_ledger import GoalLedger
 import pytest
 
 pytestmark = pytest.mark.node     # rclpy's Future (no context, no node)

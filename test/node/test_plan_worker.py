@@ -1,5 +1,5 @@
 """
-The controller's planning process (``nodes/plan_worker.py``): the same plan, or the reason.
+The controller's planning process (``nodes/controller/plan_worker.py``): the same plan.
 
 A ``PlanJob`` run in the worker process gives the plan that ``job.run`` gives in this process,
 bit for bit (its pickled form and its samples), for every kind of demand the controller plans:
@@ -25,7 +25,7 @@ from mover6_control.control.demand_intake import PlanJob
 from mover6_control.control.timed_plan import Timing
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes.plan_worker import PlanWorker, PlanWorkerError
+from mover6_control.nodes.controller.plan_worker import PlanWorker, PlanWorkerError
 import numpy as np
 from plan_worker_jobs import DyingJob, FailingJob, SlowJob
 import pytest

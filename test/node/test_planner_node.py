@@ -10,9 +10,10 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_from_xyzabc
+from mover6_control.nodes.controller.demand_answers import DemandAnswers
 from mover6_control.nodes.messages import conversions, demand_messages
-from mover6_control.nodes.planner_delivery import RESEND_AFTER, RESENDS
-from mover6_control.nodes.planner_node import PlannerNode
+from mover6_control.nodes.messages.demand_acks import Answer
+from mover6_control.nodes.planner.node import PlannerNode
 import numpy as np
 import pytest
 import rclpy
@@ -42,6 +43,8 @@ class Probe(Node):
         self.path_pub = self.create_publisher(PoseArray, 'path_goal', 10)
         self.demands_sub = self.create_subscription(Float32MultiArray, 'joint_demands',
                                                     lambda m: self.demands.append(m), 10)
+        # The controller's answers, given by the tests that answer (the controller's part).
+        self.answers = DemandAnswers(self, lambda: self.get_clock().now().nanoseconds)
         qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.create_subscription(DiagnosticStatus, 'planner/status',
                                  lambda m: self.statuses.append(m), qos)
@@ -102,8 +105,8 @@ def send_pose(executor, probe, T, frame='base_link', quat=None, pub=None):
 
 def give_state(executor, planner, probe, q):
     """Publish joint states until the planner holds them."""
-    assert spin_until(executor, lambda: (probe.publish_state(q), planner.q is not None)[1]
-                      and np.allclose(planner.q, q))
+    assert spin_until(executor, lambda: (probe.publish_state(q), planner.states.q is not None)[1]
+                      and np.allclose(planner.states.q, q))
 
 
 def test_reachable_goal_publishes_layout_and_ok(nodes):
@@ -258,7 +261,8 @@ def test_plan_with_nobody_listening_is_refused(nodes):
     probe.destroy_subscription(probe.demands_sub)
     planner.set_parameters([Parameter('match_timeout', value=0.5)])
     connected(executor, probe)
-    assert spin_until(executor, lambda: planner.demands_pub.get_subscription_count() == 0)
+    publisher = planner.delivery.handshake.publisher
+    assert spin_until(executor, lambda: publisher.get_subscription_count() == 0)
     give_state(executor, planner, probe, HOME)
     status = send_pose(executor, probe, GOAL)
     assert status.level == DiagnosticStatus.ERROR, status.message
@@ -321,44 +325,46 @@ def test_bad_start_parameters_stop_the_planner():
         rclpy.try_shutdown()
 
 
-def test_unacknowledged_demand_is_sent_again_then_no_more(nodes):
-    """No controller names the goal in its status: the same demand goes out RESENDS more times."""
+def as_controller(probe):
+    """Return the probe's ``DemandAnswers`` (the controller's part) that answer as it does."""
+    return probe.answers
+
+
+def test_an_unanswered_demand_fails_once_no_controller_answers(nodes):
+    """A reader of /joint_demands but no controller answering: failed, not_acknowledged."""
     executor, planner, probe = nodes
+    probe.destroy_publisher(probe.answers.publisher)        # no controller on the graph
+    planner.set_parameters([Parameter('match_timeout', value=0.5)])
     connected(executor, probe)
     give_state(executor, planner, probe, HOME)
     status = send_pose(executor, probe, GOAL)
     goal_id = conversions.status_values(status)['goal_id']
-    assert spin_until(executor, lambda: len(probe.demands) == 1 + RESENDS,
-                      30.0 + RESEND_AFTER * RESENDS)
-    for msg in probe.demands:
-        assert demand_messages.demand_id_from_msg(msg) == goal_id
-        assert list(msg.data) == list(probe.demands[0].data)
-    # Then it gives up, and says so: the goal failed, nothing more within twice the period.
     assert spin_until(executor, lambda: conversions.status_values(
         probe.statuses[-1]).get('result') == 'failed', 10.0)
     status = probe.statuses[-1]
     values = conversions.status_values(status)
     assert values['goal_id'] == goal_id and values['reason'] == 'not_acknowledged'
     assert status.level == DiagnosticStatus.ERROR
-    assert 'no controller acknowledged' in status.message
-    assert not spin_until(executor, lambda: len(probe.demands) > 1 + RESENDS,
-                          2.0 * RESEND_AFTER + 0.5)
+    assert 'no controller answers' in status.message
+    assert [demand_messages.demand_id_from_msg(m) for m in probe.demands] == [goal_id]
+    assert planner.delivery.handshake.waiting() == 0
 
 
-def test_acknowledged_demand_is_sent_once(nodes):
-    """The controller's status names the goal: the demand is not sent again."""
+def test_a_taken_demand_ends_its_handshake(nodes):
+    """The controller's answers say received, then taken: the goal waits for nothing more."""
     executor, planner, probe = nodes
-    qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    controller_status = probe.create_publisher(DiagnosticStatus, 'controller/status', qos)
+    answers = as_controller(probe)
     connected(executor, probe)
-    assert spin_until(executor, lambda: controller_status.get_subscription_count() > 0)
+    assert spin_until(executor, lambda: answers.publisher.get_subscription_count() > 0)
     give_state(executor, planner, probe, HOME)
     status = send_pose(executor, probe, GOAL)
     goal_id = conversions.status_values(status)['goal_id']
     assert spin_until(executor, lambda: len(probe.demands) == 1)
-    controller_status.publish(conversions.make_status(
-        'controller', 'OK', 'motion 1 accepted', {'state': 'executing', 'goal_id': goal_id}))
-    assert not spin_until(executor, lambda: len(probe.demands) > 1, 2.0 * RESEND_AFTER + 0.5)
+    assert planner.delivery.handshake.waiting() == 1
+    answers.received(goal_id)
+    answers.answer(goal_id, Answer.TAKEN, 'motion 1')
+    assert spin_until(executor, lambda: planner.delivery.handshake.waiting() == 0)
+    assert conversions.status_values(probe.statuses[-1])['result'] == 'planned'
 
 
 def test_malformed_latest_joint_states_refuse_the_goal_until_good_ones_come(nodes):
@@ -374,7 +380,8 @@ def test_malformed_latest_joint_states_refuse_the_goal_until_good_ones_come(node
     connected(executor, probe)
     give_state(executor, planner, probe, HOME)
     bad = conversions.make_joint_state(ARM.joint_names[:5], HOME[:5], np.zeros(5))
-    assert spin_until(executor, lambda: (probe.state_pub.publish(bad), planner.q is None)[1])
+    assert spin_until(executor,
+                      lambda: (probe.state_pub.publish(bad), planner.states.q is None)[1])
     status = send_pose(executor, probe, GOAL)
     refused(executor, probe, status, 'no_joint_states')
     assert 'malformed' in status.message and 'joint6' in status.message, status.message
@@ -605,36 +612,38 @@ def test_planner_answers_goals_and_stop_while_a_goal_is_pending(nodes):
     assert status.level == DiagnosticStatus.OK, status.message
 
 
-def test_a_demand_the_controller_refuses_ends_the_goal_on_the_planners_status(nodes):
+@pytest.mark.parametrize('answer, reason', [(Answer.REFUSED, 'controller_refused'),
+                                            (Answer.NOT_READY, 'controller_not_ready')])
+def test_a_demand_the_controller_refuses_ends_the_goal_on_the_planners_status(
+        nodes, answer, reason):
     """
     Issue 21: the controller refuses the demand: the planner says so, with the reason.
 
-    It said 'planned' and nothing more; and it sends that demand no more.
+    Refused for itself (``controller_refused``) or for the controller's state
+    (``controller_not_ready``); the handshake has ended: nothing waits for that goal.
     """
     executor, planner, probe = nodes
-    qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    controller_status = probe.create_publisher(DiagnosticStatus, 'controller/status', qos)
+    answers = as_controller(probe)
     connected(executor, probe)
-    assert spin_until(executor, lambda: controller_status.get_subscription_count() > 0)
+    assert spin_until(executor, lambda: answers.publisher.get_subscription_count() > 0)
     give_state(executor, planner, probe, HOME)
     n = len(probe.statuses)
     status = send_pose(executor, probe, GOAL)
     assert conversions.status_values(status)['result'] == 'planned'
     goal_id = conversions.status_values(status)['goal_id']
     assert spin_until(executor, lambda: len(probe.demands) == 1)
-    reason = 'cannot take a demand while waiting_for_states: waiting for /joint_states'
-    controller_status.publish(conversions.make_status(
-        'controller', 'WARN', f'rejected demand: {reason}',
-        {'state': 'waiting_for_states', 'goal_id': '', 'rejected': reason,
-         'rejected_goal_id': goal_id}))
+    text = 'cannot take a demand while waiting_for_states: waiting for /joint_states'
+    answers.received(goal_id)
+    answers.answer(goal_id, answer, text)
     assert spin_until(executor, lambda: conversions.status_values(
-        probe.statuses[-1]).get('reason') == 'controller_refused')
+        probe.statuses[-1]).get('reason') == reason)
     status = probe.statuses[-1]
     values = conversions.status_values(status)
     assert status.level == DiagnosticStatus.ERROR and values['result'] == 'refused'
-    assert values['goal_id'] == goal_id and reason in status.message
+    assert values['goal_id'] == goal_id and text in status.message
     assert len(probe.statuses) > n
-    assert not spin_until(executor, lambda: len(probe.demands) > 1, 2.0 * RESEND_AFTER + 0.5)
+    assert planner.delivery.handshake.waiting() == 0
+    assert len(probe.demands) == 1
 
 
 def goal_answers(statuses, goal_id):
@@ -654,12 +663,11 @@ def test_a_refusal_as_soon_as_the_demand_arrives_comes_after_planned(nodes):
     """
     executor, planner, probe = nodes
     planner.set_parameters([Parameter('n_waypoints', value=1000)])
-    qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    controller_status = probe.create_publisher(DiagnosticStatus, 'controller/status', qos)
+    answers = as_controller(probe)
     from std_srvs.srv import Trigger
     stop = probe.create_client(Trigger, 'planner/stop')
     connected(executor, probe)
-    assert spin_until(executor, lambda: controller_status.get_subscription_count() > 0)
+    assert spin_until(executor, lambda: answers.publisher.get_subscription_count() > 0)
     assert spin_until(executor, stop.service_is_ready)
     # 'planned' and the refusal can come back to back: a queue deep enough for both (the
     # probe's own keeps the last status only).
@@ -672,12 +680,10 @@ def test_a_refusal_as_soon_as_the_demand_arrives_comes_after_planned(nodes):
     def on_demand(msg):
         goal_id = demand_messages.demand_id_from_msg(msg)
         if goal_id in calls:
-            return                              # sent again: not acknowledged yet
+            return                              # sent again: answered already
         if not calls:
-            controller_status.publish(conversions.make_status(
-                'controller', 'WARN', f'rejected demand: {reason}',
-                {'state': 'waiting_for_states', 'goal_id': '', 'rejected': reason,
-                 'rejected_goal_id': goal_id}))
+            answers.received(goal_id)
+            answers.answer(goal_id, Answer.REFUSED, reason)
         elif len(calls) == 1:
             stop.call_async(Trigger.Request())
         calls.append(goal_id)

@@ -28,6 +28,11 @@ from mover6_control.control.profiles import LawConfig
 from mover6_control.control.robot import Robot
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
+from mover6_control.nodes.controller.demand_thread import (DemandThread, WAIT_FOR_STATES,
+                                                           WORKER_POINTS)
+from mover6_control.nodes.controller.goal_ledger import GoalLedger
+from mover6_control.nodes.messages.demand_acks import Answer
+from mover6_control.nodes.messages.demand_messages import make_demands
 import numpy as np
 import pytest
 
@@ -241,3 +246,128 @@ def test_real_threads_keep_the_invariants():
         t.join()
     assert not errors, errors
     assert finished and h.accepted + h.refused >= DEMANDS
+
+
+class DemandHarness:
+    """
+    A ``DemandThread`` built alone around a real core; the clock is ``self.t``.
+
+    ``tick()`` is the tick thread's step (the core's tick, then ``has_states`` as
+    ``tick_loop.TickLoop.on_tick`` sets it); ``plan_worker`` plans here and runs
+    ``plan_worker.during`` first (what the ticks do while a large demand is planned). The log,
+    the guard's refusals and the answers to goal demands are recorded (``logged``, ``answers``).
+    """
+
+    def __init__(self):
+        self.lock = threading.RLock()
+        self.core = ControllerCore(ARM, ControllerConfig())
+        self.goals = GoalLedger(self.lock)
+        self.has_states = threading.Event()
+        self.t = 0.0
+        self.plan_worker = DuringPlan()
+        self.logged = []
+        self.answers = RecordedAnswers()
+        self.demands = DemandThread(self.core, self.lock, self.goals, self.answers,
+                                    lambda now, **kwargs: None, self.has_states,
+                                    self.plan_worker, lambda: self.t, RecordedLog(self.logged),
+                                    RecordedGuard(self.logged), '/joint_demands')
+
+    def take_demand(self, msg):
+        self.demands.take_demand(msg)
+
+    def tick(self, states=True):
+        with self.lock:
+            self.t += DT
+            if states:
+                send_states(self.core, self.t, np.zeros(6))
+            out = self.core.tick(self.t)
+        (self.has_states.clear if out.state in WAIT_FOR_STATES else self.has_states.set)()
+        return out.state
+
+
+class RecordedLog:
+    """The node's logger as the demand thread uses it: the lines go to a list."""
+
+    def __init__(self, lines):
+        self.lines = lines
+
+    def info(self, text):
+        self.lines.append(text)
+
+    warning = info
+
+
+class RecordedGuard:
+    """The node's callback guard as a refused demand uses it: noted in the log."""
+
+    def __init__(self, lines):
+        self.lines = lines
+
+    def refuse(self, source, err):
+        self.lines.append(f'{source}: refused: {err}')
+
+
+class RecordedAnswers:
+    """The answers to goal demands (``DemandAnswers``), recorded: goal id -> (answer, text)."""
+
+    def __init__(self):
+        self.given = {}
+
+    def received(self, goal_id):
+        self.given[goal_id] = (Answer.RECEIVED, '')
+
+    def answer(self, goal_id, answer, text):
+        self.given[goal_id] = (answer, text)
+
+    def repeat(self, goal_id):
+        return goal_id in self.given
+
+
+class DuringPlan:
+    """The planning process's part in ``DemandHarness``: runs ``during`` once, then plans."""
+
+    def __init__(self):
+        self.during = None
+
+    def ready(self):
+        return True
+
+    def __call__(self, job, guard):
+        if self.during is not None:
+            during, self.during = self.during, None
+            during()
+        return job.run(guard)
+
+
+def test_a_fault_that_clears_while_a_demand_is_planned_does_not_refuse_it():
+    """
+    The states went stale while a large demand was planned, and came back: it is taken.
+
+    Before, the commit refused it ('cannot take a demand while fault: /joint_states stale'),
+    naming a fault that cleared a tick later (issue 21, item 6). Now the demand waits for valid
+    states (DEMAND_STATE_WAIT) and is planned again; refused only if the fault stays, and then
+    for the state the controller is in when it refuses.
+    """
+    h = DemandHarness()
+    assert h.tick() == sm.IDLE
+
+    def stale_then_back():
+        while h.tick(states=False) != sm.FAULT:       # states stale: fault
+            pass
+        timer = threading.Timer(0.3, lambda: [h.tick() for _ in range(3)])
+        timer.start()                                   # fresh states again, 0.3 s later
+    h.plan_worker.during = stale_then_back
+    Q = np.linspace(0.0, 0.3, WORKER_POINTS)[:, None] * np.ones(6)
+    h.take_demand(make_demands(Q, 'large-1'))
+    assert h.core.state == sm.EXECUTING, h.logged
+    assert h.goals.withdraw('large-1') == 1, h.logged
+    assert h.answers.given['large-1'] == (Answer.TAKEN, 'motion 1')
+    assert 'rejected' not in h.core.status().values
+
+    # The fault stays: refused after the wait, naming the fault it is in then.
+    while h.tick(states=False) != sm.FAULT:
+        pass
+    h.take_demand(make_demands(Q[::-1], 'large-2'))
+    reason = h.goals.withdraw('large-2')
+    assert reason.startswith('cannot take a demand while fault: /joint_states stale'), reason
+    assert h.answers.given['large-2'] == (Answer.NOT_READY, reason)

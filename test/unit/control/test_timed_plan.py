@@ -198,7 +198,7 @@ def test_core_falls_back_to_time_optimal_and_says_why():
 def test_action_goal_timing_mapped_by_name():
     """A goal's times, velocities and accelerations in the arm's joint order; mixes refused."""
     pytest.importorskip('control_msgs.action')
-    from mover6_control.nodes.trajectory_goal import map_timing, Result
+    from mover6_control.nodes.controller.trajectory_goal import map_timing, Result
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
     names = [f'joint{i}' for i in range(1, 7)]
     trajectory = JointTrajectory(joint_names=names[::-1])

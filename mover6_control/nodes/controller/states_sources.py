@@ -10,6 +10,11 @@ publishers. Once one is left the states are taken again and the fault clears as 
 (valid states: idle).
 """
 
+import threading
+from typing import Callable
+
+from mover6_control.control.controller_core import ControllerCore
+from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from rclpy.node import Node
 
 CHECK_PERIOD = 0.5        # [s] between two counts of the publishers
@@ -19,12 +24,16 @@ DISTRUST_HOLD = 1.0       # [s] the states are refused after each count of more 
 class StatesSources:
     """Hold the controller while /joint_states has more than one publisher (module docstring)."""
 
-    def __init__(self, node: Node, topic: str):
-        """Count the publishers of ``topic`` for ``node`` (a ``ControllerNode``) periodically."""
+    def __init__(self, node: Node, topic: str, core: ControllerCore, lock: threading.RLock,
+                 guard: CallbackGuard, now: Callable[[], float]):
+        """Count the publishers of ``topic`` in ``node``'s graph, on a timer of ``guard``."""
         self.node = node
+        self.core = core
+        self.lock = lock
+        self.now = now
         self.topic = node.resolve_topic_name(topic)
         self.held = False
-        node.guard.timer(CHECK_PERIOD, self.check, source=f'publishers of {self.topic}')
+        guard.timer(CHECK_PERIOD, self.check, source=f'publishers of {self.topic}')
 
     def check(self) -> None:
         """Count the publishers; with more than one, refuse the states for ``DISTRUST_HOLD``."""
@@ -37,8 +46,8 @@ class StatesSources:
         names = ', '.join(sorted(f'{i.node_namespace.rstrip("/")}/{i.node_name}' for i in infos))
         reason = (f'{len(infos)} publishers of {self.topic} ({names}): conflicting states, '
                   'the arm holds until one is left')
-        with self.node.lock:
-            self.node.core.distrust_states(self.node.now(), reason, DISTRUST_HOLD)
+        with self.lock:
+            self.core.distrust_states(self.now(), reason, DISTRUST_HOLD)
         if not self.held:
             self.node.get_logger().error(reason)
         self.held = True

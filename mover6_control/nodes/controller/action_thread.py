@@ -5,10 +5,10 @@ rclpy builds a received goal as Python objects in the thread of the executor tha
 action server: a 10,000-point ``FollowJointTrajectory`` goal is 10,000 ``JointTrajectoryPoint``
 objects, hundreds of milliseconds on a loaded machine. Served by the controller node's executor,
 that build held up ``on_joint_states`` for all of it, and the core faulted with '/joint_states
-stale' (``state_timeout``). Here the server (``trajectory_action``) belongs to a second node,
+stale' (``state_timeout``). Here the server (``trajectory_server``) belongs to a second node,
 ``<controller>_actions`` in the controller's namespace, spun by a ``SingleThreadedExecutor`` in
 the thread ``controller_actions``: the build shares only the interpreter lock with the states
-intake, which changes hands every switch interval (``controller_node.main``).
+intake, which changes hands every switch interval (``node.main``).
 
 The action keeps its name, ``<controller's full name>/follow_joint_trajectory``
 (``/controller/follow_joint_trajectory`` by default), resolved from the controller node, so
@@ -25,8 +25,8 @@ did when the controller's executor stopped: the controller closed.
 
 import threading
 
+from mover6_control.nodes.controller.trajectory_server import FollowJointTrajectoryServer
 from mover6_control.nodes.runtime.shutdown import SPIN_SLICE
-from mover6_control.nodes.trajectory_action import FollowJointTrajectoryServer
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 

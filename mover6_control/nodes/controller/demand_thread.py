@@ -8,19 +8,33 @@ long (states unread for ``state_timeout`` fault the controller); a plan that the
 moved on from meanwhile is made again, also outside the lock. Which motion a goal's demand
 became, or why it was refused, goes into the node's ``GoalLedger`` (``goal_ledger``).
 
-``DemandThread`` is a part of ``controller_node.ControllerNode`` (its state is the node's, set
-in ``ControllerNode.__init__``); it is not used on its own.
+A demand that names a goal is answered on ``controller/demand_acks`` (``demand_answers``):
+received when it comes (``DemandAnswers.received``, from the executor's callback), then taken,
+refused, or not ready (a state that takes no demand) when the thread is done with it.
+
+``DemandThread`` gets what it uses in its constructor: the core and its lock, the goal ledger,
+the answers, the status, the event that says the core has valid states, the planning process,
+and the node's clock, logger and guard.
 """
 
+import queue
+import threading
 import time
-from typing import Optional
+from typing import Callable, Optional, Union
 
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.demand_intake import NotAcceptingError, PendingDemand
 from mover6_control.control.state_machine import FAULT, WAITING_FOR_STATES
 from mover6_control.control.timed_plan import Timing
 from mover6_control.errors import InvalidInputError, Mover6Error
+from mover6_control.nodes.controller.demand_answers import DemandAnswers
+from mover6_control.nodes.controller.goal_ledger import GoalLedger
+from mover6_control.nodes.controller.plan_worker import PlanWorker
 from mover6_control.nodes.messages import demand_messages
+from mover6_control.nodes.messages.demand_acks import Answer
+from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.validation import short_text
+from rclpy.impl.rcutils_logger import RcutilsLogger
 from std_msgs.msg import Float32MultiArray
 
 # Plans of one demand made without the lock before the last is committed as it is (re-planned
@@ -32,7 +46,7 @@ LOCKED_PLAN_LIMIT = 0.02
 # Longest wait [s] of a demand that comes before the first joint states (the planner can be
 # quicker at start-up), or in a fault that fresh states clear (a stall at start-up: Fast DDS
 # discovery can hold a process for 0.33 s); then it is refused with the reason. Less than the
-# planner's resend window (RESEND_AFTER * (RESENDS + 1) = 6 s).
+# planner, which waits for the answer (``demand_answers``) without a time limit.
 DEMAND_STATE_WAIT = 2.0
 # States in which a demand waits (DEMAND_STATE_WAIT) for valid joint states.
 WAIT_FOR_STATES = (WAITING_FOR_STATES, FAULT)
@@ -49,12 +63,55 @@ WORKER_POINTS = 100
 WORKER_WAIT_POINTS = 1000
 
 
-class DemandThread:
-    """The demand thread of ``ControllerNode`` (module docstring)."""
+# What the queue takes: a message, a message and its timing, or a callable that returns either
+# (or None: refused); None closes the thread.
+Item = Union[Float32MultiArray, tuple, Callable, None]
 
-    def on_demands(self, msg: Float32MultiArray) -> None:
-        """Hand a /joint_demands message to the demand thread (it plans there)."""
-        self.demands.put(msg)
+
+class DemandThread:
+    """The controller's demand thread (module docstring)."""
+
+    def __init__(self, core: ControllerCore, lock: threading.RLock, goals: GoalLedger,
+                 answers: DemandAnswers, publish_status: Callable, has_states: threading.Event,
+                 plan_worker: PlanWorker, now: Callable[[], float], logger: RcutilsLogger,
+                 guard: CallbackGuard, topic: str):
+        """
+        Take demands for ``core`` (changed under ``lock``); see ``start``.
+
+        ``publish_status(now, level=, message=)`` publishes the controller's status; ``topic``
+        is the resolved name of /joint_demands (a refusal is counted by the ``guard`` there).
+        """
+        self.core = core
+        self.lock = lock
+        self.goals = goals
+        self.answers = answers
+        self.publish_status = publish_status
+        self.has_states = has_states
+        self.plan_worker = plan_worker
+        self.now = now
+        self.logger = logger
+        self.guard = guard
+        self.topic = topic
+        self.running = True
+        self.queue = queue.SimpleQueue()   # demands not yet taken; None: the thread ends
+        self.thread = threading.Thread(target=self.demand_loop, name='controller_demands',
+                                       daemon=True)
+
+    def start(self) -> None:
+        """Start the demand thread."""
+        self.thread.start()
+
+    def put(self, item: Item) -> None:
+        """Queue a demand (module docstring; ``demand_loop`` says what an item is)."""
+        self.queue.put(item)
+
+    def close(self, timeout: float) -> None:
+        """End the thread: a demand waiting for states stops waiting; wait ``timeout`` [s]."""
+        self.running = False
+        self.queue.put(None)
+        self.has_states.set()
+        if self.thread.is_alive() and self.thread is not threading.current_thread():
+            self.thread.join(timeout=timeout)
 
     def demand_loop(self) -> None:
         """
@@ -66,7 +123,7 @@ class DemandThread:
         converted here, not in the executor thread that must keep taking /joint_states.
         """
         while True:
-            msg = self.demands.get()
+            msg = self.queue.get()
             if msg is None or not self.running:
                 return
             if callable(msg):
@@ -96,11 +153,11 @@ class DemandThread:
         goal_id = demand_messages.demand_id_from_msg(msg)
         if goal_id and self.goals.known(goal_id):
             # The planner sends a demand again until this status names its goal: take it once.
-            self.get_logger().info(f'goal {goal_id}: demand received again; already taken')
-            self.publish_status(now)
+            self.logger.info(f'goal {goal_id}: demand received again; answered already')
+            self.answers.repeat(goal_id)
             return
         try:
-            Q = demand_messages.demands_from_msg(msg, len(self.joint_names))
+            Q = demand_messages.demands_from_msg(msg, len(self.core.arm.joint_names))
             profile = demand_messages.demand_profile_from_msg(msg)   # this demand's law only
             Q = self.core.check_demand(Q)       # the arm's limits only: no lock needed
             planner = (self.plan_worker if len(Q) >= WORKER_WAIT_POINTS or (
@@ -135,15 +192,20 @@ class DemandThread:
             reason = short_text(reason)   # hostile demands quote little
             # Logged once a second and counted on ~/guard by source, as any refused input.
             self.guard.refuse('follow_joint_trajectory' if goal_id.startswith('fjt-')
-                              else self.resolve_topic_name('joint_demands'), err)
+                              else self.topic, err)
             with self.lock:
                 if goal_id:
                     self.goals.refused(goal_id, reason)
                 self.core.reject(now, reason, goal_id)
+            if goal_id:
+                self.answers.answer(goal_id, Answer.NOT_READY if isinstance(
+                    err, NotAcceptingError) else Answer.REFUSED, reason)
             self.publish_status(now, level='WARN', message=f'rejected demand: {reason}')
             return
-        self.get_logger().info(f'motion {motion_id}: {len(Q)} waypoint(s) accepted'
-                               + (f' (goal {goal_id})' if goal_id else ''))
+        if goal_id:
+            self.answers.answer(goal_id, Answer.TAKEN, f'motion {motion_id}')
+        self.logger.info(f'motion {motion_id}: {len(Q)} waypoint(s) accepted'
+                         + (f' (goal {goal_id})' if goal_id else ''))
         self.publish_status(now)
 
     def commit_if_current(self, pending: PendingDemand, goal_id: str, slow: bool,

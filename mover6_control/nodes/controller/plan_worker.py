@@ -39,7 +39,7 @@ from mover6_control.control.demand_intake import PlanJob
 from mover6_control.errors import Mover6Error
 
 # [s] longest planning of a demand, plus PER_POINT per waypoint (10,000 waypoints: 45 s; the
-# action waits 60 s for them, trajectory_action.ACCEPT_TIMEOUT): then the worker is restarted
+# action waits 60 s for them, trajectory_server.ACCEPT_TIMEOUT): then the worker is restarted
 # and the demand refused. 10,000 waypoints take 5 s of CPU on the development machine.
 TIMEOUT = 5.0
 PER_POINT = 0.004
@@ -64,7 +64,7 @@ class WorkerProcess:
     ``kill``, ``join`` and ``exitcode`` (negative: the signal that ended it).
     """
 
-    COMMAND = ('import sys; from mover6_control.nodes.plan_worker import main; '
+    COMMAND = ('import sys; from mover6_control.nodes.controller.plan_worker import main; '
                'main(int(sys.argv[1]))')
 
     def __init__(self, fd: int):

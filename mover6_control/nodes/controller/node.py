@@ -4,33 +4,34 @@ The controller node: joint waypoints and joint states in, one JointJog per tick 
 Subscribes /joint_states (sensor_msgs/JointState, mapped by name) and /joint_demands
 (std_msgs/Float32MultiArray, N x 6 with layout or flat); publishes /JointJog
 (control_msgs/JointJog: all six joints, stamped, velocities only) at ``rate`` on the node's clock
-and /controller/status (diagnostic_msgs/DiagnosticStatus, transient local, on every change and
-at ``status_rate``). Services ~/stop and ~/reset (std_srvs/Trigger); the action
-~/follow_joint_trajectory (control_msgs/FollowJointTrajectory, ``trajectory_action``). A demand
-may name the goal it is for (``layout.dim[0].label`` = ``waypoints goal <id>``, as the planner
-writes it): the status then carries it as ``goal_id`` next to the ``motion_id`` it became
-(``goal_ledger``). A label ending in ``profile <name>`` times that demand with its own profile
-(``motion_profile`` in the status; the ``profile`` parameter does not change).
-Jogging, as MoveIt Servo names it: ~/delta_twist_cmds (geometry_msgs/TwistStamped, flange
-twist in base_link or link6) and ~/delta_joint_cmds (control_msgs/JointJog, velocities by name)
-drive the arm live (``control.servo``); a refused command is logged and its reason is the
-status value ``jog_refused``. A jog command stamped in the future of its arrival is refused;
-each goes stale ``servo_command_timeout`` after the earlier of its stamp and its arrival.
+and /controller/status (diagnostic_msgs/DiagnosticStatus, transient local, on every change and at
+``status_rate``). Services ~/stop and ~/reset (std_srvs/Trigger); the action
+~/follow_joint_trajectory (control_msgs/FollowJointTrajectory, ``trajectory_server``). A demand may
+name the goal it is for (``layout.dim[0].label`` = ``waypoints goal <id>``, as the planner writes
+it): it is then answered on controller/demand_acks (actionlib_msgs/GoalStatus: received, taken,
+refused or not ready; ``demand_answers``), and the status carries it as ``goal_id`` next to the
+``motion_id`` it became (``goal_ledger``). A label ending in ``profile <name>`` times that demand
+with its own profile (``motion_profile`` in the status; the ``profile`` parameter does not change).
+Jogging, as MoveIt Servo names it: ~/delta_twist_cmds (geometry_msgs/TwistStamped, flange twist in
+base_link or link6) and ~/delta_joint_cmds (control_msgs/JointJog, velocities by name) drive the
+arm live (``control.servo``); a refused command is logged and its reason is the status value
+``jog_refused``. A jog command stamped in the future of its arrival is refused; each goes stale
+``servo_command_timeout`` after the earlier of its stamp and its arrival.
 
-All the logic is in ``control.controller_core`` (its model of the arm: a ``control.robot.Robot``,
-``self.core.robot``, which maps /joint_states by name); the node converts, calls it, publishes.
-For the Mover6's vendor driver set ``jog_units`` to fraction_of_max; ``driver_tick_size`` and
-``driver_cycle`` (the Mover6's by default) let the core move joints that a command under one
-encoder tick per cycle would leave standing (the goal tolerance is then one tick).
+All the logic is in ``control.controller_core``; the node converts, calls it, publishes. For the
+Mover6's vendor driver set ``jog_units`` to fraction_of_max (``driver_tick_size`` and
+``driver_cycle``: the goal tolerance is then one encoder tick).
 
-Four threads: the executor's (the callbacks, this module), the tick's (``controller_ticks``),
-the demand thread's (``controller_demands``; large demands are planned in ``plan_worker``'s
-process) and the action server's (``controller_actions``, on a node of its own). The lock rule:
-the core and the goal ledger are read and changed only under ``lock``; nothing slow or published.
+The node is built from parts, each a class given what it uses: the /JointJog output
+(``jog_output``), the status (``status_publisher``, with the tick's ``tick_figures``), the answers
+to goal demands (``demand_answers``), the tick thread (``tick_loop``), the demand thread
+(``demand_thread``; large demands are planned in ``plan_worker``'s process), the check for a second
+/joint_states publisher (``states_sources``) and the action server's thread (``action_thread``, on
+a node of its own). The lock rule: the core and the goal ledger are read and changed only under
+``lock``; nothing slow or published.
 """
 
 import gc
-import queue
 import sys
 import threading
 from typing import Callable, Optional
@@ -41,70 +42,73 @@ from geometry_msgs.msg import TwistStamped
 from mover6_control.control.collision_guard import CollisionGuard
 from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.controller_core import ControllerCore
-from mover6_control.control.status import StatusKey
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
-from mover6_control.nodes.controller_actions import ActionThread
-from mover6_control.nodes.controller_demands import DemandThread
-from mover6_control.nodes.controller_ticks import TickLoop
-from mover6_control.nodes.goal_ledger import GoalLedger
-from mover6_control.nodes.messages import cdr, conversions
-from mover6_control.nodes.plan_worker import PlanWorker
+from mover6_control.nodes.controller.action_thread import ActionThread
+from mover6_control.nodes.controller.demand_answers import DemandAnswers
+from mover6_control.nodes.controller.demand_thread import DemandThread
+from mover6_control.nodes.controller.goal_ledger import GoalLedger
+from mover6_control.nodes.controller.jog_output import JogOutput
+from mover6_control.nodes.controller.plan_worker import PlanWorker
+from mover6_control.nodes.controller.states_sources import StatesSources
+from mover6_control.nodes.controller.status_publisher import StatusPublisher
+from mover6_control.nodes.controller.tick_figures import TickFigures
+from mover6_control.nodes.controller.tick_loop import TickLoop
+from mover6_control.nodes.messages import cdr, conversions, demand_messages
 from mover6_control.nodes.runtime import params, shutdown
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.nodes.runtime.node_clock import now_ns
 from mover6_control.nodes.runtime.node_configs import collision_settings, config_from_parameters
 from mover6_control.nodes.runtime.qos import STATUS_QOS, STREAM_READER_QOS
-from mover6_control.nodes.states_sources import StatesSources
 from mover6_control.parameters import CONTROLLER
-from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float32MultiArray
 from std_srvs.srv import Trigger
 
-# Longest wait [s] at shutdown for the readers of /JointJog to acknowledge the last zero command.
-ZERO_ACK_TIMEOUT = 1.0
+# Longest waits [s] at shutdown: for the readers of /JointJog to acknowledge the last zero
+# command, and for the tick and demand threads to end.
+ZERO_ACK_TIMEOUT = THREADS_JOIN_TIMEOUT = 1.0
 
 
-class ControllerNode(TickLoop, DemandThread, Node):
+class ControllerNode(Node):
     """Drive the arm through joint waypoints with one JointJog per tick; see the module doc."""
 
     def __init__(self, **kwargs):
-        """Declare the parameters, build the core, start the topics, services and threads."""
+        """Declare the parameters, build the core and the parts, start the threads."""
         super().__init__('controller', **kwargs)
         self.guard = CallbackGuard(self)     # no callback ends the node (bad input: refused)
-        # Refuses invalid values, each and as a whole config (check_config), before a set is
-        # accepted; an accepted set is handed to the core (at once, or after the motion).
+        # Refuses invalid values (each, and the whole config: check_config) before a set; an
+        # accepted set goes to the core (at once, or after the motion).
         params.declare(self, CONTROLLER, self.check_config, guard=self.guard)
         limit_set, config = config_from_parameters(lambda n: self.get_parameter(n).value)
         self.guard.after_set(self.on_parameters_set)
         self.lock = threading.RLock()        # the core's state and the goal ledger
-        self.status_lock = threading.Lock()  # one status publication at a time (before lock)
         self.core = ControllerCore(mover6(limit_set), config)
         self.goals = GoalLedger(self.lock)   # which motion each goal became, or why not
         self.apply_collision_parameters()
         self.joint_names = list(self.core.arm.joint_names)
-        self.status_period = 1.0 / max(self.get_parameter('status_rate').value, 1e-3)
-        self.last_status = self.last_state = None   # the core's state after the latest tick
-        self.has_states = threading.Event()  # set while the core has valid states
-        self.last_tick = None            # node clock [ns] of the latest tick
-        self.max_tick_gap = self.max_states_age = 0.0   # [s] so far (tick_figures)
-        self.running = True
-        self.destroyed = False
-        self.fatal = None                # why the tick cannot run: the process exits with 1
-        self.tick_errors = 0             # ticks in a row that raised outside the core
-        self.pending_logged = False      # 'applies to the next motion' said, not yet applied
-        self.last_q = None               # the latest valid joint positions, for the action
-        self.demands = queue.SimpleQueue()   # /joint_demands messages not yet taken; None: end
-        self.plan_worker = PlanWorker(start=False)   # started by the first large demand
-        self.states_reader = cdr.JointStateReader()   # /joint_states read and /JointJog
-        self.jog_writer = cdr.JointJogWriter(self.joint_names)   # written as bytes (issue 21)
+        self.last_q = None          # the latest valid joint positions, for the action server
+        self.destroyed, self.has_states = False, threading.Event()   # set: valid states
+        self.states_reader = cdr.JointStateReader()   # /joint_states read as bytes (issue 21)
+        clock_ns = lambda: now_ns(self.get_clock())   # noqa: E731
 
-        self.jog_pub = self.create_publisher(JointJog, 'JointJog', 10)
-        self.status_pub = self.create_publisher(DiagnosticStatus, 'controller/status',
-                                                STATUS_QOS)
+        jog_pub, figures = self.create_publisher(JointJog, 'JointJog', 10), TickFigures()
+        self.jog = JogOutput(jog_pub, self.joint_names, clock_ns)
+        self.status = StatusPublisher(
+            self.create_publisher(DiagnosticStatus, 'controller/status', STATUS_QOS),
+            self.core, self.lock, self.goals, figures, status_period(self.get_parameter))
+        self.answers = DemandAnswers(self, clock_ns)
+        self.plan_worker = PlanWorker(start=False)   # started by the first large demand
+        self.ticks = TickLoop(self.core, self.lock, self.get_clock(), self.context,
+                              self.get_logger(), self.jog, self.status, figures, self.has_states,
+                              self.get_parameter('tick_priority').value)
+        self.demand_thread = DemandThread(
+            self.core, self.lock, self.goals, self.answers, self.status.publish,
+            self.has_states, self.plan_worker, self.now, self.get_logger(), self.guard,
+            self.resolve_topic_name('joint_demands'))
+
         self.guard.subscription(JointState, 'joint_states', self.on_joint_states,
                                 STREAM_READER_QOS, raw=True)
         self.guard.subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
@@ -112,18 +116,27 @@ class ControllerNode(TickLoop, DemandThread, Node):
         self.guard.subscription(JointJog, '~/delta_joint_cmds', self.on_joint_jog, 10)
         self.guard.service(Trigger, '~/stop', self.on_stop)
         self.guard.service(Trigger, '~/reset', self.on_reset)
-        self.sources = StatesSources(self, 'joint_states')   # a second publisher: hold
+        self.sources = StatesSources(self, 'joint_states', self.core, self.lock, self.guard,
+                                     self.now)   # a second publisher of the states: hold
         self.actions = ActionThread(self)   # the action server (its own node and thread)
 
-        # Started once every attribute exists (a real-time tick runs at once and publishes a
-        # status); the others first, so the tick's raise puts them one below (realtime.py).
-        self.tick_thread = threading.Thread(target=self.run_ticks, daemon=True)
-        self.demand_thread = threading.Thread(target=self.demand_loop, daemon=True)
+        # Started once every part exists (a real-time tick runs at once); the others first, so
+        # the tick's raise puts them one below (realtime.py).
         self.log_start(limit_set, config)
         self.demand_thread.start()
         self.actions.start()
-        self.tick_thread.start()
-        self.publish_status(self.now())
+        self.ticks.start()
+        self.status.publish(self.now())
+
+    @property
+    def running(self) -> bool:
+        """Return whether the controller still runs (not closed, its tick not given up)."""
+        return not self.destroyed and self.ticks.running
+
+    @property
+    def fatal(self) -> Optional[str]:
+        """Return why the tick cannot run (the process exits with 1), or None."""
+        return self.ticks.fatal
 
     def log_start(self, limit_set: str, config: ControllerConfig) -> None:
         """Say what the controller runs with (before its threads start: no lock needed)."""
@@ -161,16 +174,16 @@ class ControllerNode(TickLoop, DemandThread, Node):
             return
         names = ', '.join(f'{p.name} {p.value}' for p in parameters)
         _, config = config_from_parameters(lambda n: self.get_parameter(n).value)
-        self.status_period = 1.0 / max(self.get_parameter('status_rate').value, 1e-3)
+        self.status.period = status_period(self.get_parameter)
         self.apply_collision_parameters()
         with self.lock:
             now_applied = self.core.reconfigure(config)
-            self.pending_logged = not now_applied
+            self.ticks.note_pending(not now_applied)
         if now_applied:
             self.get_logger().info(f'parameters in force: {names}')
         else:
             self.get_logger().info(f'parameters set ({names}): applies to the next motion')
-        self.publish_status(self.now())
+        self.status.publish(self.now())
 
     def apply_collision_parameters(self) -> None:
         """Give the core the collision check of the parameters (None when it is off)."""
@@ -196,6 +209,13 @@ class ControllerNode(TickLoop, DemandThread, Node):
         with self.lock:
             self.core.on_named_joint_states(now, *fields)   # names, positions, velocities
             self.last_q = self.core.robot.q
+
+    def on_demands(self, msg: Float32MultiArray) -> None:
+        """Say that a demand naming a goal came; hand it to the demand thread (it plans there)."""
+        goal_id = demand_messages.demand_id_from_msg(msg)
+        if goal_id:
+            self.answers.received(goal_id)
+        self.demand_thread.put(msg)
 
     def on_twist(self, msg: TwistStamped) -> None:
         """Take a jog twist (~/delta_twist_cmds) or say why not."""
@@ -237,44 +257,27 @@ class ControllerNode(TickLoop, DemandThread, Node):
         return response
 
     def destroy_node(self) -> None:
-        """Stop the tick thread, send a last zero command, then destroy the node."""
+        """Stop the tick and demand threads, send a last zero command, then destroy the node."""
         if self.destroyed:
             return
         self.destroyed = True
-        self.running = False
-        self.demands.put(None)
+        self.ticks.running = False
+        self.demand_thread.running = False
         self.plan_worker.close()    # a demand planned there is refused: its thread can end
-        self.has_states.set()       # a demand waiting for states stops waiting
+        self.demand_thread.close(THREADS_JOIN_TIMEOUT)   # a demand waiting for states: ends
         self.goals.close()          # an action goal waiting for its demand stops waiting
         self.actions.close()        # its thread ends, then its server and node
-        for thread in (self.tick_thread, self.demand_thread):
-            if thread.is_alive() and thread is not threading.current_thread():
-                thread.join(timeout=1.0)
+        self.ticks.close(THREADS_JOIN_TIMEOUT)
         if self.context.ok():
-            self.send_zero()
+            self.jog.send_zero()
             # else the writer's end drops an unacknowledged zero (lost in 2 of 7, test_shutdown)
-            self.jog_pub.wait_for_all_acked(Duration(seconds=ZERO_ACK_TIMEOUT))
+            self.jog.wait_for_all_acked(ZERO_ACK_TIMEOUT)
         super().destroy_node()
 
-    def publish_status(self, now: float, extra: dict = None, level: str = None,
-                       message: str = None) -> None:
-        """
-        Publish the core's status on /controller/status (plus ``extra`` values).
 
-        Never call it holding ``lock``: ``status_lock`` comes first, so that statuses go out in
-        the order they were read, and the core's lock is not held while publishing.
-        """
-        with self.status_lock:
-            with self.lock:
-                status = self.core.status()
-                self.last_status = now
-                goal_id = self.goals.goal_of(int(status.values.get(StatusKey.MOTION_ID, 0)))
-            values = dict(status.values)
-            values[StatusKey.GOAL_ID] = goal_id
-            values.update(self.tick_figures())     # max_tick_gap, max_states_age
-            values.update(extra or {})
-            self.status_pub.publish(conversions.make_status(
-                'controller', level or status.level, message or status.message, values))
+def status_period(get: Callable[[str], Parameter]) -> float:
+    """Return the period [s] of the status from the parameter ``status_rate``."""
+    return 1.0 / max(get('status_rate').value, 1e-3)
 
 
 def main(args: Optional[list[str]] = None) -> None:

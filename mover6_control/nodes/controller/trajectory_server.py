@@ -33,9 +33,9 @@ ends canceled once the arm is at rest. A new goal, or a /joint_demands message, 
 running goal: it is aborted with INVALID_GOAL (as joint_trajectory_controller) and the reason.
 
 How a goal is read (joints by name, points, timing, tolerances) and which code a motion that
-ended gets: ``nodes/trajectory_goal.py``; here the server that runs it. It is served by a node,
-an executor and a thread of its own (``nodes/controller_actions.py``): a goal of 10,000 points
-is built as Python objects there, not in the thread that takes /joint_states.
+ended gets: ``nodes/controller/trajectory_goal.py``; here the server that runs it. It is served
+by a node, an executor and a thread of its own (``nodes/controller/action_thread.py``): a goal of
+10,000 points is built as Python objects there, not in the thread that takes /joint_states.
 """
 
 from typing import Optional, Sequence
@@ -45,9 +45,9 @@ from mover6_control.control.motion_plan import MotionPlan
 from mover6_control.control.status import (FINAL_RESULTS, MotionResult, State, StatusKey,
                                            TIMING_AS_GIVEN)
 from mover6_control.control.timed_plan import Timing
+from mover6_control.nodes.controller.trajectory_goal import (ended_code, map_goal, map_timing,
+                                                             Result, tolerances, violations)
 from mover6_control.nodes.messages import demand_messages
-from mover6_control.nodes.trajectory_goal import (ended_code, map_goal, map_timing, Result,
-                                                  tolerances, violations)
 from mover6_control.validation import short_text
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
@@ -138,7 +138,7 @@ class FollowJointTrajectoryServer:
             return (demand, mapped['timing']) if mapped['timing'].timed else demand
 
         taken = node.goals.expect(goal_id, self.executor)   # done when taken or refused
-        node.demands.put(convert)
+        node.demand_thread.put(convert)
         if node.running:
             await self.sleep(ACCEPT_TIMEOUT + ACCEPT_PER_POINT * len(goal.trajectory.points),
                              taken)

@@ -17,29 +17,37 @@ warning, so a stalled tick thread shows in the controller and not only as a stal
 driver. To see what held it up, set the environment variable ``MOVER6_TICK_WATCHDOG`` to a time
 [s]: a tick later than that dumps the stack of every thread to stderr (``faulthandler``, which
 needs no interpreter lock for it; wall time, so a paused sim clock trips it too). The status
-value ``max_states_age`` [s] is the age of the oldest valid /joint_states a tick found (node
-clock; nominal the states' period plus a tick): how long their intake was held up at most
-(``state_timeout`` faults).
+value ``max_states_age`` [s] (both in ``tick_figures``) is the age of the oldest valid
+/joint_states a tick found (node clock; nominal the states' period plus a tick): how long their
+intake was held up at most (``state_timeout`` faults).
 
 The tick never dies: an exception inside it is a fault (zero command, the reason on the
 status, cleared by fresh joint states as any fault); when ``MAX_TICK_FAILURES`` ticks in a row
 raise, or the tick thread ends by an exception, the node gives up (``fatal``) and its process
 exits with 1 after the last zero command, so the launcher sees it.
 
-``TickLoop`` is a part of ``controller_node.ControllerNode`` (its state is the node's, set in
-``ControllerNode.__init__``); it is not used on its own.
+``TickLoop`` gets what it uses in its constructor: the core and its lock, the node clock, the
+/JointJog output, the status, the tick's figures and the event that says the core has valid
+states (the demand thread waits on it).
 """
 
 import faulthandler
 import os
+import threading
 import time
 import traceback
 
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.state_machine import FAULT
-from mover6_control.control.status import StatusKey
-from mover6_control.nodes.controller_demands import WAIT_FOR_STATES
+from mover6_control.nodes.controller.demand_thread import WAIT_FOR_STATES
+from mover6_control.nodes.controller.jog_output import JogOutput
+from mover6_control.nodes.controller.status_publisher import StatusPublisher
+from mover6_control.nodes.controller.tick_figures import TickFigures
 from mover6_control.nodes.runtime.node_clock import now_ns, sleep_until_ns
 from mover6_control.realtime import raise_this_thread
+from rclpy.clock import Clock
+from rclpy.context import Context
+from rclpy.impl.rcutils_logger import RcutilsLogger
 
 # A tick this late [s] is logged: the driver (and the sim bridge) halt after 0.2 s without one.
 TICK_GAP_WARN = 0.05
@@ -54,18 +62,56 @@ MAX_TICK_FAILURES = 10
 
 
 class TickLoop:
-    """The tick thread of ``ControllerNode`` (module docstring)."""
+    """The controller's tick thread (module docstring)."""
+
+    def __init__(self, core: ControllerCore, lock: threading.RLock, clock: Clock,
+                 context: Context, logger: RcutilsLogger, jog: JogOutput,
+                 status: StatusPublisher, figures: TickFigures, has_states: threading.Event,
+                 priority: int):
+        """Tick ``core`` (under ``lock``) on ``clock`` at real-time ``priority``; see ``start``."""
+        self.core = core
+        self.lock = lock
+        self.clock = clock
+        self.context = context
+        self.logger = logger
+        self.jog = jog
+        self.status = status
+        self.figures = figures
+        self.has_states = has_states     # set while the core has valid states
+        self.priority = priority
+        self.running = True
+        self.fatal = None                # why the tick cannot run: the process exits with 1
+        self.tick_errors = 0             # ticks in a row that raised outside the core
+        self.last_state = None           # the core's state after the latest tick
+        self.pending_logged = False      # 'applies to the next motion' said, not yet applied
+        self.thread = threading.Thread(target=self.run_ticks, name='controller_tick',
+                                       daemon=True)
+
+    def start(self) -> None:
+        """Start the tick thread."""
+        self.thread.start()
+
+    def close(self, timeout: float) -> None:
+        """Stop ticking; wait up to ``timeout`` [s] for the thread to end."""
+        self.running = False
+        if self.thread.is_alive() and self.thread is not threading.current_thread():
+            self.thread.join(timeout=timeout)
+
+    def note_pending(self, pending: bool) -> None:
+        """Say whether parameters just set wait for the motion to end (logged when applied)."""
+        with self.lock:
+            self.pending_logged = pending
 
     def tick_loop(self) -> None:
         """
-        Call ``on_tick`` every ``1 / rate`` [s] of the node's clock until the node closes.
+        Call ``on_tick`` every ``1 / rate`` [s] of the node's clock until the loop closes.
 
         The thread sleeps before every tick, at least ``TICK_REST`` of a period when it is late.
         Times are integer nanoseconds of the node clock (``node_clock``: no rclpy ``Time`` or
         ``Duration`` per tick; sim time sleeps in ``Clock.sleep_until``).
         """
-        self.set_tick_priority(self.get_parameter('tick_priority').value)
-        clock = self.get_clock()
+        raise_this_thread(self.priority, self.logger, 'tick', 'tick_priority')
+        clock = self.clock
         deadline = now_ns(clock)
         watchdog = float(os.environ.get(WATCHDOG_ENV) or 0.0)
         while self.running and self.context.ok():
@@ -79,7 +125,7 @@ class TickLoop:
                 time.sleep(period * TICK_REST)
             if not sleep_until_ns(clock, deadline, self.context):
                 deadline = now_ns(clock)        # clock switched (sim time) or shutting down
-                self.last_tick = None           # no gap across the switch
+                self.figures.forget_last_tick()   # no gap across the switch
                 continue
             now = now_ns(clock)
             if now - deadline > step:
@@ -108,10 +154,10 @@ class TickLoop:
             self.on_tick()
         except Exception as err:  # noqa: B902 - the tick goes on, the arm held
             self.tick_errors += 1
-            self.get_logger().error(f'tick failed: {type(err).__name__}: {err}',
-                                    throttle_duration_sec=1.0)
+            self.logger.error(f'tick failed: {type(err).__name__}: {err}',
+                              throttle_duration_sec=1.0)
             try:
-                self.send_zero()
+                self.jog.send_zero()
             except Exception:  # noqa: B902 - giving up below if this keeps happening
                 pass
         else:
@@ -129,28 +175,17 @@ class TickLoop:
         self.fatal = reason
         self.running = False
         log = f'{reason}; the controller stops'
-        self.get_logger().fatal(f'{log}\n{details}' if details else log)
+        self.logger.fatal(f'{log}\n{details}' if details else log)
         try:
-            self.send_zero()
+            self.jog.send_zero()
         except Exception:  # noqa: B902 - destroy_node sends one more
             pass
 
-    def set_tick_priority(self, priority: int) -> None:
-        """
-        Run the tick thread at real-time priority ``priority`` (SCHED_FIFO), the rest just below.
-
-        ``mover6_control.realtime.raise_this_thread`` (the driver's cycle uses it too): as
-        ros2_control's controller manager does for its update thread, the rest of the process
-        just below (in Python the tick also needs the interpreter lock); 0: as is. Where the
-        system refuses it, say so once and go on with normal scheduling.
-        """
-        raise_this_thread(priority, self.get_logger(), 'tick', 'tick_priority')
-
     def on_tick(self) -> None:
         """Run one control tick: publish the JointJog, and the status when due."""
-        stamp_ns = now_ns(self.get_clock())
+        stamp_ns = now_ns(self.clock)
         now = stamp_ns * 1e-9
-        gap = self.note_tick(stamp_ns)
+        gap = self.figures.note_tick(stamp_ns)
         with self.lock:
             t_states = self.core.robot.t_states     # of the latest valid states (None: none)
             out = self.core.tick(now)
@@ -167,44 +202,23 @@ class TickLoop:
             if applied:
                 self.pending_logged = False
             profile, rate = self.core.config.law.profile, self.core.config.rate
-            status_due = (out.status_changed or self.last_status is None
-                          or now - self.last_status >= self.status_period
-                          or now < self.last_status)
+            status_due = out.status_changed or self.status.due(now)
         if t_states is not None:
-            self.max_states_age = max(self.max_states_age, now - t_states)
+            self.figures.note_states_age(now - t_states)
         if applied:
-            self.get_logger().info(f'parameters in force from now: {profile} at {rate:g} Hz')
+            self.logger.info(f'parameters in force from now: {profile} at {rate:g} Hz')
         if fault_change is not None:        # entering fault and leaving it: logged once each
             if out.state == FAULT:
-                self.get_logger().error(f'fault: {fault_change}')
+                self.logger.error(f'fault: {fault_change}')
             else:
-                self.get_logger().info(f'fault cleared ({out.state}): {fault_change}')
+                self.logger.info(f'fault cleared ({out.state}): {fault_change}')
         # Published without the lock: a DDS write can block (seen for 0.33 s right after start-up
         # while the sim bridge was being matched), and the callbacks must not wait for it.
-        self.jog_pub.publish(self.jog_writer.serialize(*divmod(stamp_ns, 1_000_000_000), out.jog))
+        self.jog.publish(stamp_ns, out.jog)
         if gap > TICK_GAP_WARN:         # logged after the command went, not before it
-            self.get_logger().warning(
+            self.logger.warning(
                 f'tick {gap * 1e3:.0f} ms after the one before (period '
                 f'{1e3 / rate:.0f} ms): the tick thread stalled',
                 throttle_duration_sec=1.0)
         if status_due:
-            self.publish_status(now)
-
-    def note_tick(self, stamp_ns: int) -> float:
-        """Record a tick at ``stamp_ns`` [ns] of the node clock; return the gap [s] (0 first)."""
-        last, self.last_tick = self.last_tick, stamp_ns
-        if last is None or stamp_ns < last:          # first tick, or the clock went back
-            return 0.0
-        gap = (stamp_ns - last) * 1e-9
-        self.max_tick_gap = max(self.max_tick_gap, gap)
-        return gap
-
-    def tick_figures(self) -> dict:
-        """Return the status values ``max_tick_gap`` and ``max_states_age`` [s], as text."""
-        return {StatusKey.MAX_TICK_GAP: f'{self.max_tick_gap:.4f}',
-                StatusKey.MAX_STATES_AGE: f'{self.max_states_age:.4f}'}
-
-    def send_zero(self) -> None:
-        """Publish a zero JointJog (the vendor driver keeps the last command forever)."""
-        self.jog_pub.publish(self.jog_writer.serialize(
-            *divmod(now_ns(self.get_clock()), 1_000_000_000), [0.0] * len(self.joint_names)))
+            self.status.publish(now)

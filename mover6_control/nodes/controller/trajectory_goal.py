@@ -5,7 +5,8 @@ A ``FollowJointTrajectory`` goal read and checked, and the result codes of its m
 waypoints and ``Timing``, its joints mapped by name (a goal that cannot be used raises
 ``ValueError(error_code, reason)``); ``tolerances`` and ``violations`` read and check its path
 and goal tolerances; ``ended_code`` is the error code of a motion that ended other than arrived,
-decided by the controller's ``cause``. The server that runs a goal: ``nodes/trajectory_action.py``.
+decided by the controller's ``cause``. The server that runs a goal:
+``nodes/controller/trajectory_server.py``.
 """
 
 from typing import Optional, Sequence

@@ -1,0 +1,1 @@
+"""The planner node and its parts (one class a module)."""
