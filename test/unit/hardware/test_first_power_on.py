@@ -12,6 +12,7 @@ commanded motion (zero when nothing is commanded) plus the tick a set-point is r
 ``FIGURE`` lines print each state's largest distance (``pytest -s``).
 """
 
+from dataclasses import replace
 import itertools
 
 import can
@@ -23,7 +24,9 @@ import pytest
 from sim_bridge.can_sim import build_arm, BusServer
 from sim_bridge.simulator import SimConfig
 
-_, JOINTS = load_joints()
+# The set-point discipline without referencing's hold (the joint file may say a joint needs no
+# referencing; test_can_driver.py and test_referencing.py test the hold and the referencing).
+JOINTS = tuple(replace(j, reference_required=False) for j in load_joints()[1])
 TPR = np.array([abs(j.ticks_per_rad) for j in JOINTS])       # [ticks/rad]
 CHANNELS = itertools.count()
 CYCLE = 0.05
