@@ -119,10 +119,10 @@ class ArmSession:
 
     def run(self, kind: str) -> tuple[bool, str]:
         """Run one Trigger service's request; return (success, message)."""
-        if self.driver is None:
-            return False, f'{kind} refused: the driver is not configured'
         if kind == 'set_zero' and not self.allow_set_zero():
             return False, 'set_zero refused: set the parameter allow_set_zero to true first'
+        if self.driver is None:
+            return False, f'{kind} refused: the driver is not configured'
         if kind in ('enable', 'reference') and self.power_latched:
             return False, f'{kind} refused: {POWER_LOST_REASON}'
         if kind == 'reference':

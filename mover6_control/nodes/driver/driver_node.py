@@ -41,6 +41,7 @@ from typing import Callable, Optional
 
 import can
 from control_msgs.msg import JointJog
+from lifecycle_msgs.msg import Transition
 from mover6_control.errors import InvalidInputError
 from mover6_control.hardware.bus import open_bus, open_frame_log
 from mover6_control.hardware.driver import ArmDriver
@@ -54,9 +55,11 @@ from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.nodes.runtime.params import declare
 from mover6_control.parameters import DRIVER
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 
+RCLError = _rclpy.RCLError
 GRIPPER_BITS = {'off': 0x00, 'open': 0x03, 'closed': 0x02}
 """Joint 4's outputs: bit 0 'gripper open', bit 1 'gripper enabled' (the vendor's CPRMover6)."""
 GRIPPER_JOINT, OUTPUTS_JOINT = 4, 1
@@ -65,6 +68,9 @@ SWITCH_INTERVAL = 0.0005
 SERVICES = ('reset', 'enable', 'disable', 'reference', 'set_zero', 'recover')
 NEEDS_ACTIVE = ('enable', 'reference', 'recover')
 """The services that may move or enable the arm: only while the driver is active."""
+TRANSITIONS = {getattr(Transition, name): name[len('TRANSITION_'):].lower()
+               for name in dir(Transition) if name.startswith('TRANSITION_')}
+"""A transition's id -> its name (configure, activate, ..., active_shutdown)."""
 OK, FAILED, ERROR = (TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE,
                      TransitionCallbackReturn.ERROR)
 
@@ -74,6 +80,9 @@ class DriverNode(LifecycleNode):
 
     def __init__(self, **kwargs):
         super().__init__('driver', **kwargs)
+        self.lifecycle_state = 'unconfigured'
+        self.last_failure = ''
+        self._refuse_unknown_transitions()        # inside the guard, which wraps every service
         self.guard = CallbackGuard(self)     # no callback ends the node (bad input: refused)
         declare(self, DRIVER, guard=self.guard)
         self.guard.after_set(self.on_parameters_set)
@@ -84,23 +93,20 @@ class DriverNode(LifecycleNode):
         self.firmware, self.joints = load_joints(self.params['joints_file'] or JOINTS_YAML)
         self.names = tuple(j.name for j in self.joints)
         self.max_speed = [j.max_speed for j in self.joints]
-        self.lifecycle_state = 'unconfigured'
-        self.last_failure = ''
         self.fatal = None
         self.session = ArmSession(self._open_driver, self._timeouts,
-                                  on_cycle=lambda report: self.publisher.on_cycle(report),
+                                  on_cycle=lambda report: self.reports.on_cycle(report),
                                   allow_set_zero=self._live('allow_set_zero'))
         self.intake = JogIntake(self.names, self.max_speed, self.params['jog_units'],
                                 speed_override=self._live('speed_override'),
                                 blocked=self._jog_blocked, command=self._command,
-                                on_refusal=lambda: self.publisher.notify())
-        self.publisher = ReportPublisher(self, self.names, self.intake.counts,
+                                on_refusal=lambda: self.reports.notify())
+        self.reports = ReportPublisher(self, self.names, self.intake.counts,
                                          lifecycle=lambda: self.lifecycle_state,
                                          scheduling=self._scheduling,
                                          rate=self._live('diagnostics_rate'))
         self.guard.subscription(JointJog, 'JointJog', self.intake.on_jog, 10)
-        self.services = TriggerServices(self, self.guard, SERVICES, self.run_service)
-        self._guard_change_state()
+        self.trigger_services = TriggerServices(self, self.guard, SERVICES, self.run_service)
         self._start = self.guard.timer(0.01, self._start_transitions)
 
     # --- the parts' inputs ---
@@ -181,11 +187,11 @@ class DriverNode(LifecycleNode):
         if not ok:
             self.last_failure = f'{name} refused: {message}'
             self.get_logger().error(self.last_failure)
-            self.publisher.notify()
+            self.reports.notify()
             return FAILED
         self.lifecycle_state = target
         self.get_logger().info(f'{name}: {message} -> {target}')
-        self.publisher.notify()
+        self.reports.notify()
         return OK
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -222,27 +228,29 @@ class DriverNode(LifecycleNode):
         self.lifecycle_state = 'unconfigured'
         self.get_logger().error('on_error: every module disabled, the bus closed -> '
                                 'unconfigured')
-        self.publisher.notify()
+        self.reports.notify()
         return OK
 
     def _close(self) -> tuple[bool, str]:
         self.session.close()
         return True, 'every module disabled, the bus closed'
 
-    def _guard_change_state(self) -> None:
+    def _refuse_unknown_transitions(self) -> None:
         """Answer a transition the state machine does not have from here false, with why."""
         service = self._service_change_state
         change = service.callback
 
         def guarded(request, response):
-            label = request.transition.label or f'id {request.transition.id}'
+            label = request.transition.label or TRANSITIONS.get(
+                request.transition.id, f'transition {request.transition.id}')
             try:
                 response = change(request, response)
-            except Exception as err:  # noqa: B902 - rcl refused the transition
-                self.last_failure = f'{label} refused in state {self.lifecycle_state}: {err}'
+            except RCLError as err:               # not a transition of the present state
+                self.last_failure = (f'{label} refused in state {self.lifecycle_state}: no '
+                                     f'such transition from it ({str(err).split(",")[0]})')
                 response.success = False
             if not response.success:
-                self.get_logger().warning(f'transition {label}: {self.last_failure}')
+                self.get_logger().warning(self.last_failure)
             return response
         service.callback = guarded
 
@@ -282,8 +290,8 @@ class DriverNode(LifecycleNode):
     def destroy_node(self) -> None:
         """Disable every module and close the bus, stop the threads, destroy the node."""
         self.session.close()
-        self.publisher.close()
-        self.services.close()
+        self.reports.close()
+        self.trigger_services.close()
         super().destroy_node()
 
 

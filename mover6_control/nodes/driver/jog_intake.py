@@ -1,8 +1,8 @@
 """
 The driver's /JointJog intake: each JointJog commanded as joint velocities, or refused.
 
-A JointJog while the driver is not active is not commanded: counted (``ignored``, with the
-reason), not refused (a controller that streams before activation is no bad input). A refused
+A valid JointJog while the driver is not active is not commanded: counted (``ignored``, with
+the reason), not refused (a controller that streams before activation is no bad input). A refused
 JointJog changes nothing: the previous command ages out after ``command_timeout`` and the arm
 holds. Refused are: displacements, no names, unequal lengths, a name twice, an unknown name, a
 non-finite value, a fraction beyond [-1, 1] (fraction_of_max) or a speed beyond
@@ -75,11 +75,6 @@ class JogIntake:
         """Command the velocities of a JointJog, or refuse it with the reason on /diagnostics."""
         counts = self.counts
         counts.received += 1
-        why = self.blocked()
-        if why:
-            counts.ignored += 1
-            counts.last_ignored = why
-            return
         try:
             qd, clipped = self.jog_velocities(msg)
         except JogRefused as err:
@@ -88,6 +83,11 @@ class JogIntake:
             counts.last_refusal = str(err)[:200]
             self.on_refusal()
             raise                       # refused: the node's guard logs and counts it
+        why = self.blocked()
+        if why:
+            counts.ignored += 1
+            counts.last_ignored = why
+            return
         counts.clipped += clipped
         if counts.pending:
             counts.superseded += 1
