@@ -226,7 +226,7 @@ def test_after_a_lost_module(rigs):
     gap = r.largest_gap()
     figure('after a lost module', gap)
     assert np.all(gap <= allowed([0.05] * 6)), gap
-    assert np.all(largest_step(r, since) <= allowed([0.05] * 6, following=False))
+    assert np.all(largest_step(r) <= allowed([0.05] * 6, following=False))
 
 
 @pytest.mark.parametrize('q1,v1', [(np.radians(120.0), -0.01), (1.75, -0.02), (1.75, 0.02)])
