@@ -23,7 +23,7 @@ Essential nodes (the arm, the driver, the controller) end the launch when they e
 ``hardware``: ``sim`` (default) runs sim_bridge; ``can_sim`` runs the CAN-level Mover6
 (``can_sim``) on a pty and, once it is up, the driver on that pty, enabled at start; ``can``
 runs the driver on ``can_interface`` / ``can_channel`` (default the CPR USB2CAN adapter on
-/dev/ttyUSB0), not enabled: call its ~/reset and ~/enable. With the driver the controller's
+/dev/ttyUSB0), not active: activate it (docs/driver.md). With the driver the controller's
 state_timeout is 0.5 s (the driver publishes /joint_states at its 20 Hz cycle). The timed threads
 (the controller's tick, the bridge's physics, the driver's cycle) run at SCHED_FIFO 50 where the
 system allows it (``tick_priority``, ``physics_priority``, ``cycle_priority`` in the parameter

@@ -10,7 +10,7 @@
 #                          [--namespace NS]
 #   --hardware H     what stands for the arm: sim (default: the MuJoCo bridge) | can-sim (the
 #                    CAN-level Mover6 on a pty, can_sim, and the driver on it, enabled at start)
-#                    | can (the driver on a real arm's bus; enable it with its ~/reset, ~/enable)
+#                    | can (the driver on a real arm's bus; activate it: docs/driver.md)
 #   --can-interface I  driver bus with --hardware can: cpr_usb2can (default) | socketcan | pcan
 #   --can-channel C  its channel: /dev/ttyUSB0 (default), can0, ...; with can-sim the pty's
 #                    link (default: a fresh temporary folder's mover6-can)

@@ -67,7 +67,7 @@ def test_the_lifecycle_walked_with_the_cli(tmp_path):
 
 
 def walk(cli, sim, stack):
-    """The walk itself (``cli`` keeps the transcript)."""
+    """Walk the lifecycle on ``sim`` and ``stack`` (``cli`` keeps the transcript)."""
     assert wait_until(lambda: cli.run('get', '/driver')[1] == 'inactive [2]', 60.0), \
         f'{cli.text()}\n{stack.report()}'
     assert not any(m['enabled'] for m in modules(sim))     # configured: nothing enabled

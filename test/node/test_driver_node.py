@@ -59,7 +59,7 @@ class Operator(Node):
         return future.result()
 
     def transition(self, transition_id, timeout=60.0):
-        """Ask the driver for a lifecycle transition (as ros2 lifecycle set); return success."""
+        """Ask the driver to change its state, as ros2 lifecycle set does; return success."""
         assert self.change_state.wait_for_service(timeout_sec=timeout)
         request = ChangeState.Request()
         request.transition.id = transition_id
@@ -303,7 +303,7 @@ def test_hostile_jointjogs_are_refused_by_reason_and_the_arm_holds(rig):
 
 
 def test_the_lifecycle_walked_through_its_service(rig):
-    """configure at start, activate, deactivate, cleanup, configure, shutdown; refusals."""
+    """Configure at start, activate, deactivate, cleanup, configure, shutdown; refusals."""
     driver, operator, arm = rig
     assert wait_for(lambda: operator.lifecycle() == 'inactive', 30.0)
     # Configured: every position read, nothing enabled, nothing moved.

@@ -32,7 +32,7 @@ from mover6_control.hardware.driver_state import ArmReport, ModuleState, POWER_L
 
 SETTLE_TIME = 1.0
 """[s] deactivate waits at most this long for the arm to come to rest before disabling."""
-REST_SPEED = 1e-3
+SETTLED_SPEED = 1e-3
 """[rad/s] below this on every joint the arm is at rest."""
 Timeouts = Callable[[], tuple[float, float]]
 
@@ -110,7 +110,7 @@ class ArmSession:
         if self.driver is None or self.driver.listen_only:
             return True, 'nothing to disable'
         self.driver.set_velocity([0.0] * len(self.driver.names))
-        rest = self._wait(lambda r: all(abs(j.qd) < REST_SPEED for j in r.joints), SETTLE_TIME,
+        rest = self._wait(lambda r: all(abs(j.qd) < SETTLED_SPEED for j in r.joints), SETTLE_TIME,
                           fresh=2)
         ok, message = self._request('disable')
         return ok, ('at rest, ' if rest else f'not at rest after {SETTLE_TIME} s, ') + message

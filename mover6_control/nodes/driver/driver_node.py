@@ -7,22 +7,18 @@ fraction_of_max x ``speed_override``, as the controller's); publishes /joint_sta
 has answered, and /diagnostics (one status per joint, one for the bus with the arm's state, the
 lifecycle state, why it holds, the frames dropped and refused).
 
-The lifecycle (``ros2 lifecycle set /driver <transition>``; docs/driver.md):
-
-- configure: open the bus (and ``frame_log``), read every module's position with commands that
-  move nothing; refused with the reason (bus closed) when a module does not answer;
-- activate: reset, enable (all six or none), reference the joints that require it
-  (config/mover6_joints.yaml); refused with ``listen_only``; JointJog is taken only while active;
-- deactivate: the command stops, the arm comes to rest, every module is disabled;
-- cleanup, shutdown: every module disabled, the bus closed; an error in a transition: on_error
-  disables every module and closes the bus (the node is then unconfigured).
+The lifecycle (``ros2 lifecycle set /driver <transition>``; docs/driver.md tells each
+transition): configure opens the bus and reads every position with commands that move nothing;
+activate resets, enables and references; deactivate stops and disables; cleanup, shutdown and
+on_error disable every module and close the bus.
 
 At start the node configures itself and, with ``enable_on_start``, activates (what the launchers
-ask for); a configure that fails at start ends the process with the reason (exit code 1), as a
-missing adapter always did. Services (std_srvs/Trigger, ``trigger_services``): ~/reset,
-~/disable, ~/set_zero (guarded by ``allow_set_zero``) once configured; ~/enable, ~/reference and
-~/recover (reset + enable + (re)reference in one call, the only way back after power was lost)
-only while active.
+ask for); a configure at start that cannot open the bus or the frame log ends the process with
+the reason (exit code 1), as a missing adapter always did; one that finds the modules silent
+leaves the node unconfigured (configure again once the arm is on). Services (std_srvs/Trigger,
+``trigger_services``): ~/reset, ~/disable, ~/set_zero (guarded by ``allow_set_zero``) once
+configured; ~/enable, ~/reference and ~/recover (reset + enable + (re)reference in one call, the
+only way back after power was lost) only while active.
 
 The work is ``mover6_control.hardware.driver.ArmDriver`` on its own control thread (the cycle),
 made at configure by ``arm_session.ArmSession``; the node converts messages and publishes from a
@@ -41,7 +37,6 @@ from typing import Callable, Optional
 
 import can
 from control_msgs.msg import JointJog
-from lifecycle_msgs.msg import Transition
 from mover6_control.errors import InvalidInputError
 from mover6_control.hardware.bus import open_bus, open_frame_log
 from mover6_control.hardware.driver import ArmDriver
@@ -50,16 +45,15 @@ from mover6_control.nodes.driver.arm_session import ArmSession
 from mover6_control.nodes.driver.jog_intake import JogIntake
 from mover6_control.nodes.driver.report_publisher import ReportPublisher
 from mover6_control.nodes.driver.trigger_services import TriggerServices
+from mover6_control.nodes.driver.unknown_transitions import UnknownTransitions
 from mover6_control.nodes.runtime import shutdown
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.nodes.runtime.params import declare
 from mover6_control.parameters import DRIVER
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 
-RCLError = _rclpy.RCLError
 GRIPPER_BITS = {'off': 0x00, 'open': 0x03, 'closed': 0x02}
 """Joint 4's outputs: bit 0 'gripper open', bit 1 'gripper enabled' (the vendor's CPRMover6)."""
 GRIPPER_JOINT, OUTPUTS_JOINT = 4, 1
@@ -68,9 +62,6 @@ SWITCH_INTERVAL = 0.0005
 SERVICES = ('reset', 'enable', 'disable', 'reference', 'set_zero', 'recover')
 NEEDS_ACTIVE = ('enable', 'reference', 'recover')
 """The services that may move or enable the arm: only while the driver is active."""
-TRANSITIONS = {getattr(Transition, name): name[len('TRANSITION_'):].lower()
-               for name in dir(Transition) if name.startswith('TRANSITION_')}
-"""A transition's id -> its name (configure, activate, ..., active_shutdown)."""
 OK, FAILED, ERROR = (TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE,
                      TransitionCallbackReturn.ERROR)
 
@@ -82,7 +73,8 @@ class DriverNode(LifecycleNode):
         super().__init__('driver', **kwargs)
         self.lifecycle_state = 'unconfigured'
         self.last_failure = ''
-        self._refuse_unknown_transitions()        # inside the guard, which wraps every service
+        self.unknown_transitions = UnknownTransitions(   # inside the guard, made next
+            self, state=lambda: self.lifecycle_state, failure=self._failed)
         self.guard = CallbackGuard(self)     # no callback ends the node (bad input: refused)
         declare(self, DRIVER, guard=self.guard)
         self.guard.after_set(self.on_parameters_set)
@@ -94,6 +86,7 @@ class DriverNode(LifecycleNode):
         self.names = tuple(j.name for j in self.joints)
         self.max_speed = [j.max_speed for j in self.joints]
         self.fatal = None
+        self.cannot_open = False                  # the last transition could not open the bus
         self.session = ArmSession(self._open_driver, self._timeouts,
                                   on_cycle=lambda report: self.reports.on_cycle(report),
                                   allow_set_zero=self._live('allow_set_zero'))
@@ -102,9 +95,9 @@ class DriverNode(LifecycleNode):
                                 blocked=self._jog_blocked, command=self._command,
                                 on_refusal=lambda: self.reports.notify())
         self.reports = ReportPublisher(self, self.names, self.intake.counts,
-                                         lifecycle=lambda: self.lifecycle_state,
-                                         scheduling=self._scheduling,
-                                         rate=self._live('diagnostics_rate'))
+                                       lifecycle=lambda: self.lifecycle_state,
+                                       scheduling=self._scheduling,
+                                       rate=self._live('diagnostics_rate'))
         self.guard.subscription(JointJog, 'JointJog', self.intake.on_jog, 10)
         self.trigger_services = TriggerServices(self, self.guard, SERVICES, self.run_service)
         self._start = self.guard.timer(0.01, self._start_transitions)
@@ -160,6 +153,8 @@ class DriverNode(LifecycleNode):
             limit_set=p['limit_set'], firmware=self.firmware, on_cycle=on_cycle,
             priority=p['cycle_priority'], frame_log=frame_log, listen_only=p['listen_only'])
         self._apply_outputs(driver, get('gripper').value, get('digital_outputs').value)
+        self.get_logger().info(f'bus open: {p["can_interface"]} {p["can_channel"]}, cycle '
+                               f'{driver.cycle} s, JointJog in {p["jog_units"]}')
         return driver
 
     # --- the lifecycle ---
@@ -167,8 +162,14 @@ class DriverNode(LifecycleNode):
     def _start_transitions(self) -> None:
         """Configure at start and, with ``enable_on_start``, activate (one shot)."""
         self._start.cancel()
+        self.cannot_open = False
         if self.trigger_configure() != OK:
-            self.fatal = f'driver: configure at start failed: {self.last_failure}'
+            if self.cannot_open:             # no adapter, a frame log that cannot be written
+                self.fatal = f'driver: configure at start failed: {self.last_failure}'
+            else:                            # modules silent: the arm may be switched on later
+                self.get_logger().warning(
+                    'unconfigured: configure again once the arm answers (ros2 lifecycle set '
+                    f'{self.get_fully_qualified_name()} configure)')
             return
         if self.params['enable_on_start']:
             self.trigger_activate()
@@ -179,6 +180,7 @@ class DriverNode(LifecycleNode):
         try:
             ok, message = step()
         except (InvalidInputError, OSError, can.CanError) as err:
+            self.cannot_open = True
             ok, message = False, f'{type(err).__name__}: {err}'
         except Exception as err:  # noqa: B902 - an error in a transition: on_error follows
             self.last_failure = f'{name}: {type(err).__name__}: {err}'
@@ -196,10 +198,6 @@ class DriverNode(LifecycleNode):
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Open the bus and read every module's position (``ArmSession.configure``)."""
-        p = self.params
-        self.get_logger().info(f'configure: {p["can_interface"]} {p["can_channel"]}, cycle '
-                               f'{self.get_parameter("cycle").value} s, JointJog in '
-                               f'{p["jog_units"]}')
         return self._transition('configure', self.session.configure, 'inactive')
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -235,24 +233,9 @@ class DriverNode(LifecycleNode):
         self.session.close()
         return True, 'every module disabled, the bus closed'
 
-    def _refuse_unknown_transitions(self) -> None:
-        """Answer a transition the state machine does not have from here false, with why."""
-        service = self._service_change_state
-        change = service.callback
-
-        def guarded(request, response):
-            label = request.transition.label or TRANSITIONS.get(
-                request.transition.id, f'transition {request.transition.id}')
-            try:
-                response = change(request, response)
-            except RCLError as err:               # not a transition of the present state
-                self.last_failure = (f'{label} refused in state {self.lifecycle_state}: no '
-                                     f'such transition from it ({str(err).split(",")[0]})')
-                response.success = False
-            if not response.success:
-                self.get_logger().warning(self.last_failure)
-            return response
-        service.callback = guarded
+    def _failed(self, reason: str) -> None:
+        self.last_failure = reason
+        self.get_logger().warning(reason)
 
     # --- services and parameters ---
 

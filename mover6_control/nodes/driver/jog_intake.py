@@ -7,9 +7,9 @@ JointJog changes nothing: the previous command ages out after ``command_timeout`
 holds. Refused are: displacements, no names, unequal lengths, a name twice, an unknown name, a
 non-finite value, a fraction beyond [-1, 1] (fraction_of_max) or a speed beyond
 ``JOG_REFUSE_FACTOR`` times the joint's maximum (rad_per_s; a speed between one and that many
-times its maximum is clipped to it and counted). ``JogCounts`` keeps what /diagnostics tells: the JointJogs received, refused
-(by reason), clipped and superseded (replaced before a cycle used them: a flood), with the last
-refusal's reason.
+times its maximum is clipped to it and counted). ``JogCounts`` keeps what /diagnostics tells:
+the JointJogs received, refused (by reason), clipped and superseded (replaced before a cycle used
+them: a flood), with the last refusal's reason.
 """
 
 from typing import Callable, Sequence
