@@ -21,6 +21,7 @@ from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 from mover6_control.hardware.scaling import load_joints
 from mover6_control.nodes.driver.driver_node import DriverNode, SERVICES
+from mover6_control.nodes.driver.jog_intake import JogIntake, JogRefused
 from mover6_control.nodes.messages import conversions
 import pytest
 import rclpy
@@ -376,3 +377,22 @@ def test_power_lost_reads_as_a_state_and_only_recover_brings_the_arm_back(rig):
     assert wait_for(lambda: operator.bus_status().get('state') == 'enabled'
                     and operator.bus_status().get('hold') == '', 10.0), operator.bus_status()
     assert [m.referenced for m in arm.modules] == [True] * 4 + [False] * 2
+
+
+def test_the_jog_intake_alone():
+    """Built without a node: checks, refuses by reason, commands only while not blocked."""
+    commanded, refusals, blocked = [], [], ['the driver is inactive']
+    intake = JogIntake(NAMES, [j.max_speed for j in JOINTS], 'rad_per_s',
+                       speed_override=lambda: 0.25, blocked=lambda: blocked[0],
+                       command=commanded.append, on_refusal=lambda: refusals.append(1))
+    good = conversions.make_joint_jog(['joint2'], [0.1])
+    intake.on_jog(good)
+    assert commanded == [] and intake.counts.ignored == 1
+    assert intake.counts.last_ignored == 'the driver is inactive'
+    with pytest.raises(JogRefused) as refused:
+        intake.on_jog(conversions.make_joint_jog(['jointX'], [0.1]))
+    assert refused.value.reason == 'unknown_joint' and refusals == [1]
+    blocked[0] = ''
+    intake.on_jog(good)
+    assert commanded == [[0.0, 0.1, 0.0, 0.0, 0.0, 0.0]]
+    assert intake.counts.received == 3 and intake.counts.refused == 1
