@@ -33,7 +33,7 @@ setup(
             'planner = mover6_control.nodes.planner.node:main',
             'controller = mover6_control.nodes.controller.node:main',
             'sim_bridge = sim_bridge.bridge_node:main',
-            'driver = mover6_control.nodes.driver_node:main',
+            'driver = mover6_control.nodes.driver.driver_node:main',
             'can_sim = sim_bridge.can_sim:main',
             'goal = mover6_control.tools.goal_cli:main',
             'teleop = mover6_control.tools.teleop:main',

@@ -264,7 +264,7 @@ def run_variant(name, params, churn, trials, tmp):
 def probe_main(argv):
     """Run the driver node, saving the monotonic time of every cycle's start to ``argv[0]``."""
     from mover6_control.hardware import driver as hw_driver
-    from mover6_control.nodes import driver_node
+    from mover6_control.nodes.driver import driver_node, jog_intake
     times = []
     step = hw_driver.ArmDriver.step
 
@@ -273,14 +273,14 @@ def probe_main(argv):
         return step(self, now)
 
     jogs = []
-    on_jog = driver_node.DriverNode.on_jog
+    on_jog = jog_intake.JogIntake.on_jog
 
     def timed_jog(self, msg):
         jogs.append((time.monotonic(), msg.velocities[0] if len(msg.velocities) else 0.0))
         return on_jog(self, msg)
 
     hw_driver.ArmDriver.step = timed_step
-    driver_node.DriverNode.on_jog = timed_jog
+    jog_intake.JogIntake.on_jog = timed_jog
     try:
         driver_node.main(argv[1:])
     finally:

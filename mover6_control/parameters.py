@@ -379,7 +379,7 @@ SIM_BRIDGE = _table(
       read_only=True),
 )
 
-# The driver of the real arm (nodes/driver_node.py, hardware/driver.py).
+# The driver of the real arm (nodes/driver/, hardware/driver.py).
 DRIVER = _table(
     P('can_interface', 'str', 'cpr_usb2can', '',
       "CAN adapter: cpr_usb2can (the vendor's USB2CAN serial adapter) or a python-can "

@@ -33,7 +33,7 @@ when set (``ros2 param set``), the others are read-only.
 The node is built from parts, each given what it needs in its constructor: the ``Simulator``;
 the ``PhysicsThread`` (``sim_bridge/bridge_physics.py``: pacing, stepping, publishing through
 its ``BridgeOutputs``, the node's publishers); ``SimControls`` (``sim_bridge/bridge_controls.py``,
-no ROS: reset, pause and step on the physics thread); ``JogIntake`` (here: /JointJog into the
+no ROS: reset, pause and step on the physics thread); ``SimJogIntake`` (here: /JointJog into the
 physics thread, refusals counted in the ``Rejections`` the physics thread reports). The node's
 callbacks take the requests apart and call them.
 """
@@ -113,7 +113,7 @@ def open_viewer(sim: Simulator, logger: Any) -> Optional[Any]:
         return None
 
 
-class JogIntake:
+class SimJogIntake:
     """
     /JointJog (serialized) into the simulator: read, validate, hand over; count refusals.
 
@@ -169,7 +169,7 @@ class SimBridgeNode(Node):
         self.rejections = Rejections()
         self.physics = PhysicsThread(self.sim, self.pacing, self.make_outputs(), self.rejections)
         self.controls = SimControls(self.physics, self.arm.joint_names, self.get_logger())
-        self.jogs = JogIntake(self.physics, self.rejections, self.get_logger())
+        self.jogs = SimJogIntake(self.physics, self.rejections, self.get_logger())
         self.guard.subscription(JointJog, 'JointJog', self.jogs.take, STREAM_READER_QOS,
                                 raw=True)
         self.guard.subscription(JointState, '~/reset_to', self.on_reset_to, 10)

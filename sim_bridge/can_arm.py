@@ -38,14 +38,19 @@ jonaitken/cpr_ros2; and the Mover6 user guide's CAN pages):
   raises 0x08 and stops.
 - Start referencing and set zero take effect on the second of two commands; set zero's second
   must follow within ``set_zero_window`` (0.5 s), referencing's within ``reference_window``.
-  Referencing needs the motor enabled and takes ``reference_time``; the simulated encoder
-  already counts from the true zero, so it only sets the referenced bit. Set zero makes the
+  Referencing needs the motor enabled: the motor drives from where it is to its reference
+  switch at ``reference_speed``, stays ``reference_time`` there, then sets the referenced bit
+  (set-points that come meanwhile are kept, not followed). The switch is at the joint's zero
+  (the simulated encoder already counts from the true zero). A brown-out restarts the module:
+  the referenced bit drops. Set zero makes the
   present position read the value in its last two bytes on the wire (big-endian, as
   ``protocol.encode_set_zero`` sends it; the vendor's driver always sends 0).
 
 What is this simulation's and not the vendor's (no vendor source gives the firmware's numbers;
 they are parameters, to be checked on the real arm): ``watchdog_timeout``, ``lag_limit``,
-``reference_time``, ``reference_window``, the interpolation of set-points, that the watchdog,
+``reference_time``, ``reference_window``, ``reference_speed`` and the switch at the joint's zero
+(no vendor source read here gives the referencing speed or the switches' angles), the
+interpolation of set-points, that the watchdog,
 the position lag and an injected flag also set 0x04, what a reply to a command carries, and the
 drive to a kept set-point on enable.
 
@@ -87,13 +92,14 @@ class ModuleTiming:
     lag_limit: float = 0.1             # [rad] reference ahead of position before 0x10
     set_zero_window: float = 0.5       # [s] the second set zero within this
     reference_window: float = 1.0      # [s] the second start referencing within this
-    reference_time: float = 0.5        # [s] from the second start referencing to referenced
+    reference_time: float = 0.5        # [s] at the switch before the referenced bit
+    reference_speed: float = 0.2       # [rad/s] joint speed while driving to the switch
     gain: float = 50.0                 # [1/s] the module's position loop
 
     def __post_init__(self):
         """Check that every number is positive and finite."""
         for name in ('watchdog_timeout', 'lag_limit', 'set_zero_window', 'reference_window',
-                     'reference_time', 'gain'):
+                     'reference_time', 'reference_speed', 'gain'):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise InvalidInputError(f'{name} must be positive and finite, got {value}')
@@ -108,17 +114,22 @@ class MotorModule:
     """
 
     def __init__(self, joint: int, timing: ModuleTiming, top_speed: float = 1.0e4,
-                 answers_commands: bool = True) -> None:
+                 answers_commands: bool = True, switch: float = 0.0,
+                 reference_speed: float = 1.0e3) -> None:
         """
         Power the module up: flags 0x1C, motor off, not referenced.
 
         ``top_speed`` [wire ticks/s] is how fast it drives to a kept set-point on enable;
-        ``answers_commands``: it answers commands as well as set-points.
+        ``answers_commands``: it answers commands as well as set-points. ``switch`` [wire
+        ticks, before set zero] is where referencing drives to, at ``reference_speed``
+        [wire ticks/s].
         """
         self.joint = joint
         self.timing = timing
         self.top_speed = float(top_speed)
         self.answers_commands = bool(answers_commands)
+        self.switch = float(switch)
+        self.reference_speed = float(reference_speed)
         self.max_setpoint_gap = 0      # [wire ticks] the largest set-point an enabled one met
         self.setpoint_range = None     # (lowest, highest) set-point taken [wire ticks]
         self.flags = POWER_UP_FLAGS
@@ -176,7 +187,7 @@ class MotorModule:
         elif command.kind == 'reference':
             if self._second_of_pair('reference', now, self.timing.reference_window) \
                     and self.enabled:
-                self._referencing_until = now + self.timing.reference_time
+                self._start_referencing(position, now)
         elif command.kind == 'set_zero':
             if self._second_of_pair('set_zero', now, self.timing.set_zero_window):
                 self.bias += command.position - position
@@ -197,6 +208,14 @@ class MotorModule:
         self._ref_from, self._ref_to = float(position), float(kept)
         self._ramp_start = now
         self._ramp_time = max(abs(kept - position) / self.top_speed, _MIN_INTERVAL)
+
+    def _start_referencing(self, position, now):
+        """Drive from ``position`` [wire ticks] to the switch at the referencing speed."""
+        target = self.switch + self.bias
+        self._ref_from, self._ref_to = float(position), target
+        self._ramp_start = now
+        self._ramp_time = max(abs(target - position) / self.reference_speed, _MIN_INTERVAL)
+        self._referencing_until = now + self._ramp_time + self.timing.reference_time
 
     def _reply(self, position):
         """Return the reply payload for the encoder at ``position`` [wire ticks]."""
@@ -281,6 +300,8 @@ class MotorModule:
     def inject(self, flags: int, encoder: int, now: float, sticky: bool = False) -> None:
         """Raise error ``flags`` (0..255) at ``now`` [s]; any error stops the motor."""
         self.flags |= flags
+        if flags & BROWN_OUT:
+            self.referenced = False      # the module restarted: its reference is gone
         if sticky:
             self.sticky_flags |= flags
         self._stop(encoder + self.bias, now)
@@ -288,6 +309,7 @@ class MotorModule:
     def status(self) -> dict:
         """Return the module's state as plain values."""
         return {'flags': self.flags, 'enabled': self.enabled, 'referenced': self.referenced,
+                'referencing': self._referencing_until is not None,
                 'silent': self.silent, 'setpoint': self.last_setpoint, 'bias': self.bias,
                 'setpoints': self.setpoints, 'setpoint_changed': self.setpoint_changed,
                 'replies': self.replies, 'ignored': self.ignored,
@@ -325,8 +347,10 @@ class CanArm:
         self.sim = Simulator(arm, sim_config or SimConfig(mode='rad_per_s'), home_q)
         self._tpr = np.array([s.ticks_per_rad for s in self.scales])
         self.modules = tuple(
-            MotorModule(j, self.timing, abs(v * t), answers_commands)
-            for j, v, t in zip(protocol.JOINTS, arm.velocity_limits, self._tpr))
+            MotorModule(j, self.timing, abs(v * t), answers_commands, switch=s.offset,
+                        reference_speed=abs(self.timing.reference_speed * t))
+            for j, v, t, s in zip(protocol.JOINTS, arm.velocity_limits, self._tpr,
+                                  self.scales))
         self._offset = np.array([s.offset for s in self.scales], dtype=float)
         self._lag_ticks = np.abs(self.timing.lag_limit * self._tpr)
         self._vmax = np.array(arm.velocity_limits)

@@ -3,7 +3,8 @@ Drive a ``ControllerCore`` through the calls the controller node makes, in one t
 
 The node hands each /joint_states message to the core by name (``controller_node.on_joint_states``:
 ``on_named_joint_states``), and takes each demand in its demand thread
-(``controller_demands.take_demand``): ``check_demand``; then, per attempt, a ``snapshot``,
+(``nodes.controller.demand_thread.DemandThread.take_demand``): ``check_demand``; then, per
+attempt, a ``snapshot``,
 ``prepare_demand`` from it, and under its lock (``commit_if_current``) ``refusal`` (the state
 takes no demand: refused), ``is_current`` (the controller moved on since the snapshot: planned
 again, up to ``DEMAND_ATTEMPTS``, the last committed as it is) and ``commit_demand`` from the
@@ -21,7 +22,7 @@ from mover6_control.control.timed_plan import Timing
 from mover6_control.errors import InvalidInputError
 import numpy as np
 
-# Plans of one demand before the last is committed as it is (controller_demands.DEMAND_ATTEMPTS;
+# Plans of one demand before the last is committed as it is (demand_thread.DEMAND_ATTEMPTS;
 # the node's module needs ROS, so it is not imported here).
 DEMAND_ATTEMPTS = 3
 

@@ -22,7 +22,7 @@ ROOT = os.path.dirname(CONFIG_DIR)
 MODULES = {'sim_bridge': 'sim_bridge.bridge_node',
            'controller': 'mover6_control.nodes.controller.node',
            'planner': 'mover6_control.nodes.planner.node',
-           'driver': 'mover6_control.nodes.driver_node',
+           'driver': 'mover6_control.nodes.driver.driver_node',
            'can_sim': 'sim_bridge.can_sim',
            'recorder': 'mover6_control.nodes.recorder_node',
            'state_publisher': 'mover6_control.nodes.state_publisher_node',

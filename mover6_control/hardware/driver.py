@@ -26,7 +26,8 @@ enabled.** So:
   inward, at the commanded speed;
 - a command older than ``command_timeout`` stops the integration at the next cycle: the arm
   holds where it is (the vendor keeps the last command forever);
-- any error flag on any joint, a joint not enabled, or a missed reply holds the whole arm
+- any error flag on any joint, a joint not enabled, a missed reply, a joint that requires
+  referencing and is not referenced, or a lost reference (``driver_state``) holds the whole arm
   (velocity zero, set-points frozen: the driver does not know where the joint is, it does not
   guess), with the reason in the report; it moves on when the reply comes, and a module silent
   for ``silent_cycles`` cycles in a row is a latched ``fault`` until ``reset``;
@@ -141,6 +142,11 @@ class ArmDriver:
     def names(self) -> tuple[str, ...]:
         """Return the joint names, in module order."""
         return tuple(j.scale.name for j in self._joints)
+
+    @property
+    def joint_scales(self) -> tuple[JointScale, ...]:
+        """Return the joints' scaling (and referencing), in module order."""
+        return tuple(j.scale for j in self._joints)
 
     @property
     def report(self) -> Optional[ArmReport]:

@@ -129,6 +129,9 @@ class ReplyIntake:
             return 0
         if j.ticks is not None and j.reply_time is not None and now > j.reply_time:
             j.qd = j.scale.to_rad(ticks - j.ticks) / (now - j.reply_time)
+        if j.reply is not None and j.reply.referenced and not reply.referenced and \
+                j.scale.reference_required:
+            j.reference_lost = True          # latched: only a confirmed referencing clears it
         j.reply, j.ticks, j.reply_time = reply, ticks, now
         j.replies += 1
         j.relearn = False

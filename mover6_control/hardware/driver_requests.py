@@ -196,6 +196,9 @@ class Requests:
                 continue
             missing, failed = self._confirmation(req)
             if not missing:
+                if req.kind == 'reference':
+                    for n in req.joints:
+                        self.joints[n - 1].reference_lost = False
                 req.finish(True, f'{req.kind}: confirmed by joints {list(req.joints)}')
             elif failed or now - req.sent >= req.timeout:
                 why = missing if failed else f'not confirmed within {req.timeout} s ({missing})'

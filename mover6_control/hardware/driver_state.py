@@ -6,6 +6,9 @@ Per joint and for the arm the state is a ``ModuleState``: disconnected (no reply
 (enabled and referenced), fault (silent). The arm's state is its worst joint's (``ARM_ORDER``),
 or ``power_lost`` when every module reports its supply flag at once (brown-out on the Mover6's
 modules, "e-stop or supply too low" on CAN V2 ones): the e-stop was pressed or the power went.
+A joint whose scaling requires referencing holds the arm until its module reports the
+referenced bit; a referenced bit that drops (a brown-out restarts the module) latches
+``reference_lost``, which only a confirmed referencing clears (a reset does not).
 ``JointRecord`` is what the driver (``hardware.driver.ArmDriver``) keeps of one joint between
 cycles; ``hold_reason`` says why the arm may not move; ``joint_report`` and ``arm_state`` make
 the cycle's ``ArmReport``.
@@ -40,8 +43,9 @@ ARM_ORDER = (S.FAULT, S.DISCONNECTED, S.ERROR, S.CONNECTED, S.ENABLED, S.REFEREN
 FOLLOWING = (S.ENABLED, S.REFERENCED)
 # The flag by which a module says its supply went, per firmware (protocol.ERROR_FLAGS' names).
 POWER_FLAGS = ('brown_out', 'estop_or_low_supply')
-POWER_LOST_REASON = ('power lost on every module (the e-stop was pressed, or the supply went): '
-                     'make the arm safe, release the e-stop, then ~/reset and ~/enable')
+POWER_LOST_REASON = ('power lost (e-stop?): every module reports its supply flag (the e-stop was '
+                     'pressed, or the supply went). Recovery: make the arm safe, release the '
+                     'e-stop, then call ~/recover (reset, enable, re-reference)')
 
 
 @dataclass(frozen=True)
@@ -59,6 +63,8 @@ class JointReport:
     referenced: bool
     silent_cycles: int
     replies: int
+    reference_required: bool = False
+    reference_lost: bool = False
 
 
 @dataclass(frozen=True)
@@ -100,6 +106,7 @@ class JointRecord:
         self.unknown_cycles = 0    # cycles without a position yet
         self.relearn = False       # a command may have moved or re-zeroed it: take the next reply
         self.outputs = 0
+        self.reference_lost = False  # its referenced bit dropped: latched until re-referenced
 
     def next_counter(self) -> int:
         """Return the counter byte of the next set-point: 1..255, wrapping past 0."""
@@ -165,6 +172,13 @@ def hold_reason(joints: Sequence[JointRecord], busy: set, firmware: str,
             return f'{j.scale.name}: error flags {names}'
         if state == S.CONNECTED:
             return f'{j.scale.name}: motor not enabled'
+    for j in joints:
+        if j.reference_lost:
+            return (f'{j.scale.name}: reference lost (its referenced bit dropped): '
+                    're-reference it (~/recover or ~/reference)')
+        if j.scale.reference_required and not j.reply.referenced:
+            return (f'{j.scale.name}: not referenced (referencing required): activate the '
+                    'driver, or call ~/reference or ~/recover')
     return ''
 
 
@@ -177,7 +191,8 @@ def joint_report(j: JointRecord, firmware: str) -> JointReport:
         name=j.scale.name, state=j.state(), q=q, qd=j.qd, setpoint=sp, lag=sp - q,
         flags=flags, flag_names=p.flag_names(flags, firmware),
         referenced=bool(j.reply and j.reply.referenced), silent_cycles=j.silent,
-        replies=j.replies)
+        replies=j.replies, reference_required=j.scale.reference_required,
+        reference_lost=j.reference_lost)
 
 
 def arm_state(joints: Sequence[JointReport]) -> ModuleState:

@@ -37,6 +37,8 @@ class JointScale:
     One joint's scaling: ``gear`` (signed), ``ticks_per_rev`` per motor turn, ``offset`` [ticks].
 
     ``limits`` maps a limit set's name to (lower, upper) [rad]; ``max_speed`` [rad/s].
+    ``reference_required``: no motion while the module is not referenced; ``reference_order``:
+    joints are referenced one at a time, lowest first (ties in module order).
     """
 
     name: str
@@ -46,6 +48,8 @@ class JointScale:
     offset: int
     limits: Mapping[str, tuple[float, float]]
     max_speed: float
+    reference_required: bool = False
+    reference_order: int = 0
 
     @property
     def ticks_per_rad(self) -> float:
@@ -138,9 +142,26 @@ def joint_from_dict(entry: Mapping, where: str = 'joint') -> JointScale:
             raise InvalidInputError(f'{where}: limits.{set_name} must be [lower, upper] [deg] '
                                     f'with lower < upper, got {pair!r}')
         limits[str(set_name)] = (math.radians(pair[0]), math.radians(pair[1]))
+    required, order = _referencing(entry.get('referencing'), where)
     return JointScale(name=name, module=_integer(entry, 'module', where), gear=gear,
                       ticks_per_rev=ticks, offset=_integer(entry, 'offset', where),
-                      limits=limits, max_speed=math.radians(speed))
+                      limits=limits, max_speed=math.radians(speed),
+                      reference_required=required, reference_order=order)
+
+
+def _referencing(raw, where: str) -> tuple[bool, int]:
+    """Return (required, order) from a joint's ``referencing`` entry (absent: not required)."""
+    if raw is None:
+        return False, 0
+    if not isinstance(raw, Mapping) or not isinstance(raw.get('required'), bool) or \
+            set(raw) - {'required', 'order'}:
+        raise InvalidInputError(f'{where}: referencing must be {{required: true|false, '
+                                f'order: N}}, got {raw!r}')
+    order = raw.get('order', 0)
+    if isinstance(order, bool) or not isinstance(order, int) or order < 0:
+        raise InvalidInputError(f'{where}: referencing.order must be an integer >= 0, '
+                                f'got {order!r}')
+    return raw['required'], order
 
 
 def joints_from_dict(data: Mapping) -> tuple[str, tuple[JointScale, ...]]:

@@ -1,5 +1,5 @@
 """
-The sim_bridge node's parts, each built alone: ``PhysicsThread``, ``SimControls``, ``JogIntake``.
+The sim_bridge node parts, each built alone: ``PhysicsThread``, ``SimControls``, ``SimJogIntake``.
 
 A real ``Simulator`` (MuJoCo) under each; the publishers are recording stand-ins (the node's
 are rclpy's, exercised by ``test_sim_node.py``), and the physics thread is never started: the
@@ -15,7 +15,7 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 from sim_bridge.bridge_controls import SimControls
-from sim_bridge.bridge_node import JogIntake
+from sim_bridge.bridge_node import SimJogIntake
 from sim_bridge.bridge_physics import (BridgeOutputs, MAX_BATCH, Pacing, PhysicsThread,
                                        Rejections)
 from sim_bridge.simulator import SimConfig, Simulator
@@ -129,7 +129,7 @@ def test_jog_intake_hands_commands_over_and_counts_refusals():
     """A JointJog moves the simulated arm; a bad one is refused, counted, changes nothing."""
     physics, _ = build()
     rejections = physics.rejections
-    intake = JogIntake(physics, rejections, Log())
+    intake = SimJogIntake(physics, rejections, Log())
     intake.take(jog(NAMES, [0.2, 0, 0, 0, 0, 0]))
     assert physics.pending is not None
     with physics.step_lock:

@@ -3,7 +3,9 @@ The driver node with real rclpy, on python-can's ``virtual`` bus, against the CA
 
 The arm is ``sim_bridge.can_sim.BusServer`` (six simulated motor modules on the MuJoCo arm) on
 the same virtual channel, in a thread of this process; a client node plays the controller and
-the operator (JointJog, the services, /joint_states, /diagnostics).
+the operator (JointJog, the services, the lifecycle services, /joint_states, /diagnostics).
+The node configures itself at start (``enable_on_start`` false: it stays inactive); the tests
+walk the lifecycle through its ``change_state`` service, as ``ros2 lifecycle set`` does.
 """
 
 import itertools
@@ -15,8 +17,11 @@ import time
 import can
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticArray
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState, GetState
 from mover6_control.hardware.scaling import load_joints
-from mover6_control.nodes.driver_node import DriverNode
+from mover6_control.nodes.driver.driver_node import DriverNode, SERVICES
+from mover6_control.nodes.driver.jog_intake import JogIntake, JogRefused
 from mover6_control.nodes.messages import conversions
 import pytest
 import rclpy
@@ -43,8 +48,9 @@ class Operator(Node):
         self.jog_pub = self.create_publisher(JointJog, 'JointJog', 10)
         self.create_subscription(JointState, 'joint_states', self.states.append, 10)
         self.create_subscription(DiagnosticArray, 'diagnostics', self.diagnostics.append, 10)
-        self.triggers = {k: self.create_client(Trigger, f'driver/{k}')
-                         for k in ('reset', 'enable', 'disable', 'reference', 'set_zero')}
+        self.triggers = {k: self.create_client(Trigger, f'driver/{k}') for k in SERVICES}
+        self.change_state = self.create_client(ChangeState, 'driver/change_state')
+        self.get_state = self.create_client(GetState, 'driver/get_state')
 
     def call(self, kind, timeout=60.0):
         client = self.triggers[kind]
@@ -52,6 +58,22 @@ class Operator(Node):
         future = client.call_async(Trigger.Request())
         assert wait_for(future.done, timeout), f'{kind}: no answer'
         return future.result()
+
+    def transition(self, transition_id, timeout=60.0):
+        """Ask the driver to change its state, as ros2 lifecycle set does; return success."""
+        assert self.change_state.wait_for_service(timeout_sec=timeout)
+        request = ChangeState.Request()
+        request.transition.id = transition_id
+        future = self.change_state.call_async(request)
+        assert wait_for(future.done, timeout), f'transition {transition_id}: no answer'
+        return future.result().success
+
+    def lifecycle(self, timeout=10.0):
+        """Return the driver's lifecycle state label (as ros2 lifecycle get)."""
+        assert self.get_state.wait_for_service(timeout_sec=timeout)
+        future = self.get_state.call_async(GetState.Request())
+        assert wait_for(future.done, timeout)
+        return future.result().current_state.label
 
     def bus_status(self):
         for msg in reversed(self.diagnostics):
@@ -73,15 +95,37 @@ def wait_for(predicate, timeout=60.0):
     return bool(predicate())
 
 
-@pytest.fixture
-def rig():
+class Arm:
+    """The simulated arm served in a thread; ``lock`` keeps a fault injection between polls."""
+
+    def __init__(self, channel):
+        self.arm = build_arm()
+        self.modules = self.arm.modules
+        self.server = BusServer(self.arm, can.Bus(interface='virtual', channel=channel))
+        self.lock = threading.Lock()
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self):
+        while not self.stop.is_set():
+            with self.lock:
+                self.server.poll(self.arm.sim.config.physics_dt)
+
+    def inject(self, joint, flags, sticky=False):
+        with self.lock:
+            self.arm.inject_flags(joint, flags, time.monotonic(), sticky)
+
+    def close(self):
+        self.stop.set()
+        self.thread.join(timeout=10.0)
+        self.server.bus.shutdown()
+
+
+def make_rig(extra=()):
     channel = f'driver_node_{os.getpid()}_{next(RUNS)}'
     namespace = f'{NS}_{next(RUNS)}'
-    arm = build_arm()
-    server = BusServer(arm, can.Bus(interface='virtual', channel=channel))
-    stop = threading.Event()
-    serving = threading.Thread(target=server.serve, args=(stop,), daemon=True)
-    serving.start()
+    arm = Arm(channel)
     context = rclpy.Context()
     rclpy.init(context=context)
     # The simulated modules share this process (and its interpreter lock) with rclpy and the
@@ -90,22 +134,39 @@ def rig():
     # priority here: it would raise every thread of the test process.
     driver = DriverNode(context=context, namespace=namespace, parameter_overrides=[
         Parameter('can_interface', value='virtual'), Parameter('can_channel', value=channel),
-        Parameter('silent_cycles', value=40), Parameter('cycle_priority', value=0)])
+        Parameter('silent_cycles', value=40), Parameter('cycle_priority', value=0),
+        *extra])
     operator = Operator(context, namespace)
     executor = MultiThreadedExecutor(num_threads=4, context=context)
     executor.add_node(driver)
     executor.add_node(operator)
     spinning = threading.Thread(target=executor.spin, daemon=True)
     spinning.start()
-    yield driver, operator, arm
-    executor.shutdown()
-    spinning.join(timeout=10.0)
-    driver.destroy_node()
-    operator.destroy_node()
-    rclpy.try_shutdown(context=context)
-    stop.set()
-    serving.join(timeout=10.0)
-    server.bus.shutdown()
+
+    def close():
+        executor.shutdown()
+        spinning.join(timeout=10.0)
+        driver.destroy_node()
+        operator.destroy_node()
+        rclpy.try_shutdown(context=context)
+        arm.close()
+    return (driver, operator, arm), close
+
+
+@pytest.fixture
+def rig():
+    parts, close = make_rig()
+    yield parts
+    close()
+
+
+def activate(operator):
+    """Activate the driver (configured at start): reset, enable, reference; wait for it."""
+    assert wait_for(lambda: operator.lifecycle() == 'inactive', 30.0)
+    assert operator.transition(Transition.TRANSITION_ACTIVATE)
+    assert operator.lifecycle() == 'active'
+    assert wait_for(lambda: operator.bus_status().get('state') == 'enabled'
+                    and operator.bus_status().get('hold') == '')
 
 
 def jog(operator, velocities, seconds):
@@ -126,11 +187,9 @@ def test_states_diagnostics_enable_and_jog(rig):
     assert operator.bus_status()['state'] == 'error', operator.bus_status()  # power-up: 0x1C
     assert 'comm_watchdog' in operator.bus_status()['hold'] or \
         'position_lag' in operator.bus_status()['hold']
-    reply = operator.call('reset')
-    assert reply.success, reply.message
-    reply = operator.call('enable')
-    assert reply.success, reply.message
-    assert wait_for(lambda: operator.bus_status().get('state') == 'enabled')
+    activate(operator)
+    assert operator.bus_status()['lifecycle'] == 'active'
+    assert [m.referenced for m in arm.modules] == [True] * 4 + [False] * 2
     start = operator.q()
     jog(operator, [0.2, 0, 0, 0, 0, 0], 1.0)
     assert wait_for(lambda: operator.q()[0] - start[0] > 0.05)
@@ -180,6 +239,8 @@ def test_set_zero_is_guarded_and_parameters_are_checked(rig):
     result = driver.set_parameters([Parameter('gripper', value='open')])[0]
     assert result.successful
     assert wait_for(lambda: arm.modules[3].digital_out == 0x03)
+    reply = operator.call('enable')           # inactive: enabling is the activation's
+    assert not reply.success and 'activate it first' in reply.message
     result = driver.set_parameters([Parameter('gripper', value='wide')])[0]
     assert not result.successful
 
@@ -213,10 +274,7 @@ def hostile_jogs():
 
 def test_hostile_jointjogs_are_refused_by_reason_and_the_arm_holds(rig):
     driver, operator, arm = rig
-    assert operator.call('reset').success
-    reply = operator.call('enable')
-    assert reply.success, reply.message
-    assert wait_for(lambda: operator.bus_status().get('state') == 'enabled')
+    activate(operator)
     start = operator.q()
     cases = hostile_jogs()
     expected = {}
@@ -243,3 +301,98 @@ def test_hostile_jointjogs_are_refused_by_reason_and_the_arm_holds(rig):
     fast.velocities = [1.5 * driver.max_speed[0]] + [0.0] * 5
     qd, clipped = driver.jog_velocities(fast)
     assert clipped == 1 and qd[0] == pytest.approx(1.5 * driver.max_speed[0])
+
+
+def test_the_lifecycle_walked_through_its_service(rig):
+    """Configure at start, activate, deactivate, cleanup, configure, shutdown; refusals."""
+    driver, operator, arm = rig
+    assert wait_for(lambda: operator.lifecycle() == 'inactive', 30.0)
+    # Configured: every position read, nothing enabled, nothing moved.
+    assert wait_for(lambda: operator.states)
+    assert all(not m.enabled for m in arm.modules)
+    # Inactive: a valid JointJog is counted, not commanded.
+    operator.jog_pub.publish(conversions.make_joint_jog(NAMES, [0.2] * 6))
+    assert wait_for(lambda: operator.bus_status().get('jog_ignored') == '1')
+    assert 'inactive' in operator.bus_status()['last_ignored']
+    # Out of order: the state machine refuses with its reason, the node stays where it was.
+    assert not operator.transition(Transition.TRANSITION_CONFIGURE)
+    assert operator.lifecycle() == 'inactive'
+    assert 'configure refused in state inactive' in driver.last_failure
+    activate(operator)
+    start = operator.q()
+    jog(operator, [0.2] + [0.0] * 5, 0.5)
+    assert wait_for(lambda: operator.q()[0] - start[0] > 0.02)
+    # Deactivate: the arm comes to rest, every module is disabled.
+    assert operator.transition(Transition.TRANSITION_DEACTIVATE)
+    assert operator.lifecycle() == 'inactive'
+    assert all(not m.enabled for m in arm.modules)
+    assert wait_for(lambda: operator.bus_status().get('state') == 'connected')
+    # Cleanup: the bus is closed; activate from unconfigured is refused.
+    assert operator.transition(Transition.TRANSITION_CLEANUP)
+    assert operator.lifecycle() == 'unconfigured' and driver.driver is None
+    assert not operator.transition(Transition.TRANSITION_ACTIVATE)
+    assert operator.lifecycle() == 'unconfigured'
+    reply = operator.call('reset')
+    assert not reply.success and 'not configured' in reply.message
+    # Configure again (positions read, the reference kept by the modules), then shut down.
+    assert operator.transition(Transition.TRANSITION_CONFIGURE)
+    assert operator.lifecycle() == 'inactive' and driver.driver is not None
+    activate(operator)
+    assert operator.transition(Transition.TRANSITION_ACTIVE_SHUTDOWN)
+    assert operator.lifecycle() == 'finalized' and driver.driver is None
+    assert all(not m.enabled for m in arm.modules)
+
+
+def test_listen_only_refuses_activation():
+    (driver, operator, arm), close = make_rig([Parameter('listen_only', value=True)])
+    try:
+        assert wait_for(lambda: operator.lifecycle() == 'inactive', 30.0)
+        assert not operator.transition(Transition.TRANSITION_ACTIVATE)
+        assert operator.lifecycle() == 'inactive'
+        assert 'listen_only' in driver.last_failure
+        assert all(not m.enabled for m in arm.modules)
+    finally:
+        close()
+
+
+def test_power_lost_reads_as_a_state_and_only_recover_brings_the_arm_back(rig):
+    driver, operator, arm = rig
+    activate(operator)
+    for n in range(1, 7):                     # the e-stop: every module browns out, and stays
+        arm.inject(n, 0x01, sticky=True)
+    assert wait_for(lambda: operator.bus_status().get('state') == 'power_lost', 10.0)
+    status = operator.bus_status()
+    assert status['hold'].startswith('power lost (e-stop?)') and '~/recover' in status['hold']
+    message = [s.message for s in operator.diagnostics[-1].status if s.name == 'driver: bus']
+    assert message and message[0].startswith('power lost (e-stop?)'), message
+    reply = operator.call('enable')
+    assert not reply.success and 'power lost' in reply.message, reply.message
+    reply = operator.call('recover')          # the e-stop is still pressed
+    assert not reply.success and 'power still lost' in reply.message, reply.message
+    with arm.lock:
+        for m in arm.modules:                 # the e-stop released
+            m.sticky_flags = 0
+    reply = operator.call('recover')
+    assert reply.success, reply.message
+    assert wait_for(lambda: operator.bus_status().get('state') == 'enabled'
+                    and operator.bus_status().get('hold') == '', 10.0), operator.bus_status()
+    assert [m.referenced for m in arm.modules] == [True] * 4 + [False] * 2
+
+
+def test_the_jog_intake_alone():
+    """Built without a node: checks, refuses by reason, commands only while not blocked."""
+    commanded, refusals, blocked = [], [], ['the driver is inactive']
+    intake = JogIntake(NAMES, [j.max_speed for j in JOINTS], 'rad_per_s',
+                       speed_override=lambda: 0.25, blocked=lambda: blocked[0],
+                       command=commanded.append, on_refusal=lambda: refusals.append(1))
+    good = conversions.make_joint_jog(['joint2'], [0.1])
+    intake.on_jog(good)
+    assert commanded == [] and intake.counts.ignored == 1
+    assert intake.counts.last_ignored == 'the driver is inactive'
+    with pytest.raises(JogRefused) as refused:
+        intake.on_jog(conversions.make_joint_jog(['jointX'], [0.1]))
+    assert refused.value.reason == 'unknown_joint' and refusals == [1]
+    blocked[0] = ''
+    intake.on_jog(good)
+    assert commanded == [[0.0, 0.1, 0.0, 0.0, 0.0, 0.0]]
+    assert intake.counts.received == 3 and intake.counts.refused == 1

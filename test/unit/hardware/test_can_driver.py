@@ -14,6 +14,7 @@ from mover6_control.hardware.scaling import load_joints
 from mover6_control.parameters import DRIVER
 import numpy as np
 import pytest
+from sim_bridge.can_arm import ModuleTiming
 from sim_bridge.can_sim import build_arm, BusServer
 
 CYCLE = 0.05
@@ -26,10 +27,10 @@ TICK = np.array([j.tick for j in JOINTS])
 class Rig:
     """The driver and the arm on one virtual bus, stepped together on synthetic time."""
 
-    def __init__(self):
+    def __init__(self, home_q=None):
         channel = f'can_driver_test_{next(CHANNELS)}'
         self.t = 0.0
-        self.arm = build_arm()
+        self.arm = build_arm(home_q=home_q)
         self.arm_bus = can.Bus(interface='virtual', channel=channel)
         self.driver_bus = can.Bus(interface='virtual', channel=channel)
         self.server = BusServer(self.arm, self.arm_bus, clock=lambda: self.t)
@@ -73,11 +74,16 @@ def rig():
 
 
 def enabled(rig):
-    """Reset and enable; return the report."""
+    """Reset, enable and reference what has not been (as the driver's activation); report."""
     ok, reason = rig.request('reset')
     assert ok, reason
     ok, reason = rig.request('enable')
     assert ok, reason
+    report = rig.run(CYCLE)
+    for n, (j, scale) in enumerate(zip(report.joints, JOINTS), start=1):
+        if scale.reference_required and (not j.referenced or j.reference_lost):
+            ok, reason = rig.request('reference', [n])
+            assert ok, reason
     return rig.run(2 * CYCLE)
 
 
@@ -91,6 +97,8 @@ def test_start_up_sequence(rig):
     ok, reason = rig.request('enable')
     assert ok, reason
     report = rig.run(CYCLE)
+    assert report.state == 'enabled' and 'joint1: not referenced' in report.hold
+    report = enabled(rig)                 # J1..J4 referenced (the joint file's order)
     assert report.state == 'enabled' and report.hold == ''
     assert [j.flags for j in report.joints] == [0] * 6
 
@@ -158,7 +166,7 @@ def test_referencing_one_joint(rig):
     ok, reason = rig.request('reference', [3])
     assert ok, reason
     report = rig.run(CYCLE)
-    assert [j.referenced for j in report.joints] == [False, False, True, False, False, False]
+    assert [j.referenced for j in report.joints] == [True] * 4 + [False] * 2
     assert report.joints[2].state == 'referenced'
 
 
@@ -171,9 +179,89 @@ def test_a_brown_out_on_every_module_reads_as_power_lost_with_the_recovery_steps
         rig.arm.inject_flags(n, 0x01, rig.t)
     report = rig.run(2 * CYCLE, [0.2] * 6)
     assert report.state == 'power_lost'
-    assert 'power lost' in report.hold and 'e-stop' in report.hold and '~/reset' in report.hold
+    assert report.hold.startswith('power lost (e-stop?)') and '~/recover' in report.hold
     q = rig.arm.sim.q.copy()
     rig.run(0.5, [0.2] * 6)
     assert np.all(np.abs(rig.arm.sim.q - q) <= TICK)      # held
-    enabled(rig)                                          # released: reset, enable
-    assert rig.run(CYCLE).state == 'enabled'
+    # The modules restarted: J1..J4 lost their reference, latched until re-referenced.
+    assert [j.reference_lost for j in report.joints] == [True] * 4 + [False] * 2
+    for kind in ('reset', 'enable'):
+        ok, reason = rig.request(kind)
+        assert ok, reason
+    report = rig.run(CYCLE, [0.2] * 6)
+    assert 'joint1: reference lost' in report.hold
+    enabled(rig)                                          # re-referenced: released
+    report = rig.run(CYCLE)
+    assert report.state == 'enabled' and report.hold == ''
+    assert not any(j.reference_lost for j in report.joints)
+
+
+def test_no_motion_while_a_required_joint_is_unreferenced(rig):
+    """Enabled, J1..J4 not referenced: a command moves nothing, with the reason."""
+    for kind in ('reset', 'enable'):
+        ok, reason = rig.request(kind)
+        assert ok, reason
+    q = rig.arm.sim.q.copy()
+    report = rig.run(0.5, [0.2] * 6)
+    assert report.state == 'enabled' and 'joint1: not referenced' in report.hold
+    assert np.all(np.abs(rig.arm.sim.q - q) <= TICK)
+    rig.run(0.3)                                          # the command times out
+    for n in (1, 2, 3):                                   # J4 still not referenced
+        assert rig.request('reference', [n])[0]
+    report = rig.run(0.5, [0.2] * 6)
+    assert 'joint4: not referenced' in report.hold
+    assert np.all(np.abs(rig.arm.sim.q - q) <= TICK)
+    rig.run(0.3)
+    assert rig.request('reference', [4])[0]
+    rig.run(0.5, [0.2] * 6)
+    assert np.all(rig.arm.sim.q - q > 0.05)               # J5, J6 need none: all six move
+
+
+def test_referencing_drives_to_the_switch_at_the_referencing_speed():
+    """From 0.3 rad, J2 drives to its switch (angle 0) at the referencing speed, then is done."""
+    start = 0.3
+    rig = Rig(home_q=[0.0, start, 0.0, 0.0, 0.0, 0.0])
+    try:
+        enabled_without = [rig.request(kind) for kind in ('reset', 'enable')]
+        assert all(ok for ok, _ in enabled_without), enabled_without
+        timing = ModuleTiming()
+        req = rig.driver.request('reference', [2], timeout=10.0)
+        t0, path = rig.t, []
+        while req.ok is None:
+            rig.run(CYCLE)
+            path.append((rig.t - t0, rig.arm.sim.q[1]))
+        took = rig.t - t0
+        assert req.ok, req.reason
+        expected = start / timing.reference_speed + timing.reference_time
+        print(f'J2 referenced from {start} rad in {took:.3f} s (expected {expected:.3f} s: '
+              f'{start} rad at {timing.reference_speed} rad/s, {timing.reference_time} s at the '
+              'switch)')
+        assert abs(took - expected) <= 3 * CYCLE, (took, expected)
+        times, q = np.array(path).T
+        moving = (times > 0.2) & (times < start / timing.reference_speed - 0.2)
+        speed = np.abs(np.diff(q[moving]) / np.diff(times[moving]))
+        assert np.all(np.abs(speed - timing.reference_speed) <= 0.1 * timing.reference_speed), \
+            speed
+        assert abs(rig.arm.sim.q[1]) <= 2 * TICK[1]
+        report = rig.run(CYCLE)
+        assert report.joints[1].referenced and abs(report.joints[1].q) <= 2 * TICK[1]
+    finally:
+        rig.close()
+
+
+def test_a_dropped_referenced_bit_latches_until_the_joint_is_referenced_again(rig):
+    enabled(rig)
+    rig.arm.inject_flags(2, 0x01, rig.t)                  # J2's module restarts alone
+    report = rig.run(2 * CYCLE)
+    assert report.joints[1].reference_lost and not report.joints[1].referenced
+    for kind in ('reset', 'enable'):                      # a reset does not clear it
+        ok, reason = rig.request(kind)
+        assert ok, reason
+    q = rig.arm.sim.q.copy()
+    report = rig.run(0.5, [0.2] * 6)
+    assert report.joints[1].reference_lost and 'joint2: reference lost' in report.hold
+    assert np.all(np.abs(rig.arm.sim.q - q) <= TICK)
+    rig.run(0.3)                                          # the command times out
+    assert rig.request('reference', [2])[0]
+    report = rig.run(CYCLE)
+    assert not report.joints[1].reference_lost and report.hold == ''

@@ -11,6 +11,7 @@ goes idle (settled) and the modules' encoder counts are within one tick of the g
 joint: 8.3e-6 rad for J1-J4, 6.1e-3 rad for J5 and J6.
 """
 
+from dataclasses import replace
 import itertools
 
 import can
@@ -25,7 +26,9 @@ import pytest
 from sim_bridge.can_sim import build_arm, BusServer
 
 ARM = mover6()
-_, JOINTS = load_joints()
+# The set-point discipline without referencing's hold (the joint file may say a joint needs no
+# referencing; test_can_driver.py and test_referencing.py test the hold and the referencing).
+JOINTS = tuple(replace(j, reference_required=False) for j in load_joints()[1])
 TICKS_PER_RAD = np.array([j.ticks_per_rad for j in JOINTS])
 OFFSET = np.array([j.offset for j in JOINTS])
 MAX_SPEED = np.array([j.max_speed for j in JOINTS])

@@ -10,6 +10,7 @@ was sent when it is enabled. The cycle runs on synthetic time (``step(t)``), exc
 test of the control thread.
 """
 
+from dataclasses import replace
 import itertools
 import threading
 import time
@@ -23,7 +24,9 @@ from mover6_control.hardware.scaling import load_joints
 from mover6_control.parameters import DRIVER
 import pytest
 
-_, JOINTS = load_joints()
+# The set-point discipline without referencing's hold (the joint file may say a joint needs no
+# referencing; test_can_driver.py and test_referencing.py test the hold and the referencing).
+JOINTS = tuple(replace(j, reference_required=False) for j in load_joints()[1])
 SILENT_CYCLES = DRIVER['silent_cycles'].default     # the shipped parameter
 CHANNELS = itertools.count()
 

@@ -114,6 +114,11 @@ def _data():
     (lambda d: d['joints'][3].update(offset=0.5), 'offset must be an integer'),
     (lambda d: d.update(firmware='mover4'), 'firmware must be one of'),
     (lambda d: d.update(joints=[]), 'non-empty list'),
+    (lambda d: d['joints'][0].update(referencing={'required': 'yes'}), 'referencing must be'),
+    (lambda d: d['joints'][0].update(referencing={'required': True, 'order': -1}),
+     'referencing.order'),
+    (lambda d: d['joints'][0].update(referencing={'required': True, 'speed': 1}),
+     'referencing must be'),
 ])
 def test_bad_joint_file_is_refused(edit, match):
     data = copy.deepcopy(_data())
@@ -121,6 +126,14 @@ def test_bad_joint_file_is_refused(edit, match):
     with pytest.raises(InvalidInputError, match=match):
         joints_from_dict(data)
     assert joints_from_dict(_data())[1] == JOINTS
+
+
+def test_referencing_j1_to_j4_in_order_the_wrist_needs_none():
+    required = [(j.name, j.reference_order) for j in JOINTS if j.reference_required]
+    assert required == [('joint1', 1), ('joint2', 2), ('joint3', 3), ('joint4', 4)]
+    data = copy.deepcopy(_data())
+    del data['joints'][0]['referencing']                     # absent: not required
+    assert not joints_from_dict(data)[1][0].reference_required
 
 
 def test_unreadable_file():
