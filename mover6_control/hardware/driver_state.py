@@ -76,6 +76,9 @@ class ArmReport:
     bus_error: str
     bad_frames: tuple[tuple[str, int], ...] = ()
     last_bad_frame: str = ''
+    link: str = 'up'             # the link to the adapter: 'up' or 'lost'
+    link_losses: int = 0         # links lost so far
+    link_outage: float = 0.0     # [s] the last lost link's time to its reopening
 
 
 class JointRecord:
@@ -100,6 +103,16 @@ class JointRecord:
         self.unknown_cycles = 0    # cycles without a position yet
         self.relearn = False       # a command may have moved or re-zeroed it: take the next reply
         self.outputs = 0
+
+    def forget(self) -> None:
+        """Forget what was measured (the link to the modules went): unknown until they answer."""
+        self.reply = self.reply_time = self.ticks = self.setpoint = self.echo_value = None
+        self.replies = self.silent = self.unknown_cycles = 0
+        self.qd = self.velocity = 0.0
+        self.fault = self.relearn = False
+        self.track = True
+        self.sent = {}
+        self.echo_seq = -1
 
     def next_counter(self) -> int:
         """Return the counter byte of the next set-point: 1..255, wrapping past 0."""
