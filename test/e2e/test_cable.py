@@ -29,8 +29,10 @@ def rig(tmp_path):
     with CanSimProcess(tmp_path, tmp_path / 'mover6-can') as sim:
         _, joints = load_joints()
         states = []
+
         def on_cycle(report):
             states.append((time.monotonic(), str(report.state), report.link))
+
         driver = ArmDriver(open_bus('cpr_usb2can', sim.link), joints, on_cycle=on_cycle)
         driver.start()
         try:
