@@ -21,6 +21,7 @@ one line of JSON, ``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``:
     silent JOINT on|off          the module stops answering, or answers again
     corrupt COUNT [JOINT]        flip a byte in each of the next COUNT frames sent (of JOINT's
                                  module only, if given): the adapter's reader must drop them
+    inputs BITS                  set the arm's digital inputs (joint 1's module, 0..0x7F)
     unplug                       the adapter pulled: the pty is closed (a driver's reads and
                                  writes fail) and the link removed; the modules keep running
                                  (their watchdog stops them)
@@ -260,6 +261,9 @@ class SerialArm:
     def command(self, words: list[str]) -> dict:
         """Carry out one control command; return what to answer."""
         now = time.monotonic()
+        if len(words) == 2 and words[0] == 'inputs':
+            self.arm.set_inputs(_parse_int(words[1], 'BITS'))
+            return {}
         if words == ['unplug']:
             if self.pty is not None:
                 self.written += self.pty.written
@@ -296,7 +300,7 @@ class SerialArm:
             return {}
         raise InvalidInputError(
             f'unknown command {" ".join(words)!r}: status | flags JOINT FLAGS [sticky] | '
-            f'silent JOINT on|off | corrupt COUNT [JOINT] | unplug | replug')
+            f'silent JOINT on|off | corrupt COUNT [JOINT] | inputs BITS | unplug | replug')
 
 
 def control(path: str, line: str, timeout: float = 5.0) -> dict:

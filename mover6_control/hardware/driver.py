@@ -42,6 +42,9 @@ enabled.** So:
 - a control thread that dies reports it: its last report is a ``fault`` with the exception
   (``thread_error``), not silence.
 
+The gripper (joint 4's digital outputs, ``set_gripper``) reports nothing back: the report carries
+its estimated gap (``gripper.GripperModel``) and the arm's digital inputs (joint 1's replies).
+
 Observability that cannot move the arm: ``frame_log`` (a ``can.Listener``, e.g. python-can's
 candump log writer from ``bus.open_frame_log``) gets every frame sent and read, with its
 direction; ``listen_only`` sends nothing at all (no disable at start, no set-point, every request
@@ -77,6 +80,7 @@ from mover6_control.hardware.driver_replies import ReplyIntake
 from mover6_control.hardware.driver_requests import Request, Requests
 from mover6_control.hardware.driver_state import (
     arm_state, ArmReport, hold_reason, joint_report, JointRecord, ModuleState)
+from mover6_control.hardware.gripper import GripperModel
 from mover6_control.hardware.link import LinkWatch
 from mover6_control.hardware.outbox import Outbox
 from mover6_control.hardware.scaling import JointScale
@@ -131,6 +135,7 @@ class ArmDriver:
                                    self.listen_only)
         self._requests = Requests(self._joints, self._outbox, firmware)
         self.link = LinkWatch(bus)
+        self.gripper = GripperModel()
         self.thread_error = ''
         self.cycle = float(cycle)
         self.command_timeout = float(command_timeout)
@@ -190,6 +195,21 @@ class ArmDriver:
             raise InvalidInputError(f'digital outputs must be an int in 0..255, got {bits!r}')
         with self._lock:
             self._joints[joint - 1].outputs = bits
+            if joint == p.GRIPPER_JOINT:
+                self.gripper.set(p.decode_gripper(bits), self.clock())
+
+    def set_gripper(self, command: str) -> float:
+        """
+        Drive the gripper: 'open', 'closed' or 'off' (joint 4's outputs); return its arrival [s].
+
+        The bits go with joint 4's next set-point; the gap is estimated (``gripper``).
+        """
+        with self._lock:
+            j = self._joints[p.GRIPPER_JOINT - 1]
+            j.outputs = p.encode_gripper(command, j.outputs)
+            now = self.clock()
+            self.gripper.set(command, now)
+            return self.gripper.arrival(now)
 
     def request(self, kind: str, joints: Optional[Sequence[int]] = None,
                 timeout: float = 2.0) -> Request:
@@ -316,7 +336,14 @@ class ArmDriver:
                          bad_frames=tuple(sorted(intake.bad_reasons.items())),
                          last_bad_frame=intake.last_bad,
                          link='lost' if self.link.lost_at is not None else 'up',
-                         link_losses=self.link.losses, link_outage=self.link.last_outage)
+                         link_losses=self.link.losses, link_outage=self.link.last_outage,
+                         gripper=self.gripper.report(now),
+                         inputs=self._inputs())
+
+    def _inputs(self) -> tuple[bool, ...]:
+        """Return the digital inputs of joint 1's module's latest reply, () before one."""
+        reply = self._joints[p.IO_JOINT - 1].reply
+        return () if reply is None else p.decode_inputs(reply.inputs)
 
     # --- the control thread ---
 

@@ -18,6 +18,7 @@ from enum import StrEnum
 from typing import Optional, Sequence
 
 from mover6_control.hardware import protocol as p
+from mover6_control.hardware.gripper import GripperReport
 from mover6_control.hardware.scaling import JointScale
 
 
@@ -77,6 +78,8 @@ class ArmReport:
     bad_frames: tuple[tuple[str, int], ...] = ()
     last_bad_frame: str = ''
     link: str = 'up'             # the link to the adapter: 'up' or 'lost'
+    gripper: Optional[GripperReport] = None
+    inputs: tuple[bool, ...] = ()   # the arm's digital inputs (joint 1's module), () unknown
     link_losses: int = 0         # links lost so far
     link_outage: float = 0.0     # [s] the last lost link's time to its reopening
 
