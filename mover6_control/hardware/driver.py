@@ -196,7 +196,7 @@ class ArmDriver:
         with self._lock:
             self._joints[joint - 1].outputs = bits
             if joint == p.GRIPPER_JOINT:
-                self.gripper.set(p.decode_gripper(bits), self.clock())
+                self.gripper.command_at(p.decode_gripper(bits), self.clock())
 
     def set_gripper(self, command: str) -> float:
         """
@@ -208,7 +208,7 @@ class ArmDriver:
             j = self._joints[p.GRIPPER_JOINT - 1]
             j.outputs = p.encode_gripper(command, j.outputs)
             now = self.clock()
-            self.gripper.set(command, now)
+            self.gripper.command_at(command, now)
             return self.gripper.arrival(now)
 
     def request(self, kind: str, joints: Optional[Sequence[int]] = None,

@@ -47,7 +47,7 @@ class GripperModel:
         self._from = 0.0          # the gap when the last command came [m]
         self._since = None        # when it came [s]
 
-    def set(self, command: str, now: float) -> None:
+    def command_at(self, command: str, now: float) -> None:
         """Take ``command`` (off, open, closed; ProtocolError for another) at ``now`` [s]."""
         p.encode_gripper(command)
         if command == self.command:

@@ -48,14 +48,14 @@ def test_the_inputs_are_the_low_bits_of_a_replys_last_byte():
 def test_the_model_estimates_the_gap_from_the_command_and_the_time():
     model = GripperModel()
     assert model.report(0.0).position == 0.0 and model.command == 'off'
-    model.set('open', 1.0)
+    model.command_at('open', 1.0)
     assert model.arrival(1.0) == pytest.approx(STROKE_TIME)
     half = model.report(1.0 + STROKE_TIME / 2)
     assert half.position == pytest.approx(STROKE / 2) and half.moving and half.velocity > 0
     assert model.report(1.0 + STROKE_TIME).position == pytest.approx(STROKE)
-    model.set('closed', 1.0 + STROKE_TIME / 2)          # closes from half way
+    model.command_at('closed', 1.0 + STROKE_TIME / 2)          # closes from half way
     assert model.position(1.0 + STROKE_TIME * 3 / 4) == pytest.approx(STROKE / 4)
-    model.set('off', 10.0)                               # not driven: stays where it is
+    model.command_at('off', 10.0)                               # not driven: stays where it is
     assert model.position(20.0) == 0.0 and not model.report(20.0).moving
 
 
