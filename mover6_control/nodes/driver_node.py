@@ -43,6 +43,7 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.hardware.bus import open_bus, open_frame_log
 from mover6_control.hardware.driver import ArmDriver
 from mover6_control.hardware.scaling import JOINTS_YAML, load_joints
+from mover6_control.nodes.driver.gripper_action import GripperAction, InputPublisher
 from mover6_control.nodes.driver_jog import JogInput
 from mover6_control.nodes.driver_publish import ReportPublisher
 from mover6_control.nodes.runtime import shutdown
@@ -117,6 +118,8 @@ class DriverNode(JogInput, ReportPublisher, Node):
         for kind in ('reset', 'enable', 'disable', 'reference', 'set_zero'):
             self.guard.service(Trigger, f'{base}/{kind}', self._service(kind),
                                on=self._service_node)
+        self.gripper_action = GripperAction(self, self._service_node)
+        self.inputs = InputPublisher(self, self._service_node)
         self._service_executor = MultiThreadedExecutor(num_threads=2, context=self.context)
         self._service_executor.add_node(self._service_node)
         self._service_thread = threading.Thread(target=self._serve, name='driver_services',

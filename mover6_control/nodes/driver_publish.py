@@ -17,6 +17,7 @@ from typing import Iterable, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
 from mover6_control.hardware.driver_state import ArmReport, ModuleState
+from mover6_control.hardware.gripper import NAME as GRIPPER
 from mover6_control.nodes.messages.conversions import make_joint_state, make_status
 
 LEVELS = {ModuleState.FAULT: 'ERROR', ModuleState.ERROR: 'ERROR',
@@ -73,9 +74,11 @@ class ReportPublisher:
         if report is not None:
             self._seen = report
             if all(j.replies for j in report.joints):
+                grip = report.gripper        # the gripper's estimated gap, as a joint
                 self.pub_states.publish(make_joint_state(
-                    self.names, [j.q for j in report.joints],
-                    [j.qd for j in report.joints], stamp=self.get_clock().now().to_msg()))
+                    self.names + (GRIPPER,), [j.q for j in report.joints] + [grip.position],
+                    [j.qd for j in report.joints] + [grip.velocity],
+                    stamp=self.get_clock().now().to_msg()))
         if self._seen is not None:
             self._maybe_diagnostics(self._seen, force)
 

@@ -1,0 +1,1 @@
+"""The driver node of the real Mover6 and its parts."""
