@@ -20,6 +20,7 @@ mover6_control: the one entry point.
   ./run.sh launch [args]   the three nodes in the foreground until Ctrl-C (scripts/launch.sh)
   ./run.sh goal ...        the goal CLI (./run.sh goal --help)
   ./run.sh record [-o BAG] [TOPICS]  record the stack's topics (rosbag2 MCAP) until Ctrl-C
+  ./run.sh first-run [--can-sim] [--yes]  jog each joint +5 deg and back, confirm its direction, write the calibration file
   ./run.sh report BAG      the demo's report (plots, metrics, gif) of a recording
   ./run.sh bench [--quick] the benchmarks: tables on the console, JSON in bench/results/
   ./run.sh setup           only set up (also done on first use of any other command)
@@ -380,6 +381,12 @@ case "$cmd" in
     record)
         ensure
         exec python -m mover6_control.tools.record "$@"
+        ;;
+    first-run)
+        # Each joint +5 deg and back, its direction confirmed (docs/real_arm.md); --can-sim --yes
+        # on the simulated arm.
+        ensure
+        exec python -m mover6_control.tools.first_run "$@"
         ;;
     report)
         ensure

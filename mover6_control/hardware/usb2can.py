@@ -28,6 +28,8 @@ device is back (the driver calls it with back-off, ``hardware.link``).
 from __future__ import annotations
 
 import collections
+import os
+import select
 import threading
 import time
 from typing import Iterable, Optional
@@ -210,10 +212,38 @@ class Usb2CanBus(can.BusABC):
             if port is None:
                 raise can.CanOperationError(f'USB2CAN link lost: {self.link_error}')
             try:
-                port.write(frame)
+                self._write(port, frame)
             except (serial.SerialException, OSError) as err:   # a timeout too: never blocks
                 self._lose('write', err)
                 raise can.CanOperationError(self.link_error) from err
+
+    def _write(self, port: serial.SerialBase, frame: bytes) -> None:
+        """
+        Write ``frame``, waiting at most ``write_timeout`` [s] while the device takes no bytes.
+
+        The port's descriptor is non-blocking (pyserial opens it so): the deadline counts only
+        while a write would block. pyserial's own write timeout also fires when the writing
+        thread was merely held up for longer than it after writing everything (on a loaded
+        machine: a link taken for lost that was not).
+        """
+        try:
+            fd = port.fileno()
+        except (AttributeError, NotImplementedError, serial.SerialException):
+            port.write(frame)                # a pyserial URL without a descriptor (tests)
+            return
+        view = memoryview(frame)
+        deadline = time.monotonic() + self._write_timeout
+        while view:
+            try:
+                view = view[os.write(fd, view):]
+                continue
+            except BlockingIOError:
+                pass
+            left = deadline - time.monotonic()
+            if left <= 0.0:
+                raise serial.SerialTimeoutException(
+                    f'write timeout: the adapter took no bytes for {self._write_timeout} s')
+            select.select([], [fd], [], left)
 
     def _recv_internal(self, timeout: Optional[float]) -> tuple[Optional[can.Message], bool]:
         """Return the next decoded frame, or None once ``timeout`` [s] passed (None: wait)."""

@@ -41,6 +41,7 @@ from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticArray
 from mover6_control.errors import InvalidInputError
 from mover6_control.hardware.bus import open_bus, open_frame_log
+from mover6_control.hardware.calibration import calibration_refusal
 from mover6_control.hardware.driver import ArmDriver
 from mover6_control.hardware.scaling import JOINTS_YAML, load_joints
 from mover6_control.nodes.driver.gripper_action import GripperAction, InputPublisher
@@ -78,6 +79,9 @@ class DriverNode(JogInput, ReportPublisher, Node):
         if p['listen_only'] and p['enable_on_start']:
             raise SystemExit('driver: listen_only sends nothing, enable_on_start asks to enable: '
                              'refused (set one of them false)')
+        refusal = calibration_refusal(p['calibration_file'], joints, self.get_logger().warning)
+        if refusal:
+            raise SystemExit(f'driver: {refusal}')
         try:
             frame_log = open_frame_log(p['frame_log']) if p['frame_log'] else None
         except InvalidInputError as err:
