@@ -102,7 +102,9 @@ class ReportPublisher:
                 'jog_received': self.jogs, 'jog_refused': self.refused,
                 'jog_refused_by': counts(sorted(self.refused_by.items())),
                 'jog_clipped': self.clipped, 'jog_superseded': self.superseded,
-                'last_refusal': self.last_refusal, 'scheduling': self.driver.scheduling}))
+                'last_refusal': self.last_refusal, 'scheduling': self.driver.scheduling,
+                'link': report.link, 'link_losses': report.link_losses,
+                'link_outage': report.link_outage}))
         for j in report.joints:
             msg.status.append(make_status(
                 f'driver: {j.name}', LEVELS[j.state], j.state, {
