@@ -50,8 +50,8 @@ from sensor_msgs.msg import JointState
 JOG_PERIOD = 0.02
 """[s] between two JointJogs (the driver's command_timeout is 0.2 s)."""
 SETTLE = 0.3
-"""[s] of /joint_states at rest (no joint faster than ``REST_SPEED``) before a reading."""
-REST_SPEED = 1e-3
+"""[s] of /joint_states at rest (no joint faster than ``AT_REST_BELOW``) before a reading."""
+AT_REST_BELOW = 1e-3
 """[rad/s]"""
 TOLERANCE = math.radians(0.05)
 """[rad] a jog is done this near its target (or within a tick, for the coarse wrist encoders)."""
@@ -152,7 +152,7 @@ class ArmLink(Node):
         while time.monotonic() < end:
             self.jog([0.0] * len(self.names))
             self.spin_for(JOG_PERIOD)
-            moving = self.qd is None or any(abs(v) > REST_SPEED for v in self.qd) or \
+            moving = self.qd is None or any(abs(v) > AT_REST_BELOW for v in self.qd) or \
                 time.monotonic() - self.stamp > 0.5
             still_since = None if moving else (still_since or time.monotonic())
             if still_since is not None and time.monotonic() - still_since >= SETTLE:

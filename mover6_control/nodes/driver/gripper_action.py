@@ -36,7 +36,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from std_msgs.msg import MultiArrayDimension, UInt8MultiArray
 
-FEEDBACK_PERIOD = 0.1
+GRIPPER_FEEDBACK_PERIOD = 0.1
 """[s] between two feedback messages of a goal."""
 SLACK = 1.0
 """[s] a goal may take beyond the estimated arrival before it is aborted."""
@@ -98,7 +98,7 @@ class GripperAction:
                 handle.abort()
                 return result
             handle.publish_feedback(feedback)
-            wake.wait(FEEDBACK_PERIOD)
+            wake.wait(GRIPPER_FEEDBACK_PERIOD)
         handle.succeed()
         self.node.get_logger().info(f'gripper: {command}, gap {result.position:.4f} m')
         return result
