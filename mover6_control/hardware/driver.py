@@ -290,6 +290,7 @@ class ArmDriver:
                 self._report = self._make_report(now, self.link.reason(now), period)
                 return False
             self._started = False            # as at start: disable, then read every position
+            self._intake.bus_error = self._outbox.error = ''    # the old link's errors
         return True
 
     def _listen(self, now: float, period: float) -> None:

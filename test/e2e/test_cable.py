@@ -81,7 +81,7 @@ def test_a_pulled_adapter_holds_reopens_and_stays_disabled(rig):
     assert [j.state for j in report.joints] == [ModuleState.ERROR] * 6, report
     assert all('comm_watchdog' in j.flag_names for j in report.joints)
     assert not any(m['enabled'] for m in status['modules'])
-    assert report.hold and report.link_losses == 1
+    assert report.hold and report.link_losses == 1 and report.bus_error == ''
     for ok_kind in ('reset', 'enable'):
         ok, reason = driver.request(ok_kind, timeout=5.0).wait(10.0)
         assert ok, reason
