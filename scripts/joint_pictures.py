@@ -19,7 +19,7 @@ from mover6_control.kinematics.arm import mover6  # noqa: E402
 from mover6_control.kinematics.forward import fk_frames_batch  # noqa: E402
 import numpy as np  # noqa: E402
 
-START = np.radians([0.0, 20.0, 40.0, 0.0, 40.0, 0.0])
+START = np.radians([0.0, 0.0, 0.0, 0.0, 45.0, 0.0])
 TURN = math.radians(30.0)
 
 
