@@ -12,13 +12,17 @@ position known again is printed as a FIGURE line.
 
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 from mover6_control.hardware.bus import open_bus
 from mover6_control.hardware.driver import ArmDriver
 from mover6_control.hardware.driver_state import ModuleState
 from mover6_control.hardware.link import BACKOFF_MAX
 from mover6_control.hardware.scaling import load_joints
+from mover6_control.nodes.messages.conversions import status_level_name, status_values
 import pytest
-from ros_testing import CanSimProcess, wait_until
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from ros_testing import CanSimProcess, spin_until, Stack, wait_until
 
 pytestmark = pytest.mark.e2e
 
@@ -101,3 +105,50 @@ def test_close_never_hangs_with_the_adapter_gone(rig):
     took = time.monotonic() - start
     print(f'FIGURE cable: close() with the adapter gone took {took:.3f} s')
     assert took < 1.0
+
+
+def test_the_driver_node_says_so_on_diagnostics(tmp_path):
+    """The driver as a process on can_sim's pty: the loss and the return on /diagnostics."""
+    with CanSimProcess(tmp_path, tmp_path / 'mover6-can') as sim:
+        driver = {'can_interface': 'cpr_usb2can', 'can_channel': sim.link,
+                  'enable_on_start': True}
+        with Stack(tmp_path, driver=driver, names=('driver',)) as stack:
+            context = rclpy.Context()
+            rclpy.init(context=context)
+            node = rclpy.create_node('cable_watch', context=context)
+            executor = SingleThreadedExecutor(context=context)
+            executor.add_node(node)
+            seen = []
+
+            def on_diagnostics(msg):
+                for status in msg.status:
+                    if status.name == 'driver: bus':
+                        seen.append((status_level_name(status), status_values(status)))
+            node.create_subscription(DiagnosticArray, 'diagnostics', on_diagnostics, 10)
+            try:
+                def bus():
+                    return seen[-1][1] if seen else {}
+                assert spin_until(executor, lambda: bus().get('state') == 'enabled', 60.0), \
+                    stack.report()
+                assert sim.control('unplug')['ok']
+                assert spin_until(executor, lambda: bus().get('link') == 'lost', 10.0), \
+                    stack.report()
+                lost = bus()
+                assert lost['state'] == 'disconnected' and seen[-1][0] == 'WARN'
+                assert 'link to the CAN adapter lost' in lost['hold']
+                assert sim.control('replug')['ok']
+                t_replug = time.monotonic()
+                # Back, every module answered, none enabled: 'connected' (the driver's disable
+                # came before the watchdog) or 'error' (the watchdog came first).
+                t_back = spin_until(executor, lambda: bus().get('link') == 'up' and
+                                    bus().get('state') in ('connected', 'error'), 15.0)
+                assert t_back, stack.report()
+                back = bus()
+                assert back['hold'] and back['link_losses'] == '1'
+                assert not any(m['enabled'] for m in sim.control('status')['modules'])
+                print(f'FIGURE cable: the driver node on /diagnostics: link lost, then back '
+                      f'{t_back - t_replug:.2f} s after the replug, arm {back["state"]} '
+                      f'({back["hold"]}): not enabled until asked')
+            finally:
+                node.destroy_node()
+                rclpy.try_shutdown(context=context)
