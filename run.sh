@@ -43,6 +43,7 @@ case "$cmd" in
     record) ensure; exec python -m mover6_control.tools.record "$@" ;;
     report) ensure; exec python -m mover6_control.tools.report "$@" ;;
     generate) ensure; exec python -m mover6_control.tools.generate "$ROOT" "$@" ;;
+    first-run) ensure; exec python -m mover6_control.tools.first_run "$@" ;;   # docs/real_arm.md
     bench)
         ensure
         in_private_netns bench "$@"

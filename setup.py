@@ -40,6 +40,7 @@ setup(
             'state_publisher = mover6_control.nodes.state_publisher_node:main',
             'markers = mover6_control.nodes.markers_node:main',
             'recorder = mover6_control.nodes.recorder_node:main',
+            'first_run = mover6_control.tools.first_run:main',
         ],
     },
 )

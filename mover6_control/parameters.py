@@ -424,6 +424,10 @@ DRIVER = _table(
     P('frame_log', 'str', '', '',
       "every frame sent and read, with its direction, to this file (python-can's writer by "
       "the suffix: .log candump's format); '' = none; set at start", read_only=True),
+    P('calibration_file', 'str', '', '',
+      "first_run's calibration file (per joint: direction and scale confirmed); a direction "
+      "seen wrong with the gear the joint still has refuses the start; '' = none; set at start",
+      read_only=True),
     P('listen_only', 'bool', False, '',
       'send nothing: decode and publish what the modules answer to another master on the bus '
       '(every request refused); set at start', read_only=True),

@@ -54,6 +54,12 @@ interpolation of set-points, that the watchdog,
 the position lag and an injected flag also set 0x04, what a reply to a command carries, and the
 drive to a kept set-point on enable.
 
+The gripper (``SimGripper``): joint 4's module drives it by its output bits (bit 1 enabled, bit 0
+open: ``protocol.decode_gripper``), taken with every set-point; its gap runs between 0 and
+``GRIPPER_STROKE`` in ``GRIPPER_TIME`` (this simulation's numbers: no vendor source gives them),
+and it reports nothing back, as the real one. The arm's digital inputs are joint 1's module's
+``inputs`` (``set_inputs``), reported in every reply's ``data[7]`` beside the referenced bit.
+
 Faults to inject (``inject_flags``, ``set_silent``): any error flags on a module (cleared by a
 reset unless sticky), and a silent module that takes commands but never answers. A corrupted
 byte on the wire belongs to the serial adapter: ``sim_bridge.can_sim`` injects it.
@@ -103,6 +109,34 @@ class ModuleTiming:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise InvalidInputError(f'{name} must be positive and finite, got {value}')
+
+
+GRIPPER_STROKE = 0.03        # [m] the simulated gripper's gap when open
+GRIPPER_TIME = 0.8           # [s] the simulated gripper from closed to open
+
+
+class SimGripper:
+    """The gripper on joint 4's outputs: its gap [m] follows the command bits over time."""
+
+    def __init__(self, stroke: float = GRIPPER_STROKE, stroke_time: float = GRIPPER_TIME) -> None:
+        """Start closed, not driven."""
+        self.stroke = float(stroke)
+        self.speed = self.stroke / float(stroke_time)
+        self.gap = 0.0
+        self.command = 'off'
+        self._time = None
+
+    def advance(self, outputs: int, now: float) -> None:
+        """Move the gap to ``now`` [s] under the output bits ``outputs`` (joint 4's module)."""
+        dt = 0.0 if self._time is None else max(0.0, now - self._time)
+        self._time = now
+        self.command = protocol.decode_gripper(outputs)
+        goal = {'open': self.stroke, 'closed': 0.0}.get(self.command)
+        if goal is None:
+            return
+        step = self.speed * dt
+        self.gap = goal if abs(goal - self.gap) <= step else \
+            self.gap + step * (1.0 if goal > self.gap else -1.0)
 
 
 class MotorModule:
@@ -359,6 +393,7 @@ class CanArm:
         self._sim0 = self.sim.time
         self.frames_in = 0
         self.foreign = 0                           # frames on IDs no module takes
+        self.gripper = SimGripper()
 
     # --- the encoders --------------------------------------------------------------------
 
@@ -381,6 +416,7 @@ class CanArm:
     def receive(self, can_id: int, data: bytes, now: float) -> list[tuple[int, bytes]]:
         """Take one frame at ``now`` [s]; return the replies as (CAN ID, payload)."""
         self._run_physics(now)
+        self.gripper.advance(self.modules[protocol.GRIPPER_JOINT - 1].digital_out, now)
         self.frames_in += 1
         try:
             joint, is_reply = protocol.joint_of_id(can_id)
@@ -412,6 +448,7 @@ class CanArm:
         encoders = self.encoders()
         for i, module in enumerate(self.modules):
             module.watchdog(now, int(encoders[i]))
+        self.gripper.advance(self.modules[protocol.GRIPPER_JOINT - 1].digital_out, now)
         return n
 
     def _run_physics(self, now):
@@ -459,6 +496,12 @@ class CanArm:
         self.advance(now)
         module.inject(flags, int(self.encoders()[joint - 1]), now, sticky)
 
+    def set_inputs(self, bits: int) -> None:
+        """Set the arm's digital inputs (joint 1's module, bits 0..6; 0x80 is not an input)."""
+        if isinstance(bits, bool) or not isinstance(bits, int) or not 0 <= bits <= 0x7F:
+            raise InvalidInputError(f'inputs must be an int in 0..0x7F, got {bits!r}')
+        self.modules[protocol.IO_JOINT - 1].inputs = bits
+
     def set_silent(self, joint: int, silent: bool) -> None:
         """Make the module of ``joint`` (1..6) stop answering (True) or answer again."""
         self._module(joint).silent = bool(silent)
@@ -473,4 +516,5 @@ class CanArm:
         """Return the arm's state as plain values: q [rad], encoders, every module."""
         return {'time': self.sim.time, 'q': self.sim.q.tolist(),
                 'positions': self.positions().tolist(), 'frames_in': self.frames_in,
-                'foreign': self.foreign, 'modules': [m.status() for m in self.modules]}
+                'foreign': self.foreign, 'modules': [m.status() for m in self.modules],
+                'gripper': {'gap': self.gripper.gap, 'command': self.gripper.command}}

@@ -21,6 +21,11 @@ one line of JSON, ``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``:
     silent JOINT on|off          the module stops answering, or answers again
     corrupt COUNT [JOINT]        flip a byte in each of the next COUNT frames sent (of JOINT's
                                  module only, if given): the adapter's reader must drop them
+    inputs BITS                  set the arm's digital inputs (joint 1's module, 0..0x7F)
+    unplug                       the adapter pulled: the pty is closed (a driver's reads and
+                                 writes fail) and the link removed; the modules keep running
+                                 (their watchdog stops them)
+    replug                       the adapter back: a new pty, linked at the same path
 
 (``control()`` below sends one; e.g. ``python3 -m sim_bridge.can_sim --send PATH status``.)
 
@@ -178,6 +183,8 @@ class SerialArm:
         self.decoder = usb2can.SerialFrameDecoder(accept_ids=COMMAND_IDS)
         self.corruptor = Corruptor()
         self.pty = PtyLink(link)
+        self.link = link
+        self.written = 0                  # frames written on ptys closed since (unplugged)
         self.control_path = control_path
         if os.path.lexists(control_path):
             os.unlink(control_path)
@@ -194,13 +201,15 @@ class SerialArm:
         self.listener.close()
         if os.path.exists(self.control_path):
             os.unlink(self.control_path)
-        self.pty.close()
+        if self.pty is not None:
+            self.pty.close()
 
     def run(self) -> None:
         """Serve until ``running`` is cleared (by a signal)."""
         dt = self.arm.sim.config.physics_dt
         while self.running:
-            fds = [self.pty.master, self.listener] + list(self.clients)
+            fds = [self.listener] + list(self.clients) + \
+                ([self.pty.master] if self.pty is not None else [])
             try:
                 ready, _, _ = select.select(fds, [], [], dt)
             except InterruptedError:
@@ -213,7 +222,7 @@ class SerialArm:
             # Always drain the port before the watchdog looks (advance): frames that came while
             # this process was held up are taken as arriving now, not as missing.
             now = time.monotonic()
-            chunk = self.pty.read()
+            chunk = self.pty.read() if self.pty is not None else b''
             if chunk:
                 self.on_serial(chunk, now)
             self.arm.advance(now)
@@ -223,7 +232,8 @@ class SerialArm:
         for can_id, data in self.decoder.feed(chunk, now):
             for reply_id, reply in self.arm.receive(can_id, data, now):
                 frame = usb2can.encode_serial_frame(reply_id, reply)
-                self.pty.write(self.corruptor.apply(reply_id, frame))
+                if self.pty is not None:
+                    self.pty.write(self.corruptor.apply(reply_id, frame))
 
     def on_client(self, client: socket.socket) -> None:
         """Read from a control client; answer each complete line."""
@@ -251,9 +261,26 @@ class SerialArm:
     def command(self, words: list[str]) -> dict:
         """Carry out one control command; return what to answer."""
         now = time.monotonic()
+        if len(words) == 2 and words[0] == 'inputs':
+            self.arm.set_inputs(_parse_int(words[1], 'BITS'))
+            return {}
+        if words == ['unplug']:
+            if self.pty is not None:
+                self.written += self.pty.written
+                self.pty.close()
+                self.pty = None
+            return {}
+        if words == ['replug']:
+            if self.pty is None:
+                self.pty = PtyLink(self.link)
+                self.decoder = usb2can.SerialFrameDecoder(accept_ids=COMMAND_IDS)
+            return {'pty': self.pty.device}
         if words == ['status']:
-            return {**self.arm.status(), 'pty': self.pty.device,
-                    'frames_out': self.pty.written, 'overruns': self.pty.overruns,
+            pty = self.pty
+            return {**self.arm.status(), 'pty': pty.device if pty else None,
+                    'plugged': pty is not None,
+                    'frames_out': self.written + (pty.written if pty else 0),
+                    'overruns': pty.overruns if pty else 0,
                     'corrupted': self.corruptor.done, 'corrupt_pending': self.corruptor.pending,
                     'serial_dropped': self.decoder.dropped}
         if len(words) in (3, 4) and words[0] == 'flags' and words[3:] in ([], ['sticky']):
@@ -273,7 +300,7 @@ class SerialArm:
             return {}
         raise InvalidInputError(
             f'unknown command {" ".join(words)!r}: status | flags JOINT FLAGS [sticky] | '
-            f'silent JOINT on|off | corrupt COUNT [JOINT]')
+            f'silent JOINT on|off | corrupt COUNT [JOINT] | inputs BITS | unplug | replug')
 
 
 def control(path: str, line: str, timeout: float = 5.0) -> dict:

@@ -33,7 +33,18 @@ enabled.** So:
   for ``silent_cycles`` cycles in a row is a latched ``fault`` until ``reset``;
 - confirmations (enable, reset, referencing, set zero) count only replies that echo a set-point
   sent after the command (``driver_replies``);
-- ``close`` disables every module before the bus is shut down.
+- ``close`` disables every module before the bus is shut down, and never hangs (the thread is
+  joined with a timeout, a write never blocks longer than the adapter's write timeout);
+- a link that goes (the USB2CAN adapter pulled: ``link.LinkWatch``) holds the arm with the
+  reason (the modules stop on their own watchdog), answers every pending request with a refusal,
+  forgets every position, and reopens the port with back-off; once it is back the driver starts
+  over as at start (``disable`` to every module, each position read again) and stays not enabled
+  until a reset and an enable are asked for;
+- a control thread that dies reports it: its last report is a ``fault`` with the exception
+  (``thread_error``), not silence.
+
+The gripper (joint 4's digital outputs, ``set_gripper``) reports nothing back: the report carries
+its estimated gap (``gripper.GripperModel``) and the arm's digital inputs (joint 1's replies).
 
 Observability that cannot move the arm: ``frame_log`` (a ``can.Listener``, e.g. python-can's
 candump log writer from ``bus.open_frame_log``) gets every frame sent and read, with its
@@ -58,6 +69,7 @@ set-point integrator is the function ``setpoints.integrate``.
 
 from __future__ import annotations
 
+from dataclasses import replace
 import threading
 import time
 from typing import Callable, Optional, Sequence
@@ -68,7 +80,9 @@ from mover6_control.hardware import protocol as p
 from mover6_control.hardware.driver_replies import ReplyIntake
 from mover6_control.hardware.driver_requests import Request, Requests
 from mover6_control.hardware.driver_state import (
-    arm_state, ArmReport, hold_reason, joint_report, JointRecord)
+    arm_state, ArmReport, hold_reason, joint_report, JointRecord, ModuleState)
+from mover6_control.hardware.gripper import GripperModel
+from mover6_control.hardware.link import LinkWatch
 from mover6_control.hardware.outbox import Outbox
 from mover6_control.hardware.scaling import JointScale
 from mover6_control.hardware.setpoints import integrate
@@ -121,6 +135,9 @@ class ArmDriver:
         self._intake = ReplyIntake(self._joints, self._outbox, silent_cycles, frame_log,
                                    self.listen_only)
         self._requests = Requests(self._joints, self._outbox, firmware)
+        self.link = LinkWatch(bus)
+        self.gripper = GripperModel()
+        self.thread_error = ''
         self.cycle = float(cycle)
         self.command_timeout = float(command_timeout)
         self.max_lag = float(max_lag)
@@ -184,6 +201,21 @@ class ArmDriver:
             raise InvalidInputError(f'digital outputs must be an int in 0..255, got {bits!r}')
         with self._lock:
             self._joints[joint - 1].outputs = bits
+            if joint == p.GRIPPER_JOINT:
+                self.gripper.command_at(p.decode_gripper(bits), self.clock())
+
+    def set_gripper(self, command: str) -> float:
+        """
+        Drive the gripper: 'open', 'closed' or 'off' (joint 4's outputs); return its arrival [s].
+
+        The bits go with joint 4's next set-point; the gap is estimated (``gripper``).
+        """
+        with self._lock:
+            j = self._joints[p.GRIPPER_JOINT - 1]
+            j.outputs = p.encode_gripper(command, j.outputs)
+            now = self.clock()
+            self.gripper.command_at(command, now)
+            return self.gripper.arrival(now)
 
     def request(self, kind: str, joints: Optional[Sequence[int]] = None,
                 timeout: float = 2.0) -> Request:
@@ -208,10 +240,11 @@ class ArmDriver:
             dt = self.cycle if self._last_step is None else max(0.0, now - self._last_step)
             period = 0.0 if self._last_step is None else now - self._last_step
             self._last_step = now
-            if self.listen_only:
-                self._listen(now, period)
-            else:
-                self._drive(now, dt, period)
+            if self._link_up(now, period):
+                if self.listen_only:
+                    self._listen(now, period)
+                else:
+                    self._drive(now, dt, period)
         if self.on_cycle is not None:
             self.on_cycle(self._report)
         return self._report
@@ -243,6 +276,28 @@ class ArmDriver:
             hold = hold_reason(self._joints, self._requests.busy_joints(), self.firmware,
                                self._requests.enabling())
         self._report = self._make_report(now, hold, period)
+
+    def _link_up(self, now: float, period: float) -> bool:
+        """
+        Tell whether the link to the adapter is up (under the lock); while it is lost, hold.
+
+        A new loss forgets every position and answers every request; each cycle of the loss
+        tries to reopen when due; a link back starts over as at start (disable to every module,
+        the positions read again), not enabled until asked.
+        """
+        if self.link.lost(now):
+            self._outbox.clear()
+            self._requests.finish_all('refused: the link to the CAN adapter was lost')
+            self._command = None
+            for j in self._joints:
+                j.forget()
+        if self.link.lost_at is not None:
+            if not self.link.poll(now):
+                self._report = self._make_report(now, self.link.reason(now), period)
+                return False
+            self._started = False            # as at start: disable, then read every position
+            self._intake.bus_error = self._outbox.error = ''    # the old link's errors
+        return True
 
     def _listen(self, now: float, period: float) -> None:
         """One cycle of ``listen_only``: read and report, send nothing (under the lock)."""
@@ -286,7 +341,16 @@ class ArmDriver:
                          frames_bad=intake.bad, tx_errors=outbox.tx_errors,
                          bus_error=outbox.error or intake.bus_error,
                          bad_frames=tuple(sorted(intake.bad_reasons.items())),
-                         last_bad_frame=intake.last_bad)
+                         last_bad_frame=intake.last_bad,
+                         link='lost' if self.link.lost_at is not None else 'up',
+                         link_losses=self.link.losses, link_outage=self.link.last_outage,
+                         gripper=self.gripper.report(now),
+                         inputs=self._inputs())
+
+    def _inputs(self) -> tuple[bool, ...]:
+        """Return the digital inputs of joint 1's module's latest reply, () before one."""
+        reply = self._joints[p.IO_JOINT - 1].reply
+        return () if reply is None else p.decode_inputs(reply.inputs)
 
     # --- the control thread ---
 
@@ -309,6 +373,37 @@ class ArmDriver:
         self._thread.start()
 
     def _run(self) -> None:
+        try:
+            self._loop()
+        except Exception as err:  # noqa: B902 - any death of the cycle is reported, not silent
+            self.thread_error = f'{type(err).__name__}: {err}'
+            self._report_death()
+
+    def _report_death(self) -> None:
+        """Hand over a last report: a fault that says the control thread died, and why."""
+        hold = (f'control thread died ({self.thread_error}): nothing is sent any more, the '
+                'modules stop on their watchdog; restart the driver')
+        last = self._report
+        if last is None:
+            report = ArmReport(time=self.clock(), state=ModuleState.FAULT, hold=hold, joints=(),
+                               period=0.0, frames_dropped=0, frames_bad=0, tx_errors=0,
+                               bus_error=self.thread_error)
+        else:
+            report = replace(last, state=ModuleState.FAULT, hold=hold,
+                             bus_error=self.thread_error)
+        self._report = report
+        if self.on_cycle is not None:
+            try:
+                self.on_cycle(report)
+            except Exception:  # noqa: B902 - nothing more this thread can do
+                pass
+
+    @property
+    def alive(self) -> bool:
+        """Tell whether the control thread runs (False before ``start`` and after a death)."""
+        return self._thread is not None and self._thread.is_alive()
+
+    def _loop(self) -> None:
         if self.priority > 0:
             ok, message = run_at_priority(self.priority)
             self.scheduling = message if ok else f'normal scheduling: {message}'

@@ -21,6 +21,7 @@ from enum import StrEnum
 from typing import Optional, Sequence
 
 from mover6_control.hardware import protocol as p
+from mover6_control.hardware.gripper import GripperReport
 from mover6_control.hardware.scaling import JointScale
 
 
@@ -82,6 +83,11 @@ class ArmReport:
     bus_error: str
     bad_frames: tuple[tuple[str, int], ...] = ()
     last_bad_frame: str = ''
+    link: str = 'up'             # the link to the adapter: 'up' or 'lost'
+    gripper: Optional[GripperReport] = None
+    inputs: tuple[bool, ...] = ()   # the arm's digital inputs (joint 1's module), () unknown
+    link_losses: int = 0         # links lost so far
+    link_outage: float = 0.0     # [s] the last lost link's time to its reopening
 
 
 class JointRecord:
@@ -107,6 +113,16 @@ class JointRecord:
         self.relearn = False       # a command may have moved or re-zeroed it: take the next reply
         self.outputs = 0
         self.reference_lost = False  # its referenced bit dropped: latched until re-referenced
+
+    def forget(self) -> None:
+        """Forget what was measured (the link to the modules went): unknown until they answer."""
+        self.reply = self.reply_time = self.ticks = self.setpoint = self.echo_value = None
+        self.replies = self.silent = self.unknown_cycles = 0
+        self.qd = self.velocity = 0.0
+        self.fault = self.relearn = False
+        self.track = True
+        self.sent = {}
+        self.echo_seq = -1
 
     def next_counter(self) -> int:
         """Return the counter byte of the next set-point: 1..255, wrapping past 0."""

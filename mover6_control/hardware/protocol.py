@@ -22,6 +22,13 @@ No I/O here: bytes in, values out, and back. The facts, checked against the vend
   whose timestamp did not change), ``data[7]`` digital inputs, bit 0x80 "referenced"
   (``MotorModule::get_CurrentPosition``, ``Joint::DATABIT_REFERENCED``). ``data[6]`` is not read
   by the vendor; it is kept in ``Reply.spare``.
+- Digital outputs and inputs (``CPRMover6.cpp``'s ``define_Output`` / ``define_Input``,
+  ``Joint::set_DigitalOutput`` / ``get_DigitalInput``, ``Robot::PublishState``): each module
+  sends its output bits in a set-point's last byte and reports its input bits in a reply's
+  ``data[7]`` (bit ``n`` is channel ``n``). The Mover6's gripper is on joint 4's module
+  (``moduleIndex`` 3): bit 0 "Gripper open", bit 1 "Gripper enabled"; joint 1's module carries
+  "Digital out 1..4" (bits 0..3) and "Digital in 1..3" (bits 0..2), which the vendor publishes
+  on ``/InputChannels``. The gripper reports nothing back: no position, no force.
 - Error flags of the Mover6 modules, as the Mover6 user guide's CAN pages name them: 0x01
   brown-out, 0x02 velocity lag, 0x04 motor not enabled, 0x08 communication watchdog, 0x10 position
   lag, 0x20 encoder, 0x40 over-current, 0x80 CAN. The newer CAN V2 modules reuse 0x04..0x20 but
@@ -54,6 +61,18 @@ DISABLE = b'\x01\x0a'
 START_REFERENCING = b'\x01\x0b'
 SET_ZERO_HEADER = b'\x01\x08'
 SET_ZERO = SET_ZERO_HEADER + b'\x00\x00'
+
+GRIPPER_JOINT = 4
+"""The module whose digital outputs drive the gripper (the vendor's joint index 3)."""
+GRIPPER_OPEN = 0x01
+"""Joint 4's output bit "Gripper open" (set: open, clear: closed, while enabled)."""
+GRIPPER_ENABLED = 0x02
+"""Joint 4's output bit "Gripper enabled" (clear: the gripper is not driven)."""
+GRIPPER_COMMANDS = ('off', 'open', 'closed')
+IO_JOINT = 1
+"""The module carrying the arm's digital outputs 1..4 and inputs 1..3."""
+INPUT_CHANNELS = ('Digital in 1', 'Digital in 2', 'Digital in 3')
+OUTPUT_CHANNELS = ('Digital out 1', 'Digital out 2', 'Digital out 3', 'Digital out 4')
 
 REFERENCED = 0x80
 """The bit of a reply's inputs byte that tells the joint is referenced."""
@@ -245,3 +264,32 @@ def flag_names(flags: int, firmware: str = 'mover6') -> tuple[str, ...]:
         raise ProtocolError(f'firmware must be one of {sorted(ERROR_FLAGS)}, got {firmware!r}')
     _check_byte(flags, 'flags')
     return tuple(name for bit, name in sorted(table.items()) if flags & bit)
+
+
+def encode_gripper(command: str, outputs: int = 0) -> int:
+    """
+    Return joint 4's output bits ``outputs`` (0..255) with the gripper's two set for ``command``.
+
+    ``command``: 'off' (not driven), 'open' or 'closed'; the other bits are kept.
+    """
+    _check_byte(outputs, 'outputs')
+    if command not in GRIPPER_COMMANDS:
+        raise ProtocolError(f'gripper command must be one of {GRIPPER_COMMANDS}, got {command!r}')
+    bits = {'off': 0, 'open': GRIPPER_ENABLED | GRIPPER_OPEN, 'closed': GRIPPER_ENABLED}[command]
+    return (outputs & ~(GRIPPER_ENABLED | GRIPPER_OPEN)) | bits
+
+
+def decode_gripper(outputs: int) -> str:
+    """Return the gripper command joint 4's output bits ``outputs`` carry: off, open or closed."""
+    _check_byte(outputs, 'outputs')
+    if not outputs & GRIPPER_ENABLED:
+        return 'off'
+    return 'open' if outputs & GRIPPER_OPEN else 'closed'
+
+
+def decode_inputs(inputs: int, channels: int = len(INPUT_CHANNELS)) -> tuple[bool, ...]:
+    """Return the first ``channels`` (0..7) input channels of a reply's ``data[7]``, bit n = n."""
+    _check_byte(inputs, 'inputs')
+    if isinstance(channels, bool) or not isinstance(channels, int) or not 0 <= channels <= 7:
+        raise ProtocolError(f'channels must be an int in 0..7, got {channels!r}')
+    return tuple(bool(inputs & (1 << n)) for n in range(channels))

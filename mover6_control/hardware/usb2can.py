@@ -17,11 +17,19 @@ never the stream, and is never decoded as a position.
 
 ``Usb2CanBus`` is a ``can.BusABC`` over pyserial (``serial.serial_for_url``, so a pty's device
 path or ``/dev/ttyUSB0`` alike): standard 11-bit data frames only, as the modules speak.
+
+A cable that comes back: a pulled adapter makes reads fail and writes fail or block. A write
+never blocks longer than ``write_timeout`` (pyserial's); any failed read or write closes the port
+(closing never waits on the device) and the bus says so (``connected`` False, ``link_error``
+why) instead of raising on every call afterwards; ``reopen`` opens the same path again once the
+device is back (the driver calls it with back-off, ``hardware.link``).
 """
 
 from __future__ import annotations
 
 import collections
+import os
+import select
 import threading
 import time
 from typing import Iterable, Optional
@@ -34,6 +42,8 @@ BAUDRATE = 460800
 """The serial speed of the CPR USB2CAN adapter [baud]."""
 
 FRAME_LENGTH = 11
+WRITE_TIMEOUT = 0.02
+"""[s] a write may block this long (one frame takes 0.24 ms at 460800 baud) before it fails."""
 RESYNC_GAP = 0.002
 """A pause between two bytes longer than this [s] ends a partial frame (the vendor's rule)."""
 
@@ -124,19 +134,65 @@ class Usb2CanBus(can.BusABC):
     """
 
     def __init__(self, channel: str, baudrate: int = BAUDRATE, poll: float = 0.02,
-                 accept_ids: Optional[Iterable[int]] = None, **kwargs: object) -> None:
+                 accept_ids: Optional[Iterable[int]] = None,
+                 write_timeout: float = WRITE_TIMEOUT, **kwargs: object) -> None:
         kwargs.pop('bitrate', None)          # the CAN bit rate is the adapter's, not ours
+        self._baudrate, self._poll, self._write_timeout = baudrate, poll, write_timeout
+        self._accept_ids = accept_ids
+        self._serial = None
+        self._channel = channel
+        self.link_error = ''
+        self.reopened = 0
         try:
-            self._serial = serial.serial_for_url(channel, baudrate=baudrate, timeout=poll)
-        except (serial.SerialException, ValueError) as err:
+            self._serial = self._open()
+        except (serial.SerialException, OSError, ValueError) as err:
             raise can.CanInitializationError(
                 f'cannot open the USB2CAN adapter on {channel!r}: {err}') from err
         self.decoder = SerialFrameDecoder(accept_ids)
         self.channel_info = f'CPR USB2CAN on {channel}'
-        self._channel = channel
         self._pending = collections.deque()
         self._write_lock = threading.Lock()
         super().__init__(channel=channel, **kwargs)
+
+    def _open(self) -> serial.SerialBase:
+        return serial.serial_for_url(self._channel, baudrate=self._baudrate, timeout=self._poll,
+                                     write_timeout=self._write_timeout)
+
+    @property
+    def connected(self) -> bool:
+        """Tell whether the port is open (False once a read or write failed, until reopen)."""
+        return self._serial is not None
+
+    def _lose(self, what: str, err: BaseException) -> None:
+        """Close the port after a failed ``what`` (never waiting on the device); keep why."""
+        port, self._serial = self._serial, None
+        self.link_error = f'USB2CAN {what} failed: {err}'
+        if port is not None:
+            try:
+                port.close()
+            except (serial.SerialException, OSError):
+                pass                         # the device is gone: nothing left to close
+
+    def reopen(self) -> bool:
+        """
+        Open the port again after a loss; return whether it is open.
+
+        The decoder and the frames not yet taken start over (a partial frame of the old link is
+        no part of the new one). A device that is not back yet leaves the bus as it was.
+        """
+        if self._serial is not None:
+            return True
+        try:
+            port = self._open()
+        except (serial.SerialException, OSError, ValueError) as err:
+            self.link_error = f'USB2CAN reopen failed: {err}'
+            return False
+        self.decoder = SerialFrameDecoder(self._accept_ids)
+        self._pending.clear()
+        self._serial = port
+        self.link_error = ''
+        self.reopened += 1
+        return True
 
     @property
     def dropped(self) -> int:
@@ -151,23 +207,60 @@ class Usb2CanBus(can.BusABC):
             frame = encode_serial_frame(msg.arbitration_id, bytes(msg.data[:msg.dlc]))
         except ProtocolError as err:
             raise can.CanOperationError(str(err)) from err
+        with self._write_lock:
+            port = self._serial
+            if port is None:
+                raise can.CanOperationError(f'USB2CAN link lost: {self.link_error}')
+            try:
+                self._write(port, frame)
+            except (serial.SerialException, OSError) as err:   # a timeout too: never blocks
+                self._lose('write', err)
+                raise can.CanOperationError(self.link_error) from err
+
+    def _write(self, port: serial.SerialBase, frame: bytes) -> None:
+        """
+        Write ``frame``, waiting at most ``write_timeout`` [s] while the device takes no bytes.
+
+        The port's descriptor is non-blocking (pyserial opens it so): the deadline counts only
+        while a write would block. pyserial's own write timeout also fires when the writing
+        thread was merely held up for longer than it after writing everything (on a loaded
+        machine: a link taken for lost that was not).
+        """
         try:
-            with self._write_lock:
-                self._serial.write(frame)
-        except (serial.SerialException, OSError) as err:
-            raise can.CanOperationError(f'USB2CAN write failed: {err}') from err
+            fd = port.fileno()
+        except (AttributeError, NotImplementedError, serial.SerialException):
+            port.write(frame)                # a pyserial URL without a descriptor (tests)
+            return
+        view = memoryview(frame)
+        deadline = time.monotonic() + self._write_timeout
+        while view:
+            try:
+                view = view[os.write(fd, view):]
+                continue
+            except BlockingIOError:
+                pass
+            left = deadline - time.monotonic()
+            if left <= 0.0:
+                raise serial.SerialTimeoutException(
+                    f'write timeout: the adapter took no bytes for {self._write_timeout} s')
+            select.select([], [fd], [], left)
 
     def _recv_internal(self, timeout: Optional[float]) -> tuple[Optional[can.Message], bool]:
         """Return the next decoded frame, or None once ``timeout`` [s] passed (None: wait)."""
         deadline = None if timeout is None else time.monotonic() + timeout
         while not self._pending:
+            port = self._serial
+            if port is None:
+                raise can.CanOperationError(f'USB2CAN link lost: {self.link_error}')
             try:
-                waiting = self._serial.in_waiting
+                waiting = port.in_waiting
                 if not waiting and deadline is not None and time.monotonic() >= deadline:
                     return None, False       # a poll (timeout 0) returns at once
-                chunk = self._serial.read(max(1, waiting))
-            except (serial.SerialException, OSError) as err:
-                raise can.CanOperationError(f'USB2CAN read failed: {err}') from err
+                chunk = port.read(max(1, waiting))
+            except (serial.SerialException, OSError, TypeError) as err:
+                # TypeError: pyserial reading a port closed under it by another thread
+                self._lose('read', err)
+                raise can.CanOperationError(self.link_error) from err
             if chunk:
                 stamp = time.time()
                 for can_id, data in self.decoder.feed(chunk, time.monotonic()):
@@ -181,6 +274,11 @@ class Usb2CanBus(can.BusABC):
         return self._pending.popleft(), False
 
     def shutdown(self) -> None:
-        """Close the serial port."""
+        """Close the serial port (never waits on a device that went)."""
         super().shutdown()
-        self._serial.close()
+        port, self._serial = self._serial, None
+        if port is not None:
+            try:
+                port.close()
+            except (serial.SerialException, OSError):
+                pass

@@ -12,6 +12,8 @@ mover6_control: the one entry point.
   ./run.sh goal ...        the goal CLI (./run.sh goal --help)
   ./run.sh record [-o BAG] [TOPICS]  record the stack's topics (rosbag2 MCAP) until Ctrl-C
   ./run.sh report BAG      the demo's report (plots, metrics, gif) of a recording
+  ./run.sh first-run [--can-sim] [--yes]  each joint +5 deg and back, its direction confirmed,
+                           the calibration file written (docs/real_arm.md)
   ./run.sh bench [--quick] the benchmarks: tables on the console, JSON in bench/results/
   ./run.sh generate [--check]  write config/<node>.yaml and docs/parameters.md from the
                            parameter table (mover6_control/parameters.py)

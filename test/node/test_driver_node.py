@@ -180,7 +180,7 @@ def jog(operator, velocities, seconds):
 def test_states_diagnostics_enable_and_jog(rig):
     driver, operator, arm = rig
     assert wait_for(lambda: operator.states and operator.bus_status())
-    assert list(operator.states[-1].name) == NAMES
+    assert list(operator.states[-1].name) == NAMES + ['gripper']
     # Until every module has answered the bus reads 'disconnected'; then the modules' power-up
     # state (0x1C, an error until reset) shows.
     assert wait_for(lambda: operator.bus_status().get('state') != 'disconnected')

@@ -39,9 +39,11 @@ import can
 from control_msgs.msg import JointJog
 from mover6_control.errors import InvalidInputError
 from mover6_control.hardware.bus import open_bus, open_frame_log
+from mover6_control.hardware.calibration import calibration_refusal
 from mover6_control.hardware.driver import ArmDriver
 from mover6_control.hardware.scaling import JOINTS_YAML, load_joints
 from mover6_control.nodes.driver.arm_session import ArmSession
+from mover6_control.nodes.driver.gripper_action import GripperAction, InputPublisher
 from mover6_control.nodes.driver.jog_intake import JogIntake
 from mover6_control.nodes.driver.report_publisher import ReportPublisher
 from mover6_control.nodes.driver.trigger_services import TriggerServices
@@ -83,6 +85,10 @@ class DriverNode(LifecycleNode):
             raise SystemExit('driver: listen_only sends nothing, enable_on_start asks to enable: '
                              'refused (set one of them false)')
         self.firmware, self.joints = load_joints(self.params['joints_file'] or JOINTS_YAML)
+        refusal = calibration_refusal(self.params['calibration_file'], self.joints,
+                                      self.get_logger().warning)
+        if refusal:                       # the first-run check saw a joint turn the wrong way
+            raise SystemExit(f'driver: {refusal}')
         self.names = tuple(j.name for j in self.joints)
         self.max_speed = [j.max_speed for j in self.joints]
         self.fatal = None
@@ -100,6 +106,8 @@ class DriverNode(LifecycleNode):
                                        rate=self._live('diagnostics_rate'))
         self.guard.subscription(JointJog, 'JointJog', self.intake.on_jog, 10)
         self.trigger_services = TriggerServices(self, self.guard, SERVICES, self.run_service)
+        self.gripper_action = GripperAction(self, self.trigger_services.node)
+        self.inputs = InputPublisher(self, self.trigger_services.node)
         self._start = self.guard.timer(0.01, self._start_transitions)
 
     # --- the parts' inputs ---

@@ -16,6 +16,7 @@ from typing import Callable, Iterable, Optional, Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray
 from mover6_control.hardware.driver_state import ArmReport, ModuleState
+from mover6_control.hardware.gripper import NAME as GRIPPER
 from mover6_control.nodes.driver.jog_intake import JogCounts
 from mover6_control.nodes.messages.conversions import make_joint_state, make_status
 from sensor_msgs.msg import JointState
@@ -110,9 +111,10 @@ class ReportPublisher:
         if report is not None:
             self._seen = report
             if all(j.replies for j in report.joints):
+                grip = report.gripper        # the gripper's estimated gap, as a joint
                 self.pub_states.publish(make_joint_state(
-                    self.names, [j.q for j in report.joints],
-                    [j.qd for j in report.joints],
+                    self.names + (GRIPPER,), [j.q for j in report.joints] + [grip.position],
+                    [j.qd for j in report.joints] + [grip.velocity],
                     stamp=self.node.get_clock().now().to_msg()))
         if self._seen is not None:
             self._maybe_diagnostics(self._seen, force)
@@ -143,7 +145,9 @@ class ReportPublisher:
                 'jog_refused_by': counts_line(sorted(counts.refused_by.items())),
                 'jog_clipped': counts.clipped, 'jog_superseded': counts.superseded,
                 'jog_ignored': counts.ignored, 'last_ignored': counts.last_ignored,
-                'last_refusal': counts.last_refusal, 'scheduling': self.scheduling()}))
+                'last_refusal': counts.last_refusal, 'scheduling': self.scheduling(),
+                'link': report.link, 'link_losses': report.link_losses,
+                'link_outage': report.link_outage}))
         for j in report.joints:
             level = 'ERROR' if j.reference_lost else LEVELS[j.state]
             msg.status.append(make_status(

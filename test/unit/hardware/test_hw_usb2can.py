@@ -6,12 +6,14 @@ The 11-byte frames are written out by hand from the vendor's serial adapter code
 """
 
 import os
+import time
 
 import can
 from mover6_control.errors import InvalidInputError
 from mover6_control.hardware import protocol as p
 from mover6_control.hardware.bus import open_bus
-from mover6_control.hardware.usb2can import encode_serial_frame, SerialFrameDecoder, Usb2CanBus
+from mover6_control.hardware.usb2can import (
+    encode_serial_frame, SerialFrameDecoder, Usb2CanBus, WRITE_TIMEOUT)
 import pytest
 
 # J1 set-point: J5's 1000 ticks + offset 500 sent to module 1, counter 7.
@@ -184,3 +186,49 @@ def test_open_bus_errors_are_clear():
         open_bus('virtual', 'x', bitrate=0)
     with pytest.raises(can.CanInitializationError, match='cannot open the USB2CAN'):
         open_bus('cpr_usb2can', '/dev/no_such_adapter')
+
+
+def test_a_write_never_blocks_when_the_adapter_takes_no_bytes(pty_bus):
+    bus, _ = pty_bus                 # nobody reads the master: the pty's buffer fills up
+    frame = can.Message(arbitration_id=0x10, is_extended_id=False, data=p.encode_setpoint(0, 1))
+    longest, failed = 0.0, None
+    for _ in range(20000):
+        start = time.monotonic()
+        try:
+            bus.send(frame)
+        except can.CanOperationError as err:
+            failed = str(err)
+        longest = max(longest, time.monotonic() - start)
+        if failed:
+            break
+    assert failed and 'write failed' in failed
+    assert longest < WRITE_TIMEOUT + 0.2
+    assert not bus.connected            # a write that blocks is a link that went
+    with pytest.raises(can.CanOperationError, match='link lost'):
+        bus.recv(timeout=0.0)
+
+
+def test_a_lost_port_is_reopened_on_the_same_path(tmp_path):
+    link = tmp_path / 'adapter'
+    master, slave = os.openpty()
+    os.symlink(os.ttyname(slave), link)
+    bus = Usb2CanBus(str(link))
+    try:
+        os.close(master)                 # the adapter pulled: reads fail
+        os.unlink(link)
+        with pytest.raises(can.CanOperationError, match='read failed'):
+            bus.recv(timeout=0.5)
+        assert not bus.connected and 'read failed' in bus.link_error
+        assert not bus.reopen() and 'reopen failed' in bus.link_error   # not back yet
+        os.close(slave)
+        master, slave = os.openpty()     # the adapter back, at the same path
+        os.symlink(os.ttyname(slave), link)
+        assert bus.reopen() and bus.connected and bus.reopened == 1
+        os.write(master, REPLY_J6)
+        msg = bus.recv(timeout=5.0)
+        assert msg is not None and bytes(msg.data) == REPLY_J6[2:10]
+    finally:
+        bus.shutdown()
+        bus.shutdown()                   # twice: still no error
+        os.close(slave)
+        os.close(master)
