@@ -208,16 +208,16 @@ class SimBridgeNode(PhysicsLoop, SimControls, Node):
                     return
             except ValueError:
                 pass                     # conversions reads it (or says why not)
-            names, velocities = conversions.joint_jog_from_raw(raw, self._jog_reader)
+            jog = conversions.joint_jog_from_raw(raw, self._jog_reader)
             with self.step_lock:
                 self._catch_up()         # the steps due before it came: the command before
                 with self.lock:
-                    warnings = self.sim.set_command(names, velocities, self.sim.time)
+                    warnings = self.sim.take_jog(jog, self.sim.time)
                     self._pending = (self.sim.command_count, arrival)
                     # A resting arm's slower /joint_states: the full rate from this command on.
                     self._next_publish = min(self._next_publish,
                                              self.sim.time + self.publish_period)
-                    self._last_jog = (tuple(names), tuple(velocities.tolist()))
+                    self._last_jog = (jog.names, jog.velocities)
             self._wake.set()             # its first step when due, not at the next publication
         except InvalidInputError as exc:
             self.rejected += 1

@@ -24,6 +24,7 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import (rotation_angle_between, slerp,
                                                  validate_transform)
 from mover6_control.validation import as_finite_array, as_positive
+from mover6_control.values import poses_of, ToolPose
 import numpy as np
 from scipy.interpolate import CubicSpline
 
@@ -231,10 +232,8 @@ def spline_curve(T_start: np.ndarray, T_vias: np.ndarray, T_goal: np.ndarray,
     """Return the ``PosePath`` of ``spline_path`` (parameter: the chord-length ``u``)."""
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
-    vias = np.zeros((0, 4, 4)) if np.size(T_vias) == 0 else \
-        as_finite_array(T_vias, (None, 4, 4), 'T_vias')
-    keys = [T_start] + [validate_transform(T, f'T_vias[{i}]') for i, T in enumerate(vias)]
-    keys.append(T_goal)
+    vias = [] if np.size(T_vias) == 0 else [p.matrix for p in poses_of(T_vias, 'T_vias')]
+    keys = [T_start] + vias + [T_goal]
     for i in range(len(keys) - 1):
         _check_distinct(keys[i], keys[i + 1], f'key poses {i} and {i + 1}')
     P = np.array([T[:3, 3] for T in keys])
@@ -308,8 +307,8 @@ def arc_curve(T_start: np.ndarray, T_via: np.ndarray, T_goal: np.ndarray,
     """Return the ``PosePath`` of ``arc_path`` (parameter ``t`` in [0, 1], along the angle)."""
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
-    via = np.asarray(T_via, dtype=float)
-    T_via = validate_transform(via, 'T_via') if via.shape == (4, 4) else None
+    via = T_via if isinstance(T_via, ToolPose) else np.asarray(T_via, dtype=float)
+    T_via = validate_transform(via, 'T_via') if np.shape(via) == (4, 4) else None
     p_via = T_via[:3, 3] if T_via is not None else as_finite_array(via, (3,), 'T_via')
     center, radius, e1, e2, ang_b, ang_c = circle_through(T_start[:3, 3], p_via, T_goal[:3, 3])
     if T_via is None:
