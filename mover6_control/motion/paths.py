@@ -137,11 +137,10 @@ def parabola_coefficients(p_start: Sequence[float], p_mid: Sequence[float],
     Return (a, b, c) (3,) each with ``r(t) = a t^2 + b t + c`` through the three points.
 
     ``r(0) = p_start``, ``r(0.5) = p_mid``, ``r(1) = p_goal`` (the Mover6 report eq. 12-15).
+    The points come from poses already checked (``parabolic_curve``'s): not checked again.
     """
     M = np.array([[0.0, 0.0, 1.0], [1.0, 1.0, 1.0], [0.25, 0.5, 1.0]])
-    rhs = np.vstack([as_finite_array(p_start, (3,), 'p_start'),
-                     as_finite_array(p_goal, (3,), 'p_goal'),
-                     as_finite_array(p_mid, (3,), 'p_mid')])
+    rhs = np.array([p_start, p_goal, p_mid], dtype=float)
     coeff = np.linalg.solve(M, rhs)
     return coeff[0], coeff[1], coeff[2]
 
@@ -264,11 +263,10 @@ def circle_through(p_a: Sequence[float], p_b: Sequence[float],
     Return (center (3,), radius [m], e1 (3,), e2 (3,), angle_b, angle_c) of the circle A-B-C.
 
     A point at angle ``phi`` is ``center + radius (e1 cos phi + e2 sin phi)``; A is at 0 and
-    ``0 < angle_b < angle_c < 2 pi``. Collinear points have no circle: an error.
+    ``0 < angle_b < angle_c < 2 pi``. Collinear points have no circle: an error. The points
+    come from poses and a via point already checked (``arc_curve``'s): not checked again.
     """
-    A = as_finite_array(p_a, (3,), 'start point')
-    B = as_finite_array(p_b, (3,), 'via point')
-    C = as_finite_array(p_c, (3,), 'goal point')
+    A, B, C = (np.asarray(p, dtype=float) for p in (p_a, p_b, p_c))
     ab, ac = B - A, C - A
     normal = np.cross(ab, ac)
     scale = np.linalg.norm(ab) * np.linalg.norm(ac)
@@ -328,5 +326,5 @@ def arc_curve(T_start: np.ndarray, T_via: np.ndarray, T_goal: np.ndarray,
 
 
 def positions_of(poses: np.ndarray) -> np.ndarray:
-    """Return the positions (n, 3) [m] of poses (n, 4, 4)."""
-    return as_finite_array(poses, (None, 4, 4), 'poses')[:, :3, 3].copy()
+    """Return the positions (n, 3) [m] of poses (n, 4, 4) (a path's: computed, not checked)."""
+    return np.array(poses, dtype=float)[:, :3, 3]
