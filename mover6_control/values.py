@@ -6,17 +6,18 @@ CLI's parser), and raises an ``InvalidInputError`` whose ``code`` (``errors.INPU
 what was wrong. The layers below take the value and do not check it again: ``ToolPose.of``
 passes a ``ToolPose`` through as it is and checks only a raw matrix (a caller that hands the
 library raw input). A base module, like ``validation``: it imports nothing of this package but
-``errors``.
+``errors`` and ``validation``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Optional, Sequence
+from typing import Sequence
 
 from mover6_control.errors import (InvalidInputError, NonFiniteError, NotATransformError,
                                    QuaternionError, ShapeError)
+from mover6_control.validation import as_finite_array
 import numpy as np
 
 ORTHONORMAL_TOL = 1e-6
@@ -50,25 +51,6 @@ def check_rotation_rows(rows: Sequence[Sequence[float]], name: str) -> None:
         raise NotATransformError(f'{name} is a reflection (det < 0), not a rotation')
 
 
-def finite_array(value: object, shape: Sequence[Optional[int]], name: str) -> np.ndarray:
-    """
-    Return ``value`` as a new float array of ``shape`` (``None``: any length), or raise.
-
-    ``ShapeError`` for no numbers or another shape, ``NonFiniteError`` for NaN or infinity.
-    """
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise ShapeError(f'{name} must be numeric, got {value!r}'[:300]) from err
-    if arr.ndim != len(shape) or any(
-            want is not None and got != want for got, want in zip(arr.shape, shape)):
-        want = tuple('n' if s is None else s for s in shape)
-        raise ShapeError(f'{name} must have shape {want}, got {arr.shape}')
-    if not np.all(np.isfinite(arr)):
-        raise NonFiniteError(f'{name} has non-finite values: {arr.tolist()}'[:300])
-    return arr
-
-
 def _frozen(arr: np.ndarray) -> np.ndarray:
     arr.setflags(write=False)
     return arr
@@ -76,7 +58,7 @@ def _frozen(arr: np.ndarray) -> np.ndarray:
 
 def _checked_transform(T, name):
     """Return ``T`` as a new (4, 4) array after the checks of ``ToolPose.from_matrix``."""
-    T = finite_array(T, (4, 4), name)
+    T = np.array(as_finite_array(T, (4, 4), name))
     rows = T.tolist()
     check_rotation_rows([row[:3] for row in rows[:3]], name + ' rotation')
     last = rows[3]
@@ -122,8 +104,8 @@ class ToolPose:
         A quaternion whose norm is off 1 by more than ``QUATERNION_NORM_TOL`` is refused
         (``bad_quaternion``): silently normalising would hide a sender's bug.
         """
-        p = finite_array(position, (3,), f'{name} position')
-        x, y, z, w = finite_array(quaternion, (4,), f'{name} quaternion').tolist()
+        p = as_finite_array(position, (3,), f'{name} position')
+        x, y, z, w = as_finite_array(quaternion, (4,), f'{name} quaternion').tolist()
         norm = math.sqrt(x * x + y * y + z * z + w * w)
         if norm < 1e-9:
             raise QuaternionError(f'{name} quaternion is zero: it describes no rotation')

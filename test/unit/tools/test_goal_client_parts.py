@@ -1,6 +1,8 @@
 """
-The goal client's parts, each built alone: what it hears (``LatestStatus``) and following one
-goal to its end (``MotionFollower``, with a scripted stand-in for the ``Spinner`` it is given).
+The goal client's parts, each built alone.
+
+What it hears (``LatestStatus``) and following one goal to its end (``MotionFollower``, with a
+scripted stand-in for the ``Spinner`` it is given).
 """
 
 from mover6_control.control.status import MotionResult, State, StatusKey
