@@ -2,7 +2,9 @@
 Exceptions shared by the ROS-free core, and the one table of reasons for refusing a goal.
 
 Every error raised by the core on bad input is a ``ValueError`` subclass, so callers (the nodes)
-can catch one type, log ``str(err)`` and drop the input.
+can catch one type, log ``str(err)`` and drop the input. What a caller branches on is the
+error's code (``error_code``), never its text: ``REASONS`` for a goal the planner refuses,
+``INPUT_CODES`` for malformed input refused where it enters (``values``).
 """
 
 from __future__ import annotations
@@ -44,6 +46,25 @@ REASONS = {
 }
 
 
+# The codes of ``InvalidInputError.code``: why an input was refused where it entered, each with
+# its meaning. The driver counts refused JointJogs by these codes on /diagnostics.
+INPUT_CODES = {
+    'invalid_input': 'malformed input, for no more specific reason (the default)',
+    'non_finite': 'a value is NaN or infinite',
+    'bad_shape': 'an array has the wrong shape or a value is not a number',
+    'not_a_transform': 'a pose matrix is no rigid transform: its rotation is not orthonormal, '
+                       'is a reflection, or its last row is not [0, 0, 0, 1]',
+    'bad_quaternion': 'an orientation quaternion is zero or not of unit length',
+    'wrong_frame': "a goal's frame is not the planner's base frame (no TF lookup is done)",
+    'empty': 'a command or a demand holds no values (no joints, no waypoints, no poses)',
+    'length': 'the arrays of one message disagree in length',
+    'names': 'a joint is named twice',
+    'unknown_joint': 'a joint name the arm does not have',
+    'displacements': 'a JointJog carries displacements: only velocities are supported',
+    'out_of_range': 'a value beyond what the arm takes (a jog speed beyond its limit)',
+}
+
+
 class Mover6Error(Exception):
     """Base of every exception the core raises on purpose; ``code`` says which kind."""
 
@@ -51,9 +72,44 @@ class Mover6Error(Exception):
 
 
 class InvalidInputError(Mover6Error, ValueError):
-    """An argument has the wrong shape, a non-finite value or an out-of-range setting."""
+    """
+    An argument has the wrong shape, a non-finite value or an out-of-range setting.
+
+    ``code`` is a key of ``INPUT_CODES``: the class's own, or the one given.
+    """
 
     code = 'invalid_input'
+
+    def __init__(self, message: str, code: str | None = None) -> None:
+        super().__init__(message)
+        if code is not None:
+            if code not in INPUT_CODES:
+                raise KeyError(f'no input code {code!r} in errors.INPUT_CODES')
+            self.code = code
+
+
+class NonFiniteError(InvalidInputError):
+    """A value is NaN or infinite."""
+
+    code = 'non_finite'
+
+
+class ShapeError(InvalidInputError):
+    """An array has the wrong shape, or a value is no number."""
+
+    code = 'bad_shape'
+
+
+class NotATransformError(InvalidInputError):
+    """A matrix is no rigid transform (rotation not orthonormal, a reflection, a bad last row)."""
+
+    code = 'not_a_transform'
+
+
+class QuaternionError(InvalidInputError):
+    """A quaternion is zero or not of unit length."""
+
+    code = 'bad_quaternion'
 
 
 class UnreachableError(Mover6Error, ValueError):

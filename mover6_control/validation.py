@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Optional, Sequence
 
-from mover6_control.errors import InvalidInputError
+from mover6_control.errors import InvalidInputError, NonFiniteError, ShapeError
 import numpy as np
 
 
@@ -23,13 +23,13 @@ def as_finite_array(value: object, shape: Sequence[Optional[int]], name: str) ->
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as err:
-        raise InvalidInputError(f'{name} must be numeric, got {value!r}') from err
+        raise ShapeError(f'{name} must be numeric, got {value!r}') from err
     if arr.ndim != len(shape) or any(
             want is not None and got != want for got, want in zip(arr.shape, shape)):
         want = tuple('n' if s is None else s for s in shape)
-        raise InvalidInputError(f'{name} must have shape {want}, got {arr.shape}')
+        raise ShapeError(f'{name} must have shape {want}, got {arr.shape}')
     if not np.all(np.isfinite(arr)):
-        raise InvalidInputError(f'{name} has non-finite values: {arr.tolist()}')
+        raise NonFiniteError(f'{name} has non-finite values: {arr.tolist()}')
     return arr
 
 
@@ -49,16 +49,20 @@ def as_positive(value: object, name: str, n: Optional[int] = None, *,
         try:
             number = float(value)
         except (TypeError, ValueError) as err:
-            raise InvalidInputError(f'{name} must be a number, got {value!r}') from err
-        if not np.isfinite(number) or number <= 0.0:
-            raise InvalidInputError(f'{name} must be positive and finite, got {number}')
+            raise ShapeError(f'{name} must be a number, got {value!r}') from err
+        if not np.isfinite(number):
+            raise NonFiniteError(f'{name} must be positive and finite, got {number}')
+        if number <= 0.0:
+            raise InvalidInputError(f'{name} must be positive and finite, got {number}',
+                                    'out_of_range')
         return number
     if np.ndim(value) == 0:
         arr = np.full(int(n), float(as_finite_array(value, (), name)))
     else:
         arr = np.array(as_finite_array(value, (n,), name), dtype=float)
     if np.any(arr <= 0.0):
-        raise InvalidInputError(f'{name} must be positive and finite, got {arr.tolist()}')
+        raise InvalidInputError(f'{name} must be positive and finite, got {arr.tolist()}',
+                                'out_of_range')
     return arr
 
 

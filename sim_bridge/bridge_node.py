@@ -141,9 +141,9 @@ class SimJogIntake:
                     return
             except ValueError:
                 pass                     # conversions reads it (or says why not)
-            names, velocities = conversions.joint_jog_from_raw(raw, self.reader)
-            warnings = self.physics.command(names, velocities, arrival)
-            self.last = (tuple(names), tuple(velocities.tolist()))
+            jog = conversions.joint_jog_from_raw(raw, self.reader)   # checked once, here
+            warnings = self.physics.command(jog, arrival)
+            self.last = (tuple(jog.names), tuple(jog.velocities))
         except InvalidInputError as exc:
             self.rejections.add(str(exc))
             raise                        # refused: the guard logs and counts it

@@ -23,6 +23,7 @@ from typing import Any, Optional
 from mover6_control.nodes.messages import conversions
 from mover6_control.nodes.runtime.node_clock import now_ns
 from mover6_control.realtime import raise_this_thread, run_normal
+from mover6_control.values import JogRequest
 from sim_bridge.pacing import steps_due
 from sim_bridge.simulator import JointReading, Simulator
 
@@ -176,9 +177,9 @@ class PhysicsThread:
 
     # --- commands ----------------------------------------------------------------------------
 
-    def command(self, names: list, velocities: Any, arrival: float) -> list:
+    def command(self, jog: JogRequest, arrival: float) -> list:
         """
-        Hand a validated command to the simulator after the steps due before it; return warnings.
+        Hand a checked command to the simulator after the steps due before it; return warnings.
 
         ``arrival`` [s] monotonic: its latency is measured to the end of its first step. A
         resting arm's slower /joint_states: the full rate from this command on.
@@ -186,7 +187,7 @@ class PhysicsThread:
         with self.step_lock:
             self.catch_up()              # the steps due before it came: the command before
             with self.lock:
-                warnings = self.sim.set_command(names, velocities, self.sim.time)
+                warnings = self.sim.take_jog(jog, self.sim.time)
                 self.pending = (self.sim.command_count, arrival)
                 self.next_publish = min(self.next_publish,
                                         self.sim.time + self.pacing.publish_period)

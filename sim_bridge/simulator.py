@@ -44,9 +44,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 import math
 
-from mover6_control.errors import InvalidInputError
+from mover6_control.errors import InvalidInputError, NonFiniteError
 from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
 from mover6_control.parameters import SIM_MODES   # what the simulator behaves as
+from mover6_control.values import JogRequest
 import mujoco
 import numpy as np
 from sim_bridge.model import build_model, joint_dof_addresses, joint_qpos_addresses, ModelOptions
@@ -247,36 +248,29 @@ class Simulator:
         """
         Take a velocity command by joint name, received at ``receive_time`` [s] (sim clock).
 
-        ``velocities`` are [rad/s] in 'rad_per_s' mode and fractions of each joint's maximum
-        speed in 'vendor_driver' mode. Raises ``InvalidInputError`` (and changes nothing) on
-        unknown or repeated names, mismatched lengths or non-finite values. Returns a list of
+        For raw input (a script, the CAN arm's set-points): checked once as a
+        ``values.JogRequest`` (raises ``InvalidInputError`` with its code and changes nothing on
+        no names, repeated names, mismatched lengths or non-finite values), then ``take_jog``.
+        """
+        if not math.isfinite(receive_time):
+            raise NonFiniteError(f'receive_time must be finite, got {receive_time}')
+        return self.take_jog(JogRequest(names, np.asarray(velocities).reshape(-1).tolist()),
+                             receive_time)
+
+    def take_jog(self, jog: JogRequest, receive_time: float) -> list[str]:
+        """
+        Take a checked jog, received at ``receive_time`` [s] (sim clock): nothing checked again.
+
+        ``jog``'s velocities are [rad/s] in 'rad_per_s' mode and fractions of each joint's
+        maximum speed in 'vendor_driver' mode. Raises ``InvalidInputError`` (and changes
+        nothing) for a joint this arm does not have (code ``unknown_joint``). Returns a list of
         warnings (str) about values that were clamped.
         """
-        names = [str(n) for n in names]
-        try:
-            values = np.array(velocities, dtype=float).reshape(-1)
-        except (TypeError, ValueError) as exc:
-            raise InvalidInputError(f'velocities are not numbers: {exc}') from exc
-        if not names:
-            raise InvalidInputError('the command names no joints')
-        if len(values) != len(names):
-            raise InvalidInputError(
-                f'the command has {len(names)} joint names but {len(values)} velocities')
-        if len(set(names)) != len(names):
-            raise InvalidInputError(f'the command names a joint twice: {names}')
-        unknown = [n for n in names if n not in self._index]
-        if unknown:
-            raise InvalidInputError(
-                f'unknown joints {unknown}; this arm has {list(self.arm.joint_names)}')
-        if not np.all(np.isfinite(values)):
-            raise InvalidInputError(f'the command has non-finite velocities: {values.tolist()}')
-        if not math.isfinite(receive_time):
-            raise InvalidInputError(f'receive_time must be finite, got {receive_time}')
+        indices = jog.indices(self.arm.joint_names)
         vendor = self._vendor
         cmd = self._cmd.copy() if vendor else np.zeros(self.arm.n_joints)
         warnings = []
-        for name, value in zip(names, values):
-            i = self._index[name]
+        for name, i, value in zip(jog.names, indices, jog.velocities):
             limit = 1.0 if vendor else self._vmax[i]
             if abs(value) > limit:
                 # A command at the limit but for rounding (the controller scales to the same

@@ -13,7 +13,7 @@ from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.planning.planner_core import plan_path_goal, plan_pose_goal, PlannerSettings
 from mover6_control.planning.via_joint import plan_via_path_goal
-from mover6_control.tools.goal_convention import poses_from_numbers
+from mover6_control.tools.goal_convention import parabola_peak, poses_from_numbers
 from mover6_control.tools.goal_parser import build_parser
 import numpy as np
 from source_tree import ROOT
@@ -49,11 +49,8 @@ def plan_readme_goal(argv, q_start=HOME, arm=ARM):
     if args.command == 'pose':
         T_goal = poses_from_numbers(args.numbers, args.quat, arm, args.absolute)[0]
         if args.peak_height is not None:
-            # As GoalClient.send_pose: the peak pose, above the mid-point of the present tool
-            # position and the goal, on /path_goal/parabolic.
-            T_peak = fk(arm, q_start)
-            T_peak[:3, 3] = (0.5 * (T_peak[:3, 3] + T_goal[:3, 3])
-                             + np.array([0.0, 0.0, args.peak_height]))
+            # As GoalClient.send_pose: the goal command's own peak pose, on /path_goal/parabolic.
+            T_peak = parabola_peak(fk(arm, q_start), T_goal, args.peak_height)
             return plan_path_goal(arm, q_start, T_peak[None], T_goal, 'parabolic',
                                   PlannerSettings())
         return plan_pose_goal(arm, q_start, T_goal, args.motion or DEFAULT_MOTION,

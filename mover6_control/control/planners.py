@@ -62,7 +62,7 @@ def _per_waypoint(q_start, waypoints, make, first=()):
 
 def _continuous_plan(q_start, waypoints, velocity_limits, config, qd_start):
     n = q_start.shape[0]
-    a_max = as_positive(config.a_max, 'a_max', n)
+    a_max = np.full(n, float(config.a_max))     # checked when the profile was loaded
     first = ()
     path = np.vstack([q_start, waypoints])
     keep = np.concatenate([[True], np.any(np.abs(np.diff(path, axis=0)) > 1e-12, axis=1)])
@@ -126,7 +126,7 @@ def _spaced_rows(path, step):
 def _through_all_plan(q_start, waypoints, velocity_limits, config, qd_start):
     """Plan a multi-point trajectory of the Jacobians and trajectories report (no stops)."""
     n = q_start.shape[0]
-    a_max = as_positive(config.a_max, 'a_max', n)
+    a_max = np.full(n, float(config.a_max))     # checked when the profile was loaded
     first = ()
     if np.any(qd_start):
         first = (stop_segment(q_start, qd_start, a_max),)

@@ -75,7 +75,7 @@ import time
 from typing import Callable, Optional, Sequence
 
 import can
-from mover6_control.errors import InvalidInputError
+from mover6_control.errors import InvalidInputError, NonFiniteError
 from mover6_control.hardware import protocol as p
 from mover6_control.hardware.driver_replies import ReplyIntake
 from mover6_control.hardware.driver_requests import Request, Requests
@@ -181,14 +181,17 @@ class ArmDriver:
         """
         Command joint velocities ``qd`` [rad/s], one per joint, each clipped to its max speed.
 
-        InvalidInputError on a wrong length or a non-finite value; the previous command stands.
+        InvalidInputError (code ``length``, ``non_finite``) on a wrong length or a non-finite
+        value; the previous command stands. Kept on purpose although the driver node hands it
+        velocities of a checked ``values.JogRequest``: a public call any script makes with raw
+        numbers, and the last guard before the CAN set-points.
         """
         values = [float(v) for v in qd]
         if len(values) != len(self._joints):
             raise InvalidInputError(f'need {len(self._joints)} joint velocities, '
-                                    f'got {len(values)}')
+                                    f'got {len(values)}', 'length')
         if not all(v == v and abs(v) != float('inf') for v in values):
-            raise InvalidInputError(f'joint velocities must be finite, got {values}')
+            raise NonFiniteError(f'joint velocities must be finite, got {values}')
         clipped = [max(-j.scale.max_speed, min(j.scale.max_speed, v))
                    for j, v in zip(self._joints, values)]
         with self._lock:

@@ -42,14 +42,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from mover6_control.errors import InvalidInputError
+from mover6_control.errors import InvalidInputError, NotATransformError
 from mover6_control.kinematics.forward import condition_number, fk_batch, jacobian_batch
 from mover6_control.kinematics.ik_closed_form import (nearest_alias, pose_errors_batch,
                                                       solve_candidates, VERIFY_TOL, wrist_geometry)
 from mover6_control.kinematics.ik_numeric import DEFAULT_WEIGHTS, ik_numeric
-from mover6_control.kinematics.rotations import ORTHONORMAL_TOL, pose_error
+from mover6_control.kinematics.rotations import pose_error
 from mover6_control.kinematics.unreachable import path_failure, unreachable_error
 from mover6_control.validation import as_finite_array, as_positive
+from mover6_control.values import ORTHONORMAL_TOL
 import numpy as np
 
 if TYPE_CHECKING:
@@ -108,14 +109,14 @@ def validate_poses(poses: np.ndarray, name: str = 'poses') -> np.ndarray:
     err = np.abs(R.transpose(0, 2, 1) @ R - np.eye(3)).max(axis=(1, 2))
     bad = np.flatnonzero(err > ORTHONORMAL_TOL)
     if len(bad):
-        raise InvalidInputError(
+        raise NotATransformError(
             f'{name}[{bad[0]}] rotation is not orthonormal (|R^T R - I| = {err[bad[0]]:.2e})')
     bad = np.flatnonzero(np.linalg.det(R) < 0.0)
     if len(bad):
-        raise InvalidInputError(f'{name}[{bad[0]}] rotation is a reflection (det < 0)')
+        raise NotATransformError(f'{name}[{bad[0]}] rotation is a reflection (det < 0)')
     bad = np.flatnonzero(np.abs(P[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1) > ORTHONORMAL_TOL)
     if len(bad):
-        raise InvalidInputError(f'{name}[{bad[0]}] last row must be [0, 0, 0, 1]')
+        raise NotATransformError(f'{name}[{bad[0]}] last row must be [0, 0, 0, 1]')
     return P
 
 

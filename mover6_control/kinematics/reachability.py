@@ -19,8 +19,9 @@ from mover6_control.kinematics.ik_closed_form import (has_spherical_wrist, ik_cl
                                                       wrist_geometry)
 from mover6_control.kinematics.ik_numeric import DEFAULT_WEIGHTS, ik_numeric
 from mover6_control.kinematics.path_ik import solve_path, validate_poses
-from mover6_control.kinematics.rotations import pose_error, validate_transform
+from mover6_control.kinematics.rotations import pose_error
 from mover6_control.kinematics.unreachable import unreachable_error
+from mover6_control.values import ToolPose
 import numpy as np
 
 if TYPE_CHECKING:
@@ -64,7 +65,7 @@ def check_pose(arm: ArmModel, T: np.ndarray, q_ref: np.ndarray | None = None, *,
     Jacobian condition number above it (reason 'singularity'). Arms without a spherical wrist
     are solved numerically to ``position_tol`` [m] and ``orientation_tol`` [rad].
     """
-    T = validate_transform(T, 'pose')
+    T = ToolPose.of(T, 'pose')          # checked once here; the IK below takes it as it is
     ref = np.zeros(arm.n_joints) if q_ref is None else arm.check_q(q_ref, 'q_ref')
     closed_form = has_spherical_wrist(arm)
     sols = np.zeros((0, arm.n_joints))

@@ -15,53 +15,26 @@ took half a second of every node's start-up to import; the tests check them agai
 from collections.abc import Sequence
 import math
 
-from mover6_control.errors import InvalidInputError
+from mover6_control.errors import QuaternionError
 from mover6_control.validation import as_finite_array
+from mover6_control.values import check_rotation_rows, QUATERNION_NORM_TOL, ToolPose
 import numpy as np
-
-ORTHONORMAL_TOL = 1e-6
-
-
-def _dot3(a, b):
-    """Return the dot product of two 3-lists."""
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 def validate_rotation(R: np.ndarray, name: str = 'rotation') -> np.ndarray:
     """Check that ``R`` is a finite 3x3 proper rotation matrix and return it as an array."""
     R = as_finite_array(R, (3, 3), name)
-    _check_rotation(R.tolist(), name)
+    check_rotation_rows(R.tolist(), name)
     return R
 
 
-def _check_rotation(rows, name):
+def validate_transform(T: object, name: str = 'transform') -> np.ndarray:
     """
-    Raise unless the 3x3 ``rows`` (lists of floats) are orthonormal with determinant +1.
+    Return the matrix (4, 4) of ``T``: a ``ToolPose`` as it is, else checked by ``ToolPose``.
 
-    On floats: nine numbers cost less than the set-up of array operations.
+    For raw input a caller hands the library; a ``ToolPose`` was checked where it was made.
     """
-    a, b, c = rows
-    col = [[a[j], b[j], c[j]] for j in range(3)]
-    err = max(abs(_dot3(col[0], col[0]) - 1.0), abs(_dot3(col[1], col[1]) - 1.0),
-              abs(_dot3(col[2], col[2]) - 1.0), abs(_dot3(col[0], col[1])),
-              abs(_dot3(col[0], col[2])), abs(_dot3(col[1], col[2])))
-    if err > ORTHONORMAL_TOL:
-        raise InvalidInputError(f'{name} is not orthonormal (|R^T R - I| = {err:.2e})')
-    det = (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-           + a[2] * (b[0] * c[1] - b[1] * c[0]))
-    if det < 0.0:
-        raise InvalidInputError(f'{name} is a reflection (det < 0), not a rotation')
-
-
-def validate_transform(T: np.ndarray, name: str = 'transform') -> np.ndarray:
-    """Check that ``T`` is a finite 4x4 homogeneous transform and return it as an array."""
-    T = as_finite_array(T, (4, 4), name)
-    rows = T.tolist()
-    _check_rotation([row[:3] for row in rows[:3]], name + ' rotation')
-    last = rows[3]
-    if max(abs(last[0]), abs(last[1]), abs(last[2]), abs(last[3] - 1.0)) > ORTHONORMAL_TOL:
-        raise InvalidInputError(f'{name} last row must be [0, 0, 0, 1], got {last}')
-    return T
+    return ToolPose.of(T, name).matrix
 
 
 def make_transform(position: Sequence[float], R: np.ndarray | None = None) -> np.ndarray:
@@ -92,15 +65,16 @@ def quaternion_to_matrix(q_xyzw: Sequence[float]) -> np.ndarray:
     """
     Return the rotation matrix of a quaternion ``(x, y, z, w)``; rejects a zero quaternion.
 
-    A quaternion whose norm is off 1 by more than 1e-3 is rejected too, because a sender that
-    means a rotation normalises it; silently normalising would hide a bug upstream.
+    A quaternion whose norm is off 1 by more than ``QUATERNION_NORM_TOL`` is rejected too,
+    because a sender that means a rotation normalises it; silently normalising would hide a bug
+    upstream.
     """
     q = as_finite_array(q_xyzw, (4,), 'quaternion')
     norm = float(np.linalg.norm(q))
     if norm < 1e-9:
-        raise InvalidInputError('quaternion is zero: it describes no rotation')
-    if abs(norm - 1.0) > 1e-3:
-        raise InvalidInputError(f'quaternion is not unit length (norm {norm:.6f})')
+        raise QuaternionError('quaternion is zero: it describes no rotation')
+    if abs(norm - 1.0) > QUATERNION_NORM_TOL:
+        raise QuaternionError(f'quaternion is not unit length (norm {norm:.6f})')
     return unit_quaternion_to_matrix(q / norm)
 
 

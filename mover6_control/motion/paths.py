@@ -24,6 +24,7 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import (rotation_angle_between, slerp,
                                                  validate_transform)
 from mover6_control.validation import as_finite_array, as_positive
+from mover6_control.values import poses_of, ToolPose
 import numpy as np
 from scipy.interpolate import CubicSpline
 
@@ -136,11 +137,10 @@ def parabola_coefficients(p_start: Sequence[float], p_mid: Sequence[float],
     Return (a, b, c) (3,) each with ``r(t) = a t^2 + b t + c`` through the three points.
 
     ``r(0) = p_start``, ``r(0.5) = p_mid``, ``r(1) = p_goal`` (the Mover6 report eq. 12-15).
+    The points come from poses already checked (``parabolic_curve``'s): not checked again.
     """
     M = np.array([[0.0, 0.0, 1.0], [1.0, 1.0, 1.0], [0.25, 0.5, 1.0]])
-    rhs = np.vstack([as_finite_array(p_start, (3,), 'p_start'),
-                     as_finite_array(p_goal, (3,), 'p_goal'),
-                     as_finite_array(p_mid, (3,), 'p_mid')])
+    rhs = np.array([p_start, p_goal, p_mid], dtype=float)
     coeff = np.linalg.solve(M, rhs)
     return coeff[0], coeff[1], coeff[2]
 
@@ -231,10 +231,8 @@ def spline_curve(T_start: np.ndarray, T_vias: np.ndarray, T_goal: np.ndarray,
     """Return the ``PosePath`` of ``spline_path`` (parameter: the chord-length ``u``)."""
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
-    vias = np.zeros((0, 4, 4)) if np.size(T_vias) == 0 else \
-        as_finite_array(T_vias, (None, 4, 4), 'T_vias')
-    keys = [T_start] + [validate_transform(T, f'T_vias[{i}]') for i, T in enumerate(vias)]
-    keys.append(T_goal)
+    vias = [] if np.size(T_vias) == 0 else [p.matrix for p in poses_of(T_vias, 'T_vias')]
+    keys = [T_start] + vias + [T_goal]
     for i in range(len(keys) - 1):
         _check_distinct(keys[i], keys[i + 1], f'key poses {i} and {i + 1}')
     P = np.array([T[:3, 3] for T in keys])
@@ -265,11 +263,10 @@ def circle_through(p_a: Sequence[float], p_b: Sequence[float],
     Return (center (3,), radius [m], e1 (3,), e2 (3,), angle_b, angle_c) of the circle A-B-C.
 
     A point at angle ``phi`` is ``center + radius (e1 cos phi + e2 sin phi)``; A is at 0 and
-    ``0 < angle_b < angle_c < 2 pi``. Collinear points have no circle: an error.
+    ``0 < angle_b < angle_c < 2 pi``. Collinear points have no circle: an error. The points
+    come from poses and a via point already checked (``arc_curve``'s): not checked again.
     """
-    A = as_finite_array(p_a, (3,), 'start point')
-    B = as_finite_array(p_b, (3,), 'via point')
-    C = as_finite_array(p_c, (3,), 'goal point')
+    A, B, C = (np.asarray(p, dtype=float) for p in (p_a, p_b, p_c))
     ab, ac = B - A, C - A
     normal = np.cross(ab, ac)
     scale = np.linalg.norm(ab) * np.linalg.norm(ac)
@@ -308,8 +305,8 @@ def arc_curve(T_start: np.ndarray, T_via: np.ndarray, T_goal: np.ndarray,
     """Return the ``PosePath`` of ``arc_path`` (parameter ``t`` in [0, 1], along the angle)."""
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
-    via = np.asarray(T_via, dtype=float)
-    T_via = validate_transform(via, 'T_via') if via.shape == (4, 4) else None
+    via = T_via if isinstance(T_via, ToolPose) else np.asarray(T_via, dtype=float)
+    T_via = validate_transform(via, 'T_via') if np.shape(via) == (4, 4) else None
     p_via = T_via[:3, 3] if T_via is not None else as_finite_array(via, (3,), 'T_via')
     center, radius, e1, e2, ang_b, ang_c = circle_through(T_start[:3, 3], p_via, T_goal[:3, 3])
     if T_via is None:
@@ -329,5 +326,5 @@ def arc_curve(T_start: np.ndarray, T_via: np.ndarray, T_goal: np.ndarray,
 
 
 def positions_of(poses: np.ndarray) -> np.ndarray:
-    """Return the positions (n, 3) [m] of poses (n, 4, 4)."""
-    return as_finite_array(poses, (None, 4, 4), 'poses')[:, :3, 3].copy()
+    """Return the positions (n, 3) [m] of poses (n, 4, 4) (a path's: computed, not checked)."""
+    return np.array(poses, dtype=float)[:, :3, 3]

@@ -25,7 +25,7 @@ from mover6_control.collision.geometry import keep_out_boxes, KeepOutBox
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk_batch
-from mover6_control.nodes.messages.conversions import pose_to_matrix
+from mover6_control.nodes.messages.conversions import pose_from_msg
 from mover6_control.nodes.messages.demand_messages import demands_from_msg
 from mover6_control.nodes.runtime import shutdown
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
@@ -203,7 +203,7 @@ class MarkersNode(Node):
 
     def on_pose_goal(self, msg: PoseStamped) -> None:
         """Show a pose goal; the path of the goal before is cleared (a malformed pose: refused)."""
-        self.goal = goal_markers(pose_to_matrix(msg.pose))
+        self.goal = goal_markers(pose_from_msg(msg.pose).matrix)
         self.path = []
         self.publish()
 
@@ -214,7 +214,7 @@ class MarkersNode(Node):
         if len(msg.poses) > MAX_POSES:
             raise InvalidInputError(f'a path goal has at most {MAX_POSES} poses to show, got '
                                     f'{len(msg.poses)}')
-        poses = [pose_to_matrix(p) for p in msg.poses]
+        poses = [pose_from_msg(p).matrix for p in msg.poses]
         self.goal = goal_markers(poses[-1], poses[:-1])
         self.path = []
         self.publish()

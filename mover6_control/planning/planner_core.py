@@ -17,9 +17,10 @@ from mover6_control.kinematics.forward import condition_number, fk, fk_batch, ja
 from mover6_control.kinematics.ik_closed_form import ik_closed_form, pose_errors_batch
 from mover6_control.kinematics.path_ik import solve_path
 from mover6_control.kinematics.reachability import check_pose
-from mover6_control.kinematics.rotations import pose_error, validate_transform
+from mover6_control.kinematics.rotations import pose_error
 from mover6_control.motion import paths
 from mover6_control.parameters import PATH_MOTIONS, POSE_MOTIONS   # the shapes planned here
+from mover6_control.values import poses_of, ToolPose
 import numpy as np
 
 if TYPE_CHECKING:
@@ -175,7 +176,8 @@ def _wrist_turns(arm, q_current, T_next, settings):
     if condition_number(arm, q_current) <= settings.max_condition:
         return no_turn
     try:
-        solutions = ik_closed_form(arm, T_next, within_limits=True, q_ref=q_current)
+        solutions = ik_closed_form(arm, ToolPose.computed(T_next), within_limits=True,
+                                   q_ref=q_current)     # a pose of the path: computed
     except InvalidInputError:
         return no_turn   # no closed form for this arm: the path solver deals with it
     v = np.linalg.svd(jacobian(arm, q_current))[2][-1]
@@ -380,10 +382,10 @@ def plan_pose_goal(arm: ArmModel, q_current: np.ndarray, T_goal: np.ndarray,
     ``InvalidInputError``.
     """
     q_current = arm.check_q(q_current, 'current joint positions')
-    T_goal = validate_transform(T_goal, 'goal pose')
+    T_goal = ToolPose.of(T_goal, 'goal pose')     # a ToolPose (a message's) passes unchecked
     if motion not in POSE_MOTIONS:
         raise InvalidInputError(f'unknown motion "{motion}", expected one of {POSE_MOTIONS}')
-    T_start = fk(arm, q_current)
+    T_start = ToolPose.computed(fk(arm, q_current))
     pos_err, rot_err = pose_error(T_start, T_goal)
     if pos_err < 1e-6 and rot_err < 1e-6:
         # Already there: a two-row hold lets the controller report arrival at once.
@@ -419,18 +421,18 @@ def plan_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
     """
     if motion not in PATH_MOTIONS:
         raise InvalidInputError(f'unknown path motion "{motion}", expected one of {PATH_MOTIONS}')
-    T_vias = np.asarray(T_vias, dtype=float).reshape(-1, 4, 4)
+    if not isinstance(T_vias, (list, tuple)):
+        T_vias = np.asarray(T_vias, dtype=float).reshape(-1, 4, 4)
     check_path_shape(motion, len(T_vias))     # cheap checks first: count, then each pose's form
     q_current = arm.check_q(q_current, 'current joint positions')
-    T_goal = validate_transform(T_goal, 'goal pose')
-    for i, T in enumerate(T_vias):
-        validate_transform(T, f'via pose {i}')
+    T_goal = ToolPose.of(T_goal, 'goal pose')     # ToolPose values (a message's) pass unchecked
+    T_vias = poses_of(T_vias, 'via pose')
     for i, T in enumerate(T_vias):
         check_goal(arm, T, q_current, settings, what=f'via pose {i}')
     check_goal(arm, T_goal, q_current, settings)
     checker = checker or make_checker(arm, settings)
     check_goal_collision(arm, T_goal, q_current, checker)
-    T_start = fk(arm, q_current)
+    T_start = ToolPose.computed(fk(arm, q_current))
     if motion in ('arc', 'parabolic'):
         if motion == 'arc':
             path = paths.arc_curve(T_start, T_vias[0], T_goal, **settings.sampling())

@@ -28,12 +28,13 @@ from typing import TYPE_CHECKING
 
 from mover6_control.errors import UnreachableError
 from mover6_control.kinematics.forward import fk, fk_batch
-from mover6_control.kinematics.rotations import pose_error, validate_transform
+from mover6_control.kinematics.rotations import pose_error
 from mover6_control.motion.time_laws import via_point_polynomial
 from mover6_control.planning.planner_core import (check_goal, check_goal_collision,
                                                   check_path_shape, check_plan_collision,
                                                   closest_solution, JointPlan, make_checker,
                                                   PlannerSettings, polyline_length, travel_time)
+from mover6_control.values import ToolPose
 import numpy as np
 
 if TYPE_CHECKING:
@@ -122,8 +123,8 @@ def plan_via_joint_move(arm: ArmModel, q_current: np.ndarray, T_via: np.ndarray,
     ``InvalidInputError`` on malformed input.
     """
     q_current = arm.check_q(q_current, 'current joint positions')
-    T_via = validate_transform(T_via, 'via pose 0')
-    T_goal = validate_transform(T_goal, 'goal pose')
+    T_via = ToolPose.of(T_via, 'via pose 0')      # ToolPose values (a message's) pass unchecked
+    T_goal = ToolPose.of(T_goal, 'goal pose')
     check_goal(arm, T_via, q_current, settings, what='via pose 0', singular_ok=True)
     check_goal(arm, T_goal, q_current, settings, singular_ok=True)
     checker = checker or make_checker(arm, settings)
@@ -154,6 +155,7 @@ def plan_via_path_goal(arm: ArmModel, q_current: np.ndarray, T_vias: np.ndarray,
 
     Checked as every path goal is (``check_path_shape`` first), collisions included.
     """
-    T_vias = np.asarray(T_vias, dtype=float).reshape(-1, 4, 4)
+    if not isinstance(T_vias, (list, tuple)):
+        T_vias = np.asarray(T_vias, dtype=float).reshape(-1, 4, 4)
     check_path_shape('joint', len(T_vias))
     return plan_via_joint_move(arm, q_current, T_vias[0], T_goal, settings, checker)

@@ -225,7 +225,8 @@ class SimulatedRig:
 
 def executable(name: str) -> list[str]:
     """Return the command of the package's executable ``name`` (installed, or ``python -m``)."""
-    modules = {'can_sim': 'sim_bridge.can_sim', 'driver': 'mover6_control.nodes.driver.driver_node'}
+    modules = {'can_sim': 'sim_bridge.can_sim',
+               'driver': 'mover6_control.nodes.driver.driver_node'}
     try:
         from ament_index_python.packages import get_package_prefix
         exe = os.path.join(get_package_prefix('mover6_control'), 'lib', 'mover6_control', name)

@@ -4,32 +4,32 @@ The goal command line's client: send a goal, follow the motion, exit 0 only when
 ``GoalClient`` is the node: it sends pose, path and joint goals (and ~/stop), and follows the
 planner's and the controller's status about its own goal only (the planner's status names it by
 its stamp, ``goal_stamp``; the controller's by the ``goal_id`` the planner gave it) until the
-motion ends. ``run`` runs one command line with it, ``main`` is ``ros2 run mover6_control goal``.
-The command's syntax, its examples, the goal conventions and the exit codes are its ``--help``:
-``tools/goal_parser.py``.
+motion ends. It is composed of parts, each given what it uses in its constructor:
+``readiness.Spinner``, ``readiness.LatestStatus`` (what it hears), ``readiness.Readiness``,
+``goal_follower.MotionFollower`` (one goal followed to its end), ``PlannerParameters`` and
+``GoalStopper``. ``run`` runs one command line with it, ``main`` is ``ros2 run mover6_control
+goal``. The command's syntax, its examples, the goal conventions and the exit codes are its
+``--help``: ``tools/goal_parser.py``.
 """
 
 import sys
-import time
 from typing import Callable, Optional, Sequence
 
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
-from mover6_control.control.status import (FINAL_RESULTS, MotionResult, PlannerResult, State,
-                                           StatusKey)
 from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk
-from mover6_control.kinematics.rotations import pose_error
 from mover6_control.nodes.messages import conversions, demand_messages
 from mover6_control.nodes.runtime.names import namespace_from
 from mover6_control.nodes.runtime.qos import STATUS_READER_QOS
 from mover6_control.tools.goal_convention import (EXIT_ARRIVED, EXIT_FAILED, EXIT_NO_NODES,
                                                   EXIT_REFUSED, format_outcome, Outcome,
-                                                  poses_from_numbers)
+                                                  parabola_peak, poses_from_numbers)
+from mover6_control.tools.goal_follower import MotionFollower
 from mover6_control.tools.goal_parser import build_parser
-from mover6_control.tools.readiness import Readiness
+from mover6_control.tools.readiness import LatestStatus, Readiness, Spinner, status_values
+from mover6_control.values import JointDemand
 import numpy as np
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -43,84 +43,39 @@ from std_srvs.srv import Trigger
 
 # [s] longest wait for the planner's ~/stop service (no planner: the controller is stopped).
 PLANNER_STOP_WAIT = 2.0
-# [s] longest wait for the planner's answer about a goal (more when it says the goal waits for
-# joint states: by as much as it says).
-PLANNER_ANSWER_WAIT = 15.0
-# [s] longest wait, after arrival, for the controller to finish settling (its settle_time is 1 s).
-SETTLE_WAIT = 5.0
 
 
-class GoalClient(Readiness, Node):
-    """A node that sends goals and follows the planner's and controller's status."""
+class PlannerParameters:
+    """Set the planner's parameters (``node``'s parameter client of ``planner_node``)."""
 
-    def __init__(self, name='goal_client', planner_node='planner', controller_node='controller'):
-        super().__init__(name)
-        self.arm = mover6()
-        self.planner_status = None
-        self.controller_status = None
-        self.q = None
-        self.last_demands = None
-        self.rejection = None
-        self.goal_id = None          # the id of the goal being followed
-        self.pose_pub = self.create_publisher(PoseStamped, 'pose_goal', 10)
-        self.path_pub = self.create_publisher(PoseArray, 'path_goal', 10)
-        self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
-        # Depth 10: a status (such as the controller's 'rejected' report) is not overwritten by
-        # the next one before it is read.
-        self.create_subscription(DiagnosticStatus, 'planner/status', self.on_planner,
-                                 STATUS_READER_QOS)
-        self.create_subscription(DiagnosticStatus, 'controller/status', self.on_controller,
-                                 STATUS_READER_QOS)
-        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
-        self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
-        self.shape_pubs = {}         # topic -> publisher of the goal topics of one shape
-        self.planner_params = AsyncParameterClient(self, planner_node)
-        self.stop_client = self.create_client(Trigger, f'{controller_node}/stop')
-        self.planner_stop_client = self.create_client(Trigger, f'{planner_node}/stop')
+    def __init__(self, node: Node, spinner: Spinner, planner_node: str) -> None:
+        self.client = AsyncParameterClient(node, planner_node)
+        self.spinner = spinner
 
-    # --- subscriptions ---------------------------------------------------------------------
-
-    def on_planner(self, msg: DiagnosticStatus) -> None:
-        """Keep the planner's latest status."""
-        self.planner_status = msg
-
-    def on_controller(self, msg: DiagnosticStatus) -> None:
-        """Keep the controller's latest status, and note when it rejected a demand."""
-        self.controller_status = msg
-        values = self.values(msg)
-        rejected = values.get(StatusKey.REJECTED)
-        if rejected and self.goal_id is not None and values.get(StatusKey.REJECTED_GOAL_ID) in (
-                self.goal_id, ''):
-            self.rejection = rejected
-
-    def on_joint_states(self, msg: JointState) -> None:
-        """Keep the latest joint positions."""
-        try:
-            self.q, _ = conversions.joint_state_from_msg(msg, self.arm.joint_names)
-        except Mover6Error:
-            pass
-
-    def on_demands(self, msg: Float32MultiArray) -> None:
-        """Keep the latest joint demands (the planner's output)."""
-        try:
-            self.last_demands = demand_messages.demands_from_msg(msg)
-        except Mover6Error:
-            pass
-
-    def set_planner_parameters(self, params: dict, timeout: float = 10.0) -> Optional[str]:
+    def apply(self, params: dict, timeout: float = 10.0) -> Optional[str]:
         """Set planner parameters (e.g. motion); return an error text or None."""
         if not params:
             return None
-        if not self.planner_params.wait_for_services(timeout_sec=timeout):
+        if not self.client.wait_for_services(timeout_sec=timeout):
             return 'the planner parameter service is not available'
-        future = self.planner_params.set_parameters(
+        future = self.client.set_parameters(
             [Parameter(name, value=value) for name, value in params.items()])
-        if not self.spin_until(future.done, timeout):
+        if not self.spinner.spin_until(future.done, timeout):
             return 'setting planner parameters timed out'
         for name, result in zip(params, future.result().results):
             if not result.successful:
                 return f'planner refused parameter {name}: {result.reason}'
         return None
+
+
+class GoalStopper:
+    """Call the planner's and the controller's ~/stop (clients of ``node``)."""
+
+    def __init__(self, node: Node, spinner: Spinner, planner_node: str,
+                 controller_node: str) -> None:
+        self.spinner = spinner
+        self.stop_client = node.create_client(Trigger, f'{controller_node}/stop')
+        self.planner_stop_client = node.create_client(Trigger, f'{planner_node}/stop')
 
     def stop(self, timeout: float = 10.0) -> tuple[bool, str, bool]:
         """
@@ -132,7 +87,7 @@ class GoalClient(Readiness, Node):
         planner_note = ''
         if self.planner_stop_client.wait_for_service(timeout_sec=PLANNER_STOP_WAIT):
             future = self.planner_stop_client.call_async(Trigger.Request())
-            if self.spin_until(future.done, timeout):
+            if self.spinner.spin_until(future.done, timeout):
                 planner_note = f'; planner: {future.result().message}'
         ok, text, available = self.stop_controller(timeout)
         return ok, text + planner_note, available
@@ -143,9 +98,108 @@ class GoalClient(Readiness, Node):
             return False, ('the controller stop service is not available (is the controller '
                            'running?)'), False
         future = self.stop_client.call_async(Trigger.Request())
-        if not self.spin_until(future.done, timeout):
+        if not self.spinner.spin_until(future.done, timeout):
             return False, 'stop service call timed out', True
         return future.result().success, future.result().message, True
+
+
+def _latest_field(name):
+    """Return a property reading and writing ``self.latest.<name>``."""
+    def get(self):
+        return getattr(self.latest, name)
+
+    def put(self, value):
+        setattr(self.latest, name, value)
+    return property(get, put, doc=f'The latest ``{name}`` (``readiness.LatestStatus``).')
+
+
+class GoalClient(Node):
+    """A node that sends goals and follows the planner's and controller's status."""
+
+    def __init__(self, name: str = 'goal_client', planner_node: str = 'planner',
+                 controller_node: str = 'controller') -> None:
+        super().__init__(name)
+        self.arm = mover6()
+        self.latest = LatestStatus(self.arm.joint_names)
+        self.spinner = Spinner(self)
+        self.pose_pub = self.create_publisher(PoseStamped, 'pose_goal', 10)
+        self.path_pub = self.create_publisher(PoseArray, 'path_goal', 10)
+        self.demands_pub = self.create_publisher(Float32MultiArray, 'joint_demands', 10)
+        self.shape_pubs = {}         # topic -> publisher of the goal topics of one shape
+        self.readiness = Readiness(self.spinner, self.latest, self.pose_pub, self)
+        self.follower = MotionFollower(self.spinner, self.latest, self.arm)
+        self.planner_params = PlannerParameters(self, self.spinner, planner_node)
+        self.stopper = GoalStopper(self, self.spinner, planner_node, controller_node)
+        # Depth 10: a status (such as the controller's 'rejected' report) is not overwritten by
+        # the next one before it is read.
+        self.create_subscription(DiagnosticStatus, 'planner/status', self.on_planner,
+                                 STATUS_READER_QOS)
+        self.create_subscription(DiagnosticStatus, 'controller/status', self.on_controller,
+                                 STATUS_READER_QOS)
+        self.create_subscription(JointState, 'joint_states', self.on_joint_states, 10)
+        self.create_subscription(Float32MultiArray, 'joint_demands', self.on_demands, 10)
+
+    q = _latest_field('q')
+    planner_status = _latest_field('planner_status')
+    controller_status = _latest_field('controller_status')
+    last_demands = _latest_field('last_demands')
+    rejection = _latest_field('rejection')
+    goal_id = _latest_field('goal_id')
+
+    # --- what it hears (kept by ``latest``; a subclass may hear more) ----------------------
+
+    def on_planner(self, msg: DiagnosticStatus) -> None:
+        """Keep the planner's latest status."""
+        self.latest.on_planner(msg)
+
+    def on_controller(self, msg: DiagnosticStatus) -> None:
+        """Keep the controller's latest status, and note when it rejected a demand."""
+        self.latest.on_controller(msg)
+
+    def on_joint_states(self, msg: JointState) -> None:
+        """Keep the latest joint positions."""
+        self.latest.on_joint_states(msg)
+
+    def on_demands(self, msg: Float32MultiArray) -> None:
+        """Keep the latest joint demands (the planner's output)."""
+        self.latest.on_demands(msg)
+
+    # --- the parts' work, by the names its users call --------------------------------------
+
+    @staticmethod
+    def values(msg: Optional[DiagnosticStatus]) -> dict:
+        """Return a status message's values as a dict (empty for None)."""
+        return status_values(msg)
+
+    def spin_until(self, predicate: Callable[[], bool], timeout: float,
+                   tick: Optional[Callable[[], None]] = None) -> bool:
+        """Spin until ``predicate()`` is true or ``timeout`` [s] passes (``Spinner``)."""
+        return self.spinner.spin_until(predicate, timeout, tick)
+
+    def wait_ready(self, timeout: float = 30.0, need_planner: bool = True,
+                   steady: float = 1.0) -> Optional[str]:
+        """Wait for the nodes a goal needs (``Readiness.wait_ready``); None when ready."""
+        return self.readiness.wait_ready(timeout, need_planner, steady)
+
+    def on_topic(self, topic: str, publisher_node: str, subscriber_node: str) -> bool:
+        """Return True when the graph shows both nodes on ``topic`` (``Readiness``)."""
+        return self.readiness.on_topic(topic, publisher_node, subscriber_node)
+
+    def set_planner_parameters(self, params: dict, timeout: float = 10.0) -> Optional[str]:
+        """Set planner parameters (``PlannerParameters.apply``); return an error text or None."""
+        return self.planner_params.apply(params, timeout)
+
+    def stop(self, timeout: float = 10.0) -> tuple[bool, str, bool]:
+        """Stop the planner's goals and the arm (``GoalStopper.stop``)."""
+        return self.stopper.stop(timeout)
+
+    def stop_controller(self, timeout: float = 10.0) -> tuple[bool, str, bool]:
+        """Call the controller's ~/stop (``GoalStopper.stop_controller``)."""
+        return self.stopper.stop_controller(timeout)
+
+    def run_goal(self, publish: Callable[[], None], **kwargs: object) -> Outcome:
+        """Publish a goal with ``publish()`` and follow it to its end (``MotionFollower.run``)."""
+        return self.follower.run(publish, **kwargs)
 
     # --- goals -----------------------------------------------------------------------------
 
@@ -154,114 +208,6 @@ class GoalClient(Readiness, Node):
         if topic not in self.shape_pubs:
             self.shape_pubs[topic] = self.create_publisher(msg_type, topic, 10)
         return self.shape_pubs[topic]
-
-    def run_goal(self, publish: Callable[[], None], T_goal: Optional[np.ndarray] = None,
-                 planned: bool = True, timeout: float = 60.0,
-                 progress: Optional[Callable[[str], None]] = None, stamp: Optional[Time] = None,
-                 goal_id: Optional[str] = None) -> Outcome:
-        """
-        Publish a goal with ``publish()``, then follow it, and only it, to its end.
-
-        ``planned`` goals go through the planner: its status about the goal stamped ``stamp``
-        (a ``builtin_interfaces/Time``) says planned or refused and gives the goal's id; others
-        go straight to /joint_demands labelled ``goal_id``. The controller's status about that
-        id says how the motion ended. ``T_goal`` (4, 4), when given, yields the tool position
-        error. ``progress(text)`` is called about twice a second while the arm moves.
-        """
-        self.last_demands = None
-        self.rejection = None
-        self.goal_id = goal_id
-        t0 = time.monotonic()
-        publish()
-        demands = None
-        if planned:
-            mine = f'{stamp.sec}.{stamp.nanosec:09d}'
-
-            def about_mine(results=None):
-                v = self.values(self.planner_status)
-                return v.get(StatusKey.GOAL_STAMP) == mine and (
-                    results is None or v.get(StatusKey.RESULT) in results)
-            # A goal that came before the planner's joint states waits for them (and says so,
-            # with how long it may wait): then planned or refused.
-            answered = (PlannerResult.PLANNED, PlannerResult.REFUSED, PlannerResult.FAILED)
-            waiting = (PlannerResult.WAITING_FOR_STATES,)
-            if not self.spin_until(lambda: about_mine(answered) or about_mine(waiting),
-                                   PLANNER_ANSWER_WAIT):
-                return Outcome(EXIT_FAILED, 'the planner did not answer within '
-                               f'{PLANNER_ANSWER_WAIT:.0f} s')
-            if not about_mine(answered):
-                wait = float(self.values(self.planner_status).get('wait_timeout', 0.0))
-                if not self.spin_until(lambda: about_mine(answered), wait + PLANNER_ANSWER_WAIT):
-                    return Outcome(EXIT_FAILED, 'the planner did not plan the goal within '
-                                   f'{wait + PLANNER_ANSWER_WAIT:.0f} s')
-            status = self.planner_status
-            self.goal_id = self.values(status).get(StatusKey.GOAL_ID)
-            if status.level != DiagnosticStatus.OK:
-                return Outcome(EXIT_REFUSED, status.message, **self.values(status))
-            self.spin_until(lambda: self.last_demands is not None, 5.0)
-            demands = self.last_demands
-
-        def mine_now():
-            return self.values(self.controller_status).get(StatusKey.GOAL_ID) == self.goal_id
-
-        def planner_ended():
-            # After 'planned' the planner reports the controller's refusal of the demand, or
-            # that no controller acknowledged it.
-            v = self.values(self.planner_status)
-            return (planned and v.get(StatusKey.GOAL_ID) == self.goal_id
-                    and v.get(StatusKey.RESULT) in (PlannerResult.REFUSED, PlannerResult.FAILED))
-
-        def motion_done():
-            v = self.values(self.controller_status)
-            return self.rejection is not None or planner_ended() or (
-                mine_now() and v.get(StatusKey.RESULT) in FINAL_RESULTS)
-
-        last_print = [0.0]
-
-        def tick():
-            if progress is None or time.monotonic() - last_print[0] < 0.5:
-                return
-            v = self.values(self.controller_status)
-            if not mine_now():
-                return   # the status still describes another motion
-            last_print[0] = time.monotonic()
-            text = (f'{v.get(StatusKey.STATE, "?")}: waypoint {v.get(StatusKey.WAYPOINT, "?")} '
-                    f'of {v.get(StatusKey.WAYPOINTS, "?")}')
-            if T_goal is not None and self.q is not None:
-                left = np.linalg.norm(fk(self.arm, self.q)[:3, 3] - T_goal[:3, 3])
-                text += f', {left * 1e3:.1f} mm to go'
-            progress(text)
-
-        if not self.spin_until(motion_done, timeout, tick):
-            return Outcome(EXIT_FAILED, f'the motion did not finish within {timeout:.0f} s')
-        if self.rejection is not None:
-            return Outcome(EXIT_REFUSED, f'the controller refused the demand: {self.rejection}')
-        if planner_ended():
-            status = self.planner_status
-            refused = self.values(status).get(StatusKey.RESULT) == PlannerResult.REFUSED
-            code = EXIT_REFUSED if refused else EXIT_FAILED
-            return Outcome(code, status.message, **self.values(status))
-        # 'arrived' comes once inside the goal tolerance; the controller then keeps settling
-        # into its fine tolerance before it holds: report the pose it holds.
-        self.spin_until(lambda: self.values(self.controller_status).get(StatusKey.STATE)
-                        != State.SETTLING, SETTLE_WAIT)
-        v = self.values(self.controller_status)
-        # Let one fresh /joint_states arrive after the end so the figures are of the final pose.
-        stamp = [self.q]
-        self.spin_until(lambda: self.q is not stamp[0], 2.0)
-        figures = {'duration': time.monotonic() - t0, 'result': v.get(StatusKey.RESULT)}
-        if demands is None and self.last_demands is not None:
-            demands = self.last_demands
-        if demands is not None and self.q is not None:
-            figures['final_joint_error'] = float(np.abs(self.q - demands[-1]).max())
-        if self.q is not None:
-            figures['reached_pose'] = fk(self.arm, self.q)
-        if T_goal is not None and self.q is not None:
-            figures['final_position_error'], figures['final_orientation_error'] = pose_error(
-                figures['reached_pose'], T_goal)
-        if v.get(StatusKey.RESULT) != MotionResult.ARRIVED:
-            return Outcome(EXIT_FAILED, self.controller_status.message, **figures)
-        return Outcome(EXIT_ARRIVED, 'arrived', **figures)
 
     def send_pose(self, T_goal: np.ndarray, frame_id: str = 'base_link',
                   motion: Optional[str] = None, peak_height: Optional[float] = None,
@@ -277,9 +223,7 @@ class GoalClient(Readiness, Node):
         if peak_height is not None:
             if self.q is None:
                 return Outcome(EXIT_NO_NODES, 'no /joint_states: the start pose is unknown')
-            T_peak = fk(self.arm, self.q)
-            T_peak[:3, 3] = (0.5 * (T_peak[:3, 3] + T_goal[:3, 3])
-                             + np.array([0.0, 0.0, peak_height]))
+            T_peak = parabola_peak(fk(self.arm, self.q), T_goal, peak_height)
             return self.send_path(np.stack([T_peak, T_goal]), frame_id, shape='parabolic',
                                   **kwargs)
         msg = PoseStamped()
@@ -345,7 +289,7 @@ def run(argv: Sequence[str], client: Optional[GoalClient] = None,
         elif args.command == 'joints':
             if len(args.numbers) % 6:
                 raise Mover6Error(f'joints takes 6 angles per waypoint, got {len(args.numbers)}')
-            targets = np.asarray(args.numbers).reshape(-1, 6)
+            targets = JointDemand.from_rows(args.numbers, 6).positions
     except Mover6Error as err:
         out(f'RESULT refused: {err}')
         return EXIT_REFUSED

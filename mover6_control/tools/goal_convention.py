@@ -11,12 +11,12 @@ goal's own convention (``goal_from_pose``). The exit codes are the command's (``
 import math
 from typing import Optional, Sequence
 
-from mover6_control.errors import Mover6Error
+from mover6_control.errors import NonFiniteError, ShapeError
 from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import (euler_zyx_near, goal_relative_to_start,
-                                                 make_transform, pose_from_xyzabc,
-                                                 quaternion_to_matrix)
+                                                 pose_from_xyzabc)
+from mover6_control.values import ToolPose
 import numpy as np
 
 EXIT_ARRIVED, EXIT_FAILED, EXIT_REFUSED, EXIT_NO_NODES = 0, 1, 2, 3
@@ -80,28 +80,43 @@ class Outcome:
 
 
 def poses_from_numbers(numbers: Sequence[float], quat: bool, arm: Optional[ArmModel] = None,
-                       absolute: bool = False) -> np.ndarray:
+                       absolute: bool = False) -> tuple[ToolPose, ...]:
     """
-    Return poses (k, 4, 4) from groups of 6 numbers (X Y Z A B C) or 7 (X Y Z qx qy qz qw).
+    Return poses from groups of 6 numbers (X Y Z A B C) or 7 (X Y Z qx qy qz qw), checked once.
 
     A B C follow ``pose_from_goal`` (relative to the home orientation of ``arm``, default the
-    Mover6, unless ``absolute``); a quaternion is in the base frame.
+    Mover6, unless ``absolute``); a quaternion is in the base frame. Each pose is a
+    ``values.ToolPose``: the goal command's edge, as ``conversions`` is the nodes'. Raises
+    ``InvalidInputError`` with its code (``bad_shape``, ``non_finite``, ``bad_quaternion``).
     """
     arm = mover6() if arm is None else arm
     size = 7 if quat else 6
     if len(numbers) == 0 or len(numbers) % size:
         form = 'X Y Z QX QY QZ QW' if quat else 'X Y Z A B C'
-        raise Mover6Error(f'a pose is {size} numbers ({form}); got {len(numbers)} numbers')
+        raise ShapeError(f'a pose is {size} numbers ({form}); got {len(numbers)} numbers')
     if not all(math.isfinite(v) for v in numbers):
-        raise Mover6Error(f'pose numbers must be finite, got {numbers}')
+        raise NonFiniteError(f'pose numbers must be finite, got {numbers}')
     out = []
     for i in range(0, len(numbers), size):
         group = numbers[i:i + size]
         if quat:
-            out.append(make_transform(group[:3], quaternion_to_matrix(group[3:])))
-        else:
-            out.append(pose_from_goal(arm, *group, absolute=absolute))
-    return np.stack(out)
+            out.append(ToolPose.from_position_quaternion(group[:3], group[3:], 'goal'))
+        else:       # finite angles make a rotation: nothing left to check
+            out.append(ToolPose.computed(pose_from_goal(arm, *group, absolute=absolute)))
+    return tuple(out)
+
+
+def parabola_peak(T_start: np.ndarray, T_goal: np.ndarray, peak_height: float) -> np.ndarray:
+    """
+    Return the peak pose (4, 4) of a parabolic move: ``peak_height`` [m] above the mid-point.
+
+    The mid-point of the start and goal tool positions, raised along base z, with the start's
+    orientation: the goal command sends it, then the goal, on /path_goal/parabolic.
+    """
+    T_peak = np.array(T_start, dtype=float)
+    T_peak[:3, 3] = (0.5 * (T_peak[:3, 3] + np.asarray(T_goal)[:3, 3])
+                     + np.array([0.0, 0.0, peak_height]))
+    return T_peak
 
 
 def format_outcome(outcome: Outcome, convention: Optional[tuple] = None) -> str:

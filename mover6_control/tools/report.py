@@ -24,7 +24,7 @@ from mover6_control.kinematics.arm import ArmModel, LIMIT_SETS, mover6
 from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.rotations import pose_error
 from mover6_control.motion.metrics import max_deviation_from_polyline
-from mover6_control.nodes.messages.conversions import pose_to_matrix
+from mover6_control.nodes.messages.conversions import pose_from_msg
 from mover6_control.nodes.messages.demand_messages import demand_id_from_msg, demands_from_msg
 from mover6_control.tools.goal_convention import format_numbers, goal_from_pose
 import numpy as np
@@ -117,8 +117,8 @@ def goals(topics: Topics, parameter_changes: Sequence[ParameterChange]) -> list[
         if base not in DEFAULT_SHAPE or (topic != base and topic.partition('/')[2] not in shapes):
             continue
         for t, msg in items:
-            poses = ([pose_to_matrix(msg.pose)] if base == 'pose_goal'
-                     else [pose_to_matrix(p) for p in msg.poses])
+            poses = ([pose_from_msg(msg.pose).matrix] if base == 'pose_goal'
+                     else [pose_from_msg(p).matrix for p in msg.poses])
             if poses:
                 out.append((t, *goal_shape(topic, t, parameter_changes), np.array(poses)))
     return sorted(out, key=lambda g: g[0])

@@ -10,6 +10,7 @@ from control_msgs.msg import JointJog
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes.messages import cdr
+from mover6_control.values import JogRequest
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
@@ -82,7 +83,7 @@ def test_rest_period_at_rest_and_the_full_rate_from_a_command():
     with physics.step_lock:
         physics.catch_up()
     np.testing.assert_allclose(np.diff(stamps(outputs)[1:]), 0.05, atol=1e-6)
-    physics.command(NAMES, np.array([0.2, 0, 0, 0, 0, 0]), arrival=0.0)   # after a catch_up
+    physics.command(JogRequest(tuple(NAMES), (0.2, 0.0, 0.0, 0.0, 0.0, 0.0)), arrival=0.0)
     before = len(outputs.joint_states.sent)
     with physics.step_lock:
         physics.catch_up()

@@ -53,7 +53,8 @@ class FakeArm(Node):
         self.stop_client = self.create_client(Trigger, 'controller/stop')
 
     def on_jog(self, msg):
-        names, velocities = conversions.joint_jog_from_msg(msg)
+        jog = conversions.joint_jog_from_msg(msg)
+        names, velocities = list(jog.names), np.array(jog.velocities)
         assert names == NAMES
         self.jogs.append(msg)
         self.qd = velocities

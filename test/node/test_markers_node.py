@@ -147,7 +147,7 @@ def test_a_malformed_goal_is_refused_and_the_node_goes_on():
         assert wait_until(lambda: h.goal.publish(bad) or h.markers.guard.total() >= 3, LIMIT,
                           h.spin)
         assert h.markers.guard.refused['/pose_goal'] >= 3
-        assert h.markers.guard.last[:2] == ('/pose_goal', 'invalid_input')
+        assert h.markers.guard.last[:2] == ('/pose_goal', 'non_finite')
         assert 'quaternion' in h.markers.guard.last[2], h.markers.guard.last
         assert wait_until(lambda: h.demands.publish(Float32MultiArray(data=[0.1] * 5))
                           or '/joint_demands' in h.markers.guard.refused, LIMIT, h.spin)

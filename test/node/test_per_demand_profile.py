@@ -67,10 +67,11 @@ def test_goal_frame_carries_a_profile_and_stays_a_frame():
     msg = PoseStamped()
     msg.header.frame_id = 'base_link profile quintic'
     assert conversions.goal_profile_from_header(msg.header) == 'quintic'
-    conversions.pose_stamped_to_matrix(msg, 'base_link')        # the frame is still checked
+    conversions.pose_goal_from_msg(msg, 'base_link')        # the frame is still checked
     msg.header.frame_id = 'world profile quintic'
-    with pytest.raises(InvalidInputError, match='expected "base_link"'):
-        conversions.pose_stamped_to_matrix(msg, 'base_link')
+    with pytest.raises(InvalidInputError, match='expected "base_link"') as refused:
+        conversions.pose_goal_from_msg(msg, 'base_link')
+    assert refused.value.code == 'wrong_frame'
     msg.header.frame_id = 'base_link'
     assert conversions.goal_profile_from_header(msg.header) == ''
     msg.header.frame_id = 'base_link profile a b'

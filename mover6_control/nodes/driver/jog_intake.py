@@ -15,7 +15,7 @@ them: a flood), with the last refusal's reason.
 from typing import Callable, Sequence
 
 from control_msgs.msg import JointJog
-from mover6_control.errors import InvalidInputError
+from mover6_control.errors import error_code, InvalidInputError
 from mover6_control.nodes.messages.conversions import joint_jog_from_msg
 
 JOG_REFUSE_FACTOR = 2.0
@@ -23,10 +23,10 @@ JOG_REFUSE_FACTOR = 2.0
 
 
 class JogRefused(InvalidInputError):
-    """A JointJog the driver does not take; ``reason`` is its short name on /diagnostics."""
+    """A JointJog the driver does not take; ``reason`` (its code) is its name on /diagnostics."""
 
     def __init__(self, reason: str, message: str) -> None:
-        super().__init__(message)
+        super().__init__(message, reason)
         self.reason = reason
 
 
@@ -96,28 +96,15 @@ class JogIntake:
 
     def jog_velocities(self, msg: JointJog) -> tuple[list[float], int]:
         """Return (joint velocities [rad/s] in driver order, joints clipped); raise JogRefused."""
-        if len(msg.displacements):
-            raise JogRefused('displacements', 'JointJog displacements are not supported: send '
-                             'velocities')
-        if not len(msg.joint_names):
-            raise JogRefused('empty', 'JointJog names no joints')
-        if len(msg.velocities) != len(msg.joint_names):
-            raise JogRefused('length', f'JointJog has {len(msg.joint_names)} joint names but '
-                             f'{len(msg.velocities)} velocities')
         try:
-            names, values = joint_jog_from_msg(msg)
+            jog = joint_jog_from_msg(msg)           # checked once, refused with its code
+            indices = jog.indices(self.names)
         except InvalidInputError as err:
-            reason = 'non_finite' if 'non-finite' in str(err) else 'names'
-            raise JogRefused(reason, str(err)) from None
-        unknown = [n for n in names if n not in self.names]
-        if unknown:
-            raise JogRefused('unknown_joint', f'JointJog names unknown joints {unknown[:6]}; '
-                             f'the arm has {list(self.names)}')
+            raise JogRefused(error_code(err), str(err)) from None
         qd = [0.0] * len(self.names)
         clipped = 0
         override = self.speed_override()
-        for name, value in zip(names, values):
-            i = self.names.index(name)
+        for name, i, value in zip(jog.names, indices, jog.velocities):
             top = self.max_speed[i]
             if self.jog_units == 'fraction_of_max':
                 if abs(value) > 1.0 + 1e-9:

@@ -5,7 +5,9 @@ One message family has a module of its own: /joint_demands (the waypoints and th
 carries a goal id and a profile) in ``nodes/messages/demand_messages.py``.
 
 Every ``*_from_msg`` function validates and raises ``InvalidInputError`` with a reason a person can
-read; the nodes log that reason and drop the message. Every ``make_*`` function builds a message.
+read and a code (``errors.INPUT_CODES``); the nodes log that reason and drop the message. A pose
+goal becomes a ``values.ToolPose`` and a JointJog a ``values.JogRequest`` here, once: the layers
+below take them without checking again. Every ``make_*`` function builds a message.
 """
 
 import math
@@ -15,9 +17,10 @@ from builtin_interfaces.msg import Time
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped, TwistStamped
-from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.rotations import matrix_to_quaternion, quaternion_to_matrix
+from mover6_control.errors import InvalidInputError, NonFiniteError
+from mover6_control.kinematics.rotations import matrix_to_quaternion
 from mover6_control.nodes.messages import cdr
+from mover6_control.values import JogRequest, ToolPose
 import numpy as np
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
@@ -67,11 +70,11 @@ def joint_state_from_msg(msg: JointState,
     names = list(msg.name)
     if len(msg.position) != len(names):
         raise InvalidInputError(
-            f'joint_states has {len(names)} names but {len(msg.position)} positions')
+            f'joint_states has {len(names)} names but {len(msg.position)} positions', 'length')
     has_velocity = len(msg.velocity) > 0
     if has_velocity and len(msg.velocity) != len(names):
         raise InvalidInputError(
-            f'joint_states has {len(names)} names but {len(msg.velocity)} velocities')
+            f'joint_states has {len(names)} names but {len(msg.velocity)} velocities', 'length')
     index = {name: i for i, name in enumerate(names)}
     missing = [name for name in joint_names if name not in index]
     if missing:
@@ -80,7 +83,7 @@ def joint_state_from_msg(msg: JointState,
     qd = (np.array([msg.velocity[index[n]] for n in joint_names], dtype=float)
           if has_velocity else None)
     if not np.all(np.isfinite(q)) or (qd is not None and not np.all(np.isfinite(qd))):
-        raise InvalidInputError('joint_states has non-finite values')
+        raise NonFiniteError('joint_states has non-finite values')
     return q, qd
 
 
@@ -112,16 +115,10 @@ def make_joint_state(joint_names: Sequence[str], q: Sequence[float],
 
 # --- poses ---------------------------------------------------------------------------------
 
-def pose_to_matrix(pose: Pose) -> np.ndarray:
-    """Return ``T`` (4, 4) of a geometry_msgs/Pose; raises on a bad quaternion or position."""
+def pose_from_msg(pose: Pose, name: str = 'pose') -> ToolPose:
+    """Return the ``ToolPose`` of a geometry_msgs/Pose; raises on a bad quaternion or position."""
     p, o = pose.position, pose.orientation
-    position = np.array([p.x, p.y, p.z], dtype=float)
-    if not np.all(np.isfinite(position)):
-        raise InvalidInputError(f'pose position has non-finite values: {position.tolist()}')
-    T = np.eye(4)
-    T[:3, :3] = quaternion_to_matrix([o.x, o.y, o.z, o.w])
-    T[:3, 3] = position
-    return T
+    return ToolPose.from_position_quaternion([p.x, p.y, p.z], [o.x, o.y, o.z, o.w], name)
 
 
 def matrix_to_pose(T: np.ndarray) -> Pose:
@@ -158,21 +155,22 @@ def check_frame(header: Header, expected_frame: str) -> None:
     if frame and frame != expected_frame:
         raise InvalidInputError(
             f'goal frame is "{header.frame_id}", expected "{expected_frame}" '
-            '(no TF lookup is done: send goals in the base frame)')
+            '(no TF lookup is done: send goals in the base frame)', 'wrong_frame')
 
 
-def pose_stamped_to_matrix(msg: PoseStamped, expected_frame: str = 'base_link') -> np.ndarray:
-    """Return ``T_base_tool`` (4, 4) of a PoseStamped after checking its frame."""
+def pose_goal_from_msg(msg: PoseStamped, expected_frame: str = 'base_link') -> ToolPose:
+    """Return the goal ``T_base_tool`` of a PoseStamped after checking its frame."""
     check_frame(msg.header, expected_frame)
-    return pose_to_matrix(msg.pose)
+    return pose_from_msg(msg.pose, 'goal pose')
 
 
-def pose_array_to_matrices(msg: PoseArray, expected_frame: str = 'base_link') -> np.ndarray:
-    """Return the poses (n, 4, 4) of a PoseArray after checking its frame."""
+def path_goal_from_msg(msg: PoseArray,
+                       expected_frame: str = 'base_link') -> tuple[ToolPose, ...]:
+    """Return the poses of a PoseArray (via poses, then the goal) after checking its frame."""
     check_frame(msg.header, expected_frame)
     if not msg.poses:
-        raise InvalidInputError('path goal has no poses')
-    return np.stack([pose_to_matrix(p) for p in msg.poses])
+        raise InvalidInputError('path goal has no poses', 'empty')
+    return tuple(pose_from_msg(p, f'path pose {i}') for i, p in enumerate(msg.poses))
 
 
 # --- /JointJog -----------------------------------------------------------------------------
@@ -188,41 +186,25 @@ def make_joint_jog(joint_names: Sequence[str], velocities: Sequence[float],
     return msg
 
 
-def joint_jog_from_msg(msg: JointJog) -> tuple[list, np.ndarray]:
-    """Return ``(names, velocities)`` of a JointJog; raises on length mismatch or non-finite."""
-    return joint_jog_from_fields(msg.joint_names, msg.velocities)
+def joint_jog_from_msg(msg: JointJog) -> JogRequest:
+    """Return the ``JogRequest`` of a JointJog (velocities only: displacements are refused)."""
+    return JogRequest.from_fields(msg.joint_names, msg.velocities, msg.displacements)
 
 
-def joint_jog_from_fields(joint_names: Sequence[str],
-                          joint_velocities: Sequence[float]) -> tuple[list[str], list[float]]:
-    """Return ``(names, velocities)`` of a JointJog's fields (``cdr.JointJogReader``), checked."""
-    names = list(joint_names)
-    velocities = [float(v) for v in joint_velocities]
-    if not names:
-        raise InvalidInputError('JointJog names no joints')
-    if len(velocities) != len(names):
-        raise InvalidInputError(
-            f'JointJog has {len(names)} joint names but {len(velocities)} velocities')
-    if len(set(names)) != len(names):
-        raise InvalidInputError(f'JointJog names a joint twice: {names}')
-    if not all(math.isfinite(v) for v in velocities):
-        raise InvalidInputError(f'JointJog has non-finite velocities: {velocities}')
-    return names, np.array(velocities)
-
-
-def joint_jog_from_raw(raw: bytes,
-                       reader: 'cdr.JointJogReader') -> tuple[list[str], list[float]]:
+def joint_jog_from_raw(raw: bytes, reader: 'cdr.JointJogReader') -> JogRequest:
     """
-    Return ``(names, velocities)`` of a serialized JointJog, checked as ``joint_jog_from_msg``.
+    Return the ``JogRequest`` of a serialized JointJog's names and velocities.
 
     ``reader`` (a ``cdr.JointJogReader``) reads the fields; a sample it does not read is
-    deserialised by rclpy (raises ``InvalidInputError`` when even that fails).
+    deserialised by rclpy (raises ``InvalidInputError`` when even that fails). The displacements
+    are not read (the simulator's input takes velocities).
     """
     try:
         names, _, velocities = reader.read_jog(raw)
     except ValueError:
-        return joint_jog_from_msg(_deserialize(raw, JointJog))
-    return joint_jog_from_fields(names, velocities)
+        msg = _deserialize(raw, JointJog)
+        names, velocities = msg.joint_names, msg.velocities
+    return JogRequest(names, velocities)
 
 
 def _deserialize(raw, msg_type):
@@ -244,7 +226,7 @@ def twist_command_from_msg(msg: TwistStamped, now: float) -> tuple[float, list, 
     linear = [msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z]
     angular = [msg.twist.angular.x, msg.twist.angular.y, msg.twist.angular.z]
     if not all(math.isfinite(v) for v in linear + angular):
-        raise InvalidInputError(f'twist has non-finite values: {linear} {angular}')
+        raise NonFiniteError(f'twist has non-finite values: {linear} {angular}')
     return _jog_stamp(msg.header.stamp, now), linear, angular, msg.header.frame_id or 'base_link'
 
 
@@ -255,10 +237,8 @@ def joint_jog_command_from_msg(msg: JointJog, now: float) -> tuple[float, list, 
     A zero stamp counts as received at ``now`` [s]; displacements are refused (not supported),
     and so is a malformed stamp.
     """
-    if len(msg.displacements):
-        raise InvalidInputError('JointJog displacements are not supported: send velocities')
-    names, velocities = joint_jog_from_msg(msg)
-    return _jog_stamp(msg.header.stamp, now), names, velocities
+    jog = joint_jog_from_msg(msg)
+    return _jog_stamp(msg.header.stamp, now), list(jog.names), list(jog.velocities)
 
 
 def _jog_stamp(stamp, now):

@@ -3,44 +3,43 @@ The /joint_demands messages: waypoints (N x 6) in a Float32MultiArray, and the l
 
 A demand's first dimension is labelled ``waypoints``, then any of ``goal <id>`` and ``profile
 <name>``: the goal it was planned for and the controller's law for it alone (``make_demands``
-writes them, ``demand_options_from_msg`` reads them back). ``demands_from_msg`` validates and
-raises ``InvalidInputError`` with a reason a person can read, as every ``*_from_msg`` of
-``nodes/messages/conversions.py``.
+writes them, ``demand_options_from_msg`` reads them back). ``demand_from_msg`` validates once
+into a ``values.JointDemand`` and raises ``InvalidInputError`` with a reason a person can read
+and a code, as every ``*_from_msg`` of ``nodes/messages/conversions.py``.
 """
 
-from mover6_control.errors import InvalidInputError
+from mover6_control.errors import InvalidInputError, ShapeError
+from mover6_control.values import JointDemand
 import numpy as np
 from std_msgs.msg import Float32MultiArray, MultiArrayDimension
 
 
-def demands_from_msg(msg: Float32MultiArray, n_joints: int = 6) -> np.ndarray:
+def demand_from_msg(msg: Float32MultiArray, n_joints: int = 6) -> JointDemand:
     """
-    Return the waypoints (n, n_joints) [rad] of a Float32MultiArray.
+    Return the ``JointDemand`` (n, n_joints) [rad] of a Float32MultiArray, checked once.
 
     Accepts the layout ``make_demands`` writes (dim[0] waypoints, dim[1] joints) or a flat
     array with no layout whose length is a multiple of ``n_joints`` (the Mover6 report's MATLAB
-    and terminal usage).
+    and terminal usage). Raises ``InvalidInputError`` with its code (``errors.INPUT_CODES``).
     """
-    data = np.asarray(msg.data, dtype=float)
     dims = list(msg.layout.dim)
-    if data.size == 0:
-        raise InvalidInputError('joint demands are empty')
-    if dims:
+    data = msg.data
+    if dims and len(data):
         if len(dims) != 2:
-            raise InvalidInputError(f'joint demands layout must have 2 dims, got {len(dims)}')
+            raise ShapeError(f'joint demands layout must have 2 dims, got {len(dims)}')
         n, m = dims[0].size, dims[1].size
         if m != n_joints:
-            raise InvalidInputError(f'joint demands have {m} joints per row, expected {n_joints}')
-        if n * m != data.size - msg.layout.data_offset:
-            raise InvalidInputError(
-                f'joint demands layout says {n} x {m} but data has {data.size} values')
+            raise ShapeError(f'joint demands have {m} joints per row, expected {n_joints}')
+        if n * m != len(data) - msg.layout.data_offset:
+            raise ShapeError(
+                f'joint demands layout says {n} x {m} but data has {len(data)} values')
         data = data[msg.layout.data_offset:]
-    elif data.size % n_joints != 0:
-        raise InvalidInputError(
-            f'joint demands length {data.size} is not a multiple of {n_joints}')
-    if not np.all(np.isfinite(data)):
-        raise InvalidInputError('joint demands have non-finite values')
-    return data.reshape(-1, n_joints)
+    return JointDemand.from_rows(np.asarray(data, dtype=float), n_joints)
+
+
+def demands_from_msg(msg: Float32MultiArray, n_joints: int = 6) -> np.ndarray:
+    """Return the waypoints (n, n_joints) [rad] of ``demand_from_msg``: a read-only array."""
+    return demand_from_msg(msg, n_joints).positions
 
 
 DEMAND_LABEL = 'waypoints'

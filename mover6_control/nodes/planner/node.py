@@ -154,7 +154,7 @@ class PlannerNode(Node):
         motion = motion or self.get_parameter('motion').value
 
         def prepare():
-            T = conversions.pose_stamped_to_matrix(msg, self.frame_id())
+            T = conversions.pose_goal_from_msg(msg, self.frame_id())
             return lambda q, settings: plan_pose_goal(self.arm, q, T, motion, settings,
                                                       self.checker(settings))
         self.submit(msg.header, motion, prepare)
@@ -181,7 +181,7 @@ class PlannerNode(Node):
         """
         if msg.poses:
             check_path_shape(motion, len(msg.poses) - 1)
-        poses = conversions.pose_array_to_matrices(msg, self.frame_id())
+        poses = conversions.path_goal_from_msg(msg, self.frame_id())
         return lambda q, settings: plan(q, poses[:-1], poses[-1], settings)
 
     def on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:

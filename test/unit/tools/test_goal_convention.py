@@ -19,6 +19,7 @@ from mover6_control.tools.goal_convention import (EXIT_ARRIVED, EXIT_NO_NODES, E
                                                   home_pose, Outcome, pose_from_goal,
                                                   poses_from_numbers)
 from mover6_control.tools.goal_parser import build_parser
+from mover6_control.values import ToolPose
 import numpy as np
 import pytest
 
@@ -66,7 +67,7 @@ def test_old_absolute_home_orientation_is_new_zero():
 def test_path_numbers_use_the_same_convention():
     numbers = [0.32, -0.03, 0.36, 0.0, 0.0, 0.0, 0.29, 0.10, 0.35, 0.1, 0.0, 0.0]
     poses = poses_from_numbers(numbers, quat=False)
-    assert poses.shape == (2, 4, 4)
+    assert len(poses) == 2 and all(isinstance(T, ToolPose) for T in poses)
     np.testing.assert_allclose(poses[1], pose_from_goal(ARM, *numbers[6:]), atol=1e-15)
 
 
