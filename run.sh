@@ -19,6 +19,7 @@ mover6_control: the one entry point.
                            (inside a private network namespace when the machine allows one)
   ./run.sh launch [args]   the three nodes in the foreground until Ctrl-C (scripts/launch.sh)
   ./run.sh goal ...        the goal CLI (./run.sh goal --help)
+  ./run.sh console [--port P]  the web console on http://127.0.0.1:8080 (docs/console.md)
   ./run.sh record [-o BAG] [TOPICS]  record the stack's topics (rosbag2 MCAP) until Ctrl-C
   ./run.sh report BAG      the demo's report (plots, metrics, gif) of a recording
   ./run.sh bench [--quick] the benchmarks: tables on the console, JSON in bench/results/
@@ -195,6 +196,18 @@ setup_system_libs() {
     fi
 }
 
+setup_browser() {
+    # The console's browser test (e2e) drives the distribution's headless Chromium: installed
+    # where missing and when we may (root), else the test says what is missing and skips.
+    command -v chromium >/dev/null && command -v chromedriver >/dev/null && return 0
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        log "installing chromium chromium-driver (the console's browser test)"
+        { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+            chromium chromium-driver; } >"$WS/apt.log" 2>&1 \
+            || log "apt-get failed (see $WS/apt.log): the browser test will skip"
+    fi
+}
+
 colcon_build() {
     # Build control_msgs and tf2_msgs only when the environment has none, then this package. Skipped when
     # nothing changed since the last build.
@@ -296,6 +309,7 @@ shift || true
 case "$cmd" in
     setup)
         ensure
+        setup_browser
         log "ready (venv: $VENV, install: $WS/install)"
         ;;
     exec)
@@ -338,6 +352,7 @@ case "$cmd" in
             fi
             export MOVER6_TEST_NETWORK=host
         fi
+        setup_browser
         pick_domain_id
         log "tests in ROS_DOMAIN_ID=$ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-}${MOVER6_DDS:+, MOVER6_DDS=$MOVER6_DDS}"
         # Bytecode, and pytest's rewritten test modules, cached in the workspace (out of the
@@ -376,6 +391,10 @@ case "$cmd" in
     goal)
         ensure
         exec python -m mover6_control.tools.goal_cli "$@"
+        ;;
+    console)
+        ensure
+        exec python -m mover6_control.nodes.console.console_node "$@"
         ;;
     record)
         ensure

@@ -38,6 +38,7 @@ setup(
             'state_publisher = mover6_control.nodes.state_publisher_node:main',
             'markers = mover6_control.nodes.markers_node:main',
             'recorder = mover6_control.nodes.recorder_node:main',
+            'console = mover6_control.nodes.console.console_node:main',
         ],
     },
 )

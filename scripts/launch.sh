@@ -7,7 +7,7 @@
 #
 # Usage: scripts/launch.sh [--hardware H] [--can-interface I] [--can-channel C] [--no-sim]
 #                          [--profile P] [--jog-units U] [--limit-set L] [--log-dir DIR] [--rviz]
-#                          [--namespace NS]
+#                          [--namespace NS] [--console]
 #   --hardware H     what stands for the arm: sim (default: the MuJoCo bridge) | can-sim (the
 #                    CAN-level Mover6 on a pty, can_sim, and the driver on it, enabled at start)
 #                    | can (the driver on a real arm's bus; enable it with its ~/reset, ~/enable)
@@ -23,6 +23,7 @@
 #   --limit-set L    joint limits of every node: within_90_deg (default) | hardware
 #   --log-dir DIR    also write each node's output to DIR/<node>.log
 #   --rviz           also start RViz (rviz2) with rviz/mover6.rviz: the arm, /tf, /markers
+#   --console        also start the web console on http://127.0.0.1:8080 (docs/console.md)
 #   --namespace NS   every node, topic, service and action under NS (a second arm: /arm2), TF
 #                    frames prefixed NS/ (ROS naming rules; a malformed one is refused)
 # Extra ROS arguments per node: MOVER6_SIM_ARGS, MOVER6_DRIVER_ARGS, MOVER6_CONTROLLER_ARGS,
@@ -53,6 +54,7 @@ jog_units=rad_per_s
 limit_set=within_90_deg
 log_dir=''
 rviz=0
+console=0
 namespace=''
 one_of() {
     # one_of OPTION VALUE CHOICES...: exit 2 unless VALUE is one of CHOICES
@@ -66,6 +68,7 @@ while [ $# -gt 0 ]; do
     case "$1" in
         --no-sim) with_sim=0 ;;
         --rviz) rviz=1 ;;
+        --console) console=1 ;;
         --namespace) namespace=${2:-}; shift ;;
         --profile) profile=${2:-}; shift ;;
         --jog-units) jog_units=${2:-}; shift ;;
@@ -74,7 +77,7 @@ while [ $# -gt 0 ]; do
         --hardware) hardware=${2:-}; shift ;;
         --can-interface) can_interface=${2:-}; shift ;;
         --can-channel) can_channel=${2:-}; shift ;;
-        -h | --help) sed -n '2,37p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h | --help) sed -n '2,38p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "launch.sh: unknown argument '$1'" >&2; exit 2 ;;
     esac
     shift
@@ -255,6 +258,8 @@ start state_publisher state_publisher -p "frame_prefix:='$tf_prefix'" \
 start markers markers -p "frame_prefix:='$tf_prefix'" ${MOVER6_MARKERS_ARGS:-}
 [ "$rviz" = 1 ] && start_command rviz2 "$(command -v rviz2)" \
     -d "$prefix/share/mover6_control/rviz/mover6.rviz"
+# shellcheck disable=SC2086
+[ "$console" = 1 ] && start console console ${MOVER6_CONSOLE_ARGS:-}
 
 # Wait until a node exits. An essential one stops the rest (reported); a helper is reported and
 # started again after its back-off delay, the others going on.
