@@ -10,8 +10,8 @@ import trimesh
 from viser import ViserServer
 
 TABLE_SIZE = 1.0             # [m] across, as the markers node draws it
-COLOURS = {'table': (150, 125, 100), 'margin': (230, 205, 50), 'keep_out': (230, 25, 25),
-           'tool': (255, 150, 0)}
+SCENE_COLOURS = {'table': (150, 125, 100), 'margin': (230, 205, 50),
+                 'keep_out': (230, 25, 25), 'tool': (255, 150, 0)}
 
 
 def wxyz(R: np.ndarray) -> np.ndarray:
@@ -64,22 +64,23 @@ class CollisionScene:
                                                   settings.table_margin, settings.keep_out)
         half = TABLE_SIZE / 2.0
         self.handles.append(self.server.scene.add_box(
-            '/collision/table', color=COLOURS['table'], dimensions=(TABLE_SIZE, TABLE_SIZE, 0.01),
+            '/collision/table', color=SCENE_COLOURS['table'],
+            dimensions=(TABLE_SIZE, TABLE_SIZE, 0.01),
             position=(0.0, 0.0, -0.005)))
         if geometry.table_margin > 0.0:
             self.handles.append(self.server.scene.add_box(
-                '/collision/table_margin', color=COLOURS['margin'], opacity=0.15,
+                '/collision/table_margin', color=SCENE_COLOURS['margin'], opacity=0.15,
                 dimensions=(2 * half, 2 * half, geometry.table_margin),
                 position=(0.0, 0.0, geometry.table_margin / 2.0)))
         for k, box in enumerate(geometry.keep_out):
             lower, upper = np.asarray(box.lower), np.asarray(box.upper)
             self.handles.append(self.server.scene.add_box(
-                f'/collision/keep_out_{k}', color=COLOURS['keep_out'], opacity=0.35,
+                f'/collision/keep_out_{k}', color=SCENE_COLOURS['keep_out'], opacity=0.35,
                 dimensions=tuple(upper - lower), position=tuple((lower + upper) / 2.0)))
         self.tool = None
         if isinstance(geometry.tool, Capsule):
             mesh, T = capsule_mesh(geometry.tool)
-            mesh.visual.face_colors = (*COLOURS['tool'], 110)
+            mesh.visual.face_colors = (*SCENE_COLOURS['tool'], 110)
             handle = self.server.scene.add_mesh_trimesh('/collision/tool', mesh)
             self.handles.append(handle)
             self.tool = (handle, T, geometry.tool.body)

@@ -1,14 +1,16 @@
 """
-The console's goal panel: the goal as a draggable gizmo and as numbers, via poses, the shape and
-the profile, and the Plan, Go and Stop buttons with the answer.
+The console's goal panel: the goal, its via poses, shape and profile; Plan, Go and Stop.
+
+The goal is a draggable gizmo and six numbers (X Y Z A B C in the Mover6 report's convention),
+kept in step; the answer to the latest action is shown under the buttons.
 """
 
 from dataclasses import dataclass
 from typing import Callable
 
+from mover6_control.kinematics.rotations import quaternion_to_matrix
 from mover6_control.nodes.console.collision_scene import wxyz
 from mover6_control.nodes.console.page_logic import GoalConvention, GoalRoute, SHAPES
-from mover6_control.kinematics.rotations import quaternion_to_matrix
 from mover6_control.parameters import PROFILES
 import numpy as np
 from viser import ViserServer
@@ -96,12 +98,12 @@ class GoalPanel:
         self.gizmo.wxyz = wxyz(T[:3, :3])
 
     def on_numbers(self, event) -> None:
-        """A number typed in the page: move the gizmo there."""
+        """Move the gizmo to the numbers typed in the page."""
         if event.client is not None:
             self.show_numbers_on_gizmo()
 
     def on_gizmo(self, _event) -> None:
-        """The gizmo dragged: its pose in the numbers (angles nearest the ones shown)."""
+        """Show the dragged gizmo's pose in the numbers (angles nearest the ones shown)."""
         w, x, y, z = self.gizmo.wxyz
         T = np.eye(4)
         T[:3, :3] = quaternion_to_matrix([x, y, z, w])
@@ -132,8 +134,8 @@ class GoalPanel:
             self.vias_text.content = 'Via poses: none'
             return
         rows = [' '.join(f'{v:.3f}' for v in self.convention.numbers(T)) for T in self.vias]
-        self.vias_text.content = 'Via poses:\n' + '\n'.join(f'{k + 1}. `{r}`'
-                                                             for k, r in enumerate(rows))
+        listed = '\n'.join(f'{k + 1}. `{r}`' for k, r in enumerate(rows))
+        self.vias_text.content = f'Via poses:\n{listed}'
 
     def say(self, text: str) -> None:
         """Show the answer to the latest goal (Plan, Go, Stop)."""

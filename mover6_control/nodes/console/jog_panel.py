@@ -45,12 +45,12 @@ class JogPanel:
         stop.on_click(wrap('console jog stop', lambda _: self.stop()))
 
     def on_slider(self, event) -> None:
-        """A slider moved in the page: jog the joints at the sliders' speeds."""
+        """Jog the joints at the sliders' speeds (a slider moved in the page)."""
         if event.client is not None:
             self.joints.give([s.value for s in self.sliders], self.clock())
 
     def press(self, label: str) -> None:
-        """A pad button pressed: move along (or about) its axis."""
+        """Move along (or about) the axis of the pad button pressed."""
         row = {name: (axis, sign) for name, axis, sign in PAD}[label]
         twist = np.zeros(6)
         speed = LINEAR_SPEED if row[0] < 3 else ANGULAR_SPEED

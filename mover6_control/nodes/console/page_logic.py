@@ -39,7 +39,7 @@ class GoalConvention:
         self.home = fk(arm, np.zeros(arm.n_joints))
 
     def pose(self, numbers: Sequence[float]) -> np.ndarray:
-        """Return the pose (4, 4) of X Y Z A B C; raise ``InvalidInputError`` if not 6 finite."""
+        """Return the 4x4 transform of six numbers X Y Z A B C (else ``InvalidInputError``)."""
         values = as_finite_array(numbers, (6,), 'goal X Y Z A B C')
         return goal_relative_to_start(self.home, *values)
 
@@ -111,7 +111,7 @@ class Preview:
     def plan(self, q: np.ndarray, shape: str, T_goal: np.ndarray,
              vias: Sequence[np.ndarray] = (),
              settings: PlannerSettings = PlannerSettings()) -> Answer:
-        """Return the ``Answer`` to the goal ``T_goal`` of ``shape`` through ``vias`` from ``q``."""
+        """Return the ``Answer`` to goal ``T_goal`` of ``shape`` through ``vias`` from ``q``."""
         route = GoalRoute.of(shape, len(vias))
         checker = self.checker(settings)
         try:

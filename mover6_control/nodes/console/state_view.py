@@ -17,6 +17,10 @@ from viser.extras import ViserUrdf
 import yourdfpy
 
 ARM_COLOUR = (0.55, 0.6, 0.68, 1.0)
+GHOST_COLOUR = (0.9, 0.2, 0.2, 0.45)     # the closest reachable pose of a refused goal
+PREVIEW_COLOUR = (40, 120, 255)         # the path of "Plan" (made in the console)
+DEMAND_COLOUR = (20, 170, 60)           # the path of the planner's /joint_demands
+PATH_WIDTH = 0.004                      # [m]
 
 
 def arm_urdf(urdf_path: Path, geometry: CollisionGeometry,
@@ -38,11 +42,6 @@ def arm_urdf(urdf_path: Path, geometry: CollisionGeometry,
                                          geometry=shape, material=material)
                          for k, (origin, shape) in enumerate(shapes)]
     return yourdfpy.URDF(robot=robot, build_scene_graph=True, load_meshes=True)
-
-GHOST_COLOUR = (0.9, 0.2, 0.2, 0.45)     # the closest reachable pose of a refused goal
-PREVIEW_COLOUR = (40, 120, 255)         # the path of "Plan" (made in the console)
-DEMAND_COLOUR = (20, 170, 60)           # the path of the planner's /joint_demands
-PATH_WIDTH = 0.004                      # [m]
 
 
 class StateView:
@@ -77,7 +76,7 @@ class StateView:
         self.ghost.show_visual = visible
 
     def show_path(self, kind: str, points: Optional[np.ndarray]) -> None:
-        """Show the tool path ``points`` (n, 3) [m] of ``kind`` ('preview', 'demand'); None hides."""
+        """Show the tool path ``points`` (n, 3) [m] of ``kind`` (preview, demand); None hides."""
         old = self.paths.pop(kind, None)
         if old is not None:
             old.remove()

@@ -1,7 +1,9 @@
 """
-The console's status panel: the controller's and the planner's status, the tick's health, what
-is missing from the graph, and with a driver each joint's module flags, the referenced bit, the
-e-stop state (red) and the driver's services as buttons.
+The console's status panel: the nodes' statuses, the tick's health, a driver's modules.
+
+The controller's and the planner's status, the tick's health, what is missing from the graph,
+and with a driver each joint's module flags, the referenced bit, the e-stop state (red) and the
+driver's services as buttons.
 
 ``status_html`` makes the panel's text from plain values, so it is tested without a browser.
 """
@@ -10,16 +12,16 @@ from dataclasses import dataclass, field
 import html
 from typing import Callable, Optional
 
+from mover6_control.nodes.controller_ticks import TICK_GAP_WARN   # a late tick, as logged
 from viser import ViserServer
 
 DRIVER_SERVICES = ('reset', 'enable', 'reference', 'disable')
 ESTOP_FLAGS = ('estop_or_low_supply', 'brown_out')
 LEVEL_COLOURS = {'OK': '#1a7f37', 'WARN': '#b58900', 'ERROR': '#d1242f', 'STALE': '#6e7781'}
-TICK_GAP_WARN = 0.05       # [s] a longest gap between two ticks above this is shown as a warning
 
 
 @dataclass(frozen=True)
-class Status:
+class ShownStatus:
     """One status as the panel shows it: level name, message and values (text)."""
 
     level: str
@@ -28,25 +30,25 @@ class Status:
 
 
 @dataclass(frozen=True)
-class Snapshot:
+class PanelState:
     """What the panel shows at one moment."""
 
-    controller: Optional[Status] = None
-    planner: Optional[Status] = None
-    driver: Optional[Status] = None            # the bus
-    joints: tuple = ()                         # one Status per joint of the driver
+    controller: Optional[ShownStatus] = None
+    planner: Optional[ShownStatus] = None
+    driver: Optional[ShownStatus] = None            # the bus
+    joints: tuple = ()                         # one ShownStatus per joint of the driver
     missing: tuple = ()                        # what the graph lacks, as sentences
     last_action: str = ''
 
 
-def estop(snapshot: Snapshot) -> bool:
+def estop(snapshot: PanelState) -> bool:
     """Return True when the driver says the e-stop was pressed (or the power went)."""
     flags = ' '.join(j.values.get('flag_names', '') for j in snapshot.joints).split()
     hold = snapshot.driver.values.get('hold', '') if snapshot.driver else ''
     return any(f in ESTOP_FLAGS for f in flags) or 'power lost' in hold
 
 
-def _line(name: str, status: Optional[Status], absent: str) -> str:
+def _line(name: str, status: Optional[ShownStatus], absent: str) -> str:
     if status is None:
         return f'<b>{name}</b>: <span style="color:#6e7781">{html.escape(absent)}</span>'
     colour = LEVEL_COLOURS.get(status.level, '#000')
@@ -54,7 +56,7 @@ def _line(name: str, status: Optional[Status], absent: str) -> str:
             f'{html.escape(status.message)}')
 
 
-def status_html(snapshot: Snapshot) -> str:
+def status_html(snapshot: PanelState) -> str:
     """Return the panel's HTML for ``snapshot``."""
     rows = []
     if estop(snapshot):
@@ -107,7 +109,7 @@ class StatusPanel:
         """Build the panel; ``on_driver(kind)`` calls the driver's service ``kind``."""
         gui = server.gui
         with gui.add_folder('State'):
-            self.text = gui.add_html(status_html(Snapshot()))
+            self.text = gui.add_html(status_html(PanelState()))
             self.buttons = []
             for kind in DRIVER_SERVICES:
                 button = gui.add_button(f'Driver: {kind}', visible=False,
@@ -117,7 +119,7 @@ class StatusPanel:
                 self.buttons.append(button)
         self.shown = None
 
-    def show(self, snapshot: Snapshot) -> None:
+    def show(self, snapshot: PanelState) -> None:
         """Show ``snapshot`` (nothing is sent when it did not change)."""
         text = status_html(snapshot)
         if text != self.shown:
