@@ -2,12 +2,15 @@
 The console's goal panel: the goal, its via poses, shape and profile; Plan, Go and Stop.
 
 The goal is a draggable gizmo and six numbers (X Y Z A B C in the Mover6 report's convention),
-kept in step; the answer to the latest action is shown under the buttons.
+kept in step; the answer to the latest action is shown under the buttons. The numbers are text
+fields: viser's number field drops a leading minus sign as it is typed (an empty or partial
+number is not taken), so a goal at negative Y could not be typed into it.
 """
 
 from dataclasses import dataclass
 from typing import Callable
 
+from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.rotations import quaternion_to_matrix
 from mover6_control.nodes.console.collision_scene import wxyz
 from mover6_control.nodes.console.page_logic import GoalConvention, GoalRoute, SHAPES
@@ -49,8 +52,7 @@ class GoalPanel:
         self.via_frames = []
         gui = server.gui
         with gui.add_folder('Goal (X Y Z A B C, the Mover6 report)'):
-            self.numbers = [gui.add_number(label, float(v), step=0.001 if k < 3 else 0.01)
-                            for k, (label, v) in enumerate(zip(LABELS, START))]
+            self.numbers = [gui.add_text(label, f'{v:g}') for label, v in zip(LABELS, START)]
             self.shape = gui.add_dropdown('Shape', SHAPES, initial_value='linear')
             self.profile = gui.add_dropdown('Profile', (DEFAULT_PROFILE,) + tuple(PROFILES),
                                             initial_value=DEFAULT_PROFILE)
@@ -73,8 +75,14 @@ class GoalPanel:
         stop.on_click(wrap('console stop', lambda _: on_stop()))
 
     def values(self) -> tuple:
-        """Return the six numbers as the page holds them."""
-        return tuple(float(h.value) for h in self.numbers)
+        """Return the six numbers; raise ``InvalidInputError`` for a field that is not one."""
+        numbers = []
+        for label, handle in zip(LABELS, self.numbers):
+            try:
+                numbers.append(float(handle.value))
+            except ValueError:
+                raise InvalidInputError(f'{label} is not a number: {handle.value!r}') from None
+        return tuple(numbers)
 
     def request(self) -> GoalRequest:
         """Return the goal the page shows; raise ``InvalidInputError`` for one that is not."""
@@ -87,9 +95,13 @@ class GoalPanel:
 
     def set_numbers(self, numbers: tuple) -> None:
         """Show ``numbers`` (X Y Z A B C) in the fields and on the gizmo."""
-        for handle, value in zip(self.numbers, numbers):
-            handle.value = round(float(value), 4)
+        self.show_numbers(numbers)
         self.show_numbers_on_gizmo()
+
+    def show_numbers(self, numbers: tuple) -> None:
+        """Write ``numbers`` into the fields (4 decimals)."""
+        for handle, value in zip(self.numbers, numbers):
+            handle.value = f'{float(value):.4f}'
 
     def show_numbers_on_gizmo(self) -> None:
         """Put the gizmo at the pose of the numbers."""
@@ -98,9 +110,13 @@ class GoalPanel:
         self.gizmo.wxyz = wxyz(T[:3, :3])
 
     def on_numbers(self, event) -> None:
-        """Move the gizmo to the numbers typed in the page."""
-        if event.client is not None:
+        """Move the gizmo to the numbers typed in the page (a partial number: not yet)."""
+        if event.client is None:
+            return
+        try:
             self.show_numbers_on_gizmo()
+        except InvalidInputError:
+            pass         # being typed ('-', '0.'): Plan and Go say what is wrong with it
 
     def on_gizmo(self, _event) -> None:
         """Show the dragged gizmo's pose in the numbers (angles nearest the ones shown)."""
@@ -108,9 +124,11 @@ class GoalPanel:
         T = np.eye(4)
         T[:3, :3] = quaternion_to_matrix([x, y, z, w])
         T[:3, 3] = self.gizmo.position
-        numbers = self.convention.numbers(T, self.values()[3:])
-        for handle, value in zip(self.numbers, numbers):
-            handle.value = round(float(value), 4)
+        try:
+            ref = self.values()[3:]
+        except InvalidInputError:
+            ref = (0.0, 0.0, 0.0)
+        self.show_numbers(self.convention.numbers(T, ref))
 
     def add_via(self) -> None:
         """Take the pose shown as the next via pose."""
