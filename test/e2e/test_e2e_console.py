@@ -5,11 +5,13 @@ The stack (MuJoCo bridge, controller, planner) and the console run as processes;
 distribution's Chromium (``chromium`` and ``chromedriver``, which ``./run.sh test`` installs
 where missing) loads the page, a goal is typed into the page's own number fields, Plan shows
 the planned path, Go sends it, and the arm's arrival is judged from /joint_states. A refused
-goal shows its reason on the page and moves nothing. Screenshots go to the test's output folder
-(printed; ``pytest -s`` shows it).
+goal shows its reason on the page and moves nothing. Screenshots and the nodes' logs go to the
+test's output folder: ``$MOVER6_TEST_OUTPUT/console_e2e`` when that is set, else pytest's
+temporary folder (printed; ``pytest -s`` shows it).
 """
 
 import os
+import pathlib
 import shutil
 import socket
 import tempfile
@@ -57,7 +59,12 @@ def webdriver_module():
 @pytest.fixture(scope='module')
 def out_dir(tmp_path_factory):
     """Return the folder of this module's logs and screenshots."""
-    folder = tmp_path_factory.mktemp('console_e2e')
+    chosen = os.environ.get('MOVER6_TEST_OUTPUT')
+    if chosen:
+        folder = pathlib.Path(chosen) / 'console_e2e'
+        folder.mkdir(parents=True, exist_ok=True)
+    else:
+        folder = tmp_path_factory.mktemp('console_e2e')
     print(f'\nconsole e2e output: {folder}')
     return folder
 
@@ -190,6 +197,9 @@ def test_a_goal_typed_in_the_page_is_planned_and_reached(stack, client, browser,
     assert arrived, f'flange {flange_error(client.q, GOAL):.4f} m from the goal\n' \
         f'{stack.report()}'
     assert browser.wait_text('result arrived', 10.0), browser.text()
+    # The planner's demand for it (the path the page drew) reached this client too.
+    assert client.spin_until(lambda: client.last_demands is not None, 5.0)
+    assert np.abs(client.last_demands[-1] - client.q).max() < 0.01
     browser.shot(out_dir / 'console_arrived.png')
 
 
@@ -209,5 +219,19 @@ def test_a_refused_goal_shows_its_reason_and_nothing_moves(stack, client, browse
         return client.last_demands is not None and (
             earlier is None or not np.array_equal(client.last_demands, earlier))
     client.spin_until(new_demand, 1.0)
-    assert not new_demand()
+    assert not new_demand(), f'a demand after the refused goal:\n{client.last_demands}'
     assert np.abs(client.q - q_start).max() < 1e-3
+
+
+def test_a_second_tab_sees_the_same_page(stack, browser):
+    """A second tab opened now shows the goal and the answer the first one gave."""
+    first = browser.driver.current_window_handle
+    browser.driver.switch_to.new_window('tab')
+    try:
+        browser.driver.get(stack.url)
+        assert browser.wait_text('the planner refused the goal (out_of_reach)', 30.0), \
+            browser.text()
+        assert browser.field('X [m]').get_attribute('value') == '0.9'
+    finally:
+        browser.driver.close()
+        browser.driver.switch_to.window(first)
