@@ -22,7 +22,7 @@ from mover6_control.tools.goal_cli import GoalClient
 from mover6_control.tools.goal_convention import pose_from_goal
 import numpy as np
 import pytest
-from ros_testing import NodeProcess, node_command, ready_client, Stack
+from ros_testing import node_command, NodeProcess, ready_client, Stack
 
 pytestmark = pytest.mark.e2e
 

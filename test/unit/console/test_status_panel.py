@@ -4,10 +4,9 @@ from mover6_control.nodes.console.status_panel import estop, PanelState, ShownSt
 
 
 def joints(flag_names):
-    return tuple(ShownStatus('OK', 'enabled', {'name': f'joint{k + 1}', 'state': 'enabled',
-                                                'flags': '0x00', 'flag_names': names,
-                                                'referenced': 'True'})
-                 for k, names in enumerate(flag_names))
+    return tuple(ShownStatus('OK', 'enabled', {
+        'name': f'joint{k + 1}', 'state': 'enabled', 'flags': '0x00', 'flag_names': names,
+        'referenced': 'True'}) for k, names in enumerate(flag_names))
 
 
 def test_missing_nodes_are_named():
