@@ -258,8 +258,10 @@ start state_publisher state_publisher -p "frame_prefix:='$tf_prefix'" \
 start markers markers -p "frame_prefix:='$tf_prefix'" ${MOVER6_MARKERS_ARGS:-}
 [ "$rviz" = 1 ] && start_command rviz2 "$(command -v rviz2)" \
     -d "$prefix/share/mover6_control/rviz/mover6.rviz"
+# The web console (docs/console.md): its own options (--port, --host) in MOVER6_CONSOLE_ARGS.
 # shellcheck disable=SC2086
-[ "$console" = 1 ] && start console console ${MOVER6_CONSOLE_ARGS:-}
+[ "$console" = 1 ] && start_command console "$bin/console" ${MOVER6_CONSOLE_ARGS:-} \
+    --ros-args "${ns_args[@]}"
 
 # Wait until a node exits. An essential one stops the rest (reported); a helper is reported and
 # started again after its back-off delay, the others going on.
