@@ -172,6 +172,13 @@ class Page:
         print(f'screenshot: {path}')
 
 
+def fresh_q(client):
+    """Return joint positions received from now on (the client keeps only the latest)."""
+    client.q = None
+    assert client.spin_until(lambda: client.q is not None, 10.0)
+    return client.q.copy()
+
+
 def flange_error(q, numbers):
     """Return the distance [m] of the flange at ``q`` from the goal ``numbers``."""
     return float(np.linalg.norm(fk(ARM, q)[:3, 3] - pose_from_goal(ARM, *numbers)[:3, 3]))
@@ -179,7 +186,7 @@ def flange_error(q, numbers):
 
 def test_a_goal_typed_in_the_page_is_planned_and_reached(stack, client, browser, out_dir):
     """Type a goal, Plan (the path, nothing moves), Go: the arm arrives on /joint_states."""
-    q_start = client.q.copy()
+    q_start = fresh_q(client)
     client.last_demands = None
     browser.type_goal(GOAL)
     browser.press('Plan')
@@ -187,7 +194,7 @@ def test_a_goal_typed_in_the_page_is_planned_and_reached(stack, client, browser,
     # Plan sends nothing: no demand (a stray one would come within the second), the arm stays.
     client.spin_until(lambda: client.last_demands is not None, 1.0)
     assert client.last_demands is None
-    assert np.abs(client.q - q_start).max() < 1e-3
+    assert np.abs(fresh_q(client) - q_start).max() < 1e-3
     browser.shot(out_dir / 'console_plan.png')
     browser.press('Go')
     assert browser.wait_text('the planner says planned', 30.0), \
@@ -205,7 +212,9 @@ def test_a_goal_typed_in_the_page_is_planned_and_reached(stack, client, browser,
 
 def test_a_refused_goal_shows_its_reason_and_nothing_moves(stack, client, browser, out_dir):
     """A goal out of reach: Plan and the planner's answer to Go both show the reason."""
-    q_start = client.q.copy()
+    # The motion before has ended (the controller is idle again): the arm rests.
+    assert browser.wait_text('state idle', 30.0), browser.text()
+    q_start = fresh_q(client)
     earlier = client.last_demands         # the goal before's (the planner may send it again)
     browser.type_goal(OUT_OF_REACH)
     browser.press('Plan')
@@ -220,7 +229,7 @@ def test_a_refused_goal_shows_its_reason_and_nothing_moves(stack, client, browse
             earlier is None or not np.array_equal(client.last_demands, earlier))
     client.spin_until(new_demand, 1.0)
     assert not new_demand(), f'a demand after the refused goal:\n{client.last_demands}'
-    assert np.abs(client.q - q_start).max() < 1e-3
+    assert np.abs(fresh_q(client) - q_start).max() < 1e-3
 
 
 def test_a_second_tab_sees_the_same_page(stack, browser):

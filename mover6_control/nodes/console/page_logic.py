@@ -11,6 +11,7 @@ What the console's page computes, without a browser and without ROS.
 """
 
 from dataclasses import dataclass, field
+import threading
 from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError, Mover6Error, UnreachableError
@@ -101,6 +102,9 @@ class Preview:
         """Take the arm the planner plans for (its limit set)."""
         self.arm = arm
         self._checker = (None, None)      # (settings, checker) of the latest plan
+        # Two tabs may press Plan at once (viser's threads): one plan at a time, the collision
+        # checker's MuJoCo data is one.
+        self.lock = threading.Lock()
 
     def checker(self, settings: PlannerSettings):
         """Return the collision checker of ``settings`` (built once per settings)."""
@@ -113,6 +117,10 @@ class Preview:
              settings: PlannerSettings = PlannerSettings()) -> Answer:
         """Return the ``Answer`` to goal ``T_goal`` of ``shape`` through ``vias`` from ``q``."""
         route = GoalRoute.of(shape, len(vias))
+        with self.lock:
+            return self._plan(route, q, shape, T_goal, vias, settings)
+
+    def _plan(self, route, q, shape, T_goal, vias, settings):
         checker = self.checker(settings)
         try:
             if route.kind == 'pose':
