@@ -14,7 +14,7 @@ import socket  # noqa: E402
 
 from control_msgs.msg import JointJog  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
-from geometry_msgs.msg import PoseStamped  # noqa: E402
+from geometry_msgs.msg import PoseStamped, TwistStamped  # noqa: E402
 from mover6_control.nodes.console.console_node import (ConsoleNode, is_loopback,  # noqa: E402
                                                        parse_args)
 from mover6_control.nodes.messages import conversions, demand_messages  # noqa: E402
@@ -60,7 +60,9 @@ class Harness:
     def __init__(self):
         self.console = ConsoleNode(port=free_port())
         self.node = rclpy.create_node('console_tester')
-        self.goals, self.jogs = [], []
+        self.goals, self.jogs, self.twists = [], [], []
+        self.node.create_subscription(TwistStamped, 'controller/delta_twist_cmds',
+                                      self.twists.append, 10)
         self.node.create_subscription(PoseStamped, 'pose_goal/linear', self.goals.append, 10)
         self.node.create_subscription(JointJog, 'controller/delta_joint_cmds', self.jogs.append,
                                       10)
@@ -155,6 +157,15 @@ def test_a_joint_jog_is_sent_while_held_then_one_zero(harness):
                                      for m in harness.jogs))
     assert harness.until(lambda: harness.jogs[-1].velocities[1] == 0.0)
     assert list(harness.jogs[-1].joint_names) == list(JOINTS)
+
+
+def test_a_pad_button_jogs_along_its_axis_then_stops(harness):
+    harness.console.jog.press('-Z')
+    assert harness.until(lambda: any(m.twist.linear.z < 0.0 for m in harness.twists))
+    moving = next(m for m in harness.twists if m.twist.linear.z < 0.0)
+    assert moving.twist.linear.z == pytest.approx(-0.03)
+    assert moving.header.frame_id == 'base_link'
+    assert harness.until(lambda: harness.twists[-1].twist.linear.z == 0.0)
 
 
 @pytest.mark.parametrize('host, loopback', [('127.0.0.1', True), ('localhost', True),
