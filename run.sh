@@ -21,7 +21,7 @@ VENV=$(absolute "${MOVER6_VENV:-$ROOT/.venv}")
 WS=$(absolute "${MOVER6_WS:-$ROOT/.colcon}")
 PYTHON_BIN=${PYTHON:-python3}
 
-for step in environment requirements python venv system_libs build ensure network test help; do
+for step in environment requirements python venv system_libs browser build ensure network test help; do
     # shellcheck disable=SC1090
     . "$ROOT/scripts/run/$step.sh"
 done
@@ -29,7 +29,7 @@ done
 cmd=${1:-help}
 shift || true
 case "$cmd" in
-    setup)  ensure; log "ready (venv: $VENV, install: $WS/install)" ;;
+    setup)  ensure; setup_browser; log "ready (venv: $VENV, install: $WS/install)" ;;
     exec)   ensure; exec "$@" ;;
     test)   run_tests "$@" ;;
     demo)
@@ -44,6 +44,7 @@ case "$cmd" in
     report) ensure; exec python -m mover6_control.tools.report "$@" ;;
     generate) ensure; exec python -m mover6_control.tools.generate "$ROOT" "$@" ;;
     first-run) ensure; exec python -m mover6_control.tools.first_run "$@" ;;   # docs/real_arm.md
+    console) ensure; exec python -m mover6_control.nodes.console.console_node "$@" ;;  # docs/console.md
     bench)
         ensure
         in_private_netns bench "$@"

@@ -41,6 +41,7 @@ setup(
             'markers = mover6_control.nodes.markers_node:main',
             'recorder = mover6_control.nodes.recorder_node:main',
             'first_run = mover6_control.tools.first_run:main',
+            'console = mover6_control.nodes.console.console_node:main',
         ],
     },
 )

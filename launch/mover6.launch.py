@@ -157,6 +157,11 @@ def start_stack(context):
                 package='rviz2', executable='rviz2', name='rviz2', output='screen',
                 **role('rviz2'), arguments=['-d', os.path.join(
                     FindPackageShare(PACKAGE).perform(context), 'rviz', 'mover6.rviz')]))
+        elif start.kind == 'console':
+            actions.append(Node(
+                package=PACKAGE, executable='console', name='console', output='screen',
+                namespace=namespace, **role('console'),
+                arguments=os.environ.get('MOVER6_CONSOLE_ARGS', '').split()))
         else:
             actions.append(node(start, namespace))
     return actions

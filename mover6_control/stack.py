@@ -102,6 +102,9 @@ OPTIONS = (
     Option('rviz', '--rviz', 'false',
            'true: also start RViz (rviz2, where installed) with rviz/mover6.rviz: the arm, /tf, '
            '/markers', ('true', 'false'), switch=True),
+    Option('console', '--console', 'false',
+           'true: also start the web console on http://127.0.0.1:8080 (docs/console.md; its own '
+           'options, --port and --host, in MOVER6_CONSOLE_ARGS)', ('true', 'false'), switch=True),
     Option('log_dir', '--log-dir', '', "also write each node's output to DIR/<node>.log",
            shell=True),
 )
@@ -124,7 +127,7 @@ Essential nodes (the arm, the driver, the controller) stop the stack when they e
 @dataclass(frozen=True)
 class Start:
     """
-    One thing to start: a node of this package (``kind`` 'node'), ``can_sim`` or RViz.
+    One thing to start: a node of this package (``kind`` 'node'), ``can_sim``, RViz or the console.
 
     A node gets its parameter file (``config/<name>.yaml``, one of ``PARAMETER_FILES``), then
     ``parameters`` (the choices' values, in order), then the ROS arguments in environment
@@ -201,6 +204,10 @@ def plan(choices):
     ]
     if v['rviz'] == 'true':
         starts.append(Start('rviz2', 'rviz2', kind='rviz'))
+    if v['console'] == 'true':
+        # The web console: its own options (--port, --host) come before its ROS arguments.
+        starts.append(Start('console', 'console', extra_args='MOVER6_CONSOLE_ARGS',
+                            kind='console'))
     return starts
 
 
@@ -223,6 +230,9 @@ def shell_lines(starts):
         elif s.kind == 'rviz':
             lines.append('start_command rviz2 "$(command -v rviz2)" '
                          '-d "$prefix/share/mover6_control/rviz/mover6.rviz"')
+        elif s.kind == 'console':
+            lines.append(f'start_command console "$bin/console"{hook} '
+                         '--ros-args "${ns_args[@]}"')
         else:
             args = ' '.join(f'-p {shlex.quote(f"{k}:={parameter_text(v)}")}'
                             for k, v in s.parameters.items())

@@ -26,7 +26,8 @@ MODULES = {'sim_bridge': 'sim_bridge.bridge_node',
            'can_sim': 'sim_bridge.can_sim',
            'recorder': 'mover6_control.nodes.recorder_node',
            'state_publisher': 'mover6_control.nodes.state_publisher_node',
-           'markers': 'mover6_control.nodes.markers_node'}
+           'markers': 'mover6_control.nodes.markers_node',
+           'console': 'mover6_control.nodes.console.console_node'}
 
 
 PR_CAPBSET_DROP, CAP_SYS_NICE = 24, 23       # linux/prctl.h, linux/capability.h

@@ -10,6 +10,7 @@ mover6_control: the one entry point.
                            (inside a private network namespace when the machine allows one)
   ./run.sh launch [args]   the three nodes in the foreground until Ctrl-C (scripts/launch.sh)
   ./run.sh goal ...        the goal CLI (./run.sh goal --help)
+  ./run.sh console [--port P]  the web console on http://127.0.0.1:8080 (docs/console.md)
   ./run.sh record [-o BAG] [TOPICS]  record the stack's topics (rosbag2 MCAP) until Ctrl-C
   ./run.sh report BAG      the demo's report (plots, metrics, gif) of a recording
   ./run.sh first-run [--can-sim] [--yes]  each joint +5 deg and back, its direction confirmed,

@@ -23,6 +23,7 @@ run_tests() {
         fi
         export MOVER6_TEST_NETWORK=host
     fi
+    setup_browser
     pick_domain_id
     log "tests in ROS_DOMAIN_ID=$ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE=${ROS_AUTOMATIC_DISCOVERY_RANGE:-}${MOVER6_DDS:+, MOVER6_DDS=$MOVER6_DDS}"
     colcon_test "$@"

@@ -1,0 +1,1 @@
+"""The web console (viser): a node and the parts of its page; see ``console_node``."""
