@@ -448,7 +448,7 @@ DRIVER = _table(
       0.1, 50.0),
 )
 
-# The package's own state publisher (nodes/state_publisher_node.py): robot_state_publisher's
+# The package's own state publisher (nodes/state_publisher/node.py): robot_state_publisher's
 # parameters of the same names, where the ROS install has no robot_state_publisher.
 STATE_PUBLISHER = _table(
     P('robot_description', 'str', '', '',
@@ -461,7 +461,7 @@ STATE_PUBLISHER = _table(
       read_only=True),
 )
 
-# The markers node (nodes/markers_node.py): RViz markers of the goal, the planned tool path, the
+# The markers node (nodes/markers/node.py): RViz markers of the goal, the planned tool path, the
 # table and the keep-out boxes.
 _PLANNER_COLLISION = {spec.name: spec for spec in _collision_specs('by the planner')}
 MARKERS = _table(
@@ -476,7 +476,7 @@ MARKERS = _table(
     _PLANNER_COLLISION['keep_out_boxes'],
 )
 
-# The recorder (nodes/recorder_node.py): a rosbag2-layout MCAP recording of the stack's topics.
+# The recorder (nodes/recorder/node.py): a rosbag2-layout MCAP recording of the stack's topics.
 # The goals: /pose_goal and /path_goal, and their shape topics (the planner's motion and
 # path_motion choices) and /path_goal/joint.
 RECORDED_TOPICS = (

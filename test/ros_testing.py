@@ -24,9 +24,9 @@ MODULES = {'sim_bridge': 'sim_bridge.bridge_node',
            'planner': 'mover6_control.nodes.planner.node',
            'driver': 'mover6_control.nodes.driver.driver_node',
            'can_sim': 'sim_bridge.can_sim',
-           'recorder': 'mover6_control.nodes.recorder_node',
-           'state_publisher': 'mover6_control.nodes.state_publisher_node',
-           'markers': 'mover6_control.nodes.markers_node',
+           'recorder': 'mover6_control.nodes.recorder.node',
+           'state_publisher': 'mover6_control.nodes.state_publisher.node',
+           'markers': 'mover6_control.nodes.markers.node',
            'console': 'mover6_control.nodes.console.console_node'}
 
 

@@ -2,7 +2,7 @@
 The whole joint tree of a URDF, as robot_state_publisher sees it: every joint's transform.
 
 ``ArmModel`` keeps only the chain the planner and controller need (base to tip, fixed joints
-folded in). RViz needs every link: the state publisher (``nodes/state_publisher_node.py``) reads
+folded in). RViz needs every link: the state publisher (``nodes/state_publisher/node.py``) reads
 the URDF text it publishes on ``/robot_description`` with ``parse_urdf`` and turns each
 measured joint position into ``T_parent_child`` with ``joint_transform``, the fixed joints once
 with ``fixed_transforms``. Parsed with the standard library's XML reader: a URDF's ``joint``,

@@ -147,6 +147,12 @@ def disabled_collisions(arm: ArmModel, checker: CollisionChecker, samples: int =
         else:
             continue
         out.append((links[i], links[j], reason))
+    # Links hung on the chain outside it (the gripper's finger on link6: no collision model,
+    # its shape is not known) are adjacent to their parent.
+    for joint in ET.parse(URDF).getroot().findall('joint'):
+        if joint.get('name') not in arm.joint_names:
+            out.append((joint.find('parent').get('link'), joint.find('child').get('link'),
+                        'Adjacent'))
     return out
 
 
@@ -232,6 +238,8 @@ def collision_urdf_text(checker: CollisionChecker) -> str:
             links[names[shape.body]].append(element)
     limits = accepted_limits()
     for joint in root.findall('joint'):
+        if joint.get('name') not in limits:    # the gripper: outside the arm's chain, its own
+            continue
         lower, upper, speed = limits[joint.get('name')]
         joint.find('limit').attrib.update(lower=repr(lower), upper=repr(upper),
                                           velocity=repr(speed))

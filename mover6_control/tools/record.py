@@ -2,7 +2,7 @@
 Record the stack's topics into a rosbag2 MCAP recording: ``./run.sh record [-o BAG] [TOPICS]``.
 
 Checks the path first (a path that cannot be written: the reason, exit code 2, nothing started),
-then runs the recorder node (``nodes/recorder_node.py``) in the foreground until Ctrl-C. Without
+then runs the recorder node (``nodes/recorder/node.py``) in the foreground until Ctrl-C. Without
 TOPICS it records the stack's topics (``parameters.RECORDED_TOPICS``); ``--namespace`` records
 those of a namespaced stack.
 """
@@ -13,8 +13,8 @@ import sys
 from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.nodes.bag_writer import check_bag_path
-from mover6_control.nodes.recorder_node import default_path
+from mover6_control.nodes.recorder.bag_writer import check_bag_path
+from mover6_control.nodes.recorder.node import default_path
 from mover6_control.nodes.runtime.names import check_namespace
 from mover6_control.parameters import RECORDED_TOPICS
 

@@ -61,7 +61,7 @@ def unguarded(source, name='<source>'):
 
 def test_the_rule_covers_the_nodes():
     paths = node_modules()
-    assert GUARD in paths and 'mover6_control/nodes/markers_node.py' in paths
+    assert GUARD in paths and 'mover6_control/nodes/markers/node.py' in paths
     assert 'sim_bridge/bridge_node.py' in paths
 
 

@@ -13,7 +13,7 @@ os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 from geometry_msgs.msg import PoseStamped  # noqa: E402
 from mover6_control.kinematics.arm import mover6  # noqa: E402
 from mover6_control.kinematics.forward import fk_batch  # noqa: E402
-from mover6_control.nodes.markers_node import MarkersNode  # noqa: E402
+from mover6_control.nodes.markers.node import MarkersNode  # noqa: E402
 from mover6_control.nodes.messages import conversions, demand_messages  # noqa: E402
 from mover6_control.nodes.runtime.qos import LATCHED_QOS  # noqa: E402
 import numpy as np  # noqa: E402

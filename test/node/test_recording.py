@@ -20,7 +20,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped, TransformStamped  # noqa: 
 from mcap.reader import make_reader  # noqa: E402
 from mover6_control.errors import InvalidInputError  # noqa: E402
 from mover6_control.nodes.messages import conversions, demand_messages  # noqa: E402
-from mover6_control.nodes.recorder_node import RecorderNode  # noqa: E402
+from mover6_control.nodes.recorder.node import RecorderNode  # noqa: E402
 from mover6_control.nodes.runtime.qos import LATCHED_QOS, STATUS_QOS  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402

@@ -11,8 +11,8 @@ the recorded joint states, and write the demo's files.
 from geometry_msgs.msg import PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
-from mover6_control.nodes.bag_writer import BagWriter
 from mover6_control.nodes.messages import conversions, demand_messages
+from mover6_control.nodes.recorder.bag_writer import BagWriter
 from mover6_control.tools.report import make_report, read_recording
 import numpy as np
 import pytest

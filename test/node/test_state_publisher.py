@@ -19,7 +19,7 @@ from mover6_control.kinematics.rotations import quaternion_to_matrix  # noqa: E4
 from mover6_control.kinematics.urdf_tree import parse_urdf  # noqa: E402
 from mover6_control.nodes.messages import conversions  # noqa: E402
 from mover6_control.nodes.runtime.qos import LATCHED_QOS  # noqa: E402
-from mover6_control.nodes.state_publisher_node import (  # noqa: E402
+from mover6_control.nodes.state_publisher.node import (  # noqa: E402
     shipped_description, StatePublisherNode)
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402

@@ -1,5 +1,5 @@
 """
-The recorder: the stack's topics into a rosbag2-layout MCAP file (``nodes/bag_writer.py``).
+The recorder: the stack's topics into a rosbag2-layout MCAP file (``recorder/bag_writer.py``).
 
 ``ros2 run mover6_control recorder --ros-args -p path:=BAG`` (``./run.sh record [BAG]
 [TOPICS...]``; on by default in ``./run.sh demo``). Records ``topics`` (default: /joint_states,
@@ -23,8 +23,8 @@ from typing import Optional, Sequence
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.errors import InvalidInputError
-from mover6_control.nodes.bag_writer import BagWriter
 from mover6_control.nodes.messages.conversions import make_status
+from mover6_control.nodes.recorder.bag_writer import BagWriter
 from mover6_control.nodes.runtime import shutdown
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.nodes.runtime.params import declare

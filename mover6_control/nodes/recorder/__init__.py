@@ -1,0 +1,1 @@
+"""The recorder node and its bag writer (rosbag2 MCAP through rosbags)."""
