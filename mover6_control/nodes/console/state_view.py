@@ -52,7 +52,9 @@ class StateView:
         """Load the URDF twice (the arm and its ghost); ``joint_names`` orders the joints."""
         urdf = arm_urdf(urdf_path, geometry)
         order = list(urdf.actuated_joint_names)
-        self.index = [list(joint_names).index(name) for name in order]   # URDF order <- ours
+        # URDF order <- ours; a joint outside the arm (the gripper) stays at 0 (the extra slot).
+        names = list(joint_names)
+        self.index = [names.index(name) if name in names else len(names) for name in order]
         self.server = server
         self.arm = ViserUrdf(server, urdf, root_node_name='/arm')
         self.ghost = ViserUrdf(server, arm_urdf(urdf_path, geometry, GHOST_COLOUR),
@@ -64,13 +66,17 @@ class StateView:
     def show_joints(self, q: np.ndarray) -> None:
         """Move the arm to the joint positions ``q`` (6,) [rad], in the package's joint order."""
         self.q = np.asarray(q, dtype=float)
-        self.arm.update_cfg(self.q[self.index])
+        self.arm.update_cfg(self._cfg(self.q))
 
     def show_ghost(self, q: Optional[np.ndarray]) -> None:
         """Show the ghost arm at ``q`` (6,) [rad]; None hides it."""
         if q is not None:
-            self.ghost.update_cfg(np.asarray(q, dtype=float)[self.index])
+            self.ghost.update_cfg(self._cfg(np.asarray(q, dtype=float)))
         self._ghost_visible(q is not None)
+
+    def _cfg(self, q: np.ndarray) -> np.ndarray:
+        """Return the URDF's configuration of the arm's ``q`` (the gripper at 0)."""
+        return np.append(q, 0.0)[self.index]
 
     def _ghost_visible(self, visible: bool) -> None:
         self.ghost.show_visual = visible
