@@ -159,7 +159,7 @@ def test_a_participant_that_fast_dds_set_up_otherwise_is_refused():
     """The socket check: Fast DDS's defaults (no profile loaded) bind beyond 127.0.0.1."""
     script = (
         'import rclpy\n'
-        'from mover6_control.nodes import local_dds\n'
+        'from mover6_control.nodes.runtime import local_dds\n'
         'rclpy.init()\n'
         'try:\n'
         '    local_dds.make_checked_node(lambda: rclpy.create_node("never_made"))\n'
