@@ -171,7 +171,7 @@ def test_referencing_one_joint(rig):
 
 
 def held_up(rig, seconds):
-    """The driver's control thread held up for ``seconds``: the modules run on, get nothing."""
+    """Hold the driver's control thread up for ``seconds``: the modules run on, get nothing."""
     rig.t += seconds
     rig.server.poll(0.0)
 
