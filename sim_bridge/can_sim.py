@@ -83,16 +83,24 @@ class BusServer:
         self.arm, self.bus, self.clock = arm, bus, clock
 
     def poll(self, timeout: float) -> None:
-        """Take what arrives within ``timeout`` [s], answer it, run the arm to now."""
+        """
+        Take what arrives within ``timeout`` [s], answer it, run the arm to now.
+
+        The time the watchdog looks at is read before the bus is drained (as ``SerialArm``
+        does): every frame sent before it is taken first, so a server held up between its last
+        read and its clock (another thread, the interpreter lock) trips no watchdog of a driver
+        that sent in time. Frames read after it count as arriving then.
+        """
         msg = self.bus.recv(timeout)
+        now = self.clock()
         while msg is not None:
             if not (msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id):
                 for can_id, data in self.arm.receive(msg.arbitration_id,
-                                                     bytes(msg.data[:msg.dlc]), self.clock()):
+                                                     bytes(msg.data[:msg.dlc]), now):
                     self.bus.send(can.Message(arbitration_id=can_id, data=data,
                                               is_extended_id=False))
             msg = self.bus.recv(0.0)
-        self.arm.advance(self.clock())
+        self.arm.advance(now)
 
     def serve(self, stop: threading.Event) -> None:
         """Poll until ``stop.is_set()`` (a ``threading.Event``)."""

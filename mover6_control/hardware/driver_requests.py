@@ -19,7 +19,11 @@ Enable is all six modules or none, in three steps:
    request is refused with the reason.
 
 Referencing and set zero are refused while the arm moves; referencing needs its joint enabled,
-set zero its joints disabled. Set zero sends the value that makes the joint read angle 0 (its
+set zero its joints disabled. A module that stops while it references (an error flag, its motor
+no longer enabled, in a reply after the command: its communication watchdog, a lag) refuses the
+referencing at once with its flags: it drives no more to its switch, so waiting for the
+referenced bit would only run out the timeout, and a referenced bit in a reply that reports the
+module stopped confirms nothing. Set zero sends the value that makes the joint read angle 0 (its
 offset: 500 for J5, 509 for J6, 0 for J1..J4) in the frame's last two bytes.
 """
 
@@ -232,6 +236,13 @@ class Requests:
             if j.reply is None or j.echo_seq <= req.last_seq:
                 return f'{j.scale.name}: no reply to a set-point sent since the command', False
             flags = j.reply.error_flags
+            if req.kind == 'reference' and j.state() not in FOLLOWING:
+                # The module stopped (its watchdog, a lag, an error): it drives no more to its
+                # switch, and a referenced bit in the same reply is no referencing done.
+                names = ', '.join(p.flag_names(flags & ~p.NOT_ENABLED, self.firmware))
+                return (f'{j.scale.name}: module stopped while referencing ('
+                        f'{names or "motor not enabled"}): reset and enable, then reference '
+                        'again'), True
             missing = {
                 'reset': flags & ~p.NOT_ENABLED and 'error flags still set: ' + ', '.join(
                     p.flag_names(flags & ~p.NOT_ENABLED, self.firmware)),

@@ -94,7 +94,9 @@ def rig():
     spinning.start()
     try:
         # Configured at start; activated here: reset, enable, J1..J4 referenced.
-        assert wait_for(lambda: driver.lifecycle_state == 'inactive')
+        # The state machine's, not the node's own: that one reads 'inactive' while rcl is
+        # still 'configuring', and an activation asked for then is not registered.
+        assert wait_for(lambda: driver.machine_state == 'inactive')
         driver.trigger_activate()
         assert driver.lifecycle_state == 'active', driver.last_failure
         yield driver, operator, arm

@@ -116,6 +116,17 @@ class DriverNode(LifecycleNode):
         return lambda: self.get_parameter(name).value
 
     @property
+    def machine_state(self) -> str:
+        """
+        Return the lifecycle state as rcl's state machine has it (as ~/get_state answers).
+
+        ``lifecycle_state`` is what the last transition made of the node, set inside its
+        callback: it says 'inactive' while the machine is still 'configuring'; a transition
+        may be asked for once this says where the node is.
+        """
+        return self._state_machine.current_state[1]
+
+    @property
     def driver(self) -> Optional[ArmDriver]:
         """Return the arm driver while configured, else None."""
         return self.session.driver

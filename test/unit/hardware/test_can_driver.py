@@ -170,6 +170,61 @@ def test_referencing_one_joint(rig):
     assert report.joints[2].state == 'referenced'
 
 
+def held_up(rig, seconds):
+    """Hold the driver's control thread up for ``seconds``: the modules run on, get nothing."""
+    rig.t += seconds
+    rig.server.poll(0.0)
+
+
+def start_referencing_j1(rig):
+    """Reset, enable, ask J1 to reference (the node's timeout); run until its module drives."""
+    for kind in ('reset', 'enable'):
+        ok, reason = rig.request(kind)
+        assert ok, reason
+    req = rig.driver.request('reference', [1], timeout=60.0)
+    while not rig.arm.modules[0].status()['referencing']:
+        rig.run(CYCLE)
+    return req
+
+
+def test_a_module_that_stops_while_referencing_refuses_it_at_once():
+    """
+    The driver held up past the modules' watchdog while J1 drives to its switch: refused now.
+
+    Before, the request waited out its whole timeout (the node's 60 s) for a referenced bit
+    that a stopped module never sets, and said only 'not referenced yet'.
+    """
+    rig = Rig(home_q=[0.3, 0.0, 0.0, 0.0, 0.0, 0.0])     # 1.5 s to the switch
+    try:
+        req = start_referencing_j1(rig)
+        held_up(rig, rig.arm.timing.watchdog_timeout + CYCLE)
+        assert not rig.arm.modules[0].referenced
+        start = rig.t
+        while req.ok is None and rig.t - start < 1.0:
+            rig.run(CYCLE)
+        assert req.ok is False, req.reason
+        assert 'joint1: module stopped while referencing (comm_watchdog' in req.reason, \
+            req.reason
+        assert rig.t - start <= 2 * CYCLE + 1e-9
+    finally:
+        rig.close()
+
+
+def test_a_referenced_bit_in_a_reply_that_says_the_module_stopped_confirms_nothing(rig):
+    """
+    J1's module sets its referenced bit, then trips its watchdog, before the driver reads it.
+
+    Before, the referenced bit alone confirmed the referencing; the next joint's was then refused
+    with 'the joint must be enabled first' (the activation's failure in the node tests).
+    """
+    req = start_referencing_j1(rig)                       # at its switch: 0.5 s to the bit
+    held_up(rig, rig.arm.timing.watchdog_timeout + CYCLE)
+    assert rig.arm.modules[0].referenced and rig.arm.modules[0].flags & 0x08
+    rig.run(2 * CYCLE)
+    assert req.ok is False, req.reason
+    assert 'joint1: module stopped while referencing (comm_watchdog' in req.reason, req.reason
+
+
 def test_a_brown_out_on_every_module_reads_as_power_lost_with_the_recovery_steps(rig):
     enabled(rig)
     rig.arm.inject_flags(3, 0x01, rig.t)                  # one module: an ordinary error
