@@ -57,6 +57,8 @@ TOLERANCE = math.radians(0.05)
 """[rad] a jog is done this near its target (or within a tick, for the coarse wrist encoders)."""
 APPROACH = 2.0
 """[1/s] the jog's speed near its target: this times the distance left (slows down on the way)."""
+STATES_FRESH = 0.15
+"""[s] a position older than this is not jogged on (the driver publishes every 0.05 s)."""
 
 
 @dataclass(frozen=True)
@@ -171,6 +173,12 @@ class ArmLink(Node):
         end = time.monotonic() + timeout
         velocities = [0.0] * len(self.names)
         while time.monotonic() < end:
+            if time.monotonic() - self.stamp > STATES_FRESH:
+                # No fresh position (a loaded machine): hold rather than jog on an old one,
+                # which carries the joint past the target and back (hunting).
+                self.jog([0.0] * len(self.names))
+                self.spin_for(JOG_PERIOD)
+                continue
             error = target - self.q[i]
             if abs(error) <= tolerance:
                 self.jog([0.0] * len(self.names))
