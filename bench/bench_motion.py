@@ -34,8 +34,9 @@ from bench.output import RESULTS, write_json
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.rotations import goal_relative_to_start
-from mover6_control.motion import (jerk_limited, metrics, paths, spline_trajectories, time_laws,
-                                   time_optimal, trajectories)
+from mover6_control.motion import metrics, paths
+from mover6_control.motion.timing import (jerk_limited, spline_trajectories, time_laws,
+                                          time_optimal, trajectories)
 from mover6_control.tools import plots
 import numpy as np
 

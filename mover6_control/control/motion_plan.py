@@ -17,9 +17,9 @@ from dataclasses import dataclass
 from typing import Sequence
 
 from mover6_control.control.commands import common_scale
-from mover6_control.motion.time_laws import trapezoidal
-from mover6_control.motion.trajectories import (JointTrajectory, point_to_point,
-                                                TimeLawTrajectory)
+from mover6_control.motion.timing.time_laws import trapezoidal
+from mover6_control.motion.timing.trajectories import (JointTrajectory, point_to_point,
+                                                       TimeLawTrajectory)
 from mover6_control.validation import as_positive
 import numpy as np
 

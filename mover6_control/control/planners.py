@@ -21,8 +21,8 @@ from mover6_control.control.profiles import (LawConfig, STOP_AT_EACH_PROFILES,
 from mover6_control.errors import InvalidInputError
 # Imported with this module, not lazily in the first continuous demand's callback: that import
 # (scipy.interpolate; 0.1 s idle, far longer on a loaded machine) held up the controller.
-from mover6_control.motion import time_optimal
-from mover6_control.motion.jerk_limited import ruckig_trajectory
+from mover6_control.motion.timing import time_optimal
+from mover6_control.motion.timing.jerk_limited import ruckig_trajectory
 from mover6_control.validation import as_positive
 import numpy as np
 

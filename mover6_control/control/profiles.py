@@ -29,11 +29,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.motion import time_laws
-from mover6_control.motion.spline_trajectories import (bspline_trajectory, cubic_trajectory,
-                                                       multipoint_trapezoidal,
-                                                       quintic_trajectory)
-from mover6_control.motion.time_laws import trapezoid_times
+from mover6_control.motion.timing import time_laws
+from mover6_control.motion.timing.spline_trajectories import (bspline_trajectory,
+                                                              cubic_trajectory,
+                                                              multipoint_trapezoidal,
+                                                              quintic_trajectory)
+from mover6_control.motion.timing.time_laws import trapezoid_times
 from mover6_control.parameters import PROFILES   # the names; their laws are planned here
 from mover6_control.validation import as_positive
 

@@ -17,7 +17,7 @@ from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 
 if TYPE_CHECKING:
-    from mover6_control.motion.trajectories import JointTrajectory
+    from mover6_control.motion.timing.trajectories import JointTrajectory
 
 # Points x segments handled per block when measuring distances to a polyline.
 _BLOCK = 2_000_000

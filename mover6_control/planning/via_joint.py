@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 from mover6_control.errors import UnreachableError
 from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.rotations import pose_error
-from mover6_control.motion.time_laws import via_point_polynomial
+from mover6_control.motion.timing.time_laws import via_point_polynomial
 from mover6_control.planning.planner_core import (check_goal, check_goal_collision,
                                                   check_path_shape, check_plan_collision,
                                                   closest_solution, JointPlan, make_checker,

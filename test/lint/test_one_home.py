@@ -46,8 +46,8 @@ def test_shared_concepts_are_defined_once():
     homes = {'REASONS': ['mover6_control/errors.py'],
              'as_finite_array': ['mover6_control/validation.py'],
              'as_positive': ['mover6_control/validation.py'],
-             'trapezoid_times': ['mover6_control/motion/time_laws.py'],
-             'ruckig_trajectory': ['mover6_control/motion/jerk_limited.py']}
+             'trapezoid_times': ['mover6_control/motion/timing/time_laws.py'],
+             'ruckig_trajectory': ['mover6_control/motion/timing/jerk_limited.py']}
     found = {name: [] for name in homes}
     for name, _, path in definitions():
         if name in found:

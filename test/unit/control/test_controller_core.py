@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 DT = 0.01
-HAS_TIMING = importlib.util.find_spec('mover6_control.motion.time_optimal') is not None
+HAS_TIMING = importlib.util.find_spec('mover6_control.motion.timing.time_optimal') is not None
 PROFILES = ['synchronised', 'trapezoidal', 'jerk_limited'] + (
     ['continuous'] if HAS_TIMING else [])
 GOAL = np.array([0.4, -0.3, 0.2, 0.3, -0.2, 0.5])

@@ -19,7 +19,7 @@ import pytest
 ARM = mover6('hardware')
 VLIM = ARM.velocity_limits
 DT = 0.01
-HAS_TIMING = importlib.util.find_spec('mover6_control.motion.time_optimal') is not None
+HAS_TIMING = importlib.util.find_spec('mover6_control.motion.timing.time_optimal') is not None
 PROFILES = ['synchronised', 'trapezoidal', 'jerk_limited'] + (
     ['continuous'] if HAS_TIMING else [])
 

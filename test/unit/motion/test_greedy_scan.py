@@ -8,7 +8,7 @@ with falling ones too (the forward pass), with ramps that start inside other ram
 edges (no steps, nothing below the caps, a start below the first cap).
 """
 
-from mover6_control.motion.greedy_scan import greedy_scan
+from mover6_control.motion.timing.greedy_scan import greedy_scan
 import numpy as np
 import pytest
 

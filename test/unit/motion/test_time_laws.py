@@ -5,8 +5,8 @@ import hypothesis.strategies as st
 from mover6_control.control.planners import plan_motion
 from mover6_control.control.profiles import LawConfig
 from mover6_control.errors import InvalidInputError
-from mover6_control.motion import time_laws as tl
-from mover6_control.motion.trajectories import TimeLawTrajectory
+from mover6_control.motion.timing import time_laws as tl
+from mover6_control.motion.timing.trajectories import TimeLawTrajectory
 import numpy as np
 import pytest
 

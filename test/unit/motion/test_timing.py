@@ -12,8 +12,9 @@ practice they are bit for bit the same).
 from hypothesis import example, given, settings
 import hypothesis.strategies as st
 from mover6_control.errors import InvalidInputError
-from mover6_control.motion import blended_path, time_optimal
+from mover6_control.motion import blended_path
 from mover6_control.motion.metrics import max_deviation_from_polyline
+from mover6_control.motion.timing import time_optimal
 import numpy as np
 import pytest
 

@@ -3,10 +3,10 @@
 from hypothesis import example, given, settings
 import hypothesis.strategies as st
 from mover6_control.errors import InvalidInputError
-from mover6_control.motion import jerk_limited as jl
-from mover6_control.motion import spline_trajectories as sp
-from mover6_control.motion import time_laws as tl
-from mover6_control.motion import trajectories as tj
+from mover6_control.motion.timing import jerk_limited as jl
+from mover6_control.motion.timing import spline_trajectories as sp
+from mover6_control.motion.timing import time_laws as tl
+from mover6_control.motion.timing import trajectories as tj
 import numpy as np
 import pytest
 

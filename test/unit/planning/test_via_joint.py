@@ -4,7 +4,7 @@ from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import goal_relative_to_start, pose_error
-from mover6_control.motion.time_laws import via_fraction, via_point_polynomial
+from mover6_control.motion.timing.time_laws import via_fraction, via_point_polynomial
 from mover6_control.planning.planner_core import PlannerSettings
 from mover6_control.planning.via_joint import (plan_via_joint_move, plan_via_path_goal,
                                                sample_curve, TAU_VIA, via_joint_curve)

@@ -1,7 +1,7 @@
 """Plots: each writes a real PNG file and returns its path; bad shapes are refused."""
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.motion import time_laws as tl
+from mover6_control.motion.timing import time_laws as tl
 from mover6_control.tools import plots
 import numpy as np
 import pytest

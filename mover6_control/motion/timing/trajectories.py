@@ -23,7 +23,7 @@ import math
 from typing import Callable, Optional, Sequence
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.motion.time_laws import PolynomialTimeLaw, TrapezoidalTimeLaw
+from mover6_control.motion.timing.time_laws import PolynomialTimeLaw, TrapezoidalTimeLaw
 from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 from scipy.optimize import minimize_scalar

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mover6_control.motion.blended_path import BlendedPath
-from mover6_control.motion.trajectories import JointTrajectory
+from mover6_control.motion.timing.trajectories import JointTrajectory
 import numpy as np
 
 

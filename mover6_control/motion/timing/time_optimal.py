@@ -26,11 +26,11 @@ from __future__ import annotations
 from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError, UnreachableError
-from mover6_control.motion import greedy_scan
 from mover6_control.motion.blended_path import blended_path, distinct_waypoints
-from mover6_control.motion.path_timing import (FilteredTiming, GridTiming, PathTrajectory,
-                                               ScaledTiming)
-from mover6_control.motion.trajectories import Limit
+from mover6_control.motion.timing import greedy_scan
+from mover6_control.motion.timing.path_timing import (FilteredTiming, GridTiming, PathTrajectory,
+                                                      ScaledTiming)
+from mover6_control.motion.timing.trajectories import Limit
 from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.motion.trajectories import JointTrajectory, Limit, validate_waypoints
+from mover6_control.motion.timing.trajectories import JointTrajectory, Limit, validate_waypoints
 from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 from scipy.interpolate import BSpline, CubicSpline, make_interp_spline, PPoly

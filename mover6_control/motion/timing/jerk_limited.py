@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.motion.trajectories import JointTrajectory, Limit
+from mover6_control.motion.timing.trajectories import JointTrajectory, Limit
 from mover6_control.validation import as_finite_array, as_positive
 import numpy as np
 import ruckig
