@@ -89,7 +89,10 @@ class BusServer:
         The time the watchdog looks at is read before the bus is drained (as ``SerialArm``
         does): every frame sent before it is taken first, so a server held up between its last
         read and its clock (another thread, the interpreter lock) trips no watchdog of a driver
-        that sent in time. Frames read after it count as arriving then.
+        that sent in time. Each frame read after the first is stamped with the clock read when
+        it is taken: a drain that took long (the physics catching up on a held-up server) would
+        otherwise stamp the frames that came meanwhile with the time before it, and the
+        watchdog would find them half a second old at the next pass.
         """
         msg = self.bus.recv(timeout)
         now = self.clock()
@@ -100,6 +103,8 @@ class BusServer:
                     self.bus.send(can.Message(arbitration_id=can_id, data=data,
                                               is_extended_id=False))
             msg = self.bus.recv(0.0)
+            if msg is not None:
+                now = self.clock()
         self.arm.advance(now)
 
     def serve(self, stop: threading.Event) -> None:

@@ -14,9 +14,11 @@ import resource
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 from mover6_control.resources import CONFIG_DIR
+from rclpy.executors import SingleThreadedExecutor
 
 ROOT = os.path.dirname(CONFIG_DIR)
 MODULES = {'sim_bridge': 'sim_bridge.bridge_node',
@@ -213,6 +215,38 @@ def spin_until(executor, predicate, timeout=30.0, period=0.01, each=None):
         if each is not None:
             each()
     return time.monotonic() if wait_until(predicate, timeout, spin, period) else None
+
+
+class Spinning:
+    """
+    Spin each of ``nodes`` on a ``SingleThreadedExecutor`` of its own, in a thread of its own.
+
+    As each node's ``main()`` runs it. One ``MultiThreadedExecutor`` for a driver node and a
+    test's client node instead spun while the driver's ``on_activate`` waited seconds for
+    referencing: its list of pending handlers grew to thousands, and scanning it at every wait
+    held the interpreter lock for hundreds of milliseconds at a time, long enough for the
+    simulated modules in the same process to trip their communication watchdog.
+    ``close()`` stops the executors and joins the threads.
+    """
+
+    def __init__(self, context, nodes):
+        self.executors = []
+        self.threads = []
+        for node in nodes:
+            executor = SingleThreadedExecutor(context=context)
+            executor.add_node(node)
+            thread = threading.Thread(target=executor.spin, daemon=True,
+                                      name=f'spin_{node.get_name()}')
+            thread.start()
+            self.executors.append(executor)
+            self.threads.append(thread)
+
+    def close(self, timeout=10.0):
+        """Stop every executor; wait for its thread."""
+        for executor in self.executors:
+            executor.shutdown(timeout_sec=timeout)
+        for thread in self.threads:
+            thread.join(timeout=timeout)
 
 
 def wait_until(predicate, timeout, spin=None, period=0.05):

@@ -25,9 +25,9 @@ from mover6_control.nodes.driver.jog_intake import JogIntake, JogRefused
 from mover6_control.nodes.messages import conversions
 import pytest
 import rclpy
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from ros_testing import Spinning, wait_until
 from sensor_msgs.msg import JointState
 from sim_bridge.can_sim import build_arm, BusServer
 from std_srvs.srv import Trigger
@@ -87,12 +87,7 @@ class Operator(Node):
 
 
 def wait_for(predicate, timeout=60.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return bool(predicate())
+    return wait_until(predicate, timeout, period=0.02)
 
 
 class Arm:
@@ -128,24 +123,16 @@ def make_rig(extra=()):
     arm = Arm(channel)
     context = rclpy.Context()
     rclpy.init(context=context)
-    # The simulated modules share this process (and its interpreter lock) with rclpy and the
-    # executor: starting the nodes can starve them for a few cycles, which a real module never
-    # is. The 3-cycle fault itself is tested in test_hw_driver.py and end to end. No real-time
-    # priority here: it would raise every thread of the test process.
+    # The shipped silent_cycles. No real-time priority here: it would raise every thread of
+    # the test process, the simulated modules' too.
     driver = DriverNode(context=context, namespace=namespace, parameter_overrides=[
         Parameter('can_interface', value='virtual'), Parameter('can_channel', value=channel),
-        Parameter('silent_cycles', value=40), Parameter('cycle_priority', value=0),
-        *extra])
+        Parameter('cycle_priority', value=0), *extra])
     operator = Operator(context, namespace)
-    executor = MultiThreadedExecutor(num_threads=4, context=context)
-    executor.add_node(driver)
-    executor.add_node(operator)
-    spinning = threading.Thread(target=executor.spin, daemon=True)
-    spinning.start()
+    spinning = Spinning(context, [driver, operator])      # each as its main() spins it
 
     def close():
-        executor.shutdown()
-        spinning.join(timeout=10.0)
+        spinning.close()
         driver.destroy_node()
         operator.destroy_node()
         rclpy.try_shutdown(context=context)

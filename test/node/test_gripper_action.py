@@ -19,9 +19,9 @@ from mover6_control.nodes.driver.driver_node import DriverNode
 import pytest
 import rclpy
 from rclpy.action import ActionClient
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from ros_testing import Spinning, wait_until
 from sensor_msgs.msg import JointState
 from sim_bridge.can_arm import GRIPPER_STROKE
 from sim_bridge.can_sim import build_arm, BusServer
@@ -32,12 +32,7 @@ RUNS = itertools.count()
 
 def wait_for(predicate, timeout=30.0):
     """Wait until ``predicate()`` is true; return whether it became true."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return bool(predicate())
+    return wait_until(predicate, timeout, period=0.02)
 
 
 class Operator(Node):
@@ -85,13 +80,9 @@ def rig():
     rclpy.init(context=context)
     driver = DriverNode(context=context, namespace=namespace, parameter_overrides=[
         Parameter('can_interface', value='virtual'), Parameter('can_channel', value=channel),
-        Parameter('silent_cycles', value=40), Parameter('cycle_priority', value=0)])
+        Parameter('cycle_priority', value=0)])
     operator = Operator(context, namespace)
-    executor = MultiThreadedExecutor(num_threads=4, context=context)
-    executor.add_node(driver)
-    executor.add_node(operator)
-    spinning = threading.Thread(target=executor.spin, daemon=True)
-    spinning.start()
+    spinning = Spinning(context, [driver, operator])      # each as its main() spins it
     try:
         # Configured at start; activated here: reset, enable, J1..J4 referenced.
         # The state machine's, not the node's own: that one reads 'inactive' while rcl is
@@ -101,8 +92,7 @@ def rig():
         assert driver.lifecycle_state == 'active', driver.last_failure
         yield driver, operator, arm
     finally:
-        executor.shutdown()
-        spinning.join(timeout=10.0)
+        spinning.close()
         driver.destroy_node()
         operator.destroy_node()
         rclpy.try_shutdown(context=context)
