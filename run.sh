@@ -44,7 +44,7 @@ case "$cmd" in
     report) ensure; exec python -m mover6_control.tools.report "$@" ;;
     generate) ensure; exec python -m mover6_control.tools.generate "$ROOT" "$@" ;;
     first-run) ensure; exec python -m mover6_control.tools.first_run "$@" ;;   # docs/real_arm.md
-    console) ensure; exec python -m mover6_control.nodes.console.console_node "$@" ;;  # docs/console.md
+    console) ensure; exec python -m mover6_control.nodes.console.node "$@" ;;  # docs/console.md
     bench)
         ensure
         in_private_netns bench "$@"

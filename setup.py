@@ -2,10 +2,14 @@
 
 from glob import glob
 import os
+import runpy
 
 from setuptools import find_packages, setup
 
 package_name = 'mover6_control'
+# The executables and their modules: one table, read without importing the package.
+EXECUTABLES = runpy.run_path(os.path.join(os.path.dirname(os.path.abspath(__file__)),
+                                          package_name, 'resources.py'))['EXECUTABLES']
 
 setup(
     name=package_name,
@@ -29,19 +33,7 @@ setup(
     license='Apache-2.0',
     tests_require=['pytest', 'hypothesis'],
     entry_points={
-        'console_scripts': [
-            'planner = mover6_control.nodes.planner.node:main',
-            'controller = mover6_control.nodes.controller.node:main',
-            'sim_bridge = sim_bridge.bridge_node:main',
-            'driver = mover6_control.nodes.driver.driver_node:main',
-            'can_sim = sim_bridge.can_sim:main',
-            'goal = mover6_control.tools.goal_cli:main',
-            'teleop = mover6_control.tools.teleop:main',
-            'state_publisher = mover6_control.nodes.state_publisher.node:main',
-            'markers = mover6_control.nodes.markers.node:main',
-            'recorder = mover6_control.nodes.recorder.node:main',
-            'first_run = mover6_control.tools.first_run:main',
-            'console = mover6_control.nodes.console.console_node:main',
-        ],
+        'console_scripts': [f'{name} = {module}:main'
+                            for name, module in EXECUTABLES.items()],
     },
 )

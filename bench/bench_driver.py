@@ -264,7 +264,7 @@ def run_variant(name, params, churn, trials, tmp):
 def probe_main(argv):
     """Run the driver node, saving the monotonic time of every cycle's start to ``argv[0]``."""
     from mover6_control.hardware import driver as hw_driver
-    from mover6_control.nodes.driver import driver_node, jog_intake
+    from mover6_control.nodes.driver import jog_intake, node as driver_node
     times = []
     step = hw_driver.ArmDriver.step
 

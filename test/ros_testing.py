@@ -13,23 +13,13 @@ import os
 import resource
 import signal
 import subprocess
-import sys
 import threading
 import time
 
-from mover6_control.resources import CONFIG_DIR
+from mover6_control.resources import CONFIG_DIR, executable_command
 from rclpy.executors import SingleThreadedExecutor
 
 ROOT = os.path.dirname(CONFIG_DIR)
-MODULES = {'sim_bridge': 'sim_bridge.bridge_node',
-           'controller': 'mover6_control.nodes.controller.node',
-           'planner': 'mover6_control.nodes.planner.node',
-           'driver': 'mover6_control.nodes.driver.driver_node',
-           'can_sim': 'sim_bridge.can_sim',
-           'recorder': 'mover6_control.nodes.recorder.node',
-           'state_publisher': 'mover6_control.nodes.state_publisher.node',
-           'markers': 'mover6_control.nodes.markers.node',
-           'console': 'mover6_control.nodes.console.console_node'}
 
 
 PR_CAPBSET_DROP, CAP_SYS_NICE = 24, 23       # linux/prctl.h, linux/capability.h
@@ -58,14 +48,7 @@ def pid_alive(pid):
 
 def node_command(name):
     """Return the command that starts node ``name``: installed executable or ``python -m``."""
-    try:
-        from ament_index_python.packages import get_package_prefix
-        exe = os.path.join(get_package_prefix('mover6_control'), 'lib', 'mover6_control', name)
-        if os.access(exe, os.X_OK):
-            return [exe]
-    except Exception:  # noqa: B902 - not built: run from the source tree
-        pass
-    return [sys.executable, '-m', MODULES[name]]
+    return executable_command(name)
 
 
 def installed():

@@ -42,6 +42,7 @@ from control_msgs.msg import JointJog
 from mover6_control.hardware.calibration import JointCalibration, write_calibration
 from mover6_control.hardware.scaling import JOINTS_YAML, JointScale, load_joints
 from mover6_control.nodes.messages import conversions
+from mover6_control.resources import executable_command
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -200,7 +201,8 @@ class SimulatedRig:
         self.link = os.path.join(self.folder, 'mover6-can')
         self.log = open(os.path.join(self.folder, 'rig.log'), 'w')
         self.processes = []
-        self._start(executable('can_sim') + ['--link', self.link, '--joints-file', joints_file])
+        self._start(executable_command('can_sim') +
+                    ['--link', self.link, '--joints-file', joints_file])
         end = time.monotonic() + 30.0
         while not os.path.exists(self.link) and time.monotonic() < end:
             if self.processes[0].poll() is not None:
@@ -209,7 +211,7 @@ class SimulatedRig:
         if not os.path.exists(self.link):
             self.close()
             raise RuntimeError(f'can_sim did not come up (see {self.log.name})')
-        self._start(executable('driver') + [
+        self._start(executable_command('driver') + [
             '--ros-args', '-p', 'can_interface:=cpr_usb2can', '-p', f'can_channel:={self.link}',
             '-p', 'enable_on_start:=true', '-p', f'joints_file:={joints_file}'])
 
@@ -229,20 +231,6 @@ class SimulatedRig:
                     proc.kill()
                     proc.wait(5.0)
         self.log.close()
-
-
-def executable(name: str) -> list[str]:
-    """Return the command of the package's executable ``name`` (installed, or ``python -m``)."""
-    modules = {'can_sim': 'sim_bridge.can_sim',
-               'driver': 'mover6_control.nodes.driver.driver_node'}
-    try:
-        from ament_index_python.packages import get_package_prefix
-        exe = os.path.join(get_package_prefix('mover6_control'), 'lib', 'mover6_control', name)
-        if os.access(exe, os.X_OK):
-            return [exe]
-    except Exception:  # noqa: B902 - not built: run from the source tree
-        pass
-    return [sys.executable, '-m', modules[name]]
 
 
 class FirstRun:

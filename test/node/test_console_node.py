@@ -15,8 +15,8 @@ import socket  # noqa: E402
 from control_msgs.msg import JointJog  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from geometry_msgs.msg import PoseStamped, TwistStamped  # noqa: E402
-from mover6_control.nodes.console.console_node import (ConsoleNode, is_loopback,  # noqa: E402
-                                                       parse_args)
+from mover6_control.nodes.console.node import (ConsoleNode, is_loopback,  # noqa: E402
+                                               parse_args)
 from mover6_control.nodes.messages import conversions, demand_messages  # noqa: E402
 from mover6_control.nodes.runtime.qos import STATUS_QOS  # noqa: E402
 import numpy as np  # noqa: E402

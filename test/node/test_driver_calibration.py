@@ -10,7 +10,7 @@ import os
 
 from mover6_control.hardware.calibration import JointCalibration, write_calibration
 from mover6_control.hardware.scaling import load_joints
-from mover6_control.nodes.driver.driver_node import DriverNode
+from mover6_control.nodes.driver.node import DriverNode
 import pytest
 import rclpy
 from rclpy.parameter import Parameter

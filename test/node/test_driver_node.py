@@ -20,8 +20,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 from mover6_control.hardware.scaling import load_joints
-from mover6_control.nodes.driver.driver_node import DriverNode, SERVICES
 from mover6_control.nodes.driver.jog_intake import JogIntake, JogRefused
+from mover6_control.nodes.driver.node import DriverNode, SERVICES
 from mover6_control.nodes.messages import conversions
 import pytest
 import rclpy

@@ -15,7 +15,7 @@ import time
 import can
 from control_msgs.action import GripperCommand
 from mover6_control.hardware.gripper import STROKE
-from mover6_control.nodes.driver.driver_node import DriverNode
+from mover6_control.nodes.driver.node import DriverNode
 import pytest
 import rclpy
 from rclpy.action import ActionClient

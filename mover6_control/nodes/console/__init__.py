@@ -1,1 +1,1 @@
-"""The web console (viser): a node and the parts of its page; see ``console_node``."""
+"""The web console (viser): a node and the parts of its page; see ``node``."""

@@ -1,7 +1,7 @@
 """
 The driver's arm between configure and cleanup: one ``ArmDriver``, its requests in order.
 
-ROS-free; the lifecycle node (``driver_node``) calls it from its transitions and services, each
+ROS-free; the lifecycle node (``node``) calls it from its transitions and services, each
 call answering (success, message):
 
 - ``configure``: the bus and the driver, then every module's position, read with
