@@ -92,9 +92,13 @@ def _times(v, A):
 
 def _rotate(w, theta, v):
     """Rotate vectors ``v`` (..., 3) about unit ``w`` (3,) by ``theta`` (...) [rad]."""
+    return _rotate_sc(w, np.sin(theta), np.cos(theta), v)
+
+
+def _rotate_sc(w, s, c, v):
+    """Rotate vectors ``v`` (..., 3) about unit ``w`` (3,) by the angle of sine ``s``, cosine ``c``."""
     K = _skew(w)
-    return (v + np.sin(theta)[..., None] * _times(v, K)
-            + (1.0 - np.cos(theta))[..., None] * _times(v, K @ K))
+    return v + s[..., None] * _times(v, K) + (1.0 - c)[..., None] * _times(v, K @ K)
 
 
 def _subproblem1(w, u, v):
@@ -189,8 +193,20 @@ def has_spherical_wrist(arm: ArmModel) -> bool:
 
 
 def _wrap(q):
-    """Wrap angles to [-pi, pi)."""
-    return (q + np.pi) % (2.0 * np.pi) - np.pi
+    """
+    Wrap angles to [-pi, pi): ``(q + pi) % 2 pi - pi``, the remainder only where it changes q.
+
+    ``x % 2 pi`` is ``x`` itself for ``x`` in [0, 2 pi), so only the angles outside pay for
+    the (slow) remainder; the result is the same number for number.
+    """
+    x = q + np.pi
+    if np.ndim(x) == 0:
+        return x % (2.0 * np.pi) - np.pi
+    out = x - np.pi
+    outside = (x < 0.0) | (x >= 2.0 * np.pi)
+    if outside.any():
+        out[outside] = x[outside] % (2.0 * np.pi) - np.pi
+    return out
 
 
 def nearest_alias(arm: ArmModel, Q: np.ndarray, q_ref: np.ndarray,
@@ -208,10 +224,17 @@ def nearest_alias(arm: ArmModel, Q: np.ndarray, q_ref: np.ndarray,
 
 def _into_limits(arm, Q):
     """Shift each angle by +-2 pi when that brings it inside its joint limits."""
-    lo, hi = arm.lower, arm.upper
+    return _into_range(Q, arm.lower, arm.upper)
+
+
+def _into_range(Q, lo, hi):
+    """Shift each angle by +-2 pi when that brings it inside [lo, hi] (broadcast)."""
+    below, above = Q < lo, Q > hi
+    if not (below.any() or above.any()):
+        return Q
     up = Q + 2.0 * np.pi
     down = Q - 2.0 * np.pi
-    Q = np.where((Q < lo) & (up >= lo) & (up <= hi), up, Q)
+    Q = np.where(below & (up >= lo) & (up <= hi), up, Q)
     return np.where((Q > hi) & (down >= lo) & (down <= hi), down, Q)
 
 
@@ -229,7 +252,10 @@ def pose_errors_batch(T_goal: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np
 
 def _candidates(geo, T, q_ref):
     """
-    Return all 8 candidates (m, 8, 6), a mask of solvable ones (m, 8) and where q_ref was used.
+    Return the joints of all 8 candidates, a mask of solvable ones and where q_ref was used.
+
+    The joints as solved, each once per branch it depends on: q1 (m, 2), q2 and q3 (m, 2, 2),
+    q4, q5, q6 (m, 2, 2, 2) (shoulder, elbow, wrist flip); the mask (m, 2, 2, 2).
 
     The last (m,) marks poses at a shoulder or wrist singularity, whose q1 or q4 came from
     ``q_ref``.
@@ -251,24 +277,28 @@ def _candidates(geo, T, q_ref):
     shoulder = rho1 < 1e-9
     q1 = np.where(shoulder[:, None], q_ref[:, None, 0], q1)
     ok1 = ok1 | (shoulder & (np.abs(c) < 1e-9))
-    p1 = r[0] + _rotate(w1, -q1, (p - r[0])[:, None, :])                    # (m, 2, 3)
+    # sin and cos of q1 and q3 once each: both turn the wrist centre and the goal's axes.
+    s1, c1 = np.sin(q1), np.cos(q1)
+    p1 = r[0] + _rotate_sc(w1, -s1, c1, (p - r[0])[:, None, :])             # (m, 2, 3)
     # q3: distance of the wrist centre to axis 2, law of cosines about axis 3.
     e = (r[2] - r[1]) - np.dot(r[2] - r[1], w2) * w2
     u = (p0 - r[2]) - np.dot(p0 - r[2], w2) * w2
     d_vec = (p1 - r[1]) - _dot(p1 - r[1], w2)[..., None] * w2
     c3 = (_dot(d_vec, d_vec) - np.dot(e, e) - np.dot(u, u)) / 2.0
     q3, ok3, _ = _cos_sin(np.dot(e, u), np.dot(e, _cross(w3, u)), c3, 1e-12)  # (m, 2, 2)
-    x = r[2] + _rotate(w3, q3, np.broadcast_to(p0 - r[2], q3.shape + (3,)))
+    s3, c3 = np.sin(q3), np.cos(q3)
+    x = r[2] + _rotate_sc(w3, s3, c3, np.broadcast_to(p0 - r[2], q3.shape + (3,)))
     q2, _ = _subproblem1(w2, x - r[1], p1[:, :, None, :] - r[1])             # (m, 2, 2)
+    q1_pair = q1
     q1 = np.broadcast_to(q1[:, :, None], q2.shape)
     # The wrist must turn R_w = R03^T R_goal M^T; only R_w w6 and R_w x6 are needed, and
     # R03^T v = Rot(w3, -q3) Rot(w2, -q2) Rot(w1, -q1) v.
     M_R = geo.M[:3, :3]
     goal = R_goal.reshape(-1, 3) @ np.stack([M_R.T @ w6, M_R.T @ geo.x6], axis=1)
     goal = goal.reshape(m, 1, 3, 2).transpose(0, 1, 3, 2)                    # (m, 1, 2, 3)
-    goal = _rotate(w1, -q1[:, :, 0, None], np.broadcast_to(goal, (m, 2, 2, 3)))
+    goal = _rotate_sc(w1, -s1[:, :, None], c1[:, :, None], np.broadcast_to(goal, (m, 2, 2, 3)))
     goal = _rotate(w2, -q2[..., None], np.broadcast_to(goal[:, :, None], q2.shape + (2, 3)))
-    goal = _rotate(w3, -q3[..., None], goal)                                  # (m, 2, 2, 2, 3)
+    goal = _rotate_sc(w3, -s3[..., None], c3[..., None], goal)                # (m, 2, 2, 2, 3)
     tv, tx = goal[..., 0, :], goal[..., 1, :]
     # q4, q5: Rot4 Rot5 w6 = R_w w6 (subproblem 2 with axes through the wrist centre).
     s45 = np.dot(w4, w5)
@@ -289,13 +319,9 @@ def _candidates(geo, T, q_ref):
     # q6: Rot6 x6 = Rot5^T Rot4^T R_w x6.
     target = _rotate(w5, -q5, _rotate(w4, -q4, np.broadcast_to(tx[..., None, :], z.shape)))
     q6 = _angle_from(w6, geo.x6, target)
-    Q123 = np.stack([q1, q2, q3], axis=-1)                                    # (m, 2, 2, 3)
-    Q123 = np.broadcast_to(Q123[..., None, :], q4.shape + (3,))
-    Q = np.concatenate([Q123, q4[..., None], q5[..., None], q6[..., None]], axis=-1)
     ok = ok1[:, None, None, None] & ok3[:, :, None, None] & ok_w[..., None]
     used_ref = shoulder | (lever < 1e-9).reshape(m, -1).any(axis=1)
-    return (Q.reshape(m, N_BRANCHES, 6), np.broadcast_to(ok, q4.shape).reshape(m, N_BRANCHES),
-            used_ref)
+    return (q1_pair, q2, q3, q4, q5, q6), np.broadcast_to(ok, q4.shape), used_ref
 
 
 def _as_q_ref(arm, q_ref, m):
@@ -344,12 +370,22 @@ def solve_candidates(arm: ArmModel, geo: WristGeometry, T: np.ndarray, q_ref: np
     ``return_ref_used`` a third array (m,) marks the singular poses whose q1 or q4 came from
     ``q_ref``.
     """
-    Q, ok, used_ref = _candidates(geo, T, q_ref)
-    Q = nearest_alias(arm, Q, q_ref[:, None, :], within_limits)
-    if within_limits:
-        ok = ok & np.all((Q >= arm.lower - 1e-9) & (Q <= arm.upper + 1e-9), axis=-1)
-    else:
-        ok = np.array(ok)          # writable and contiguous: the FK check fills it in place
+    joints, ok, used_ref = _candidates(geo, T, q_ref)
+    m = len(T)
+    # Each joint aliased nearest q_ref (and into its limits) once per branch it depends on
+    # (``nearest_alias`` joint by joint: the same numbers), then spread over the 8 branches.
+    Q = np.empty((m, 2, 2, 2, 6))
+    for j, q in enumerate(joints):
+        ref = q_ref[:, j].reshape((m,) + (1,) * (q.ndim - 1))
+        q = ref + _wrap(q - ref)
+        spread = q.shape + (1,) * (4 - q.ndim)
+        if within_limits:
+            lo, hi = arm.lower[j], arm.upper[j]
+            q = _into_range(q, lo, hi)
+            ok = ok & ((q >= lo - 1e-9) & (q <= hi + 1e-9)).reshape(spread)
+        Q[..., j] = q.reshape(spread)
+    Q = Q.reshape(m, N_BRANCHES, 6)
+    ok = np.array(ok).reshape(m, N_BRANCHES)   # writable: the FK check fills it in place
     # FK check of the candidates still in question (often half of them or fewer), on squared
     # figures (no roots): |dp|^2 < tol^2 and the rotation chord
     # |R - R_goal|_F^2 = 8 sin^2(angle / 2) < 8 sin^2(tol / 2).
