@@ -30,6 +30,7 @@ at a shoulder singularity (wrist centre on axis 1).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError
@@ -96,7 +97,7 @@ def _rotate(w, theta, v):
 
 
 def _rotate_sc(w, s, c, v):
-    """Rotate vectors ``v`` (..., 3) about unit ``w`` (3,) by the angle of sine ``s``, cosine ``c``."""
+    """Rotate ``v`` (..., 3) about unit ``w`` (3,) by the angle of sine and cosine ``s``, ``c``."""
     K = _skew(w)
     return v + s[..., None] * _times(v, K) + (1.0 - c)[..., None] * _times(v, K @ K)
 
@@ -115,6 +116,67 @@ def _angle_from(w, u, v):
     # atan2(w . (up x v), up . v) = atan2(v . (w x up), v . up): one product for both.
     both = v.reshape(-1, 3) @ np.stack([_cross(w, up), up], axis=1)
     return np.arctan2(both[:, 0], both[:, 1]).reshape(v.shape[:-1])
+
+
+def _atan2_cos_sin(y, x):
+    """Return ``atan2(y, x)`` and its cosine and sine, ``x / hypot``, ``y / hypot`` (1, 0 at 0)."""
+    h = np.hypot(x, y)
+    zero = h == 0.0
+    inv = 1.0 / np.where(zero, 1.0, h)
+    return np.arctan2(y, x), np.where(zero, 1.0, x * inv), y * inv
+
+
+@lru_cache(maxsize=16)             # a WristGeometry is immutable and hashed by identity
+def _q6_basis(geo: WristGeometry) -> np.ndarray:
+    """
+    Return ``B`` (3, 18): q6's two dot products as products of ``tx`` and sines and cosines.
+
+    q6 = atan2(t . a, t . b) with ``t = Rot(w5, -q5) Rot(w4, -q4) tx``, ``b`` = x6 normal to
+    w6 and ``a = w6 x b``. ``t . a = tx . Rot(w4, q4) Rot(w5, q5) a``, and a turn of a constant
+    vector is ``Rot(w, q) v = v_par + cos(q) v_perp + sin(q) w x v``. So ``t . a`` is
+    ``sum_ik f_i(q4) g_k(q5) (tx . B_ik)`` with f, g = (1, cos, sin); columns 3 i + k of ``B``
+    (i = 0, 1, 2 for a; 3, 4, 5 for b).
+    """
+    w4, w5, w6 = geo.omega[3:]
+    b = geo.x6 - np.dot(geo.x6, w6) * w6
+    a = _cross(w6, b)
+
+    def parts(w, v):
+        par = np.dot(v, w) * w
+        return par, v - par, _cross(w, v)
+
+    columns = []
+    for target in (a, b):
+        inner = parts(w5, target)                                   # g_k(q5) terms
+        outer = [parts(w4, v) for v in inner]                       # f_i(q4) of each
+        columns += [outer[k][i] for i in range(3) for k in range(3)]
+    B = np.array(columns).T
+    B.setflags(write=False)
+    return B
+
+
+@lru_cache(maxsize=16)             # a WristGeometry is immutable and hashed by identity
+def _wrist_basis(geo: WristGeometry) -> np.ndarray:
+    """Return (3, 22): w4, w5, n45 = w4 x w5, w4 x n45, then the columns of ``_q6_basis``."""
+    w4, w5 = geo.omega[3], geo.omega[4]
+    n45 = _cross(w4, w5)
+    B = np.column_stack([w4, w5, n45, _cross(w4, n45), _q6_basis(geo)])
+    B.setflags(write=False)
+    return B
+
+
+@lru_cache(maxsize=16)             # a WristGeometry is immutable and hashed by identity
+def _q5_constants(geo: WristGeometry) -> tuple:
+    """Return z . (w5 x u6) and z . u6 per unit of alpha, beta, gamma (u6: w6 normal to w5)."""
+    w4, w5, w6 = geo.omega[3:]
+    up = w6 - np.dot(w6, w5) * w5
+    n45 = _cross(w4, w5)
+    return tuple(float(np.dot(v, c)) for c in (_cross(w5, up), up) for v in (w4, w5, n45))
+
+
+def _times_basis(v, B):
+    """Return ``v @ B`` for vectors ``v`` (..., 3) and a constant (3, k) ``B``."""
+    return (v.reshape(-1, 3) @ B).reshape(v.shape[:-1] + (B.shape[1],))
 
 
 def _cos_sin(a, b, c, tol):
@@ -299,26 +361,46 @@ def _candidates(geo, T, q_ref):
     goal = _rotate_sc(w1, -s1[:, :, None], c1[:, :, None], np.broadcast_to(goal, (m, 2, 2, 3)))
     goal = _rotate(w2, -q2[..., None], np.broadcast_to(goal[:, :, None], q2.shape + (2, 3)))
     goal = _rotate_sc(w3, -s3[..., None], c3[..., None], goal)                # (m, 2, 2, 2, 3)
-    tv, tx = goal[..., 0, :], goal[..., 1, :]
-    # q4, q5: Rot4 Rot5 w6 = R_w w6 (subproblem 2 with axes through the wrist centre).
+    # Every product the wrist needs of R_w w6 (tv) and R_w x6 (tx) with constant vectors, in
+    # one product: tv . (w4, w5, n45, w4 x n45) and tx . the columns of _q6_basis.
+    dots = _times_basis(goal, _wrist_basis(geo))                             # (m, 2, 2, 2, 22)
+    a4, a5, an, am = (dots[..., 0, i] for i in range(4))                       # (m, 2, 2)
+    # q4, q5: Rot4 Rot5 w6 = R_w w6 (subproblem 2 with axes through the wrist centre):
+    # z = alpha w4 + beta w5 + gamma n45, with gamma = +-sqrt(gamma2) (the wrist flip).
     s45 = np.dot(w4, w5)
     den = s45 ** 2 - 1.0
-    alpha = (s45 * np.dot(w5, w6) - _dot(w4, tv)) / den
-    beta = (s45 * _dot(w4, tv) - np.dot(w5, w6)) / den
+    s56 = np.dot(w5, w6)
+    alpha = (s45 * s56 - a4) / den
+    beta = (s45 * a4 - s56) / den
     n45 = _cross(w4, w5)
-    gamma2 = (1.0 - alpha ** 2 - beta ** 2 - 2.0 * alpha * beta * s45) / np.dot(n45, n45)
+    nn45 = np.dot(n45, n45)
+    gamma2 = (1.0 - alpha ** 2 - beta ** 2 - 2.0 * alpha * beta * s45) / nn45
     ok_w = gamma2 > -1e-9
     gamma = np.sqrt(np.maximum(gamma2, 0.0))
     gamma = np.stack([gamma, -gamma], axis=-1)                                # (m, 2, 2, 2)
-    z = (alpha[..., None, None] * w4 + beta[..., None, None] * w5
-         + gamma[..., None] * n45)                                            # (m, 2, 2, 2, 3)
-    q5 = _angle_from(w5, w6, z)
-    tv = np.broadcast_to(tv[..., None, :], z.shape)
-    q4, lever = _subproblem1(w4, z, tv)
-    q4 = np.where(lever < 1e-9, q_ref[:, None, None, None, 3], q4)
-    # q6: Rot6 x6 = Rot5^T Rot4^T R_w x6.
-    target = _rotate(w5, -q5, _rotate(w4, -q4, np.broadcast_to(tx[..., None, :], z.shape)))
-    q6 = _angle_from(w6, geo.x6, target)
+    alpha, beta = alpha[..., None], beta[..., None]
+    # q5 turns w6 onto z: atan2(z . (w5 x u6), z . u6), u6 = w6 normal to w5; z's dot
+    # products with constants are alpha, beta and gamma times constants.
+    k5 = _q5_constants(geo)
+    q5, c5, s5 = _atan2_cos_sin(alpha * k5[0] + beta * k5[1] + gamma * k5[2],
+                                alpha * k5[3] + beta * k5[4] + gamma * k5[5])
+    # q4 turns z onto tv about w4 (subproblem 1): u = z normal to w4 is
+    # beta (w5 - s45 w4) + gamma n45, two orthogonal parts, so |u| (the lever) has no
+    # cancellation; atan2((w4 x u) . tv, u . tv).
+    a4, a5, an, am = (x[..., None] for x in (a4, a5, an, am))
+    lever = np.sqrt((beta ** 2 + gamma ** 2) * nn45)
+    q4, c4, s4 = _atan2_cos_sin(beta * an + gamma * am, beta * (a5 - s45 * a4) + gamma * an)
+    singular = lever < 1e-9
+    if singular.any():
+        ref4 = np.broadcast_to(q_ref[:, None, None, None, 3], q4.shape)
+        q4 = np.where(singular, ref4, q4)
+        c4 = np.where(singular, np.cos(ref4), c4)
+        s4 = np.where(singular, np.sin(ref4), s4)
+    # q6: Rot6 x6 = Rot5^T Rot4^T R_w x6, of which only two dot products are needed (see
+    # _q6_basis): products of tx with constants, then of sin and cos of q4 and q5.
+    d = dots[..., 1, None, 4:]                                                # (m, 2, 2, 1, 18)
+    h = [d[..., 3 * i] + c5 * d[..., 3 * i + 1] + s5 * d[..., 3 * i + 2] for i in range(6)]
+    q6 = np.arctan2(h[0] + c4 * h[1] + s4 * h[2], h[3] + c4 * h[4] + s4 * h[5])
     ok = ok1[:, None, None, None] & ok3[:, :, None, None] & ok_w[..., None]
     used_ref = shoulder | (lever < 1e-9).reshape(m, -1).any(axis=1)
     return (q1_pair, q2, q3, q4, q5, q6), np.broadcast_to(ok, q4.shape), used_ref
