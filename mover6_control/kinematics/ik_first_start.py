@@ -227,9 +227,7 @@ def first_start(arm: ArmModel, T: np.ndarray, q0: np.ndarray, w: np.ndarray, tol
         if pos2 < pos_tol2 and rot2 < rot_tol2:
             return np.array(q), math.sqrt(pos2), math.sqrt(rot2), it, cost
         mu = error_damping * 0.5 * cost + damping
-        # Rows of W^(1/2) [J | e]: its Gram matrix holds J^T W J and J^T W e.
-        M = np.array([[x * r for x in row] + [ei * r] for row, ei, r in
-                      zip(_jacobian(tip, axes, points), e, root_w)])
+        M = np.array(_weighted_columns(tip, axes, points, e, root_w)).T
         dq = _step(M, mu)
         if at_limit:
             # Active set: a joint at a limit that the step pushes outwards is held there.
@@ -253,6 +251,25 @@ def first_start(arm: ArmModel, T: np.ndarray, q0: np.ndarray, w: np.ndarray, tol
             if stall_count >= stall_iterations:
                 return None
     return None
+
+
+def _weighted_columns(tip, axes, points, e, root_w):
+    """
+    Return the columns of ``W^(1/2) [J | e]``: n + 1 tuples of 6.
+
+    Its Gram matrix holds ``J^T W J`` and ``J^T W e`` (J the geometric Jacobian, as
+    ``_jacobian``).
+    """
+    t0, t1, t2 = tip
+    r0, r1, r2, r3, r4, r5 = root_w
+    out = []
+    for z, o in zip(axes, points):
+        l0, l1, l2 = t0 - o[0], t1 - o[1], t2 - o[2]
+        z0, z1, z2 = z
+        out.append((r0 * (z1 * l2 - z2 * l1), r1 * (z2 * l0 - z0 * l2), r2 * (z0 * l1 - z1 * l0),
+                    r3 * z0, r4 * z1, r5 * z2))
+    out.append((r0 * e[0], r1 * e[1], r2 * e[2], r3 * e[3], r4 * e[4], r5 * e[5]))
+    return out
 
 
 def _clip(q, lo, hi):
