@@ -205,7 +205,7 @@ def first_start(arm: ArmModel, T: np.ndarray, q0: np.ndarray, w: np.ndarray, tol
     """
     n = arm.n_joints
     R_goal, p_goal = T[:3, :3].reshape(-1).tolist(), tuple(T[:3, 3].tolist())
-    q = q0.tolist()
+    q = np.asarray(q0, dtype=float).tolist()
     lo, hi = (limits[0].tolist(), limits[1].tolist()) if limits is not None else (None, None)
     wraps = full_turn.tolist() if full_turn is not None else []
     at_limit = False

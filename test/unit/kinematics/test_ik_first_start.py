@@ -17,6 +17,7 @@ from mover6_control.kinematics.rotations import pose_from_xyzabc
 import numpy as np
 import pytest
 
+
 def tilted():
     """Return a Mover6 whose joint axes are off the coordinate axes (Rodrigues turns)."""
     arm = mover6()
