@@ -174,9 +174,9 @@ def _q5_constants(geo: WristGeometry) -> tuple:
     return tuple(float(np.dot(v, c)) for c in (_cross(w5, up), up) for v in (w4, w5, n45))
 
 
-def _times_basis(v, B):
-    """Return ``v @ B`` for vectors ``v`` (..., 3) and a constant (3, k) ``B``."""
-    return (v.reshape(-1, 3) @ B).reshape(v.shape[:-1] + (B.shape[1],))
+def _dots(v, B):
+    """Return ``v . B[:, j]`` for vectors ``v`` (..., 3) and constants ``B`` (3, k): k rows."""
+    return (B.T @ v.reshape(-1, 3).T).reshape((B.shape[1],) + v.shape[:-1])
 
 
 def _cos_sin(a, b, c, tol):
@@ -363,8 +363,8 @@ def _candidates(geo, T, q_ref):
     goal = _rotate_sc(w3, -s3[..., None], c3[..., None], goal)                # (m, 2, 2, 2, 3)
     # Every product the wrist needs of R_w w6 (tv) and R_w x6 (tx) with constant vectors, in
     # one product: tv . (w4, w5, n45, w4 x n45) and tx . the columns of _q6_basis.
-    dots = _times_basis(goal, _wrist_basis(geo))                             # (m, 2, 2, 2, 22)
-    a4, a5, an, am = (dots[..., 0, i] for i in range(4))                       # (m, 2, 2)
+    B = _wrist_basis(geo)
+    a4, a5, an, am = _dots(goal[..., 0, :], B[:, :4])                         # (m, 2, 2) each
     # q4, q5: Rot4 Rot5 w6 = R_w w6 (subproblem 2 with axes through the wrist centre):
     # z = alpha w4 + beta w5 + gamma n45, with gamma = +-sqrt(gamma2) (the wrist flip).
     s45 = np.dot(w4, w5)
@@ -398,8 +398,8 @@ def _candidates(geo, T, q_ref):
         s4 = np.where(singular, np.sin(ref4), s4)
     # q6: Rot6 x6 = Rot5^T Rot4^T R_w x6, of which only two dot products are needed (see
     # _q6_basis): products of tx with constants, then of sin and cos of q4 and q5.
-    d = dots[..., 1, None, 4:]                                                # (m, 2, 2, 1, 18)
-    h = [d[..., 3 * i] + c5 * d[..., 3 * i + 1] + s5 * d[..., 3 * i + 2] for i in range(6)]
+    d = _dots(goal[..., 1, None, :], B[:, 4:])                                # (m, 2, 2, 1) each
+    h = [d[3 * i] + c5 * d[3 * i + 1] + s5 * d[3 * i + 2] for i in range(6)]
     q6 = np.arctan2(h[0] + c4 * h[1] + s4 * h[2], h[3] + c4 * h[4] + s4 * h[5])
     ok = ok1[:, None, None, None] & ok3[:, :, None, None] & ok_w[..., None]
     used_ref = shoulder | (lever < 1e-9).reshape(m, -1).any(axis=1)
