@@ -156,9 +156,15 @@ def ikpy_peer(arm, T):
 
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
-        chain = Chain.from_urdf_file(os.path.join(CONFIG_DIR, 'mover6.urdf'),
-                                     base_elements=['base_link'],
-                                     active_links_mask=[False] + [True] * arm.n_joints)
+        # ikpy follows the URDF to its leaf (past link6: the gripper's joint); the arm's chain
+        # is its origin link and the six joints up to link6, the model's tip.
+        full = Chain.from_urdf_file(os.path.join(CONFIG_DIR, 'mover6.urdf'),
+                                    base_elements=['base_link'])
+        links = full.links[:1 + arm.n_joints]
+        if tuple(link.name for link in links[1:]) != arm.joint_names:
+            raise RuntimeError(f'ikpy chain {[link.name for link in full.links]} does not '
+                               f'start with the joints {arm.joint_names}')
+        chain = Chain(links, active_links_mask=[False] + [True] * arm.n_joints, name=arm.name)
     q0 = np.zeros(len(chain.links))
     times, errors = [], []
     for pose in T:

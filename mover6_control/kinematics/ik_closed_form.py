@@ -30,6 +30,7 @@ at a shoulder singularity (wrist centre on axis 1).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError
@@ -92,9 +93,13 @@ def _times(v, A):
 
 def _rotate(w, theta, v):
     """Rotate vectors ``v`` (..., 3) about unit ``w`` (3,) by ``theta`` (...) [rad]."""
+    return _rotate_sc(w, np.sin(theta), np.cos(theta), v)
+
+
+def _rotate_sc(w, s, c, v):
+    """Rotate ``v`` (..., 3) about unit ``w`` (3,) by the angle of sine and cosine ``s``, ``c``."""
     K = _skew(w)
-    return (v + np.sin(theta)[..., None] * _times(v, K)
-            + (1.0 - np.cos(theta))[..., None] * _times(v, K @ K))
+    return v + s[..., None] * _times(v, K) + (1.0 - c)[..., None] * _times(v, K @ K)
 
 
 def _subproblem1(w, u, v):
@@ -111,6 +116,67 @@ def _angle_from(w, u, v):
     # atan2(w . (up x v), up . v) = atan2(v . (w x up), v . up): one product for both.
     both = v.reshape(-1, 3) @ np.stack([_cross(w, up), up], axis=1)
     return np.arctan2(both[:, 0], both[:, 1]).reshape(v.shape[:-1])
+
+
+def _atan2_cos_sin(y, x):
+    """Return ``atan2(y, x)`` and its cosine and sine, ``x / hypot``, ``y / hypot`` (1, 0 at 0)."""
+    h = np.hypot(x, y)
+    zero = h == 0.0
+    inv = 1.0 / np.where(zero, 1.0, h)
+    return np.arctan2(y, x), np.where(zero, 1.0, x * inv), y * inv
+
+
+@lru_cache(maxsize=16)             # a WristGeometry is immutable and hashed by identity
+def _q6_basis(geo: WristGeometry) -> np.ndarray:
+    """
+    Return ``B`` (3, 18): q6's two dot products as products of ``tx`` and sines and cosines.
+
+    q6 = atan2(t . a, t . b) with ``t = Rot(w5, -q5) Rot(w4, -q4) tx``, ``b`` = x6 normal to
+    w6 and ``a = w6 x b``. ``t . a = tx . Rot(w4, q4) Rot(w5, q5) a``, and a turn of a constant
+    vector is ``Rot(w, q) v = v_par + cos(q) v_perp + sin(q) w x v``. So ``t . a`` is
+    ``sum_ik f_i(q4) g_k(q5) (tx . B_ik)`` with f, g = (1, cos, sin); columns 3 i + k of ``B``
+    (i = 0, 1, 2 for a; 3, 4, 5 for b).
+    """
+    w4, w5, w6 = geo.omega[3:]
+    b = geo.x6 - np.dot(geo.x6, w6) * w6
+    a = _cross(w6, b)
+
+    def parts(w, v):
+        par = np.dot(v, w) * w
+        return par, v - par, _cross(w, v)
+
+    columns = []
+    for target in (a, b):
+        inner = parts(w5, target)                                   # g_k(q5) terms
+        outer = [parts(w4, v) for v in inner]                       # f_i(q4) of each
+        columns += [outer[k][i] for i in range(3) for k in range(3)]
+    B = np.array(columns).T
+    B.setflags(write=False)
+    return B
+
+
+@lru_cache(maxsize=16)             # a WristGeometry is immutable and hashed by identity
+def _wrist_basis(geo: WristGeometry) -> np.ndarray:
+    """Return (3, 22): w4, w5, n45 = w4 x w5, w4 x n45, then the columns of ``_q6_basis``."""
+    w4, w5 = geo.omega[3], geo.omega[4]
+    n45 = _cross(w4, w5)
+    B = np.column_stack([w4, w5, n45, _cross(w4, n45), _q6_basis(geo)])
+    B.setflags(write=False)
+    return B
+
+
+@lru_cache(maxsize=16)             # a WristGeometry is immutable and hashed by identity
+def _q5_constants(geo: WristGeometry) -> tuple:
+    """Return z . (w5 x u6) and z . u6 per unit of alpha, beta, gamma (u6: w6 normal to w5)."""
+    w4, w5, w6 = geo.omega[3:]
+    up = w6 - np.dot(w6, w5) * w5
+    n45 = _cross(w4, w5)
+    return tuple(float(np.dot(v, c)) for c in (_cross(w5, up), up) for v in (w4, w5, n45))
+
+
+def _dots(v, B):
+    """Return ``v . B[:, j]`` for vectors ``v`` (..., 3) and constants ``B`` (3, k): k rows."""
+    return (B.T @ v.reshape(-1, 3).T).reshape((B.shape[1],) + v.shape[:-1])
 
 
 def _cos_sin(a, b, c, tol):
@@ -189,8 +255,20 @@ def has_spherical_wrist(arm: ArmModel) -> bool:
 
 
 def _wrap(q):
-    """Wrap angles to [-pi, pi)."""
-    return (q + np.pi) % (2.0 * np.pi) - np.pi
+    """
+    Wrap angles to [-pi, pi): ``(q + pi) % 2 pi - pi``, the remainder only where it changes q.
+
+    ``x % 2 pi`` is ``x`` itself for ``x`` in [0, 2 pi), so only the angles outside pay for
+    the (slow) remainder; the result is the same number for number.
+    """
+    x = q + np.pi
+    if np.ndim(x) == 0:
+        return x % (2.0 * np.pi) - np.pi
+    out = x - np.pi
+    outside = (x < 0.0) | (x >= 2.0 * np.pi)
+    if outside.any():
+        out[outside] = x[outside] % (2.0 * np.pi) - np.pi
+    return out
 
 
 def nearest_alias(arm: ArmModel, Q: np.ndarray, q_ref: np.ndarray,
@@ -208,10 +286,17 @@ def nearest_alias(arm: ArmModel, Q: np.ndarray, q_ref: np.ndarray,
 
 def _into_limits(arm, Q):
     """Shift each angle by +-2 pi when that brings it inside its joint limits."""
-    lo, hi = arm.lower, arm.upper
+    return _into_range(Q, arm.lower, arm.upper)
+
+
+def _into_range(Q, lo, hi):
+    """Shift each angle by +-2 pi when that brings it inside [lo, hi] (broadcast)."""
+    below, above = Q < lo, Q > hi
+    if not (below.any() or above.any()):
+        return Q
     up = Q + 2.0 * np.pi
     down = Q - 2.0 * np.pi
-    Q = np.where((Q < lo) & (up >= lo) & (up <= hi), up, Q)
+    Q = np.where(below & (up >= lo) & (up <= hi), up, Q)
     return np.where((Q > hi) & (down >= lo) & (down <= hi), down, Q)
 
 
@@ -229,7 +314,10 @@ def pose_errors_batch(T_goal: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np
 
 def _candidates(geo, T, q_ref):
     """
-    Return all 8 candidates (m, 8, 6), a mask of solvable ones (m, 8) and where q_ref was used.
+    Return the joints of all 8 candidates, a mask of solvable ones and where q_ref was used.
+
+    The joints as solved, each once per branch it depends on: q1 (m, 2), q2 and q3 (m, 2, 2),
+    q4, q5, q6 (m, 2, 2, 2) (shoulder, elbow, wrist flip); the mask (m, 2, 2, 2).
 
     The last (m,) marks poses at a shoulder or wrist singularity, whose q1 or q4 came from
     ``q_ref``.
@@ -251,51 +339,71 @@ def _candidates(geo, T, q_ref):
     shoulder = rho1 < 1e-9
     q1 = np.where(shoulder[:, None], q_ref[:, None, 0], q1)
     ok1 = ok1 | (shoulder & (np.abs(c) < 1e-9))
-    p1 = r[0] + _rotate(w1, -q1, (p - r[0])[:, None, :])                    # (m, 2, 3)
+    # sin and cos of q1 and q3 once each: both turn the wrist centre and the goal's axes.
+    s1, c1 = np.sin(q1), np.cos(q1)
+    p1 = r[0] + _rotate_sc(w1, -s1, c1, (p - r[0])[:, None, :])             # (m, 2, 3)
     # q3: distance of the wrist centre to axis 2, law of cosines about axis 3.
     e = (r[2] - r[1]) - np.dot(r[2] - r[1], w2) * w2
     u = (p0 - r[2]) - np.dot(p0 - r[2], w2) * w2
     d_vec = (p1 - r[1]) - _dot(p1 - r[1], w2)[..., None] * w2
     c3 = (_dot(d_vec, d_vec) - np.dot(e, e) - np.dot(u, u)) / 2.0
     q3, ok3, _ = _cos_sin(np.dot(e, u), np.dot(e, _cross(w3, u)), c3, 1e-12)  # (m, 2, 2)
-    x = r[2] + _rotate(w3, q3, np.broadcast_to(p0 - r[2], q3.shape + (3,)))
+    s3, c3 = np.sin(q3), np.cos(q3)
+    x = r[2] + _rotate_sc(w3, s3, c3, np.broadcast_to(p0 - r[2], q3.shape + (3,)))
     q2, _ = _subproblem1(w2, x - r[1], p1[:, :, None, :] - r[1])             # (m, 2, 2)
+    q1_pair = q1
     q1 = np.broadcast_to(q1[:, :, None], q2.shape)
     # The wrist must turn R_w = R03^T R_goal M^T; only R_w w6 and R_w x6 are needed, and
     # R03^T v = Rot(w3, -q3) Rot(w2, -q2) Rot(w1, -q1) v.
     M_R = geo.M[:3, :3]
     goal = R_goal.reshape(-1, 3) @ np.stack([M_R.T @ w6, M_R.T @ geo.x6], axis=1)
     goal = goal.reshape(m, 1, 3, 2).transpose(0, 1, 3, 2)                    # (m, 1, 2, 3)
-    goal = _rotate(w1, -q1[:, :, 0, None], np.broadcast_to(goal, (m, 2, 2, 3)))
+    goal = _rotate_sc(w1, -s1[:, :, None], c1[:, :, None], np.broadcast_to(goal, (m, 2, 2, 3)))
     goal = _rotate(w2, -q2[..., None], np.broadcast_to(goal[:, :, None], q2.shape + (2, 3)))
-    goal = _rotate(w3, -q3[..., None], goal)                                  # (m, 2, 2, 2, 3)
-    tv, tx = goal[..., 0, :], goal[..., 1, :]
-    # q4, q5: Rot4 Rot5 w6 = R_w w6 (subproblem 2 with axes through the wrist centre).
+    goal = _rotate_sc(w3, -s3[..., None], c3[..., None], goal)                # (m, 2, 2, 2, 3)
+    # Every product the wrist needs of R_w w6 (tv) and R_w x6 (tx) with constant vectors, in
+    # one product: tv . (w4, w5, n45, w4 x n45) and tx . the columns of _q6_basis.
+    B = _wrist_basis(geo)
+    a4, a5, an, am = _dots(goal[..., 0, :], B[:, :4])                         # (m, 2, 2) each
+    # q4, q5: Rot4 Rot5 w6 = R_w w6 (subproblem 2 with axes through the wrist centre):
+    # z = alpha w4 + beta w5 + gamma n45, with gamma = +-sqrt(gamma2) (the wrist flip).
     s45 = np.dot(w4, w5)
     den = s45 ** 2 - 1.0
-    alpha = (s45 * np.dot(w5, w6) - _dot(w4, tv)) / den
-    beta = (s45 * _dot(w4, tv) - np.dot(w5, w6)) / den
+    s56 = np.dot(w5, w6)
+    alpha = (s45 * s56 - a4) / den
+    beta = (s45 * a4 - s56) / den
     n45 = _cross(w4, w5)
-    gamma2 = (1.0 - alpha ** 2 - beta ** 2 - 2.0 * alpha * beta * s45) / np.dot(n45, n45)
+    nn45 = np.dot(n45, n45)
+    gamma2 = (1.0 - alpha ** 2 - beta ** 2 - 2.0 * alpha * beta * s45) / nn45
     ok_w = gamma2 > -1e-9
     gamma = np.sqrt(np.maximum(gamma2, 0.0))
     gamma = np.stack([gamma, -gamma], axis=-1)                                # (m, 2, 2, 2)
-    z = (alpha[..., None, None] * w4 + beta[..., None, None] * w5
-         + gamma[..., None] * n45)                                            # (m, 2, 2, 2, 3)
-    q5 = _angle_from(w5, w6, z)
-    tv = np.broadcast_to(tv[..., None, :], z.shape)
-    q4, lever = _subproblem1(w4, z, tv)
-    q4 = np.where(lever < 1e-9, q_ref[:, None, None, None, 3], q4)
-    # q6: Rot6 x6 = Rot5^T Rot4^T R_w x6.
-    target = _rotate(w5, -q5, _rotate(w4, -q4, np.broadcast_to(tx[..., None, :], z.shape)))
-    q6 = _angle_from(w6, geo.x6, target)
-    Q123 = np.stack([q1, q2, q3], axis=-1)                                    # (m, 2, 2, 3)
-    Q123 = np.broadcast_to(Q123[..., None, :], q4.shape + (3,))
-    Q = np.concatenate([Q123, q4[..., None], q5[..., None], q6[..., None]], axis=-1)
+    alpha, beta = alpha[..., None], beta[..., None]
+    # q5 turns w6 onto z: atan2(z . (w5 x u6), z . u6), u6 = w6 normal to w5; z's dot
+    # products with constants are alpha, beta and gamma times constants.
+    k5 = _q5_constants(geo)
+    q5, c5, s5 = _atan2_cos_sin(alpha * k5[0] + beta * k5[1] + gamma * k5[2],
+                                alpha * k5[3] + beta * k5[4] + gamma * k5[5])
+    # q4 turns z onto tv about w4 (subproblem 1): u = z normal to w4 is
+    # beta (w5 - s45 w4) + gamma n45, two orthogonal parts, so |u| (the lever) has no
+    # cancellation; atan2((w4 x u) . tv, u . tv).
+    a4, a5, an, am = (x[..., None] for x in (a4, a5, an, am))
+    lever = np.sqrt((beta ** 2 + gamma ** 2) * nn45)
+    q4, c4, s4 = _atan2_cos_sin(beta * an + gamma * am, beta * (a5 - s45 * a4) + gamma * an)
+    singular = lever < 1e-9
+    if singular.any():
+        ref4 = np.broadcast_to(q_ref[:, None, None, None, 3], q4.shape)
+        q4 = np.where(singular, ref4, q4)
+        c4 = np.where(singular, np.cos(ref4), c4)
+        s4 = np.where(singular, np.sin(ref4), s4)
+    # q6: Rot6 x6 = Rot5^T Rot4^T R_w x6, of which only two dot products are needed (see
+    # _q6_basis): products of tx with constants, then of sin and cos of q4 and q5.
+    d = _dots(goal[..., 1, None, :], B[:, 4:])                                # (m, 2, 2, 1) each
+    h = [d[3 * i] + c5 * d[3 * i + 1] + s5 * d[3 * i + 2] for i in range(6)]
+    q6 = np.arctan2(h[0] + c4 * h[1] + s4 * h[2], h[3] + c4 * h[4] + s4 * h[5])
     ok = ok1[:, None, None, None] & ok3[:, :, None, None] & ok_w[..., None]
     used_ref = shoulder | (lever < 1e-9).reshape(m, -1).any(axis=1)
-    return (Q.reshape(m, N_BRANCHES, 6), np.broadcast_to(ok, q4.shape).reshape(m, N_BRANCHES),
-            used_ref)
+    return (q1_pair, q2, q3, q4, q5, q6), np.broadcast_to(ok, q4.shape), used_ref
 
 
 def _as_q_ref(arm, q_ref, m):
@@ -344,12 +452,22 @@ def solve_candidates(arm: ArmModel, geo: WristGeometry, T: np.ndarray, q_ref: np
     ``return_ref_used`` a third array (m,) marks the singular poses whose q1 or q4 came from
     ``q_ref``.
     """
-    Q, ok, used_ref = _candidates(geo, T, q_ref)
-    Q = nearest_alias(arm, Q, q_ref[:, None, :], within_limits)
-    if within_limits:
-        ok = ok & np.all((Q >= arm.lower - 1e-9) & (Q <= arm.upper + 1e-9), axis=-1)
-    else:
-        ok = np.array(ok)          # writable and contiguous: the FK check fills it in place
+    joints, ok, used_ref = _candidates(geo, T, q_ref)
+    m = len(T)
+    # Each joint aliased nearest q_ref (and into its limits) once per branch it depends on
+    # (``nearest_alias`` joint by joint: the same numbers), then spread over the 8 branches.
+    Q = np.empty((m, 2, 2, 2, 6))
+    for j, q in enumerate(joints):
+        ref = q_ref[:, j].reshape((m,) + (1,) * (q.ndim - 1))
+        q = ref + _wrap(q - ref)
+        spread = q.shape + (1,) * (4 - q.ndim)
+        if within_limits:
+            lo, hi = arm.lower[j], arm.upper[j]
+            q = _into_range(q, lo, hi)
+            ok = ok & ((q >= lo - 1e-9) & (q <= hi + 1e-9)).reshape(spread)
+        Q[..., j] = q.reshape(spread)
+    Q = Q.reshape(m, N_BRANCHES, 6)
+    ok = np.array(ok).reshape(m, N_BRANCHES)   # writable: the FK check fills it in place
     # FK check of the candidates still in question (often half of them or fewer), on squared
     # figures (no roots): |dp|^2 < tol^2 and the rotation chord
     # |R - R_goal|_F^2 = 8 sin^2(angle / 2) < 8 sin^2(tol / 2).

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError
@@ -150,8 +151,33 @@ def pose_residual_batch(chain: ScrewChain, Q: np.ndarray,
     return e, J
 
 
+@lru_cache(maxsize=32)             # an ArmModel is immutable and hashed by identity
+def _limits(arm: ArmModel, within_limits: bool) -> tuple:
+    """
+    Return the bounds, the random starts' span and the joints that wrap, once per arm.
+
+    ``lo``, ``hi``: the iterates' bounds (None without limits); the span of the random starts
+    (low, high); the joints whose range spans a full turn (they wrap; None if there are none).
+    """
+    n = arm.n_joints
+    if not within_limits:
+        return None, None, np.full(n, -np.pi), np.full(n, np.pi), None
+    lo = np.where(np.isfinite(arm.lower), arm.lower, -np.pi)
+    hi = np.where(np.isfinite(arm.upper), arm.upper, np.pi)
+    wraps = np.flatnonzero(hi - lo >= 2.0 * np.pi - 1e-9)
+    for arr in (lo, hi, wraps):
+        arr.setflags(write=False)
+    return lo, hi, lo, hi, wraps if len(wraps) else None
+
+
+_DEFAULT_WEIGHTS = np.array(DEFAULT_WEIGHTS)
+_DEFAULT_WEIGHTS.setflags(write=False)
+
+
 def _check_weights(weights):
     """Return positive weights (6,) or raise."""
+    if weights is DEFAULT_WEIGHTS:
+        return _DEFAULT_WEIGHTS
     w = as_finite_array(weights, (6,), 'weights')
     if np.any(w <= 0.0):
         raise InvalidInputError(f'weights must be positive, got {w.tolist()}')
@@ -185,15 +211,8 @@ def ik_numeric(arm: ArmModel, T: np.ndarray, q0: np.ndarray, *, position_tol: fl
             raise InvalidInputError(f'{name} must be a positive number, got {value}')
     if int(n_seeds) < 1 or int(max_iterations) < 1:
         raise InvalidInputError('n_seeds and max_iterations must be >= 1')
-    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-    lo = np.where(np.isfinite(arm.lower), arm.lower, -np.pi) if within_limits else None
-    hi = np.where(np.isfinite(arm.upper), arm.upper, np.pi) if within_limits else None
-    span_lo = lo if within_limits else np.full(arm.n_joints, -np.pi)
-    span_hi = hi if within_limits else np.full(arm.n_joints, np.pi)
+    lo, hi, span_lo, span_hi, full_turn = _limits(arm, bool(within_limits))
     n = arm.n_joints
-    full_turn = None
-    if within_limits and np.any(hi - lo >= 2.0 * np.pi - 1e-9):
-        full_turn = np.flatnonzero(hi - lo >= 2.0 * np.pi - 1e-9)
     # The first start alone, on floats: most poses are solved by it (see ik_first_start).
     first = first_start(arm, T, q0, w, (position_tol, orientation_tol),
                         (lo, hi) if within_limits else None, full_turn, damping, error_damping,
@@ -202,6 +221,7 @@ def ik_numeric(arm: ArmModel, T: np.ndarray, q0: np.ndarray, *, position_tol: fl
         q, pos, rot, it, cost = first
         return NumericIKResult(q=q, success=True, position_error=pos, orientation_error=rot,
                                iterations=it, restarts=0, cost=cost)
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     chain = screw_chain(arm)
     Q = np.empty((int(n_seeds), n))
     Q[0] = np.clip(q0, lo, hi) if within_limits else q0

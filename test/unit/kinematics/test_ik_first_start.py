@@ -7,6 +7,8 @@ The numeric IK's first start on floats: the batch's residual and Jacobian, and i
 (None) where the batch would re-seed: a pose out of reach.
 """
 
+from dataclasses import replace
+
 from mover6_control.kinematics.arm import minibot, mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.ik_first_start import first_start, residual
@@ -15,7 +17,16 @@ from mover6_control.kinematics.rotations import pose_from_xyzabc
 import numpy as np
 import pytest
 
-ARMS = {'mover6': mover6(), 'minibot': minibot()}
+
+def tilted():
+    """Return a Mover6 whose joint axes are off the coordinate axes (Rodrigues turns)."""
+    arm = mover6()
+    axes = arm.axes + np.array([[0.1, -0.2, 0.0], [0.0, 0.0, 0.3], [0.2, 0.0, 0.1],
+                                [0.0, 0.1, -0.1], [0.3, 0.0, 0.0], [0.0, -0.2, 0.2]])
+    return replace(arm, axes=axes, name='tilted')
+
+
+ARMS = {'mover6': mover6(), 'minibot': minibot(), 'tilted': tilted()}
 
 
 @pytest.mark.parametrize('name', sorted(ARMS))

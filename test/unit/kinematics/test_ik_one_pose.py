@@ -66,3 +66,15 @@ def test_out_of_reach_has_no_solution_on_both_paths():
     assert ik_closed_form(arm, T).shape == (0, 6)
     assert ik_one_pose(arm, T.tolist(), [0.0] * 6) == []
     assert batch_answer(arm, T, True, np.zeros(6)).shape == (0, 6)
+
+
+def test_wrap_is_the_plain_remainder_number_for_number():
+    # _wrap takes the remainder only outside [-pi, pi): the same numbers as the plain formula.
+    rng = np.random.default_rng(11)
+    q = np.concatenate([rng.uniform(-20.0, 20.0, 5000), rng.uniform(-np.pi, np.pi, 5000),
+                        [-np.pi, np.pi, np.nextafter(np.pi, 0.0), np.nextafter(-np.pi, -4.0),
+                         0.0, -0.0, 3 * np.pi, -3 * np.pi]])
+    plain = (q + np.pi) % (2.0 * np.pi) - np.pi
+    assert np.array_equal(_wrap(q), plain)
+    assert np.array_equal(_wrap(q.reshape(2, -1)), plain.reshape(2, -1))
+    assert _wrap(np.float64(7.0)) == (7.0 + np.pi) % (2.0 * np.pi) - np.pi
