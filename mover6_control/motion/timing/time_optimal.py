@@ -75,15 +75,18 @@ def _stage_lines(dq0, ddq0, dq1, ddq1, delta, a_max):
     """
     Return the acceleration constraints of all intervals as ``|u - slope x| <= gamma``.
 
-    ``gamma`` and ``slope`` are (N, 2n): constraint j of interval k is ``u >= -gamma + slope x``
-    and ``u <= gamma + slope x`` (``gamma`` > 0; ``inf`` and slope 0 where it does not involve
-    ``u``); a row whose ``u`` coefficient vanishes bounds ``x`` alone and is returned in
-    ``x_cap`` (N,). Rows: the acceleration at the start of the interval (``x_k``) and at its
-    end (``x_k + 2 delta u``), with the path derivatives of the interval's own segment.
+    ``gamma`` and ``slope`` are (2n, N), one row per constraint and a column per interval (the
+    minimum over the constraints is then an element-wise one over rows): constraint j of
+    interval k is ``u >= -gamma + slope x`` and ``u <= gamma + slope x`` (``gamma`` > 0;
+    ``inf`` and slope 0 where it does not involve ``u``); a constraint whose ``u`` coefficient
+    vanishes bounds ``x`` alone and is returned in ``x_cap`` (N,). Constraints: the
+    acceleration at the start of the interval (``x_k``) and at its end (``x_k + 2 delta u``),
+    with the path derivatives (given as (n, N)) of the interval's own segment.
     """
-    P = np.hstack([dq0, dq1 + 2.0 * delta[:, None] * ddq1])
-    C = np.hstack([ddq0, ddq1])
-    A = np.broadcast_to(np.concatenate([a_max, a_max]), P.shape)
+    n, N = dq0.shape
+    P, C = np.empty((2 * n, N)), np.empty((2 * n, N))     # row-major: contiguous rows
+    P[:n], P[n:], C[:n], C[n:] = dq0, dq1 + 2.0 * delta * ddq1, ddq0, ddq1
+    A = np.broadcast_to(np.concatenate([a_max, a_max])[:, None], P.shape)
     big = np.abs(P) > 1e-12
     Ps = np.where(big, P, 1.0)
     pos = P > 0.0
@@ -91,7 +94,7 @@ def _stage_lines(dq0, ddq0, dq1, ddq1, delta, a_max):
     slope = np.where(big, -C / Ps, 0.0)
     flat = ~big & (np.abs(C) > 1e-12)
     with np.errstate(divide='ignore'):
-        x_cap = np.min(np.where(flat, A / np.abs(C), np.inf), axis=1)
+        x_cap = np.min(np.where(flat, A / np.abs(C), np.inf), axis=0)
     return gamma, slope, x_cap
 
 
@@ -103,17 +106,17 @@ def _static_range(gamma, slope):
     ``|slope_i - slope_j| x <= gamma_i + gamma_j``; the range starts at 0 (``gamma`` > 0:
     x = 0 always admits u = 0). Rows whose slopes are all equal (lines) have no upper bound.
     """
-    N, m = gamma.shape
+    m, N = gamma.shape
     hi = np.full(N, np.inf)
-    rows = np.flatnonzero(np.max(slope, axis=1) - np.min(slope, axis=1) > 1e-15)
+    rows = np.flatnonzero(np.max(slope, axis=0) - np.min(slope, axis=0) > 1e-15)
     if rows.size:
-        g, s = gamma[rows], slope[rows]
+        g, s = gamma[:, rows], slope[:, rows]
         bound = np.full(rows.size, np.inf)
         for d in range(1, m):           # the pairs (i, i + d)
-            diff = np.abs(s[:, :-d] - s[:, d:])
+            diff = np.abs(s[:-d] - s[d:])
             steep = diff > 1e-15
-            ratio = (g[:, :-d] + g[:, d:]) / np.where(steep, diff, 1.0)
-            bound = np.minimum(bound, np.min(np.where(steep, ratio, np.inf), axis=1))
+            ratio = (g[:-d] + g[d:]) / np.where(steep, diff, 1.0)
+            bound = np.minimum(bound, np.min(np.where(steep, ratio, np.inf), axis=0))
         hi[rows] = bound
     return hi
 
@@ -125,9 +128,9 @@ def _distinct_lines(gamma, slope):
     On a line the constraint at the end of an interval repeats the one at its start (the
     path's derivatives are constant): it gives the very same bounds, so it is dropped.
     """
-    n = gamma.shape[1] // 2
+    n = gamma.shape[0] // 2
     keep = np.isfinite(gamma)
-    keep[:, n:] &= ~((gamma[:, n:] == gamma[:, :n]) & (slope[:, n:] == slope[:, :n]))
+    keep[n:] &= ~((gamma[n:] == gamma[:n]) & (slope[n:] == slope[:n]))
     return keep
 
 
@@ -144,14 +147,14 @@ def _backward_pass(gamma, slope, delta, s_hi):
     ``greedy_scan``.
     """
     inv = 1.0 / (2.0 * delta)
-    c = slope + inv[:, None]
+    c = slope + inv
     keep = _distinct_lines(gamma, slope)
     plus, minus = keep & (c > 1e-15), keep & (c < -1e-15)
     with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
-        cap = np.minimum(s_hi, np.min(np.where(minus, gamma / -c, np.inf), axis=1))
-        A = np.where(plus, inv[:, None] / c, 0.0)
+        cap = np.minimum(s_hi, np.min(np.where(minus, gamma / -c, np.inf), axis=0))
+        A = np.where(plus, inv / c, 0.0)
         B = np.where(plus, gamma / c, np.inf)
-    return greedy_scan.greedy_scan(0.0, A[::-1], B[::-1], cap[::-1])[::-1].copy()
+    return greedy_scan.greedy_scan_columns(0.0, A[:, ::-1], B[:, ::-1], cap[::-1])[::-1].copy()
 
 
 def _forward_pass(gamma, slope, delta, hi, x0):
@@ -163,10 +166,10 @@ def _forward_pass(gamma, slope, delta, hi, x0):
     ((1 + 2 delta slope_j) x_k + 2 delta gamma_j))``, solved by ``greedy_scan``.
     """
     keep = _distinct_lines(gamma, slope)
-    two_d = (2.0 * delta)[:, None]
+    two_d = 2.0 * delta
     A = np.where(keep, 1.0 + two_d * slope, 0.0)
     B = np.where(keep, two_d * gamma, np.inf)
-    x = greedy_scan.greedy_scan(x0, A, B, hi[1:])
+    x = greedy_scan.greedy_scan_columns(x0, A, B, hi[1:])
     return x, (x[1:] - x[:-1]) / (2.0 * delta)
 
 
@@ -225,7 +228,7 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
     for s_stop in path.stops:
         x_cap[np.argmin(np.abs(s_grid - s_stop))] = 0.0
     x_cap[-1] = 0.0
-    gamma, slope, cap = _stage_lines(d0[1], d0[2], d1[1], d1[2], delta, a)
+    gamma, slope, cap = _stage_lines(d0[1].T, d0[2].T, d1[1].T, d1[2].T, delta, a)
     s_hi = np.minimum(np.minimum(_static_range(gamma, slope), cap), x_cap[:-1])
     hi = _backward_pass(gamma, slope, delta, s_hi)
     x, u = _forward_pass(gamma, slope, delta, hi, _start_x(path, qd_start, 0.0, hi[0]))
