@@ -86,38 +86,61 @@ def _stage_lines(dq0, ddq0, dq1, ddq1, delta, a_max):
     n, N = dq0.shape
     P, C = np.empty((2 * n, N)), np.empty((2 * n, N))     # row-major: contiguous rows
     P[:n], P[n:], C[:n], C[n:] = dq0, dq1 + 2.0 * delta * ddq1, ddq0, ddq1
-    A = np.broadcast_to(np.concatenate([a_max, a_max])[:, None], P.shape)
-    big = np.abs(P) > 1e-12
-    Ps = np.where(big, P, 1.0)
-    pos = P > 0.0
-    gamma = np.where(big, np.where(pos, A, -A) / Ps, np.inf)
-    slope = np.where(big, -C / Ps, 0.0)
-    flat = ~big & (np.abs(C) > 1e-12)
-    with np.errstate(divide='ignore'):
-        x_cap = np.min(np.where(flat, A / np.abs(C), np.inf), axis=0)
+    A = np.concatenate([a_max, a_max])[:, None]
+    # a / |P| is (+-a) / P to the bit (division rounds the magnitude, the sign apart).
+    absP = np.abs(P)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        gamma = A / absP
+        slope = np.negative(C, out=C) / P
+    small = absP <= 1e-12
+    x_cap = np.full(N, np.inf)
+    if np.any(small):
+        gamma[small], slope[small] = np.inf, 0.0
+        k = np.flatnonzero(np.any(small, axis=0))
+        Ck = np.abs(C[:, k])                    # C was negated in place: |C| alike
+        flat = small[:, k] & (Ck > 1e-12)
+        with np.errstate(divide='ignore'):
+            x_cap[k] = np.min(np.where(flat, A / Ck, np.inf), axis=0)
     return gamma, slope, x_cap
 
 
-def _static_range(gamma, slope):
+def _static_range(gamma, slope, limit):
     """
-    Return, per interval, the largest x (N,) at which the acceleration lines admit some u.
+    Return, per interval, ``limit`` (N,) or the largest x at which the acceleration lines admit
+    some u, whichever is smaller.
 
     Some u meets ``|u - slope_j x| <= gamma_j`` for all j if and only if every pair i, j has
     ``|slope_i - slope_j| x <= gamma_i + gamma_j``; the range starts at 0 (``gamma`` > 0:
-    x = 0 always admits u = 0). Rows whose slopes are all equal (lines) have no upper bound.
+    x = 0 always admits u = 0). Columns whose slopes are all equal (lines) have no upper bound.
+    Nor need the pairs be tried where ``2 min(gamma) / (max(slope) - min(slope))`` reaches
+    ``limit`` already: no pair's ratio is below it (rounding is monotone, so that holds for
+    the computed ratios too), and the minimum is ``limit`` itself.
     """
     m, N = gamma.shape
-    hi = np.full(N, np.inf)
-    rows = np.flatnonzero(np.max(slope, axis=0) - np.min(slope, axis=0) > 1e-15)
+    spread = np.max(slope, axis=0) - np.min(slope, axis=0)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        low = 2.0 * np.min(gamma, axis=0) / spread
+    hi = limit.copy()
+    rows = np.flatnonzero((spread > 1e-15) & ~(low >= limit))
     if rows.size:
         g, s = gamma[:, rows], slope[:, rows]
-        bound = np.full(rows.size, np.inf)
-        for d in range(1, m):           # the pairs (i, i + d)
-            diff = np.abs(s[:-d] - s[d:])
-            steep = diff > 1e-15
-            ratio = (g[:-d] + g[d:]) / np.where(steep, diff, 1.0)
-            bound = np.minimum(bound, np.min(np.where(steep, ratio, np.inf), axis=0))
-        hi[rows] = bound
+        bound = limit[rows]
+        # A pair of nearly equal slopes (|difference| <= 1e-15) bounds nothing; its ratio is
+        # at least 2 min(gamma) / 1e-15, so where that reaches the limit it cannot count
+        # anyway and need not be masked (the usual case: gamma is a_max / |q'|).
+        tiny = not np.all(2.0 * np.min(g, axis=0) / 1e-15 >= bound)
+        ratios = np.empty((m * (m - 1) // 2, rows.size))
+        at = 0
+        with np.errstate(divide='ignore', invalid='ignore'):
+            for d in range(1, m):           # the pairs (i, i + d)
+                part = ratios[at:at + m - d]
+                np.subtract(s[:-d], s[d:], out=part)
+                np.abs(part, out=part)
+                if tiny:
+                    part[part <= 1e-15] = 0.0       # divides to inf (gamma > 0)
+                np.divide(g[:-d] + g[d:], part, out=part)
+                at += m - d
+        hi[rows] = np.minimum(bound, np.min(ratios, axis=0))
     return hi
 
 
@@ -134,7 +157,7 @@ def _distinct_lines(gamma, slope):
     return keep
 
 
-def _backward_pass(gamma, slope, delta, s_hi):
+def _backward_pass(gamma, slope, keep, delta, s_hi):
     """
     Return the upper ends ``hi`` (N + 1,) of TOPP-RA's controllable sets ``K_k = [0, hi[k]]``.
 
@@ -144,11 +167,10 @@ def _backward_pass(gamma, slope, delta, s_hi):
     ``hi_k = min(cap_k, min_j (hi_{k+1} + 2 delta gamma_j) / (1 + 2 delta slope_j))`` over the
     rows with ``c_j = slope_j + 1 / (2 delta) > 0``; a row with ``c_j < 0`` caps ``hi_k`` at
     ``gamma_j / |c_j|`` whatever comes next. The recurrence runs from the end, solved by
-    ``greedy_scan``.
+    ``greedy_scan``. ``keep``: the constraints that count (``_distinct_lines``).
     """
     inv = 1.0 / (2.0 * delta)
     c = slope + inv
-    keep = _distinct_lines(gamma, slope)
     plus, minus = keep & (c > 1e-15), keep & (c < -1e-15)
     with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
         cap = np.minimum(s_hi, np.min(np.where(minus, gamma / -c, np.inf), axis=0))
@@ -157,15 +179,15 @@ def _backward_pass(gamma, slope, delta, s_hi):
     return greedy_scan.greedy_scan_columns(0.0, A[:, ::-1], B[:, ::-1], cap[::-1])[::-1].copy()
 
 
-def _forward_pass(gamma, slope, delta, hi, x0):
+def _forward_pass(gamma, slope, keep, delta, hi, x0):
     """
     Return the greedy timing: ``x`` (N + 1,) and ``u`` (N,), the largest admissible ``u``.
 
     Each step takes the largest ``u`` the upper lines ``gamma + slope x`` allow that still
     lands in the next controllable set ``[0, hi[k + 1]]``: ``x_{k+1} = min(hi_{k+1}, min_j
-    ((1 + 2 delta slope_j) x_k + 2 delta gamma_j))``, solved by ``greedy_scan``.
+    ((1 + 2 delta slope_j) x_k + 2 delta gamma_j))`` over the constraints ``keep``, solved by
+    ``greedy_scan``.
     """
-    keep = _distinct_lines(gamma, slope)
     two_d = 2.0 * delta
     A = np.where(keep, 1.0 + two_d * slope, 0.0)
     B = np.where(keep, two_d * gamma, np.inf)
@@ -229,9 +251,10 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
         x_cap[np.argmin(np.abs(s_grid - s_stop))] = 0.0
     x_cap[-1] = 0.0
     gamma, slope, cap = _stage_lines(d0[1].T, d0[2].T, d1[1].T, d1[2].T, delta, a)
-    s_hi = np.minimum(np.minimum(_static_range(gamma, slope), cap), x_cap[:-1])
-    hi = _backward_pass(gamma, slope, delta, s_hi)
-    x, u = _forward_pass(gamma, slope, delta, hi, _start_x(path, qd_start, 0.0, hi[0]))
+    s_hi = _static_range(gamma, slope, np.minimum(cap, x_cap[:-1]))
+    keep = _distinct_lines(gamma, slope)
+    hi = _backward_pass(gamma, slope, keep, delta, s_hi)
+    x, u = _forward_pass(gamma, slope, keep, delta, hi, _start_x(path, qd_start, 0.0, hi[0]))
     sd = np.sqrt(x)
     dt = 2.0 * delta / np.maximum(sd[:-1] + sd[1:], 1e-300)
     if not np.all(np.isfinite(dt)):
