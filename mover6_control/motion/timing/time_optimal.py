@@ -230,11 +230,13 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
     # third only for the jerk limits).
     orders = (1, 2) if j_max is None else (1, 2, 3)
     d0 = dict(zip(orders, path.evaluate(s_grid[:-1], seg, orders)))
-    d1 = _interval_ends(path, s_grid, seg, d0, orders)
-    # Velocity caps at grid points: x <= (v_i / |q'_i|)^2, smallest of both sides.
-    with np.errstate(divide='ignore', over='ignore'):
-        cap0 = np.min((v / np.abs(d0[1])) ** 2, axis=1)
-        cap1 = np.min((v / np.abs(d1[1])) ** 2, axis=1)
+    d1, last = _interval_ends(path, s_grid, seg, d0, orders)
+    # Velocity caps at grid points: x <= (v_i / |q'_i|)^2, smallest of both sides (an
+    # interval's end inside a segment is the next one's start: the same cap).
+    cap0 = _speed_caps(d0[1], v)
+    cap1 = np.empty(N)
+    cap1[:-1] = cap0[1:]
+    cap1[last] = _speed_caps(d1[1][last], v)
     x_cap = np.full(N + 1, np.inf)
     x_cap[:-1] = cap0
     x_cap[1:] = np.minimum(x_cap[1:], cap1)
@@ -247,8 +249,7 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
             jcap1 = np.min((0.5 * j / np.abs(d1[3])) ** (2.0 / 3.0), axis=1)
         x_cap[:-1] = np.minimum(x_cap[:-1], jcap0)
         x_cap[1:] = np.minimum(x_cap[1:], jcap1)
-    for s_stop in path.stops:
-        x_cap[np.argmin(np.abs(s_grid - s_stop))] = 0.0
+    x_cap[_nearest(s_grid, np.asarray(path.stops, dtype=float))] = 0.0
     x_cap[-1] = 0.0
     gamma, slope, cap = _stage_lines(d0[1].T, d0[2].T, d1[1].T, d1[2].T, delta, a)
     s_hi = _static_range(gamma, slope, np.minimum(cap, x_cap[:-1]))
@@ -271,12 +272,39 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
     return _jerk_limited(path, timing, v, a, j)
 
 
+def _speed_caps(dq, v):
+    """
+    Return ``min_i (v_i / |dq_i|)^2`` per row of ``dq`` (m, n): the largest x the speeds allow.
+
+    Column by column (a minimum along short rows is slow); the square after the minimum,
+    which it commutes with (rounding is monotone).
+    """
+    with np.errstate(divide='ignore', over='ignore'):
+        low = v[0] / np.abs(dq[:, 0])
+        for i in range(1, dq.shape[1]):
+            np.minimum(low, v[i] / np.abs(dq[:, i]), out=low)
+        return low ** 2
+
+
+def _nearest(s_grid, s):
+    """
+    Return the index of the grid point nearest each ``s`` (m,), the first of equals.
+
+    What ``argmin(|s_grid - s|)`` gives (``s_grid`` ascending), by bisection.
+    """
+    right = np.minimum(np.searchsorted(s_grid, s), s_grid.size - 1)
+    left = np.maximum(right - 1, 0)
+    pick = np.where(np.abs(s_grid[left] - s) <= np.abs(s_grid[right] - s), left, right)
+    return np.searchsorted(s_grid, s_grid[pick])       # the first of equal grid points
+
+
 def _interval_ends(path, s_grid, seg, d0, orders):
     """
     Return the path derivatives at the end of every interval (N, n each), on its own segment.
 
     Inside a segment an interval's end is the next one's start, on the same segment: those are
     ``d0``'s (the derivatives at the starts); only the ends on a segment's last point are new.
+    Also return the intervals that end a segment (those, ascending).
     """
     last = np.append(np.flatnonzero(seg[1:] != seg[:-1]), seg.size - 1)
     new = path.evaluate(s_grid[last + 1], seg[last], orders)
@@ -285,7 +313,7 @@ def _interval_ends(path, s_grid, seg, d0, orders):
         d1[order] = np.empty_like(d0[order])
         d1[order][:-1] = d0[order][1:]
         d1[order][last] = values
-    return d1
+    return d1, last
 
 
 def _within_limits(path, timing, traj, v, a, seg, ends, samples=6):
