@@ -14,9 +14,9 @@ import argparse
 import tempfile
 import time
 
+from actionlib_msgs.msg import GoalStatus
 from bench.output import write_json
 from diagnostic_msgs.msg import DiagnosticStatus
-from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import pose_from_xyzabc

@@ -106,9 +106,9 @@ def _stage_lines(dq0, ddq0, dq1, ddq1, delta, a_max):
 
 def _static_range(gamma, slope, limit):
     """
-    Return, per interval, ``limit`` (N,) or the largest x at which the acceleration lines admit
-    some u, whichever is smaller.
+    Return, per interval, the smaller of ``limit`` (N,) and the acceleration lines' range.
 
+    The range is the largest x at which the acceleration lines admit some u.
     Some u meets ``|u - slope_j x| <= gamma_j`` for all j if and only if every pair i, j has
     ``|slope_i - slope_j| x <= gamma_i + gamma_j``; the range starts at 0 (``gamma`` > 0:
     x = 0 always admits u = 0). Columns whose slopes are all equal (lines) have no upper bound.
