@@ -4,19 +4,24 @@ Goal-to-/joint_demands latency of the planner node over DDS (issue 7).
 Starts the planner as its own process, publishes /joint_states (home pose) from this process,
 sends /pose_goal linear goals and measures the time from publishing the goal to receiving the
 N x 6 /joint_demands, for 20, 100 and 1000 waypoints. Each goal goes to an idle planner: after
-the planner's 'planned' for the one before. Prints a table, writes bench/results/planner.json.
+the planner's 'planned' for the one before. No controller runs: this process stands in for
+one on the graph (a publisher of its demand answers, which never answers), as the planner sends
+a demand only once a controller is there (else after ``match_timeout``, 3 s). Prints a table,
+writes bench/results/planner.json.
 """
 
 import argparse
 import tempfile
 import time
 
+from actionlib_msgs.msg import GoalStatus
 from bench.output import write_json
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.rotations import pose_from_xyzabc
 from mover6_control.nodes.messages import conversions
+from mover6_control.nodes.messages.demand_acks import ACK_QOS, ACK_TOPIC
 from mover6_control.nodes.messages.demand_messages import demand_options_from_msg
 from mover6_control.tools.goal_cli import GoalClient
 import numpy as np
@@ -94,6 +99,8 @@ def main(argv=None):
     state_pub = client.create_publisher(JointState, 'joint_states', 10)
     home = conversions.make_joint_state(arm.joint_names, np.zeros(6), np.zeros(6))
     client.create_timer(0.01, lambda: state_pub.publish(home))
+    # A controller on the graph for the planner (it waits for one before it sends a demand).
+    client.create_publisher(GoalStatus, ACK_TOPIC, ACK_QOS)
     results = {'repeats': repeats, 'rows': []}
     seen = set()
     try:

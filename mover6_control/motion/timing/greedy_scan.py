@@ -30,7 +30,19 @@ def greedy_scan(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray) -> np.
     Return ``x`` (N + 1,) of ``x_{i+1} = max(0, min(cap_i, min_j A_ij x_i + B_ij))``.
 
     ``A``, ``B`` (N, J): the pieces of each step (an unused one: ``A = 0``, ``B = inf``);
-    ``cap`` (N,) >= 0.
+    ``cap`` (N,) >= 0. The same as ``greedy_scan_columns`` on ``A.T``, ``B.T``.
+    """
+    return greedy_scan_columns(x0, np.ascontiguousarray(np.asarray(A).T),
+                               np.ascontiguousarray(np.asarray(B).T), cap)
+
+
+def greedy_scan_columns(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray) -> np.ndarray:
+    """
+    Return ``x`` (N + 1,) of ``x_{i+1} = max(0, min(cap_i, min_j A_ji x_i + B_ji))``.
+
+    ``A``, ``B`` (J, N): piece j of step i in column i (an unused one: ``A = 0``, ``B = inf``);
+    ``cap`` (N,) >= 0. Pieces by rows: the smallest piece of every step is an element-wise
+    minimum over J contiguous rows, many times cheaper than a minimum along short rows.
     """
     N = cap.size
     x = np.empty(N + 1)
@@ -77,8 +89,8 @@ def greedy_scan(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray) -> np.
 
 
 def _step(A, B, cap, x):
-    """Return ``min(cap_i, min_j A_ij x_i + B_ij)`` for every step i (N,) from ``x`` (N,)."""
-    return np.minimum(cap, np.min(A * x[:, None] + B, axis=1))
+    """Return ``min(cap_i, min_j A_ji x_i + B_ji)`` for every step i (N,) from ``x`` (N,)."""
+    return np.minimum(cap, np.min(A * x + B, axis=0))
 
 
 def _walk(A, B, cap, starts, first):
@@ -97,7 +109,7 @@ def _walk(A, B, cap, starts, first):
     step, cur = starts[ramp], first[ramp]
     visits = [(ramp, step, cur)]
     while ramp.size > _FEW:
-        low = np.min(A[step] * cur[:, None] + B[step], axis=1)
+        low = np.min(A[:, step] * cur + B[:, step], axis=0)
         here = cap[step]
         nxt = np.maximum(np.minimum(here, low), 0.0)
         landed = here <= low
@@ -127,7 +139,7 @@ def _walk(A, B, cap, starts, first):
                     ends[k] = i
                     break
                 continue
-            low = min(a * x + b for a, b in zip(A[i].tolist(), B[i].tolist()))
+            low = min(a * x + b for a, b in zip(A[:, i].tolist(), B[:, i].tolist()))
             here = float(cap[i])
             x = max(min(here, low), 0.0)
             i += 1
@@ -151,9 +163,9 @@ def _line_runs(A, B):
     started at x: the same additions in the same order. ``end[i] == i`` where step i is no
     line step.
     """
-    N = A.shape[0]
-    beta = np.min(B, axis=1)
-    line = (np.all((A == 1.0) | ((A == 0.0) & np.isinf(B)), axis=1) & np.isfinite(beta)
+    N = A.shape[1]
+    beta = np.min(B, axis=0)
+    line = (np.all((A == 1.0) | ((A == 0.0) & np.isinf(B)), axis=0) & np.isfinite(beta)
             & (beta >= 0.0))        # the floor at 0 never binds
     index = np.arange(N)
     # The first step at or after i that is no line step.

@@ -75,46 +75,72 @@ def _stage_lines(dq0, ddq0, dq1, ddq1, delta, a_max):
     """
     Return the acceleration constraints of all intervals as ``|u - slope x| <= gamma``.
 
-    ``gamma`` and ``slope`` are (N, 2n): constraint j of interval k is ``u >= -gamma + slope x``
-    and ``u <= gamma + slope x`` (``gamma`` > 0; ``inf`` and slope 0 where it does not involve
-    ``u``); a row whose ``u`` coefficient vanishes bounds ``x`` alone and is returned in
-    ``x_cap`` (N,). Rows: the acceleration at the start of the interval (``x_k``) and at its
-    end (``x_k + 2 delta u``), with the path derivatives of the interval's own segment.
+    ``gamma`` and ``slope`` are (2n, N), one row per constraint and a column per interval (the
+    minimum over the constraints is then an element-wise one over rows): constraint j of
+    interval k is ``u >= -gamma + slope x`` and ``u <= gamma + slope x`` (``gamma`` > 0;
+    ``inf`` and slope 0 where it does not involve ``u``); a constraint whose ``u`` coefficient
+    vanishes bounds ``x`` alone and is returned in ``x_cap`` (N,). Constraints: the
+    acceleration at the start of the interval (``x_k``) and at its end (``x_k + 2 delta u``),
+    with the path derivatives (given as (n, N)) of the interval's own segment.
     """
-    P = np.hstack([dq0, dq1 + 2.0 * delta[:, None] * ddq1])
-    C = np.hstack([ddq0, ddq1])
-    A = np.broadcast_to(np.concatenate([a_max, a_max]), P.shape)
-    big = np.abs(P) > 1e-12
-    Ps = np.where(big, P, 1.0)
-    pos = P > 0.0
-    gamma = np.where(big, np.where(pos, A, -A) / Ps, np.inf)
-    slope = np.where(big, -C / Ps, 0.0)
-    flat = ~big & (np.abs(C) > 1e-12)
-    with np.errstate(divide='ignore'):
-        x_cap = np.min(np.where(flat, A / np.abs(C), np.inf), axis=1)
+    n, N = dq0.shape
+    P, C = np.empty((2 * n, N)), np.empty((2 * n, N))     # row-major: contiguous rows
+    P[:n], P[n:], C[:n], C[n:] = dq0, dq1 + 2.0 * delta * ddq1, ddq0, ddq1
+    A = np.concatenate([a_max, a_max])[:, None]
+    # a / |P| is (+-a) / P to the bit (division rounds the magnitude, the sign apart).
+    absP = np.abs(P)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        gamma = A / absP
+        slope = np.negative(C, out=C) / P
+    small = absP <= 1e-12
+    x_cap = np.full(N, np.inf)
+    if np.any(small):
+        gamma[small], slope[small] = np.inf, 0.0
+        k = np.flatnonzero(np.any(small, axis=0))
+        Ck = np.abs(C[:, k])                    # C was negated in place: |C| alike
+        flat = small[:, k] & (Ck > 1e-12)
+        with np.errstate(divide='ignore'):
+            x_cap[k] = np.min(np.where(flat, A / Ck, np.inf), axis=0)
     return gamma, slope, x_cap
 
 
-def _static_range(gamma, slope):
+def _static_range(gamma, slope, limit):
     """
-    Return, per interval, the largest x (N,) at which the acceleration lines admit some u.
+    Return, per interval, the smaller of ``limit`` (N,) and the acceleration lines' range.
 
+    The range is the largest x at which the acceleration lines admit some u.
     Some u meets ``|u - slope_j x| <= gamma_j`` for all j if and only if every pair i, j has
     ``|slope_i - slope_j| x <= gamma_i + gamma_j``; the range starts at 0 (``gamma`` > 0:
-    x = 0 always admits u = 0). Rows whose slopes are all equal (lines) have no upper bound.
+    x = 0 always admits u = 0). Columns whose slopes are all equal (lines) have no upper bound.
+    Nor need the pairs be tried where ``2 min(gamma) / (max(slope) - min(slope))`` reaches
+    ``limit`` already: no pair's ratio is below it (rounding is monotone, so that holds for
+    the computed ratios too), and the minimum is ``limit`` itself.
     """
-    N, m = gamma.shape
-    hi = np.full(N, np.inf)
-    rows = np.flatnonzero(np.max(slope, axis=1) - np.min(slope, axis=1) > 1e-15)
+    m, N = gamma.shape
+    spread = np.max(slope, axis=0) - np.min(slope, axis=0)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        low = 2.0 * np.min(gamma, axis=0) / spread
+    hi = limit.copy()
+    rows = np.flatnonzero((spread > 1e-15) & ~(low >= limit))
     if rows.size:
-        g, s = gamma[rows], slope[rows]
-        bound = np.full(rows.size, np.inf)
-        for d in range(1, m):           # the pairs (i, i + d)
-            diff = np.abs(s[:, :-d] - s[:, d:])
-            steep = diff > 1e-15
-            ratio = (g[:, :-d] + g[:, d:]) / np.where(steep, diff, 1.0)
-            bound = np.minimum(bound, np.min(np.where(steep, ratio, np.inf), axis=1))
-        hi[rows] = bound
+        g, s = gamma[:, rows], slope[:, rows]
+        bound = limit[rows]
+        # A pair of nearly equal slopes (|difference| <= 1e-15) bounds nothing; its ratio is
+        # at least 2 min(gamma) / 1e-15, so where that reaches the limit it cannot count
+        # anyway and need not be masked (the usual case: gamma is a_max / |q'|).
+        tiny = not np.all(2.0 * np.min(g, axis=0) / 1e-15 >= bound)
+        ratios = np.empty((m * (m - 1) // 2, rows.size))
+        at = 0
+        with np.errstate(divide='ignore', invalid='ignore'):
+            for d in range(1, m):           # the pairs (i, i + d)
+                part = ratios[at:at + m - d]
+                np.subtract(s[:-d], s[d:], out=part)
+                np.abs(part, out=part)
+                if tiny:
+                    part[part <= 1e-15] = 0.0       # divides to inf (gamma > 0)
+                np.divide(g[:-d] + g[d:], part, out=part)
+                at += m - d
+        hi[rows] = np.minimum(bound, np.min(ratios, axis=0))
     return hi
 
 
@@ -125,13 +151,13 @@ def _distinct_lines(gamma, slope):
     On a line the constraint at the end of an interval repeats the one at its start (the
     path's derivatives are constant): it gives the very same bounds, so it is dropped.
     """
-    n = gamma.shape[1] // 2
+    n = gamma.shape[0] // 2
     keep = np.isfinite(gamma)
-    keep[:, n:] &= ~((gamma[:, n:] == gamma[:, :n]) & (slope[:, n:] == slope[:, :n]))
+    keep[n:] &= ~((gamma[n:] == gamma[:n]) & (slope[n:] == slope[:n]))
     return keep
 
 
-def _backward_pass(gamma, slope, delta, s_hi):
+def _backward_pass(gamma, slope, keep, delta, s_hi):
     """
     Return the upper ends ``hi`` (N + 1,) of TOPP-RA's controllable sets ``K_k = [0, hi[k]]``.
 
@@ -141,32 +167,31 @@ def _backward_pass(gamma, slope, delta, s_hi):
     ``hi_k = min(cap_k, min_j (hi_{k+1} + 2 delta gamma_j) / (1 + 2 delta slope_j))`` over the
     rows with ``c_j = slope_j + 1 / (2 delta) > 0``; a row with ``c_j < 0`` caps ``hi_k`` at
     ``gamma_j / |c_j|`` whatever comes next. The recurrence runs from the end, solved by
-    ``greedy_scan``.
+    ``greedy_scan``. ``keep``: the constraints that count (``_distinct_lines``).
     """
     inv = 1.0 / (2.0 * delta)
-    c = slope + inv[:, None]
-    keep = _distinct_lines(gamma, slope)
+    c = slope + inv
     plus, minus = keep & (c > 1e-15), keep & (c < -1e-15)
     with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
-        cap = np.minimum(s_hi, np.min(np.where(minus, gamma / -c, np.inf), axis=1))
-        A = np.where(plus, inv[:, None] / c, 0.0)
+        cap = np.minimum(s_hi, np.min(np.where(minus, gamma / -c, np.inf), axis=0))
+        A = np.where(plus, inv / c, 0.0)
         B = np.where(plus, gamma / c, np.inf)
-    return greedy_scan.greedy_scan(0.0, A[::-1], B[::-1], cap[::-1])[::-1].copy()
+    return greedy_scan.greedy_scan_columns(0.0, A[:, ::-1], B[:, ::-1], cap[::-1])[::-1].copy()
 
 
-def _forward_pass(gamma, slope, delta, hi, x0):
+def _forward_pass(gamma, slope, keep, delta, hi, x0):
     """
     Return the greedy timing: ``x`` (N + 1,) and ``u`` (N,), the largest admissible ``u``.
 
     Each step takes the largest ``u`` the upper lines ``gamma + slope x`` allow that still
     lands in the next controllable set ``[0, hi[k + 1]]``: ``x_{k+1} = min(hi_{k+1}, min_j
-    ((1 + 2 delta slope_j) x_k + 2 delta gamma_j))``, solved by ``greedy_scan``.
+    ((1 + 2 delta slope_j) x_k + 2 delta gamma_j))`` over the constraints ``keep``, solved by
+    ``greedy_scan``.
     """
-    keep = _distinct_lines(gamma, slope)
-    two_d = (2.0 * delta)[:, None]
+    two_d = 2.0 * delta
     A = np.where(keep, 1.0 + two_d * slope, 0.0)
     B = np.where(keep, two_d * gamma, np.inf)
-    x = greedy_scan.greedy_scan(x0, A, B, hi[1:])
+    x = greedy_scan.greedy_scan_columns(x0, A, B, hi[1:])
     return x, (x[1:] - x[:-1]) / (2.0 * delta)
 
 
@@ -205,11 +230,13 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
     # third only for the jerk limits).
     orders = (1, 2) if j_max is None else (1, 2, 3)
     d0 = dict(zip(orders, path.evaluate(s_grid[:-1], seg, orders)))
-    d1 = _interval_ends(path, s_grid, seg, d0, orders)
-    # Velocity caps at grid points: x <= (v_i / |q'_i|)^2, smallest of both sides.
-    with np.errstate(divide='ignore', over='ignore'):
-        cap0 = np.min((v / np.abs(d0[1])) ** 2, axis=1)
-        cap1 = np.min((v / np.abs(d1[1])) ** 2, axis=1)
+    d1, last = _interval_ends(path, s_grid, seg, d0, orders)
+    # Velocity caps at grid points: x <= (v_i / |q'_i|)^2, smallest of both sides (an
+    # interval's end inside a segment is the next one's start: the same cap).
+    cap0 = _speed_caps(d0[1], v)
+    cap1 = np.empty(N)
+    cap1[:-1] = cap0[1:]
+    cap1[last] = _speed_caps(d1[1][last], v)
     x_cap = np.full(N + 1, np.inf)
     x_cap[:-1] = cap0
     x_cap[1:] = np.minimum(x_cap[1:], cap1)
@@ -222,13 +249,13 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
             jcap1 = np.min((0.5 * j / np.abs(d1[3])) ** (2.0 / 3.0), axis=1)
         x_cap[:-1] = np.minimum(x_cap[:-1], jcap0)
         x_cap[1:] = np.minimum(x_cap[1:], jcap1)
-    for s_stop in path.stops:
-        x_cap[np.argmin(np.abs(s_grid - s_stop))] = 0.0
+    x_cap[_nearest(s_grid, np.asarray(path.stops, dtype=float))] = 0.0
     x_cap[-1] = 0.0
-    gamma, slope, cap = _stage_lines(d0[1], d0[2], d1[1], d1[2], delta, a)
-    s_hi = np.minimum(np.minimum(_static_range(gamma, slope), cap), x_cap[:-1])
-    hi = _backward_pass(gamma, slope, delta, s_hi)
-    x, u = _forward_pass(gamma, slope, delta, hi, _start_x(path, qd_start, 0.0, hi[0]))
+    gamma, slope, cap = _stage_lines(d0[1].T, d0[2].T, d1[1].T, d1[2].T, delta, a)
+    s_hi = _static_range(gamma, slope, np.minimum(cap, x_cap[:-1]))
+    keep = _distinct_lines(gamma, slope)
+    hi = _backward_pass(gamma, slope, keep, delta, s_hi)
+    x, u = _forward_pass(gamma, slope, keep, delta, hi, _start_x(path, qd_start, 0.0, hi[0]))
     sd = np.sqrt(x)
     dt = 2.0 * delta / np.maximum(sd[:-1] + sd[1:], 1e-300)
     if not np.all(np.isfinite(dt)):
@@ -245,12 +272,39 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
     return _jerk_limited(path, timing, v, a, j)
 
 
+def _speed_caps(dq, v):
+    """
+    Return ``min_i (v_i / |dq_i|)^2`` per row of ``dq`` (m, n): the largest x the speeds allow.
+
+    Column by column (a minimum along short rows is slow); the square after the minimum,
+    which it commutes with (rounding is monotone).
+    """
+    with np.errstate(divide='ignore', over='ignore'):
+        low = v[0] / np.abs(dq[:, 0])
+        for i in range(1, dq.shape[1]):
+            np.minimum(low, v[i] / np.abs(dq[:, i]), out=low)
+        return low ** 2
+
+
+def _nearest(s_grid, s):
+    """
+    Return the index of the grid point nearest each ``s`` (m,), the first of equals.
+
+    What ``argmin(|s_grid - s|)`` gives (``s_grid`` ascending), by bisection.
+    """
+    right = np.minimum(np.searchsorted(s_grid, s), s_grid.size - 1)
+    left = np.maximum(right - 1, 0)
+    pick = np.where(np.abs(s_grid[left] - s) <= np.abs(s_grid[right] - s), left, right)
+    return np.searchsorted(s_grid, s_grid[pick])       # the first of equal grid points
+
+
 def _interval_ends(path, s_grid, seg, d0, orders):
     """
     Return the path derivatives at the end of every interval (N, n each), on its own segment.
 
     Inside a segment an interval's end is the next one's start, on the same segment: those are
     ``d0``'s (the derivatives at the starts); only the ends on a segment's last point are new.
+    Also return the intervals that end a segment (those, ascending).
     """
     last = np.append(np.flatnonzero(seg[1:] != seg[:-1]), seg.size - 1)
     new = path.evaluate(s_grid[last + 1], seg[last], orders)
@@ -259,7 +313,7 @@ def _interval_ends(path, s_grid, seg, d0, orders):
         d1[order] = np.empty_like(d0[order])
         d1[order][:-1] = d0[order][1:]
         d1[order][last] = values
-    return d1
+    return d1, last
 
 
 def _within_limits(path, timing, traj, v, a, seg, ends, samples=6):
