@@ -17,17 +17,27 @@ normal process (the kernel's real-time throttling leaves them 5 %). So each time
 between its periods even when it runs late (the tick rests a tenth of a period, the
 physics thread after an overrun), and the physics thread runs unpaced (``real_time_factor``
 0, as fast as it can) at normal scheduling (``run_normal``).
+
+``steady_interpreter`` is the rest of a timed process's start-up (the controller's and the
+driver's ``main()``; the in-process tests of those nodes call it too, and undo it after): the
+interpreter lock changes hands every ``SWITCH_INTERVAL`` (Python's default is 5 ms), and what is
+loaded at start is frozen out of the garbage collector (a full collection of it took 0.1 s and
+more, with every thread of the process waiting).
 """
 
 from __future__ import annotations
 
 import ctypes
+import gc
 import os
+import sys
 import threading
-from typing import Any
+from typing import Any, Callable
 
 MIN_PRIORITY, MAX_PRIORITY = 1, 99
 """The SCHED_FIFO priorities Linux offers; 0 means 'normal scheduling' to the callers."""
+SWITCH_INTERVAL = 0.0005
+"""[s] the interpreter lock's switch interval in a timed process (module docstring)."""
 BLAS_SET_THREADS = ('openblas_set_num_threads', 'scipy_openblas_set_num_threads64_',
                     'scipy_openblas_set_num_threads', 'openblas_set_num_threads64_')
 """The names OpenBLAS builds (numpy's own is scipy-openblas) give its thread count setter."""
@@ -121,3 +131,20 @@ def scheduling_of_thread() -> tuple[str, int]:
     policy = os.sched_getscheduler(me) & ~getattr(os, 'SCHED_RESET_ON_FORK', 0)
     names = {os.SCHED_FIFO: 'fifo', os.SCHED_OTHER: 'other', os.SCHED_RR: 'rr'}
     return names.get(policy, str(policy)), os.sched_getparam(me).sched_priority
+
+
+def steady_interpreter(switch_interval: float = SWITCH_INTERVAL) -> Callable[[], None]:
+    """
+    Set the switch interval and freeze what is loaded out of the collector; return the undo.
+
+    The undo puts the switch interval back and unfreezes (a test's process goes on after).
+    """
+    previous = sys.getswitchinterval()
+    sys.setswitchinterval(switch_interval)
+    gc.collect()
+    gc.freeze()
+
+    def undo() -> None:
+        gc.unfreeze()
+        sys.setswitchinterval(previous)
+    return undo

@@ -14,6 +14,7 @@ from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
 from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc
 from mover6_control.nodes.messages.conversions import status_values
+from mover6_control.parameters import CONTROLLER
 from mover6_control.resources import CONFIG_DIR
 from mover6_control.tools.goal_cli import GoalClient
 from mover6_control.tools.goal_convention import EXIT_REFUSED, pose_from_goal
@@ -126,6 +127,23 @@ REPORT_EXAMPLES = (
 )
 
 
+def settled_bounds(q):
+    """
+    Return how far [m, rad] two readings of the arm settled at ``q`` may be apart as printed.
+
+    Each joint may be off by settle_tolerance either way; a joint's turn moves the tool by its
+    lever (the tool's distance from the joint's axis, by finite differences) and turns it by as
+    much; the printed X Y Z A B C are rounded to 4 decimals (half a unit each).
+    """
+    q = np.asarray(q, dtype=float)
+    turn = 2.0 * CONTROLLER['settle_tolerance'].default
+    h = 1e-6
+    levers = [np.linalg.norm(fk(ARM, q + h * np.eye(6)[i])[:3, 3] - fk(ARM, q)[:3, 3]) / h
+              for i in range(6)]
+    rounding = 0.5e-4 * np.sqrt(3.0)
+    return rounding + turn * float(np.sum(levers)), rounding + 6 * turn
+
+
 def test_goal_cli_runs_the_mover6_reports_examples(stack, client):
     """From home, the report's linear then IK example: exit 0, at the report's pose and q."""
     home = client.send_joints(np.zeros((1, 6)), timeout=60.0)
@@ -147,8 +165,12 @@ def test_goal_cli_runs_the_mover6_reports_examples(stack, client):
         np.testing.assert_allclose(client.q, q_report, atol=0.01, err_msg=out)
         # The RESULT line gives the pose reached in the goal's convention (near B = pi/2 the
         # A/C split follows the arm's tiny error, so compare the poses the numbers describe).
+        # The CLI read the arm when it held, settled within settle_tolerance of the goal; this
+        # reading comes later, also within it: the two differ by the printed numbers' rounding
+        # (4 decimals) and by what 2 settle_tolerance at each joint moves the tool, no more.
         reached = out.split('reached X Y Z A B C from home: ')[1].split()[:6]
         printed = pose_from_goal(ARM, *(float(v) for v in reached))
         position_error, orientation_error = pose_error(printed, fk(ARM, client.q))
-        assert position_error < 1e-4 and orientation_error < 1e-3, (
-            position_error, orientation_error, out)
+        position_bound, orientation_bound = settled_bounds(client.q)
+        assert position_error < position_bound and orientation_error < orientation_bound, (
+            position_error, position_bound, orientation_error, orientation_bound, out)

@@ -1,7 +1,6 @@
 """The controller node with real rclpy in one process; a test node plays the arm."""
 
 import os
-import sys
 import time
 
 from control_msgs.msg import JointJog
@@ -10,6 +9,7 @@ from mover6_control.nodes.controller.node import ControllerNode
 from mover6_control.nodes.messages import conversions, demand_messages
 from mover6_control.nodes.runtime import local_dds
 from mover6_control.parameters import PROFILES
+from mover6_control.realtime import steady_interpreter
 import numpy as np
 import pytest
 import rclpy
@@ -26,8 +26,9 @@ from std_srvs.srv import Trigger
 NAMES = [f'joint{i}' for i in range(1, 7)]
 # Our own namespace: another run of these tests (same domain) must not cross-talk with this one.
 NS = f'controller_test_{os.getpid()}'
-# The nodes here run in the test process: a real-time tick (tick_priority, 50 by default) would
-# raise every thread of it, so they run at normal scheduling.
+# The nodes here run in the test process: a real-time tick (tick_priority, 50 by default) raises
+# every thread of it, so most run at normal scheduling; the one test of the tick's timing runs
+# the shipped priority (test/node/conftest.py puts the process back after each test).
 NORMAL = Parameter('tick_priority', value=0)
 GOAL = np.array([0.3, -0.2, 0.2, 0.1, -0.1, 0.3])
 
@@ -444,13 +445,13 @@ def test_continuous_demands_never_stall_the_ticks():
     go on at its period meanwhile. Judged by the node's own ``max_tick_gap`` and by the stamps
     of the JointJog commands (taken by the tick thread; a deep queue so none is dropped).
     """
-    switch_interval = sys.getswitchinterval()
-    sys.setswitchinterval(0.0005)                 # as controller_node.main sets it
+    undo = steady_interpreter()                   # as the controller's main() starts
     context = rclpy.Context()
     rclpy.init(context=context)
     ns = NS + '_continuous'
+    # The shipped tick_priority (the node tier's conftest puts the process back after).
     controller = ControllerNode(context=context, namespace=ns, parameter_overrides=[
-        Parameter('profile', value='continuous'), Parameter('rate', value=100.0), NORMAL])
+        Parameter('profile', value='continuous'), Parameter('rate', value=100.0)])
     arm = FakeArm(context, namespace=ns, jog_depth=1000)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(controller)
@@ -486,7 +487,7 @@ def test_continuous_demands_never_stall_the_ticks():
         assert float(arm.status()['max_tick_gap']) >= np.max(gaps) - 5e-5   # 0.1 ms digits
         assert max(taken) < 2.0, taken            # a stalled node took demands seconds late
     finally:
-        sys.setswitchinterval(switch_interval)
+        undo()
         executor.shutdown()
         controller.destroy_node()
         arm.destroy_node()

@@ -23,6 +23,7 @@ from mover6_control.hardware.scaling import load_joints
 from mover6_control.nodes.driver.jog_intake import JogIntake, JogRefused
 from mover6_control.nodes.driver.node import DriverNode, SERVICES
 from mover6_control.nodes.messages import conversions
+from mover6_control.realtime import steady_interpreter
 import pytest
 import rclpy
 from rclpy.node import Node
@@ -120,6 +121,7 @@ class Arm:
 def make_rig(extra=()):
     channel = f'driver_node_{os.getpid()}_{next(RUNS)}'
     namespace = f'{NS}_{next(RUNS)}'
+    undo = steady_interpreter()                # as the driver's main() starts
     arm = Arm(channel)
     context = rclpy.Context()
     rclpy.init(context=context)
@@ -137,6 +139,7 @@ def make_rig(extra=()):
         operator.destroy_node()
         rclpy.try_shutdown(context=context)
         arm.close()
+        undo()
     return (driver, operator, arm), close
 
 

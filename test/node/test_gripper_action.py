@@ -16,6 +16,7 @@ import can
 from control_msgs.action import GripperCommand
 from mover6_control.hardware.gripper import STROKE
 from mover6_control.nodes.driver.node import DriverNode
+from mover6_control.realtime import steady_interpreter
 import pytest
 import rclpy
 from rclpy.action import ActionClient
@@ -71,6 +72,7 @@ def rig():
     """Yield the driver node, the operator and the arm (on a virtual bus), the driver active."""
     channel = f'gripper_node_{os.getpid()}_{next(RUNS)}'
     namespace = f'gripper_test_{os.getpid()}_{next(RUNS)}'
+    undo = steady_interpreter()                # as the driver's main() starts
     arm = build_arm()
     server = BusServer(arm, can.Bus(interface='virtual', channel=channel))
     stop = threading.Event()
@@ -99,6 +101,7 @@ def rig():
         stop.set()
         serving.join(timeout=10.0)
         server.bus.shutdown()
+        undo()
 
 
 def test_the_gripper_opens_and_closes_on_can_sim(rig):

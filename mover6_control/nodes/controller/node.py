@@ -31,8 +31,6 @@ a node of its own). The lock rule: the core and the goal ledger are read and cha
 ``lock``; nothing slow or published.
 """
 
-import gc
-import sys
 import threading
 from typing import Callable, Optional
 
@@ -61,6 +59,7 @@ from mover6_control.nodes.runtime.node_clock import now_ns
 from mover6_control.nodes.runtime.node_configs import collision_settings, config_from_parameters
 from mover6_control.nodes.runtime.qos import STATUS_QOS, STREAM_READER_QOS
 from mover6_control.parameters import CONTROLLER
+from mover6_control.realtime import steady_interpreter
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -290,9 +289,7 @@ def main(args: Optional[list[str]] = None) -> None:
     """
     # The tick gets the interpreter 0.5 ms after its deadline, not 5 ms (bench controller); what
     # is loaded now is never scanned by a full collection (a 10,000-point goal makes 40,000).
-    sys.setswitchinterval(0.0005)
-    gc.collect()
-    gc.freeze()
+    steady_interpreter()
     shutdown.run_node(ControllerNode, args)
 
 

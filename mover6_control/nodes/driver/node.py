@@ -25,14 +25,12 @@ made at configure by ``arm_session.ArmSession``; the node converts messages and 
 thread of its own (``report_publisher``), so the control thread never waits on DDS. With
 ``cycle_priority`` (default 50) the cycle runs at SCHED_FIFO where the system allows it. The
 cycle is Python and needs the interpreter lock, so the rest of the process keeps it short: the
-lock changes hands every ``SWITCH_INTERVAL``, what was loaded at start is frozen out of the
-garbage collector, /JointJog, the parameters and the lifecycle services are served by a
-single-threaded executor and the Trigger services by an executor of their own. Measured with
-``./run.sh bench driver``.
+lock changes hands every 0.5 ms and what was loaded at start is frozen out of the garbage
+collector (``realtime.steady_interpreter``), /JointJog, the parameters and the lifecycle
+services are served by a single-threaded executor and the Trigger services by an executor of
+their own. Measured with ``./run.sh bench driver``.
 """
 
-import gc
-import sys
 from typing import Callable, Optional
 
 import can
@@ -52,6 +50,7 @@ from mover6_control.nodes.runtime import shutdown
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.nodes.runtime.params import declare
 from mover6_control.parameters import DRIVER
+from mover6_control.realtime import steady_interpreter
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
@@ -59,8 +58,6 @@ from rclpy.parameter import Parameter
 GRIPPER_BITS = {'off': 0x00, 'open': 0x03, 'closed': 0x02}
 """Joint 4's outputs: bit 0 'gripper open', bit 1 'gripper enabled' (the vendor's CPRMover6)."""
 GRIPPER_JOINT, OUTPUTS_JOINT = 4, 1
-SWITCH_INTERVAL = 0.0005
-"""[s] the interpreter lock's switch interval in the driver's process (Python's default 5 ms)."""
 SERVICES = ('reset', 'enable', 'disable', 'reference', 'set_zero', 'recover')
 NEEDS_ACTIVE = ('enable', 'reference', 'recover')
 """The services that may move or enable the arm: only while the driver is active."""
@@ -299,9 +296,7 @@ class DriverNode(LifecycleNode):
 
 def main(args: Optional[list[str]] = None) -> None:
     """Run the driver node until Ctrl-C, SIGTERM or shutdown; every module is disabled then."""
-    sys.setswitchinterval(SWITCH_INTERVAL)
-    gc.collect()
-    gc.freeze()            # what is loaded now is never scanned again: no long full collections
+    steady_interpreter()
     shutdown.run_node(DriverNode, args, SingleThreadedExecutor)
 
 
