@@ -36,7 +36,7 @@ GOAL = 10.0          # the issue's goal: at most 10x toppra's timing alone
 
 
 def poses():
-    """Return the planner bench's two goal poses (4, 4)."""
+    """Return the planner bench's two goal poses, each (4, 4)."""
     from mover6_control.kinematics.rotations import pose_from_xyzabc
     return (pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, np.pi / 2, 0.0),
             pose_from_xyzabc(0.30, -0.08, 0.32, 0.0, np.pi / 2, 0.0))
