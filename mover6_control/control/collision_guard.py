@@ -35,7 +35,7 @@ def plan_samples(plan: MotionPlan, max_joint_step: float,
     straight lines sampled every ``max_joint_step`` [rad] (``densify``).
     """
     times = np.append(np.arange(0.0, plan.duration, period), plan.duration)
-    Q = np.array([plan.sample(t)[0] for t in times])
+    Q = plan.positions(times)
     return densify(Q, max_joint_step)[0]
 
 

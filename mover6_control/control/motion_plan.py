@@ -23,6 +23,10 @@ from mover6_control.motion.timing.trajectories import (JointTrajectory, point_to
 from mover6_control.validation import as_positive
 import numpy as np
 
+# ``MotionPlan.positions``: a segment's times in one array call from this many (fewer: one
+# ``sample`` each, cheaper than the array machinery for a handful).
+BATCH_ROWS = 8
+
 
 # --- segments: one piece of reference, sampled at tau in [0, duration] ----------------------
 
@@ -118,6 +122,38 @@ class MotionPlan:
             return self.q_goal.copy(), np.zeros_like(self.q_goal)
         i = max(0, bisect.bisect_right(self._starts, t) - 1)
         return self.segments[i].sample(max(0.0, t - self._starts[i]))
+
+    def positions(self, times: np.ndarray) -> np.ndarray:
+        """
+        Return ``q_ref`` (m, n) [rad] at ``times`` (m,) [s], increasing: ``sample(t)[0]`` each.
+
+        A ``TrajectorySegment``'s times in one array call of its trajectory (the time-optimal
+        plan of a large demand is one: the collision guard's samples cost one call, not one
+        per sample); other segments' per time, as ``sample``.
+        """
+        times = np.asarray(times, dtype=float)
+        out = np.empty((times.size, self.q_goal.shape[0]))
+        after = times >= self._duration
+        out[after] = self.q_goal
+        if not self.segments:
+            out[:] = self.q_goal
+            return out
+        inside = np.flatnonzero(~after)
+        index = np.maximum(np.searchsorted(self._starts, times[inside], side='right') - 1, 0)
+        # ``times`` increase, so each segment's rows are one run of ``inside``.
+        segments, first, count = np.unique(index, return_index=True, return_counts=True)
+        for i, k, c in zip(segments.tolist(), first.tolist(), count.tolist()):
+            rows = inside[k:k + c]
+            seg, start = self.segments[i], self._starts[i]
+            if c >= BATCH_ROWS and isinstance(seg, TrajectorySegment):
+                tau = np.maximum(0.0, times[rows] - start)
+                moving = tau < seg.duration
+                out[rows[moving]] = seg.trajectory.sample(tau[moving])[0]
+                out[rows[~moving]] = seg.q1
+            else:
+                for r in rows.tolist():
+                    out[r] = seg.sample(max(0.0, float(times[r]) - start))[0]
+        return out
 
     def waypoints_reached(self, t: float) -> int:
         """Return how many waypoints the reference has reached at ``t`` [s] (0..N)."""

@@ -273,3 +273,18 @@ def test_a_measured_start_next_to_the_first_waypoint_does_not_stretch_the_motion
     assert near.duration <= 1.05 * exact.duration
     check_limits(near, 1.0)
     np.testing.assert_allclose(near.sample(near.duration)[0], Q[-1], atol=1e-12)
+
+
+@pytest.mark.parametrize('profile', ALL_PROFILES)
+@pytest.mark.parametrize('moving', [False, True])
+def test_positions_at_many_times_are_the_samples_bit_for_bit(profile, moving):
+    # MotionPlan.positions (the collision guard's samples) batches a segment's times; it must
+    # give exactly what sample(t) gives at each, after the end and before the start included.
+    rng = np.random.default_rng(7)
+    Q = np.cumsum(rng.uniform(-0.05, 0.05, (40, 6)), axis=0)
+    qd0 = np.full(6, 0.2) if moving else None
+    plan = plan_motion(LawConfig(profile=profile), np.zeros(6), Q, VLIM, qd_start=qd0)
+    end = [plan.duration, plan.duration + 1.0]
+    times = np.concatenate([np.arange(0.0, plan.duration, 0.013), end])
+    expected = np.array([plan.sample(t)[0] for t in times])
+    assert np.array_equal(plan.positions(times), expected)
