@@ -46,11 +46,6 @@ def pid_alive(pid):
     return True
 
 
-def node_command(name):
-    """Return the command that starts node ``name``: installed executable or ``python -m``."""
-    return executable_command(name)
-
-
 def installed():
     """Return True when the package is found on the ament index (launch.sh needs it)."""
     try:
@@ -96,8 +91,8 @@ class NodeProcess:
         self.name = name
         self.log_path = os.path.join(str(log_dir), f'{log_name or name}.log')
         if command is None:
-            command = node_command(name) + ['--ros-args', '--params-file',
-                                            os.path.join(CONFIG_DIR, f'{name}.yaml')]
+            command = executable_command(name) + ['--ros-args', '--params-file',
+                                                  os.path.join(CONFIG_DIR, f'{name}.yaml')]
             for key, value in (params or {}).items():
                 command += ['-p', f'{key}:={value}']
             command += list(ros_args)
@@ -257,7 +252,8 @@ class CanSimProcess(NodeProcess):
         self.link = str(link)
         self.control_path = self.link + '.control'
         super().__init__('can_sim', log_dir,
-                         command=node_command('can_sim') + ['--link', self.link] + list(args))
+                         command=executable_command('can_sim') + ['--link', self.link] +
+                         list(args))
 
     def wait_ready(self, timeout=30.0):
         """Wait until the link and the control socket exist; return True if they do."""

@@ -23,10 +23,6 @@ from mover6_control.motion.timing.trajectories import (JointTrajectory, point_to
 from mover6_control.validation import as_positive
 import numpy as np
 
-# ``MotionPlan.positions``: a segment's times in one array call from this many (fewer: one
-# ``sample`` each, cheaper than the array machinery for a handful).
-BATCH_ROWS = 8
-
 
 # --- segments: one piece of reference, sampled at tau in [0, duration] ----------------------
 
@@ -44,6 +40,12 @@ class ConstantVelocitySegment:
             return self.q1, np.zeros_like(self.q1)
         qd = (self.q1 - self.q0) / self.duration
         return self.q0 + qd * tau, qd
+
+    def positions(self, tau: np.ndarray) -> np.ndarray:
+        """Return ``q`` (m, n) at ``tau`` (m,) [s], as ``sample`` each."""
+        if self.duration <= 0.0:
+            return np.broadcast_to(self.q1, (tau.size, self.q1.size))
+        return self.q0 + (self.q1 - self.q0) / self.duration * tau[:, None]
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,6 +68,11 @@ class DecelerationSegment:
         return (self.q0 + self.qd0 * (tau - tau * tau / (2.0 * self.duration)),
                 self.qd0 * (1.0 - tau / self.duration))
 
+    def positions(self, tau: np.ndarray) -> np.ndarray:
+        """Return ``q`` (m, n) at ``tau`` (m,) [s], as ``sample`` each."""
+        ramp = (tau - tau * tau / (2.0 * self.duration))[:, None]
+        return np.where((tau >= self.duration)[:, None], self.q1, self.q0 + self.qd0 * ramp)
+
 
 @dataclass(frozen=True, eq=False)
 class TrajectorySegment:
@@ -80,6 +87,14 @@ class TrajectorySegment:
         if tau >= self.duration:
             return self.q1, np.zeros_like(self.q1)
         return self.trajectory.state(tau)
+
+    def positions(self, tau: np.ndarray) -> np.ndarray:
+        """Return ``q`` (m, n) at ``tau`` (m,) [s], as ``sample`` each: one trajectory call."""
+        out = np.empty((tau.size, self.q1.size))
+        moving = tau < self.duration
+        out[moving] = self.trajectory.sample(tau[moving])[0]
+        out[~moving] = self.q1
+        return out
 
 
 # --- the plan: segments in a row ------------------------------------------------------------
@@ -127,9 +142,9 @@ class MotionPlan:
         """
         Return ``q_ref`` (m, n) [rad] at ``times`` (m,) [s], increasing: ``sample(t)[0]`` each.
 
-        A ``TrajectorySegment``'s times in one array call of its trajectory (the time-optimal
-        plan of a large demand is one: the collision guard's samples cost one call, not one
-        per sample); other segments' per time, as ``sample``.
+        Each segment takes its times in one call (``positions`` of the segment): the collision
+        guard's samples of a large demand's time-optimal plan cost one trajectory call, not one
+        per sample.
         """
         times = np.asarray(times, dtype=float)
         out = np.empty((times.size, self.q_goal.shape[0]))
@@ -144,15 +159,7 @@ class MotionPlan:
         segments, first, count = np.unique(index, return_index=True, return_counts=True)
         for i, k, c in zip(segments.tolist(), first.tolist(), count.tolist()):
             rows = inside[k:k + c]
-            seg, start = self.segments[i], self._starts[i]
-            if c >= BATCH_ROWS and isinstance(seg, TrajectorySegment):
-                tau = np.maximum(0.0, times[rows] - start)
-                moving = tau < seg.duration
-                out[rows[moving]] = seg.trajectory.sample(tau[moving])[0]
-                out[rows[~moving]] = seg.q1
-            else:
-                for r in rows.tolist():
-                    out[r] = seg.sample(max(0.0, float(times[r]) - start))[0]
+            out[rows] = self.segments[i].positions(np.maximum(0.0, times[rows] - self._starts[i]))
         return out
 
     def waypoints_reached(self, t: float) -> int:

@@ -112,6 +112,14 @@ class TimedSegment:
         return np.asarray(self.spline(tau), dtype=float), np.asarray(self._velocity(tau),
                                                                      dtype=float)
 
+    def positions(self, tau: np.ndarray) -> np.ndarray:
+        """Return ``q`` (m, n) at ``tau`` (m,) [s], as ``sample`` each: one spline call."""
+        out = np.empty((tau.size, self.q1.size))
+        moving = tau < self.duration
+        out[moving] = self.spline(tau[moving])
+        out[~moving] = self.q1
+        return out
+
 
 def hermite_coefficients(h: np.ndarray, q0, v0, q1, v1, a0=None, a1=None) -> np.ndarray:
     """

@@ -22,11 +22,12 @@ from mover6_control.hardware.scaling import load_joints
 from mover6_control.kinematics.arm import mover6
 from mover6_control.nodes.messages.conversions import matrix_to_pose, status_values
 from mover6_control.parameters import DRIVER
+from mover6_control.resources import executable_command
 from mover6_control.tools.goal_cli import GoalClient
 from mover6_control.tools.goal_convention import poses_from_numbers
 import numpy as np
 import pytest
-from ros_testing import CanSimProcess, node_command, ready_client, Stack
+from ros_testing import CanSimProcess, ready_client, Stack
 from std_srvs.srv import Trigger
 
 pytestmark = pytest.mark.e2e
@@ -272,8 +273,8 @@ def test_readme_goal_arrives_in_fraction_of_max(rig, client):
 ])
 def test_the_driver_refuses_to_start_with_a_bad_observability_setting(tmp_path, params, reason):
     """Exit code 1 with the reason, before the bus is opened (the channel does not exist)."""
-    cmd = node_command('driver') + ['--ros-args', '-p', 'can_interface:=cpr_usb2can',
-                                    '-p', f'can_channel:={tmp_path}/no-such-port'] + params
+    cmd = executable_command('driver') + ['--ros-args', '-p', 'can_interface:=cpr_usb2can',
+                                          '-p', f'can_channel:={tmp_path}/no-such-port'] + params
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     out = done.stdout + done.stderr
     assert done.returncode == 1, out

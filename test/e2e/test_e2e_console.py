@@ -18,11 +18,12 @@ import tempfile
 
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk
+from mover6_control.resources import executable_command
 from mover6_control.tools.goal_cli import GoalClient
 from mover6_control.tools.goal_convention import pose_from_goal
 import numpy as np
 import pytest
-from ros_testing import node_command, NodeProcess, ready_client, Stack
+from ros_testing import NodeProcess, ready_client, Stack
 
 pytestmark = pytest.mark.e2e
 
@@ -75,7 +76,7 @@ def stack(out_dir):
     port = free_port()
     with Stack(out_dir) as running:
         running.nodes['console'] = NodeProcess(
-            'console', out_dir, command=node_command('console') + ['--port', str(port)])
+            'console', out_dir, command=executable_command('console') + ['--port', str(port)])
         running.url = f'http://127.0.0.1:{port}/'
         yield running
 

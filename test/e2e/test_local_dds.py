@@ -19,9 +19,10 @@ import sys
 
 from mover6_control.nodes.runtime import local_dds
 from mover6_control.resources import CONFIG_DIR
+from mover6_control.resources import executable_command
 import pytest
 import rclpy
-from ros_testing import node_command, Stack, wait_until
+from ros_testing import Stack, wait_until
 
 pytestmark = [pytest.mark.e2e, pytest.mark.host_network]
 
@@ -129,8 +130,8 @@ def test_a_localhost_client_without_the_profile_sees_and_drives_the_nodes(stack)
 
 def run_node_with(env, timeout=60):
     """Run sim_bridge with ``env``; return (exit code, output)."""
-    cmd = node_command('sim_bridge') + ['--ros-args', '--params-file',
-                                        os.path.join(CONFIG_DIR, 'sim_bridge.yaml')]
+    cmd = executable_command('sim_bridge') + ['--ros-args', '--params-file',
+                                              os.path.join(CONFIG_DIR, 'sim_bridge.yaml')]
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout,
                           cwd=ROOT)
     return done.returncode, done.stdout + done.stderr

@@ -8,10 +8,11 @@ import subprocess
 from diagnostic_msgs.msg import DiagnosticStatus
 from mover6_control.nodes.messages import conversions
 from mover6_control.nodes.runtime.qos import STATUS_QOS
+from mover6_control.resources import executable_command
 import numpy as np
 import pytest
 import rclpy
-from ros_testing import node_command, wait_until
+from ros_testing import wait_until
 from sensor_msgs.msg import JointState
 
 pytestmark = pytest.mark.e2e
@@ -51,7 +52,7 @@ def test_disk_full_stops_the_recording_with_the_reason(tmp_path):
     log = open(tmp_path / 'recorder.log', 'w')
     cmd = (['unshare', '-m', 'sh', '-c',
             'mount -t tmpfs -o size=256k tmpfs "$0" && exec "$@"', str(small)]
-           + node_command('recorder')
+           + executable_command('recorder')
            + ['--ros-args', '-p', f'path:={small}/bag', '-p', 'topics:=/joint_states'])
     proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT)
     node = rclpy.create_node('disk_full_tester')

@@ -220,3 +220,18 @@ def test_action_goal_timing_mapped_by_name():
     with pytest.raises(ValueError) as err:
         map_timing(trajectory, names)
     assert err.value.args[0] == Result.INVALID_GOAL and 'finite' in err.value.args[1]
+
+
+@pytest.mark.parametrize('extra', ['none', 'velocities', 'accelerations'])
+def test_positions_at_many_times_are_the_samples_bit_for_bit(extra):
+    # The collision guard samples a timed plan with MotionPlan.positions: one spline call for
+    # the segment's times, exactly what sample(t) gives at each, after the end included.
+    Q = rows(0.3, 0.6)
+    V = np.array([[0.2, 0.1, 0, 0, 0, 0], [0.0] * N])
+    A = np.array([[0.05, 0.0, 0, 0, 0, 0], [0.0] * N])
+    timing = Timing([1.5, 3.0], *{'none': (), 'velocities': (V,), 'accelerations': (V, A)}[extra])
+    plan = timed_plan(Q0, Q, timing, VLIM, A_MAX)
+    times = np.concatenate([np.arange(0.0, plan.duration, 0.007),
+                            [plan.duration, plan.duration + 1.0]])
+    expected = np.array([plan.sample(t)[0] for t in times])
+    assert np.array_equal(plan.positions(times), expected)
