@@ -519,7 +519,7 @@ def test_a_demand_before_the_first_states_waits_for_them():
                           and arm.status().get('state') == 'waiting_for_states')
         arm.demand_pub.publish(demand_messages.make_demands(GOAL[None], 'early-1'))
         # Taken off the queue.
-        assert spin_until(lambda: controller.demand_thread.queue.empty(), 10.0)
+        assert spin_until(lambda: controller.demand_thread.jobs.empty(), 10.0)
         spin_until(lambda: 'rejected' in arm.status(), 0.2)
         assert 'rejected' not in arm.status(), arm.status()
         arm.publishing = True
@@ -534,7 +534,7 @@ def test_a_demand_before_the_first_states_waits_for_them():
         # A fault that clears while a demand waits for valid states: the demand is taken (the
         # refusal named a fault that cleared a moment later; issue 21, item 6).
         arm.demand_pub.publish(demand_messages.make_demands(GOAL[None] / 3, 'early-3'))
-        assert spin_until(lambda: controller.demand_thread.queue.empty(), 10.0)   # taken
+        assert spin_until(lambda: controller.demand_thread.jobs.empty(), 10.0)   # taken
         arm.publishing = True
         assert spin_until(lambda: arm.status().get('goal_id') == 'early-3'), arm.status()
         assert 'rejected' not in arm.status(), arm.status()      # taken: refusals cleared

@@ -10,9 +10,9 @@ import threading
 
 from mover6_control.nodes.controller import tick_loop
 from mover6_control.nodes.controller.action_thread import ActionThread
-from mover6_control.nodes.controller.demand_thread import DemandThread
 from mover6_control.nodes.controller.node import ControllerNode
 from mover6_control.nodes.controller.tick_loop import TickLoop
+from mover6_control.nodes.runtime.job_thread import JobThread
 import pytest
 import rclpy
 
@@ -36,14 +36,14 @@ def test_threads_start_after_every_attribute_exists(monkeypatch):
 
     monkeypatch.setattr(tick_loop.threading, 'Thread', RunsAtOnce)
     monkeypatch.setattr(TickLoop, 'run_ticks', one_tick)
-    monkeypatch.setattr(DemandThread, 'demand_loop', lambda thread: ran.append('demand'))
+    monkeypatch.setattr(JobThread, 'take_jobs', lambda jobs: ran.append(jobs.thread.name))
     monkeypatch.setattr(ActionThread, 'serve', lambda actions: ran.append('actions'))
     context = rclpy.Context()
     rclpy.init(context=context)
     try:
         node = ControllerNode(context=context, namespace=NS)
         # The tick raises the others with it: they run before it.
-        assert ran == ['demand', 'actions', 'tick']
+        assert ran == ['controller_demands', 'actions', 'tick']
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=context)

@@ -17,7 +17,6 @@ the answers, the status, the event that says the core has valid states, the plan
 and the node's clock, logger and guard.
 """
 
-import queue
 import threading
 import time
 from typing import Callable, Optional, Union
@@ -33,6 +32,7 @@ from mover6_control.nodes.controller.plan_worker import PlanWorker
 from mover6_control.nodes.messages import demand_messages
 from mover6_control.nodes.messages.demand_acks import Answer
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
+from mover6_control.nodes.runtime.job_thread import JobThread
 from mover6_control.validation import short_text
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from std_msgs.msg import Float32MultiArray
@@ -92,46 +92,41 @@ class DemandThread:
         self.logger = logger
         self.guard = guard
         self.topic = topic
-        self.running = True
-        self.queue = queue.SimpleQueue()   # demands not yet taken; None: the thread ends
-        self.thread = threading.Thread(target=self.demand_loop, name='controller_demands',
-                                       daemon=True)
+        # The demands not yet taken, in order (``take_item``); closing it wakes a demand that
+        # waits for valid states.
+        self.jobs = JobThread('controller_demands', self.take_item, wake=has_states.set)
 
     def start(self) -> None:
         """Start the demand thread."""
-        self.thread.start()
+        self.jobs.start()
 
     def put(self, item: Item) -> None:
-        """Queue a demand (module docstring; ``demand_loop`` says what an item is)."""
-        self.queue.put(item)
+        """Queue a demand (module docstring; ``take_item`` says what an item is)."""
+        self.jobs.put(item)
+
+    def stop(self) -> None:
+        """Take no further demand (the one being taken ends as it would); see ``close``."""
+        self.jobs.stop()
 
     def close(self, timeout: float) -> None:
         """End the thread: a demand waiting for states stops waiting; wait ``timeout`` [s]."""
-        self.running = False
-        self.queue.put(None)
-        self.has_states.set()
-        if self.thread.is_alive() and self.thread is not threading.current_thread():
-            self.thread.join(timeout=timeout)
+        self.jobs.close(timeout)
 
-    def demand_loop(self) -> None:
+    def take_item(self, item: Item) -> None:
         """
-        Take the queued demands in order until ``None`` comes (the node closes).
+        Take one queued item; never raises (a demand is refused with its reason instead).
 
         An item is a /joint_demands message, ``(message, Timing)`` (a goal's ``time_from_start``
         and velocities, ``control.timed_plan``), or a callable from the action server that
         returns one of those, or None when it refused the goal: a goal of 10,000 points is
         converted here, not in the executor thread that must keep taking /joint_states.
         """
-        while True:
-            msg = self.queue.get()
-            if msg is None or not self.running:
+        if callable(item):
+            item = item()
+            if item is None:
                 return
-            if callable(msg):
-                msg = msg()
-                if msg is None:
-                    continue
-            msg, timing = msg if isinstance(msg, tuple) else (msg, None)
-            self.take_demand(msg, timing)   # never raises: refuses with a reason instead
+        msg, timing = item if isinstance(item, tuple) else (item, None)
+        self.take_demand(msg, timing)
 
     def take_demand(self, msg: Float32MultiArray, timing: Optional[Timing] = None) -> None:
         """

@@ -261,7 +261,7 @@ class ControllerNode(Node):
             return
         self.destroyed = True
         self.ticks.running = False
-        self.demand_thread.running = False
+        self.demand_thread.stop()
         self.plan_worker.close()    # a demand planned there is refused: its thread can end
         self.demand_thread.close(THREADS_JOIN_TIMEOUT)   # a demand waiting for states: ends
         self.goals.close()          # an action goal waiting for its demand stops waiting

@@ -8,8 +8,6 @@ goal that ~/stop dropped is refused wherever it is. The node goes on reading sta
 ~/stop and the controller's answers while a goal is planned.
 """
 
-import queue
-import threading
 import time
 from typing import Callable, Optional
 
@@ -20,6 +18,7 @@ from mover6_control.nodes.planner.delivery import DemandDelivery
 from mover6_control.nodes.planner.goal_book import GoalBook
 from mover6_control.nodes.planner.joint_states import LatestJointStates
 from mover6_control.nodes.planner.status_publisher import PlannerStatus
+from mover6_control.nodes.runtime.job_thread import JobThread
 from mover6_control.planning.planner_core import PlannerSettings
 import numpy as np
 from rclpy.impl.rcutils_logger import RcutilsLogger
@@ -49,14 +48,18 @@ class PlanningThread:
         self.settings = settings
         self.parameter = parameter
         self.logger = logger
-        self.running = True
-        self.jobs = queue.SimpleQueue()   # goals not yet planned; None: the thread ends
-        self.thread = threading.Thread(target=self.plan_loop, name='planner_planning',
-                                       daemon=True)
+        # The goals not yet planned, in order (``take_job``); closing it wakes a goal that
+        # waits for joint states.
+        self.jobs = JobThread('planner_planning', self.take_job, wake=states.came.set)
+
+    @property
+    def running(self) -> bool:
+        """Return False once the thread is closed: a goal that waits for states stops waiting."""
+        return self.jobs.running
 
     def start(self) -> None:
         """Start the planning thread."""
-        self.thread.start()
+        self.jobs.start()
 
     def put(self, goal: dict, motion: str, plan_fn: Callable, received: float) -> None:
         """Queue ``goal`` (shape ``motion``, plan function ``plan_fn(q, settings)``)."""
@@ -64,23 +67,15 @@ class PlanningThread:
 
     def close(self, timeout: float) -> None:
         """End the thread (a goal being planned finishes first); wait ``timeout`` [s]."""
-        self.running = False
-        self.jobs.put(None)
-        self.states.came.set()
-        if self.thread.is_alive() and self.thread is not threading.current_thread():
-            self.thread.join(timeout=timeout)
+        self.jobs.close(timeout)
 
-    def plan_loop(self) -> None:
-        """Plan the queued goals in order until the thread closes."""
-        while self.running:
-            job = self.jobs.get()
-            if job is None or not self.running:
-                return
-            try:
-                self.plan_goal(*job)
-            except Exception as err:  # noqa: B902 - no goal ends without a status
-                self.status.refuse(job[1], f'{type(err).__name__}: {err}', 'internal_error', {},
-                                   job[0])
+    def take_job(self, job: tuple) -> None:
+        """Plan one queued goal; never raises (no goal ends without a status)."""
+        try:
+            self.plan_goal(*job)
+        except Exception as err:  # noqa: B902 - no goal ends without a status
+            self.status.refuse(job[1], f'{type(err).__name__}: {err}', 'internal_error', {},
+                               job[0])
 
     def plan_goal(self, goal: dict, motion: str, plan_fn: Callable, received: float) -> None:
         """Plan one goal, then send its demand and say planned, or say why not."""
