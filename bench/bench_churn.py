@@ -81,6 +81,7 @@ bench/results/churn.json.
 """
 
 import argparse
+import faulthandler
 import json
 import os
 import re
@@ -101,6 +102,8 @@ CHURN = 40
 CHURN_QUICK = 16
 AT_ONCE = 4                  # churn processes alive at the same time
 CHURN_TIMEOUT = 30.0         # [s] a churn process that saw no status by then is killed
+EXIT_HANG = 5.0              # [s] a churn process still exiting this long after its line dumps
+SAW = re.compile(r'churn (\d+): saw a status')   # lines of two processes may run together
 MOTIONS = np.array([[0.5, -0.4, 0.3, 0.4, -0.3, 0.6], [-0.4, 0.3, -0.3, -0.4, 0.4, -0.5]])
 HALT_LINE = '/JointJog command stale: joints halted'
 LOG_STAMP = re.compile(r'^\[\w+\] \[(\d+\.\d+)\]')   # a ROS log line: [LEVEL] [wall time]
@@ -142,8 +145,12 @@ def echo_main(topic):
         rclpy.spin_once(node, timeout_sec=0.1)
     seen = 'saw a status' if got else f'no status within {CHURN_TIMEOUT:g} s'
     print(f'churn {os.getpid()}: {seen}', flush=True)
+    # A process still leaving the graph EXIT_HANG s later says where it waits (one did, once in
+    # some thirty runs: it had seen its status, then was killed before it exited).
+    faulthandler.dump_traceback_later(EXIT_HANG, exit=False)
     node.destroy_node()
     rclpy.shutdown()
+    faulthandler.cancel_dump_traceback_later()
     return 0 if got else 1
 
 
@@ -152,7 +159,13 @@ class Churn:
 
     def __init__(self, topic, total, log_dir):
         self.topic, self.left, self.log_dir = topic, total, log_dir
-        self.running, self.exit_codes = [], []
+        self.running, self.exit_codes, self.pids, self.killed = [], [], [], []
+
+    def saw_status(self):
+        """Return the pids of the processes that printed that they saw a status."""
+        with open(os.path.join(self.log_dir, 'churn.log')) as log:
+            printed = {int(pid) for pid in SAW.findall(log.read())}
+        return [pid for pid in self.pids if pid in printed]
 
     def step(self):
         """Reap finished processes and start new ones; return True while any is left."""
@@ -164,6 +177,7 @@ class Churn:
                 proc.kill()
                 proc.wait(5.0)
                 self.exit_codes.append('killed')
+                self.killed.append(proc.pid)
                 self.running.remove((proc, started))
         while self.left > 0 and len(self.running) < AT_ONCE:
             self.left -= 1
@@ -172,6 +186,7 @@ class Churn:
                     [sys.executable, '-m', 'bench.bench_churn', '--echo', self.topic],
                     stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)
             self.running.append((proc, time.monotonic()))
+            self.pids.append(proc.pid)
         return self.left > 0 or bool(self.running)
 
     def stop(self):
@@ -180,6 +195,7 @@ class Churn:
             proc.kill()
             proc.wait(5.0)
             self.exit_codes.append('killed')
+            self.killed.append(proc.pid)
         self.running = []
 
 
@@ -366,12 +382,16 @@ def run_variant(name, env_extra, params, total, log_dir, offcpu=False, bridge_pa
             longest_waits.append({'ms': round(duration * 1e3, 1), 'thread': thread,
                                   'state': state, 'frames': frames[:6]})
     results = list(motions.values())
+    saw = churn.saw_status()
     return {'variant': name, 'env': env_extra, 'params': params,
             'bridge_params': bridge_params or {}, 'seconds': t1 - t0,
             'ticks': int(len(ticks)),
             'churn_processes': total,
-            'churn_saw_status': sum(1 for c in churn.exit_codes if c == 0),
+            'churn_saw_status': len(saw),
             'churn_exit_codes': churn.exit_codes,
+            # saw its status, then did not leave the graph by the time it was killed (rclpy's
+            # destroy_node / shutdown: the process's own leaving, not the controller's tick)
+            'churn_killed_after_seeing': [pid for pid in churn.killed if pid in saw],
             'max_tick_gap_ms': float(np.max(periods) * 1e3),
             'period_error_p50_ms': float(np.median(err) * 1e3),
             'period_error_p99_ms': float(np.percentile(err, 99) * 1e3),

@@ -14,6 +14,7 @@ configuration by default), inside a private network namespace and again on the h
 
 import os
 import sys
+import warnings
 
 from source_tree import ROOT
 sys.path.insert(0, ROOT)
@@ -29,12 +30,18 @@ def test_joining_processes_stall_neither_tick_nor_motion(tmp_path):
     row = bench_churn.run_variant('test', {}, {}, CHURN, str(tmp_path))
     figures = {k: row[k] for k in ('max_tick_gap_ms', 'ticks_over_200ms', 'bridge_halts',
                                    'motion_results', 'churn_saw_status', 'churn_exit_codes',
-                                   'log_dir')}
+                                   'churn_killed_after_seeing', 'log_dir')}
+    with open(os.path.join(row['log_dir'], 'churn.log')) as log:
+        printed = f'figures: {figures}\nchurn.log:\n{log.read()[-6000:]}'
     if row['churn_saw_status'] != CHURN:
         # What the churn processes printed (each says whether it saw a status, or why it
         # died): shown in full with the failure, as pytest shortens the assertion's message.
-        with open(os.path.join(row['log_dir'], 'churn.log')) as log:
-            print(f'figures: {figures}\nchurn.log:\n{log.read()[-6000:]}')
+        print(printed)
+    elif row['churn_killed_after_seeing']:
+        # Saw its status, then hung leaving the graph (rclpy's destroy_node / shutdown in the
+        # churn process; once in some thirty runs) and was killed: that process's own exit, not
+        # the controller's tick, so a warning with where it waited (its faulthandler dump).
+        warnings.warn(f'a churn process hung on its way out:\n{printed}')
     assert row['churn_saw_status'] == CHURN, figures
     assert row['ticks_over_200ms'] == 0, figures
     assert row['bridge_halts'] == 0, figures
