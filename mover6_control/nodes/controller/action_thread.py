@@ -25,7 +25,8 @@ did when the controller's executor stopped: the controller closed.
 
 import threading
 
-from mover6_control.nodes.controller.trajectory_server import FollowJointTrajectoryServer
+from mover6_control.nodes.controller.trajectory_server import (ControllerParts,
+                                                               FollowJointTrajectoryServer)
 from mover6_control.nodes.runtime.shutdown import SPIN_SLICE
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -37,14 +38,19 @@ JOIN_TIMEOUT = 2.0
 class ActionThread:
     """The controller's ``FollowJointTrajectoryServer`` served in a thread (module docstring)."""
 
-    def __init__(self, controller: Node):
-        """Make the node, the executor and the server for ``controller``; ``start`` serves it."""
+    def __init__(self, controller: Node, parts: ControllerParts):
+        """
+        Make the node, the executor and the server of ``controller``; ``start`` serves it.
+
+        ``controller`` names the action node (namespace, context, the action's name);
+        ``parts`` are what the server uses of it.
+        """
         self.node = Node(f'{controller.get_name()}_actions',
                          namespace=controller.get_namespace(), context=controller.context,
                          start_parameter_services=False, use_global_arguments=False)
         self.executor = SingleThreadedExecutor(context=controller.context)
         self.server = FollowJointTrajectoryServer(
-            controller, self.node, self.executor,
+            parts, self.node, self.executor,
             f'{controller.get_fully_qualified_name()}/follow_joint_trajectory')
         self.executor.add_node(self.node)
         self.running = True

@@ -52,6 +52,7 @@ from mover6_control.nodes.controller.states_sources import StatesSources
 from mover6_control.nodes.controller.status_publisher import StatusPublisher
 from mover6_control.nodes.controller.tick_figures import TickFigures
 from mover6_control.nodes.controller.tick_loop import TickLoop
+from mover6_control.nodes.controller.trajectory_server import ControllerParts
 from mover6_control.nodes.messages import cdr, conversions, demand_messages
 from mover6_control.nodes.runtime import params, shutdown
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
@@ -117,7 +118,11 @@ class ControllerNode(Node):
         self.guard.service(Trigger, '~/reset', self.on_reset)
         self.sources = StatesSources(self, 'joint_states', self.core, self.lock, self.guard,
                                      self.now)   # a second publisher of the states: hold
-        self.actions = ActionThread(self)   # the action server (its own node and thread)
+        # The action server (its own node and thread), with what it uses of the controller.
+        self.actions = ActionThread(self, ControllerParts(
+            tuple(self.joint_names), self.core, self.lock, self.goals, self.demand_thread.put,
+            self.guard, self.get_clock(), self.get_logger(), self.now, lambda: self.running,
+            lambda: self.last_q, lambda name: self.get_parameter(name).value))
 
         # Started once every part exists (a real-time tick runs at once); the others first, so
         # the tick's raise puts them one below (realtime.py).

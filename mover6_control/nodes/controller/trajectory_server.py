@@ -38,22 +38,29 @@ by a node, an executor and a thread of its own (``nodes/controller/action_thread
 10,000 points is built as Python objects there, not in the thread that takes /joint_states.
 """
 
-from typing import Optional, Sequence
+from dataclasses import dataclass
+import threading
+from typing import Callable, Optional, Sequence, Tuple
 
 from control_msgs.action import FollowJointTrajectory
+from mover6_control.control.controller_core import ControllerCore
 from mover6_control.control.motion_plan import MotionPlan
 from mover6_control.control.status import (FINAL_RESULTS, MotionResult, State, StatusKey,
                                            TIMING_AS_GIVEN)
 from mover6_control.control.timed_plan import Timing
+from mover6_control.nodes.controller.goal_ledger import GoalLedger
 from mover6_control.nodes.controller.trajectory_goal import (ended_code, map_goal, map_timing,
                                                              Result, tolerances, violations)
 from mover6_control.nodes.messages import demand_messages
+from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.validation import short_text
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.clock import Clock
 from rclpy.duration import Duration
 from rclpy.executors import Executor
+from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.task import Future
 from trajectory_msgs.msg import JointTrajectoryPoint
@@ -67,16 +74,44 @@ ACCEPT_PER_POINT = 0.005
 ENDED_AFTER = (State.EXECUTING, State.SETTLING, State.STOPPING)
 
 
-class FollowJointTrajectoryServer:
-    """The action server of a ``ControllerNode``; see the module docstring."""
+@dataclass(frozen=True)
+class ControllerParts:
+    """
+    What the action server uses of the controller, given by the controller node.
 
-    def __init__(self, node, server_node: Node, executor: Executor, name: str):
+    ``core`` is read and told to stop only under ``lock``; ``put_demand`` queues a goal's
+    conversion on the demand thread, whose answer ``goals`` (the ledger) carries; ``now()`` is
+    the node clock's time [s] and ``clock`` that clock (the server's waits run on it);
+    ``running()`` says whether the controller still runs, ``last_q()`` gives the latest valid
+    joint positions (or None) and ``parameter(name)`` a parameter's value (the default
+    tolerances); ``guard`` wraps the server's callbacks as every other of the controller.
+    """
+
+    joint_names: Tuple[str, ...]
+    core: ControllerCore
+    lock: threading.RLock
+    goals: GoalLedger
+    put_demand: Callable[[Callable], None]
+    guard: CallbackGuard
+    clock: Clock
+    logger: RcutilsLogger
+    now: Callable[[], float]
+    running: Callable[[], bool]
+    last_q: Callable[[], Optional[Sequence[float]]]
+    parameter: Callable[[str], object]
+
+
+class FollowJointTrajectoryServer:
+    """The action server of the controller; see the module docstring."""
+
+    def __init__(self, controller: ControllerParts, server_node: Node, executor: Executor,
+                 name: str):
         """
-        Serve the action ``name`` for ``node`` (a ``ControllerNode``) on ``server_node``.
+        Serve the action ``name`` for ``controller`` on ``server_node``.
 
         ``executor`` spins ``server_node`` (``controller_actions``: not the controller's).
         """
-        self.node = node
+        self.controller = controller
         self.server_node = server_node
         self.executor = executor
         self.group = ReentrantCallbackGroup()
@@ -84,7 +119,7 @@ class FollowJointTrajectoryServer:
         # Through the controller's guard (callback_guard); rclpy's own catches what execute raises.
         self.server = ActionServer(
             server_node, FollowJointTrajectory, name, self.execute,
-            callback_group=self.group, **node.guard.action_callbacks(
+            callback_group=self.group, **controller.guard.action_callbacks(
                 lambda goal: GoalResponse.ACCEPT, lambda handle: CancelResponse.ACCEPT))
 
     def destroy(self) -> None:
@@ -94,9 +129,9 @@ class FollowJointTrajectoryServer:
     async def sleep(self, seconds: float, future: Optional[Future] = None) -> None:
         """Wait ``seconds`` on the node's clock, or until ``future`` is done, not holding it."""
         future = Future() if future is None else future
-        timer = self.node.guard.timer(
+        timer = self.controller.guard.timer(
             seconds, lambda: future.done() or future.set_result(None), on=self.server_node,
-            source='action wait', callback_group=self.group, clock=self.node.get_clock())
+            source='action wait', callback_group=self.group, clock=self.controller.clock)
         try:
             await future
         finally:
@@ -107,21 +142,21 @@ class FollowJointTrajectoryServer:
         getattr(handle, {'abort': 'abort', 'succeed': 'succeed', 'cancel': 'canceled'}[how])()
         # Two call sites: rclpy refuses one call site logging at two severities.
         if code == Result.SUCCESSFUL:
-            self.node.get_logger().info(f'follow_joint_trajectory: {text}')
+            self.controller.logger.info(f'follow_joint_trajectory: {text}')
         else:
-            self.node.get_logger().warning(f'follow_joint_trajectory: {text}')
+            self.controller.logger.warning(f'follow_joint_trajectory: {text}')
         return Result(error_code=code, error_string=text)
 
     async def execute(self, handle: ServerGoalHandle) -> Result:
         """Run one goal to its end; return its ``Result``."""
-        node = self.node
+        node = self.controller
         names = node.joint_names
         goal = handle.request
         goal_id = 'fjt-' + bytes(handle.goal_id.uuid).hex()[:12]
         path_tol = tolerances(goal.path_tolerance, names,
-                              node.get_parameter('path_tolerance').value)
+                              node.parameter('path_tolerance'))
         goal_tol = tolerances(goal.goal_tolerance, names,
-                              node.get_parameter('goal_tolerance').value)
+                              node.parameter('goal_tolerance'))
         self.active = handle
         mapped = {}              # what the demand thread made of the goal
 
@@ -138,8 +173,8 @@ class FollowJointTrajectoryServer:
             return (demand, mapped['timing']) if mapped['timing'].timed else demand
 
         taken = node.goals.expect(goal_id, self.executor)   # done when taken or refused
-        node.demand_thread.put(convert)
-        if node.running:
+        node.put_demand(convert)
+        if node.running():
             await self.sleep(ACCEPT_TIMEOUT + ACCEPT_PER_POINT * len(goal.trajectory.points),
                              taken)
         # The demand thread commits under the ledger's lock: taken, refused, or never.
@@ -154,7 +189,7 @@ class FollowJointTrajectoryServer:
         rows, timing = mapped['rows'], mapped['timing']
         note = self.timing_note(goal_id, motion_id, timing)
         stopping = None          # why the arm is being stopped: (code, text, how)
-        while node.running:
+        while node.running():
             with node.lock:
                 status = node.core.status()
                 plan = node.core.plan
@@ -166,7 +201,7 @@ class FollowJointTrajectoryServer:
                 return self.finish(handle, Result.INVALID_GOAL,
                                    f'goal {goal_id} preempted by {other} '
                                    f'(motion {values[StatusKey.MOTION_ID]})')
-            desired, actual = self.reference(plan, motion_id), node.last_q
+            desired, actual = self.reference(plan, motion_id), node.last_q()
             if actual is not None and desired is not None:
                 error = [d - a for d, a in zip(desired[0], actual)]
                 handle.publish_feedback(self.feedback(desired, actual, error))
@@ -187,7 +222,7 @@ class FollowJointTrajectoryServer:
                     return self.finish(handle, *stopping)
                 if result == MotionResult.ARRIVED:
                     q_goal = [float(v) for v in rows[-1]]
-                    q = node.last_q
+                    q = node.last_q()
                     bad = violations([g - a for g, a in zip(q_goal, q)], goal_tol, names)
                     if bad:
                         return self.finish(handle, Result.GOAL_TOLERANCE_VIOLATED,
@@ -209,16 +244,16 @@ class FollowJointTrajectoryServer:
         """
         if not timing.timed:
             return ''
-        with self.node.lock:
-            values = self.node.core.status().values
+        with self.controller.lock:
+            values = self.controller.core.status().values
         note = (values.get(StatusKey.TIMING, '') if int(values[StatusKey.MOTION_ID]) == motion_id
                 else '')
         if note == TIMING_AS_GIVEN:
-            self.node.get_logger().info(f'follow_joint_trajectory: goal {goal_id}: '
+            self.controller.logger.info(f'follow_joint_trajectory: goal {goal_id}: '
                                         f'time_from_start followed ({timing.times[-1]:.3f} s)')
             return ''
         if note:
-            self.node.get_logger().warning(f'follow_joint_trajectory: goal {goal_id}: {note}')
+            self.controller.logger.warning(f'follow_joint_trajectory: goal {goal_id}: {note}')
             return f'; timing: {note}'
         return ''
 
@@ -228,10 +263,10 @@ class FollowJointTrajectoryServer:
 
         ``t`` [s] is the time into the plan, the feedback's ``time_from_start``.
         """
-        start = self.node.goals.start_of(motion_id)
+        start = self.controller.goals.start_of(motion_id)
         if plan is None or start is None:
             return None
-        t = min(max(self.node.now() - start, 0.0), plan.duration)
+        t = min(max(self.controller.now() - start, 0.0), plan.duration)
         q_ref, qd_ref = plan.sample(t)
         return [float(v) for v in q_ref], [float(v) for v in qd_ref], t
 
@@ -239,8 +274,8 @@ class FollowJointTrajectoryServer:
                  error: Sequence[float]) -> FollowJointTrajectory.Feedback:
         """Build a feedback message (joint order: the controller's)."""
         msg = FollowJointTrajectory.Feedback()
-        msg.header.stamp = self.node.get_clock().now().to_msg()
-        msg.joint_names = list(self.node.joint_names)
+        msg.header.stamp = self.controller.clock.now().to_msg()
+        msg.joint_names = list(self.controller.joint_names)
         q_ref, qd_ref, t = desired
         msg.desired = JointTrajectoryPoint(positions=q_ref, velocities=qd_ref)
         msg.desired.time_from_start = Duration(seconds=t).to_msg()
