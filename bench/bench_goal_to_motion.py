@@ -12,12 +12,20 @@ run, toppra (a bench requirement) times the same 1000 waypoints per goal (the pl
 the joint positions the goal started at, computed here) as ``bench motion``'s
 ``linear_goal_1000`` calls it: a cubic spline with toppra's own grid, the Mover6 speed limits and
 1 rad/s^2; the ratio is ours end to end over toppra's timing alone (the issue's goal: at most 10).
+
+Where the time goes: this process also hears /joint_demands, so each goal's latency splits into
+the planner's part (the publish to the goal's demand arriving here, as at the controller) and
+the controller's (that demand to 'executing'); and after the run, in this process, the stages'
+CPU time on the second goal's plan (medians of 7: the plan's path IK and collision check, the
+demand message both ways, the controller's timing law, its collision guard, the pickling to
+and from its plan worker). Both go into the JSON (``stages``).
 Run: ``./run.sh bench goal_to_motion [--quick] [--goals N]``; writes
 bench/results/goal_to_motion.json (with the load average).
 """
 
 import argparse
 import os
+import pickle
 import sys
 import tempfile
 import time
@@ -57,10 +65,19 @@ class Probe:
         rclpy.init(args=['--ros-args', '-r', f'__ns:=/{namespace}'])
         self.client = GoalClient(name='bench_goal_to_motion')
         self.executing = []      # (perf_counter, motion_id) of each status saying 'executing'
+        self.demands = []        # (perf_counter, goal id) of each /joint_demands heard
         self.status = {}
         qos = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.client.create_subscription(DiagnosticStatus, 'controller/status', self.on_status,
                                         qos)
+        from mover6_control.nodes.messages.demand_messages import demand_id_from_msg
+        from std_msgs.msg import Float32MultiArray
+        self.demand_id = demand_id_from_msg
+        self.client.create_subscription(Float32MultiArray, 'joint_demands', self.on_demand, 10)
+
+    def on_demand(self, msg):
+        """Note when a demand arrives, with its goal id."""
+        self.demands.append((time.perf_counter(), self.demand_id(msg)))
 
     def on_status(self, msg):
         """Note when a status says 'executing', with its motion id."""
@@ -75,7 +92,9 @@ class Probe:
 
     def goal(self, T_goal, timeout=20.0):
         """
-        Publish one pose goal; return (seconds to 'executing', joint positions at the publish).
+        Publish one pose goal; return (seconds to 'executing', q at the publish, to demand).
+
+        The last: seconds from the publish to the goal's demand arriving here.
 
         Waits for the motion's end (the controller idle again with a result) before returning.
         """
@@ -87,6 +106,7 @@ class Probe:
         msg.header.frame_id = 'base_link'
         msg.pose = self.conversions.matrix_to_pose(T_goal)
         self.executing.clear()
+        self.demands.clear()
         t0 = time.perf_counter()
         client.pose_pub.publish(msg)
         if not client.spin_until(lambda: any(m > before for _, m in self.executing), timeout):
@@ -94,6 +114,8 @@ class Probe:
                                f'{client.values(client.planner_status)}, controller '
                                f'{self.status}')
         started = next(t for t, m in self.executing if m > before)
+        # The goal's demand (the planner sends it again until the controller answers).
+        demand = min((t for t, _ in self.demands), default=float('nan'))
         motion = next(m for _, m in self.executing if m > before)
         if not client.spin_until(lambda: self.status.get('state') == 'idle'
                                  and self.motion_id() == motion
@@ -102,7 +124,7 @@ class Probe:
         # The planner's 'planned' (its prediction, after the demand) before the next goal.
         client.spin_until(lambda: client.values(client.planner_status).get('result')
                           == 'planned', 10.0)
-        return started - t0, q_start
+        return started - t0, q_start, demand - t0
 
     def close(self):
         """Destroy the node; shut rclpy down."""
@@ -130,6 +152,75 @@ def toppra_times(starts_goals, repeats):
     return out
 
 
+def median_ms(fn, repeats=7):
+    """Return the median wall time [ms] of ``fn()`` over ``repeats`` calls."""
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times) * 1e3)
+
+
+def stage_times(q_start, T_goal):
+    """
+    Return the CPU stages [ms] of one goal's way, in this process (medians of 7).
+
+    The planner's plan (``plan_pose_goal``) with its path IK (``_solve``) and collision check
+    (``check_plan_collision``) timed inside it, the demand message made and read, the
+    controller's job (``PlanJob.run``: the timing law) without and with its collision guard,
+    and the pickling of the job and the plan to and from the plan worker.
+    """
+    from mover6_control.control.collision_guard import CollisionGuard
+    from mover6_control.control.demand_intake import PlanJob
+    from mover6_control.control.profiles import LawConfig
+    from mover6_control.kinematics.arm import mover6
+    from mover6_control.nodes.messages import demand_messages
+    from mover6_control.planning import planner_core
+    arm = mover6()
+    settings = planner_core.PlannerSettings(n_waypoints=WAYPOINTS)
+    checker = planner_core.make_checker(arm, settings)
+    inner = {'_solve': [], 'check_plan_collision': []}
+    originals = {name: getattr(planner_core, name) for name in inner}
+
+    def timed(name):
+        def call(*args, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return originals[name](*args, **kwargs)
+            finally:
+                inner[name].append(time.perf_counter() - t0)
+        return call
+    for name in inner:
+        setattr(planner_core, name, timed(name))
+    try:
+        plan_ms = median_ms(lambda: planner_core.plan_pose_goal(arm, q_start, T_goal, 'linear',
+                                                                settings, checker))
+    finally:
+        for name, fn in originals.items():
+            setattr(planner_core, name, fn)
+    plan = planner_core.plan_pose_goal(arm, q_start, T_goal, 'linear', settings, checker)
+    msg = demand_messages.make_demands(plan.q, 'g', '')
+    job = PlanJob(LawConfig(), q_start, demand_messages.demands_from_msg(msg, arm.n_joints),
+                  arm.velocity_limits, None, None, arm.lower, arm.upper)
+    guard = CollisionGuard(arm)
+    motion = job.run(None)
+    return {
+        'plan_ms': plan_ms,
+        'plan_path_ik_ms': float(np.median(inner['_solve']) * 1e3),
+        'plan_collision_ms': float(np.median(inner['check_plan_collision']) * 1e3),
+        'make_demands_ms': median_ms(lambda: demand_messages.make_demands(plan.q, 'g', '')),
+        'demands_from_msg_ms': median_ms(
+            lambda: demand_messages.demands_from_msg(msg, arm.n_joints)),
+        'controller_law_ms': median_ms(lambda: job.run(None)),
+        'controller_guard_ms': median_ms(lambda: guard(motion[0])),
+        'worker_pickles_ms': (
+            median_ms(lambda: pickle.loads(pickle.dumps((job, guard), pickle.HIGHEST_PROTOCOL)))
+            + median_ms(lambda: pickle.loads(pickle.dumps(('plan', motion),
+                                                          pickle.HIGHEST_PROTOCOL)))),
+        'law_profile': LawConfig().profile, 'waypoints': int(len(plan.q))}
+
+
 def main(argv=None):
     """Start the stack, send the goals, time toppra; print, write goal_to_motion.json."""
     from ros_testing import Stack
@@ -146,7 +237,7 @@ def main(argv=None):
     print(f'load average {load_start[0]:.2f} {load_start[1]:.2f} {load_start[2]:.2f} on '
           f'{os.cpu_count()} CPUs; logs in {log_dir}', flush=True)
     A, B = poses()
-    latencies, starts_goals = [], []
+    latencies, starts_goals, to_demand = [], [], []
     probe = None
     stack = Stack(log_dir, planner={'n_waypoints': WAYPOINTS, 'motion': 'linear'},
                   ros_args={name: ('-r', f'__ns:=/{namespace}')
@@ -160,10 +251,12 @@ def main(argv=None):
         probe.goal(A)                     # warm-up from home, not counted
         for i in range(goals):
             T_goal = B if i % 2 == 0 else A
-            seconds, q_start = probe.goal(T_goal)
+            seconds, q_start, demand = probe.goal(T_goal)
             latencies.append(seconds)
+            to_demand.append(demand)
             starts_goals.append((q_start, T_goal))
-            print(f'goal {i + 1}: {seconds * 1e3:.1f} ms', flush=True)
+            print(f'goal {i + 1}: {seconds * 1e3:.1f} ms (demand at {demand * 1e3:.1f} ms)',
+                  flush=True)
     finally:
         if probe is not None:
             probe.close()
@@ -173,6 +266,12 @@ def main(argv=None):
     lat = np.array(latencies) * 1e3
     median, p95 = float(np.median(lat)), float(np.percentile(lat, 95))
     peer_ms = float(np.median(peer))
+    demand = np.array(to_demand) * 1e3
+    stages = {'goal_to_demand_ms': demand.tolist(),
+              'demand_to_executing_ms': (lat - demand).tolist(),
+              'goal_to_demand_median_ms': float(np.nanmedian(demand)),
+              'demand_to_executing_median_ms': float(np.nanmedian(lat - demand)),
+              'in_process': stage_times(*starts_goals[1 % len(starts_goals)])}
     ratio = median / peer_ms
     print(f'\n{WAYPOINTS}-waypoint linear goals through sim_bridge, controller, planner over '
           f'DDS, /pose_goal published to the controller executing, {goals} goals')
@@ -180,6 +279,10 @@ def main(argv=None):
           f'the same waypoints {peer_ms:.1f} ms (per direction: '
           f'{", ".join(f"{p:.1f}" for p in peer)} ms); ours / toppra {ratio:.1f}x (median), '
           f'{p95 / peer_ms:.1f}x (p95); goal <= {GOAL:g}x: {"met" if ratio <= GOAL else "MISSED"}')
+    print(f'planner (publish to the demand here) median {stages["goal_to_demand_median_ms"]:.1f}'
+          f' ms, controller (demand to executing) {stages["demand_to_executing_median_ms"]:.1f}'
+          ' ms; in this process [ms]: ' + ', '.join(
+              f'{k[:-3]} {v:.1f}' for k, v in stages['in_process'].items() if k.endswith('_ms')))
     print(f'load average at the end of the goals {load_goals[0]:.2f} {load_goals[1]:.2f} '
           f'{load_goals[2]:.2f}')
     write_json('goal_to_motion', {
@@ -188,7 +291,7 @@ def main(argv=None):
         'latencies_ms': lat.tolist(), 'median_ms': median, 'p95_ms': p95,
         'max_ms': float(lat.max()), 'toppra_ms_per_direction': peer.tolist(),
         'toppra_ms': peer_ms, 'ratio_median': ratio, 'ratio_p95': p95 / peer_ms,
-        'goal_ratio': GOAL, 'goal_met': ratio <= GOAL})
+        'goal_ratio': GOAL, 'goal_met': ratio <= GOAL, 'stages': stages})
     return 0
 
 

@@ -162,6 +162,11 @@ class CollisionChecker:
         self.data = mujoco.MjData(self.model)
         self._qadr = np.array([self.model.jnt_qposadr[mujoco.mj_name2id(
             self.model, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in arm.joint_names])
+        # The joints' positions as one slice of qpos when they are in order (a view: no copy).
+        first = int(self._qadr[0]) if len(self._qadr) else 0
+        self._qslice = (slice(first, first + len(self._qadr))
+                        if np.array_equal(self._qadr, first + np.arange(len(self._qadr)))
+                        else None)
         names = {shape.name.replace(' ', '_'): shape.name for shape in self.geometry.shapes}
         names.update({box.name.replace(' ', '_'): box.name for box in self.geometry.keep_out})
         self._names, kind = [], []
@@ -173,19 +178,35 @@ class CollisionChecker:
         self._table_margin = self.geometry.table_margin
 
     def _contacts(self, Q):
-        """Return (sample, geom1, geom2, distance) of every contact within the horizon."""
-        m, d, qadr = self.model, self.data, self._qadr
-        rows = []
-        for k, q in enumerate(Q):
-            d.qpos[qadr] = q
-            mujoco.mj_kinematics(m, d)
-            mujoco.mj_collision(m, d)
-            if d.ncon:
+        """
+        Return (sample, geom1, geom2, distance) of every contact within the horizon.
+
+        The loop runs once per sample (thousands per path): it keeps to the two MuJoCo calls,
+        one read of the contact list where there are contacts (two arrays copied), and
+        Python lists; the sample index of each contact is made at the end from the counts.
+        """
+        m, d = self.model, self.data
+        qpos = d.qpos[self._qslice] if self._qslice is not None else None
+        kinematics, collision = mujoco.mj_kinematics, mujoco.mj_collision
+        geoms, dists, counts = [], [], []
+        for q in Q:
+            if qpos is not None:
+                qpos[:] = q
+            else:
+                d.qpos[self._qadr] = q
+            kinematics(m, d)
+            collision(m, d)
+            n = d.ncon
+            counts.append(n)
+            if n:
                 c = d.contact
-                rows.append((np.full(d.ncon, k), c.geom1.copy(), c.geom2.copy(), c.dist.copy()))
-        if not rows:
+                geoms.append(c.geom.copy())
+                dists.append(c.dist.copy())
+        if not geoms:
             return (np.zeros(0, dtype=int),) * 3 + (np.zeros(0),)
-        return tuple(np.concatenate(parts) for parts in zip(*rows))
+        sample = np.repeat(np.arange(len(counts)), counts)
+        g = np.concatenate(geoms)
+        return sample, g[:, 0].copy(), g[:, 1].copy(), np.concatenate(dists)
 
     def check_configurations(self, Q: np.ndarray, segment: np.ndarray | None = None,
                              fraction: np.ndarray | None = None,

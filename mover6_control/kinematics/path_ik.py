@@ -223,12 +223,20 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
             # One flat list of small ints (-1: go the long way): no per-row Python objects.
             b = all_cand.shape[1]
             walk_to = np.where(usable, nearest, -1).ravel().tolist()
+    # The rows the table walk takes, written into Q in one call before the long way reads Q
+    # (and at the end): a row at a time cost a numpy call per waypoint.
+    walked_k, walked_j = [], []
     for k in range(m):
-        if state is not None and walk_to[(k - 1) * b + state] >= 0:
+        if state is not None:
             j = walk_to[(k - 1) * b + state]
-            Q[k] = all_cand[k, j]
-            state = j
-            continue
+            if j >= 0:
+                walked_k.append(k)
+                walked_j.append(j)
+                state = j
+                continue
+        if walked_k:
+            Q[walked_k] = all_cand[walked_k, walked_j]
+            walked_k, walked_j = [], []
         q_prev = q_start_arr if k == 0 else Q[k - 1]
         T = P[k]
         sols = np.zeros((0, n))
@@ -279,12 +287,15 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
         Q[k] = q
         # The table walk may resume from a regular waypoint's batch branch.
         state = int(branch[j]) if walk and branch[j] >= 0 and not all_used[k] else None
+    if walked_k:
+        Q[walked_k] = all_cand[walked_k, walked_j]
     # Singularity check on the rows solved so far (all at once): fail where the condition
     # number is above max_condition and rising, unless an earlier waypoint failed.
     k_end = m if stop is None else stop[1]
-    # Every row in order: the inserted ones before the waypoint they lead to.
+    # Every row in order: the inserted ones before the waypoint they lead to (none inserted,
+    # the usual case: the rows are the waypoints', copied in one call each).
     rows_q, rows_p, rows_k, rows_new = [], [], [], []
-    for k in range(k_end):
+    for k in range(k_end) if bridges else ():
         if k in bridges:
             rows_q.append(bridges[k][0])
             rows_p.append(bridges[k][1])
@@ -294,7 +305,10 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
         rows_p.append(P[k:k + 1])
         rows_k.append([k])
         rows_new.append([False])
-    if k_end:
+    if k_end and not bridges:
+        Q_all, P_all = Q[:k_end].copy(), P[:k_end].copy()
+        k_all, new_all = np.arange(k_end), np.zeros(k_end, dtype=bool)
+    elif k_end:
         Q_all, P_all = np.concatenate(rows_q), np.concatenate(rows_p)
         k_all, new_all = np.concatenate(rows_k).astype(int), np.concatenate(rows_new)
     else:

@@ -41,6 +41,7 @@ delivery of demands (``delivery``, with its ``handshake``) and the planning thre
 (``planning_thread``); this module holds the callbacks.
 """
 
+import sys
 import time
 from typing import Callable, Optional
 
@@ -66,6 +67,7 @@ from mover6_control.planning.planner_core import (check_path_shape, PATH_MOTIONS
                                                   plan_path_goal, plan_pose_goal, PlannerSettings,
                                                   POSE_MOTIONS)
 from mover6_control.planning.via_joint import plan_via_path_goal
+from mover6_control.realtime import steady_interpreter
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
@@ -222,6 +224,9 @@ class PlannerNode(Node):
 
 def main(args: Optional[list[str]] = None) -> None:
     """Run the planner node until Ctrl-C, SIGTERM or shutdown (one or more signals: exit 0)."""
+    # What is loaded now (rclpy, numpy, MuJoCo) is never scanned by a full collection: one took
+    # 35 ms in the middle of a goal's plan (bench planner's tail). The switch interval stays.
+    steady_interpreter(sys.getswitchinterval())
     shutdown.run_node(PlannerNode, args)
 
 
