@@ -23,6 +23,8 @@ import numpy as np
 
 # Ramps still running below which the rest are stepped on Python floats.
 _FEW = 8
+# Columns per block of the array operations over all steps (a (J, block) array in the cache).
+_BLOCK = 8192
 
 
 def greedy_scan(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray) -> np.ndarray:
@@ -89,86 +91,94 @@ def greedy_scan_columns(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray
 
 
 def _step(A, B, cap, x):
-    """Return ``min(cap_i, min_j A_ji x_i + B_ji)`` for every step i (N,) from ``x`` (N,)."""
-    return np.minimum(cap, np.min(A * x + B, axis=0))
+    """
+    Return ``min(cap_i, min_j A_ji x_i + B_ji)`` for every step i (N,) from ``x`` (N,).
+
+    A block of columns at a time: the (J, block) temporaries stay in the cache.
+    """
+    out = np.empty(cap.size)
+    for lo in range(0, cap.size, _BLOCK):
+        part = slice(lo, lo + _BLOCK)
+        t = A[:, part] * x[part]
+        t += B[:, part]
+        np.minimum.reduce(t, axis=0, out=out[part])
+    return np.minimum(cap, out, out=out)
 
 
 def _walk(A, B, cap, starts, first):
     """
     Step every ramp from its start (positions (W,), values ``first``) until it lands on a cap.
 
-    One array operation per step for all ramps still running; the last few run on Python
-    floats (an array operation on a handful of entries costs more than the floats), a stretch
-    of line steps at once (``_line_runs``). Return
-    each ramp's last position (W,) and every value a ramp passes: ramp, position and value
-    (each (V,)).
+    One array operation per step for all ramps still running, while there are many; the rest
+    run on Python floats (``_tail``). Return each ramp's last position (W,) and every value a
+    ramp passes: ramp, position and value (each (V,)).
     """
     N = cap.size
     ends = starts.copy()
     ramp = np.flatnonzero(starts < N)
     step, cur = starts[ramp], first[ramp]
     visits = [(ramp, step, cur)]
+    lowest = np.minimum.reduce
     while ramp.size > _FEW:
-        low = np.min(A[:, step] * cur + B[:, step], axis=0)
         here = cap[step]
-        nxt = np.maximum(np.minimum(here, low), 0.0)
-        landed = here <= low
+        nxt = lowest(A[:, step] * cur + B[:, step], axis=0)
+        landed = here <= nxt
+        np.minimum(here, nxt, out=nxt)
+        np.maximum(nxt, 0.0, out=nxt)
         step = step + 1
         visits.append((ramp, step, nxt))
         done = landed | (step >= N)
-        ends[ramp[done]] = step[done]
-        keep = ~done
-        ramp, step, cur = ramp[keep], step[keep], nxt[keep]
-    tail = ([], [], [])
-    runs = _line_runs(A, B) if ramp.size else None
-    for k, i, x in zip(ramp.tolist(), step.tolist(), cur.tolist()):
-        while True:
-            if runs is not None and runs[0][i] > i:
-                # A stretch of line steps: x_{i+1} = x_i + beta_i until it lands on a cap.
-                end, beta = runs[0][i], runs[1]
-                values = np.cumsum(np.concatenate([[x], beta[i:end]]))
-                landed = np.flatnonzero(cap[i:end] <= values[1:])
-                if landed.size:
-                    end = i + int(landed[0]) + 1
-                    values[end - i] = cap[end - 1]
-                tail[0].extend([k] * (end - i))
-                tail[1].extend(range(i + 1, end + 1))
-                tail[2].extend(values[1:end - i + 1].tolist())
-                i, x = end, float(values[end - i])
-                if landed.size or i >= N:
-                    ends[k] = i
-                    break
-                continue
-            low = min(a * x + b for a, b in zip(A[:, i].tolist(), B[:, i].tolist()))
-            here = float(cap[i])
-            x = max(min(here, low), 0.0)
-            i += 1
-            tail[0].append(k)
-            tail[1].append(i)
-            tail[2].append(x)
-            if here <= low or i >= N:
-                ends[k] = i
-                break
-    visits.append(tuple(np.array(v, dtype=t) for v, t in zip(tail, (np.intp, np.intp, float))))
+        if done.any():
+            ends[ramp[done]] = step[done]
+            keep = ~done
+            ramp, step, cur = ramp[keep], step[keep], nxt[keep]
+        else:
+            cur = nxt
+    if ramp.size:
+        visits.extend(_tail(A, B, cap, ramp.tolist(), step.tolist(), cur.tolist(), ends))
     return ends, tuple(np.concatenate(v) for v in zip(*visits))
 
 
-def _line_runs(A, B):
+def _tail(A, B, cap, ramps, steps, values, ends):
     """
-    Return, per step, where its stretch of line steps ends (N,), and each step's ``beta`` (N,).
+    Step the few ramps left one at a time on Python floats; return their visits.
+
+    The steps are converted to Python floats a block at a time (the block doubles while the
+    ramp runs); a line step (``_line_steps``) is ``x + beta``. Each ramp's end goes into
+    ``ends``.
+    """
+    N = cap.size
+    beta, line = _line_steps(A, B)
+    out = []
+    for k, i, x in zip(ramps, steps, values):
+        begin, xs, size, landed = i, [], 16, False
+        while not landed and i < N:
+            stop = min(N, i + size)
+            size *= 2
+            for a_col, b_col, here, on_line, b in zip(
+                    A[:, i:stop].T.tolist(), B[:, i:stop].T.tolist(), cap[i:stop].tolist(),
+                    line[i:stop].tolist(), beta[i:stop].tolist()):
+                low = x + b if on_line else min([a * x + b for a, b in zip(a_col, b_col)])
+                x = max(min(here, low), 0.0)
+                i += 1
+                xs.append(x)
+                if here <= low:
+                    landed = True
+                    break
+        ends[k] = i
+        out.append((np.full(i - begin, k), np.arange(begin + 1, i + 1), np.array(xs)))
+    return out
+
+
+def _line_steps(A, B):
+    """
+    Return each step's smallest ``B`` (N,) and which steps are line steps (N,).
 
     A line step has every piece of slope 1 (the path's curvature is zero there): its step is
-    ``x + min_j B_j``, with the very rounding of the loop (adding to x is monotone, so the
-    smallest sum is x plus the smallest B). Stepping a stretch of them is one cumulative sum
-    started at x: the same additions in the same order. ``end[i] == i`` where step i is no
-    line step.
+    ``x + min_j B_j``, with the very rounding of the loop (``1 * x`` is x, and adding to x is
+    monotone, so the smallest sum is x plus the smallest B).
     """
-    N = A.shape[1]
     beta = np.min(B, axis=0)
     line = (np.all((A == 1.0) | ((A == 0.0) & np.isinf(B)), axis=0) & np.isfinite(beta)
             & (beta >= 0.0))        # the floor at 0 never binds
-    index = np.arange(N)
-    # The first step at or after i that is no line step.
-    stop = np.where(line, N, index)
-    end = np.minimum.accumulate(stop[::-1])[::-1]
-    return end, beta
+    return beta, line

@@ -42,6 +42,8 @@ _MAX_TURN = 0.05
 _LIMIT_MARGIN = 1e-3
 # The jerk-limited timing is checked on samples: slow it 1 % more than they ask for.
 _JERK_MARGIN = 1e-2
+# Grid intervals per block of the constraint arrays (a (2n, block) array stays in the cache).
+_BLOCK = 8192
 
 
 def _grid(path, n_grid):
@@ -157,17 +159,41 @@ def _distinct_lines(gamma, slope):
     return keep
 
 
-def _backward_pass(gamma, slope, keep, delta, s_hi):
+def _pieces(ends, delta, a, limit):
     """
-    Return the upper ends ``hi`` (N + 1,) of TOPP-RA's controllable sets ``K_k = [0, hi[k]]``.
+    Return the pieces of both passes' recurrences: backward ``(A, B, cap)``, forward ``(A, B)``.
 
-    ``K_N = {0}``. The lower ends are 0 throughout: x = 0 admits u = 0 at every interval, so
-    the next set's lower end never binds. Below the static range ``s_hi`` (N,), ``x_k + 2
-    delta u`` must land in ``K_{k+1}`` with some u in ``|u - slope_j x_k| <= gamma_j``:
-    ``hi_k = min(cap_k, min_j (hi_{k+1} + 2 delta gamma_j) / (1 + 2 delta slope_j))`` over the
-    rows with ``c_j = slope_j + 1 / (2 delta) > 0``; a row with ``c_j < 0`` caps ``hi_k`` at
-    ``gamma_j / |c_j|`` whatever comes next. The recurrence runs from the end, solved by
-    ``greedy_scan``. ``keep``: the constraints that count (``_distinct_lines``).
+    ``ends``: the path's first and second derivatives at both ends of every interval ((N, n)
+    each); ``limit`` (N,): the caps the speed limits and the stops give. Each interval's
+    constraints (``_stage_lines``), their static range (``_static_range``) and which count
+    (``_distinct_lines``) are a column of their own: they are computed a block of columns at a
+    time (the (2n, block) temporaries stay in the cache), into the (2n, N) pieces.
+    """
+    dq0, ddq0, dq1, ddq1 = ends
+    N, n = dq0.shape
+    back_A, back_B, back_cap = np.empty((2 * n, N)), np.empty((2 * n, N)), np.empty(N)
+    fwd_A, fwd_B = np.empty((2 * n, N)), np.empty((2 * n, N))
+    for lo in range(0, N, _BLOCK):
+        part = slice(lo, lo + _BLOCK)
+        gamma, slope, cap = _stage_lines(dq0[part].T, ddq0[part].T, dq1[part].T, ddq1[part].T,
+                                         delta[part], a)
+        s_hi = _static_range(gamma, slope, np.minimum(cap, limit[part]))
+        keep = _distinct_lines(gamma, slope)
+        back_A[:, part], back_B[:, part], back_cap[part] = _backward_pieces(
+            gamma, slope, keep, delta[part], s_hi)
+        fwd_A[:, part], fwd_B[:, part] = _forward_pieces(gamma, slope, keep, delta[part])
+    return (back_A, back_B, back_cap), (fwd_A, fwd_B)
+
+
+def _backward_pieces(gamma, slope, keep, delta, s_hi):
+    """
+    Return the backward pass's pieces ``A``, ``B`` (2n, N) and caps (N,) (``_backward_pass``).
+
+    Below the static range ``s_hi`` (N,), ``x_k + 2 delta u`` must land in ``K_{k+1}`` with
+    some u in ``|u - slope_j x_k| <= gamma_j``: ``hi_k = min(cap_k, min_j (hi_{k+1} + 2 delta
+    gamma_j) / (1 + 2 delta slope_j))`` over the rows with ``c_j = slope_j + 1 / (2 delta) >
+    0``; a row with ``c_j < 0`` caps ``hi_k`` at ``gamma_j / |c_j|`` whatever comes next.
+    ``keep``: the constraints that count (``_distinct_lines``).
     """
     inv = 1.0 / (2.0 * delta)
     c = slope + inv
@@ -176,21 +202,37 @@ def _backward_pass(gamma, slope, keep, delta, s_hi):
         cap = np.minimum(s_hi, np.min(np.where(minus, gamma / -c, np.inf), axis=0))
         A = np.where(plus, inv / c, 0.0)
         B = np.where(plus, gamma / c, np.inf)
+    return A, B, cap
+
+
+def _backward_pass(pieces):
+    """
+    Return the upper ends ``hi`` (N + 1,) of TOPP-RA's controllable sets ``K_k = [0, hi[k]]``.
+
+    ``K_N = {0}``. The lower ends are 0 throughout: x = 0 admits u = 0 at every interval, so
+    the next set's lower end never binds. The recurrence (``_backward_pieces``) runs from the
+    end, solved by ``greedy_scan``.
+    """
+    A, B, cap = pieces
     return greedy_scan.greedy_scan_columns(0.0, A[:, ::-1], B[:, ::-1], cap[::-1])[::-1].copy()
 
 
-def _forward_pass(gamma, slope, keep, delta, hi, x0):
+def _forward_pieces(gamma, slope, keep, delta):
+    """Return the forward pass's pieces ``A``, ``B`` (2n, N) (``_forward_pass``)."""
+    two_d = 2.0 * delta
+    return np.where(keep, 1.0 + two_d * slope, 0.0), np.where(keep, two_d * gamma, np.inf)
+
+
+def _forward_pass(pieces, delta, hi, x0):
     """
     Return the greedy timing: ``x`` (N + 1,) and ``u`` (N,), the largest admissible ``u``.
 
     Each step takes the largest ``u`` the upper lines ``gamma + slope x`` allow that still
     lands in the next controllable set ``[0, hi[k + 1]]``: ``x_{k+1} = min(hi_{k+1}, min_j
-    ((1 + 2 delta slope_j) x_k + 2 delta gamma_j))`` over the constraints ``keep``, solved by
-    ``greedy_scan``.
+    ((1 + 2 delta slope_j) x_k + 2 delta gamma_j))`` over the constraints that count
+    (``_forward_pieces``), solved by ``greedy_scan``.
     """
-    two_d = 2.0 * delta
-    A = np.where(keep, 1.0 + two_d * slope, 0.0)
-    B = np.where(keep, two_d * gamma, np.inf)
+    A, B = pieces
     x = greedy_scan.greedy_scan_columns(x0, A, B, hi[1:])
     return x, (x[1:] - x[:-1]) / (2.0 * delta)
 
@@ -251,11 +293,11 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
         x_cap[1:] = np.minimum(x_cap[1:], jcap1)
     x_cap[_nearest(s_grid, np.asarray(path.stops, dtype=float))] = 0.0
     x_cap[-1] = 0.0
-    gamma, slope, cap = _stage_lines(d0[1].T, d0[2].T, d1[1].T, d1[2].T, delta, a)
-    s_hi = _static_range(gamma, slope, np.minimum(cap, x_cap[:-1]))
-    keep = _distinct_lines(gamma, slope)
-    hi = _backward_pass(gamma, slope, keep, delta, s_hi)
-    x, u = _forward_pass(gamma, slope, keep, delta, hi, _start_x(path, qd_start, 0.0, hi[0]))
+    backward, forward = _pieces((d0[1], d0[2], d1[1], d1[2]), delta, a, x_cap[:-1])
+    hi = _backward_pass(backward)
+    del backward        # (2n, N) arrays: the memory goes back before the next are made
+    x, u = _forward_pass(forward, delta, hi, _start_x(path, qd_start, 0.0, hi[0]))
+    del forward
     sd = np.sqrt(x)
     dt = 2.0 * delta / np.maximum(sd[:-1] + sd[1:], 1e-300)
     if not np.all(np.isfinite(dt)):
@@ -337,17 +379,48 @@ def _within_limits(path, timing, traj, v, a, seg, ends, samples=6):
     frac = np.arange(1, samples + 1) / (samples + 1.0)
     arcs = np.flatnonzero(path.is_blend(seg))
     arcs = arcs[~_arc_intervals_within(path, timing, seg[arcs], arcs, ends, v, a)]
-    t = np.concatenate([t_grid, (t_grid[arcs, None] + (t_grid[arcs + 1] - t_grid[arcs])[:, None]
-                                 * frac).ravel()])
+    t = (t_grid[arcs, None] + (t_grid[arcs + 1] - t_grid[arcs])[:, None] * frac).ravel()
+    if _grid_points_at_starts(path, timing, seg):
+        # Sampled at its time, grid point k < N is the start of interval k: its path
+        # derivatives are ``ends[0]``, ``ends[1]``; the same numbers, without the search.
+        qd, qdd = _joint_rates(ends[0], ends[1], timing.sd[:-1], timing.u)
+        t = np.concatenate([t_grid[-1:], t])
+    else:
+        qd, qdd = np.zeros((0, v.size)), np.zeros((0, v.size))
+        t = np.concatenate([t_grid, t])
     s, sd, sdd, _ = timing.profile(t)
     dq, ddq = path.evaluate(s, path.segment_of(s), (1, 2))
-    sd = sd[:, None]
-    qd = dq * sd
-    qdd = dq * sdd[:, None] + ddq * sd ** 2
-    factor = max(1.0, float(np.max(np.abs(qd) / v)), float(np.sqrt(np.max(np.abs(qdd) / a))))
+    qd_t, qdd_t = _joint_rates(dq, ddq, sd, sdd)
+    factor = max(1.0, float(np.max(np.abs(qd) / v, initial=0.0)),
+                 float(np.max(np.abs(qd_t) / v)),
+                 float(np.sqrt(np.max(np.abs(qdd) / a, initial=0.0))),
+                 float(np.sqrt(np.max(np.abs(qdd_t) / a))))
     if factor <= 1.0:
         return traj
     return PathTrajectory(path, ScaledTiming(timing, factor * (1.0 + 1e-4)))
+
+
+def _joint_rates(dq, ddq, sd, sdd):
+    """Return the joint rates and accelerations (m, n) from the path's and the timing's."""
+    sd = sd[:, None]
+    return dq * sd, dq * sdd[:, None] + ddq * sd ** 2
+
+
+def _grid_points_at_starts(path, timing, seg):
+    """
+    Return whether ``timing.profile`` at each grid time but the last is interval k's start.
+
+    So it is when the grid times rise strictly (the search finds interval k at its own time,
+    where ``tau`` is 0: ``s`` is ``s_grid[k]``, the speed ``sd[k]``, the acceleration
+    ``u[k]``) and every grid point lies before its segment's end (the search for the segment
+    finds interval k's own: the first point of a segment is its start, the others rise to
+    below the end).
+    """
+    s_grid, t_grid = timing.s_grid, timing.t_grid
+    last = np.append(np.flatnonzero(seg[1:] != seg[:-1]), seg.size - 1)
+    return bool(np.all(t_grid[1:] > t_grid[:-1])
+                and np.all(s_grid[last] < path.starts[seg[last] + 1])
+                and np.all(path.starts[1:] > path.starts[:-1]))
 
 
 def _arc_intervals_within(path, timing, segment, k, ends, v, a):
