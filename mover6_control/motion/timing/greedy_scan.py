@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 # Ramps still running below which the rest are stepped on Python floats.
-_FEW = 8
+_FEW = 4
 # Columns per block of the array operations over all steps (a (J, block) array in the cache).
 _BLOCK = 8192
 
@@ -155,10 +155,16 @@ def _tail(A, B, cap, ramps, steps, values, ends):
         while not landed and i < N:
             stop = min(N, i + size)
             size *= 2
-            for a_col, b_col, here, on_line, b in zip(
-                    A[:, i:stop].T.tolist(), B[:, i:stop].T.tolist(), cap[i:stop].tolist(),
-                    line[i:stop].tolist(), beta[i:stop].tolist()):
-                low = x + b if on_line else min([a * x + b for a, b in zip(a_col, b_col)])
+            on_line = line[i:stop]
+            others = i + np.flatnonzero(~on_line)       # their pieces as Python floats
+            pieces = zip(A[:, others].T.tolist(), B[:, others].T.tolist())
+            for here, is_line, b in zip(cap[i:stop].tolist(), on_line.tolist(),
+                                        beta[i:stop].tolist()):
+                if is_line:
+                    low = x + b
+                else:
+                    a_col, b_col = next(pieces)
+                    low = min([a * x + b for a, b in zip(a_col, b_col)])
                 x = max(min(here, low), 0.0)
                 i += 1
                 xs.append(x)

@@ -42,6 +42,8 @@ _MAX_TURN = 0.05
 _LIMIT_MARGIN = 1e-3
 # The jerk-limited timing is checked on samples: slow it 1 % more than they ask for.
 _JERK_MARGIN = 1e-2
+# The most patterns of finite constraints the static range takes one at a time.
+_PATTERNS = 32
 # Grid intervals per block of the constraint arrays (a (2n, block) array stays in the cache).
 _BLOCK = 8192
 
@@ -131,19 +133,60 @@ def _static_range(gamma, slope, limit):
         # at least 2 min(gamma) / 1e-15, so where that reaches the limit it cannot count
         # anyway and need not be masked (the usual case: gamma is a_max / |q'|).
         tiny = not np.all(2.0 * np.min(g, axis=0) / 1e-15 >= bound)
-        ratios = np.empty((m * (m - 1) // 2, rows.size))
-        at = 0
-        with np.errstate(divide='ignore', invalid='ignore'):
-            for d in range(1, m):           # the pairs (i, i + d)
-                part = ratios[at:at + m - d]
-                np.subtract(s[:-d], s[d:], out=part)
-                np.abs(part, out=part)
-                if tiny:
-                    part[part <= 1e-15] = 0.0       # divides to inf (gamma > 0)
-                np.divide(g[:-d] + g[d:], part, out=part)
-                at += m - d
-        hi[rows] = np.minimum(bound, np.min(ratios, axis=0))
+        hi[rows] = np.minimum(bound, _pair_minimum_by_pattern(g, s, tiny))
     return hi
+
+
+def _pair_minimum(g, s, tiny):
+    """
+    Return ``min (g_i + g_j) / |s_i - s_j|`` over the pairs i < j of rows (m, R), per column.
+
+    Row against row by distance (the pairs (i, i + d)), in one buffer. A difference of at most
+    1e-15 divides to inf where ``tiny``. Fewer than two rows: inf.
+    """
+    m, R = g.shape
+    if m < 2:
+        return np.full(R, np.inf)
+    ratios = np.empty((m * (m - 1) // 2, R))
+    at = 0
+    with np.errstate(divide='ignore', invalid='ignore'):
+        for d in range(1, m):           # the pairs (i, i + d)
+            part = ratios[at:at + m - d]
+            np.subtract(s[:-d], s[d:], out=part)
+            np.abs(part, out=part)
+            if tiny:
+                part[part <= 1e-15] = 0.0       # divides to inf (gamma > 0)
+            np.divide(g[:-d] + g[d:], part, out=part)
+            at += m - d
+    return np.min(ratios, axis=0)
+
+
+def _pair_minimum_by_pattern(g, s, tiny):
+    """
+    Return ``_pair_minimum`` over the finite rows of each column alone, columns grouped by them.
+
+    A pair with an infinite ``g`` has an infinite ratio (its difference is finite), so it
+    never is the minimum: leaving it out changes nothing. Where joints stand still (their
+    constraints are infinite on the whole blend) that leaves a few rows of the 2n, and far
+    fewer pairs. Each pair's ratio is the same number in any order of its rows (the
+    difference only changes sign, the sum commutes). Many patterns (more than
+    ``_PATTERNS``): all rows at once.
+    """
+    m, R = g.shape
+    code = (1 << np.arange(m)) @ np.isfinite(g)
+    patterns, group = np.unique(code, return_inverse=True)
+    if patterns.size > _PATTERNS:
+        return _pair_minimum(g, s, tiny)
+    order = np.argsort(group, kind='stable')
+    ends = np.cumsum(np.bincount(group, minlength=patterns.size)).tolist()
+    lowest = np.empty(R)
+    begin = 0
+    for pattern, end in zip(patterns.tolist(), ends):
+        cols = order[begin:end]
+        use = [j for j in range(m) if pattern >> j & 1]
+        lowest[cols] = _pair_minimum(g[np.ix_(use, cols)], s[np.ix_(use, cols)], tiny)
+        begin = end
+    return lowest
 
 
 def _distinct_lines(gamma, slope):
