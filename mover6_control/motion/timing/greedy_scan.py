@@ -23,6 +23,8 @@ import numpy as np
 
 # Ramps still running below which the rest are stepped on Python floats.
 _FEW = 4
+# The most steps of a ramp converted to Python floats at once.
+_TAIL_BLOCK = 256
 # Columns per block of the array operations over all steps (a (J, block) array in the cache).
 _BLOCK = 8192
 
@@ -66,9 +68,10 @@ def greedy_scan_columns(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray
     count = starts.size
     ends = np.full(count, -1)
     walk = np.flatnonzero(np.diff(starts, prepend=-2) != 1)
-    seen = []
+    seen, lines = [], _LineSteps(A, B)
     while True:
-        ends[walk], (ramp, position, values) = _walk(A, B, cap, starts[walk], first[walk])
+        ends[walk], (ramp, position, values) = _walk(A, B, cap, starts[walk], first[walk],
+                                                     lines)
         seen.append((walk[ramp], position, values))
         after = np.searchsorted(starts, ends, side='right')
         real, i, follow = [], 0, after.tolist()
@@ -105,13 +108,14 @@ def _step(A, B, cap, x):
     return np.minimum(cap, out, out=out)
 
 
-def _walk(A, B, cap, starts, first):
+def _walk(A, B, cap, starts, first, lines):
     """
     Step every ramp from its start (positions (W,), values ``first``) until it lands on a cap.
 
     One array operation per step for all ramps still running, while there are many; the rest
-    run on Python floats (``_tail``). Return each ramp's last position (W,) and every value a
-    ramp passes: ramp, position and value (each (V,)).
+    run on Python floats (``_tail``; ``lines``: the line steps, a ``_LineSteps``). Return each
+    ramp's last position (W,) and every value a ramp passes: ramp, position and value (each
+    (V,)).
     """
     N = cap.size
     ends = starts.copy()
@@ -135,26 +139,28 @@ def _walk(A, B, cap, starts, first):
         else:
             cur = nxt
     if ramp.size:
-        visits.extend(_tail(A, B, cap, ramp.tolist(), step.tolist(), cur.tolist(), ends))
+        visits.extend(_tail(A, B, cap, ramp.tolist(), step.tolist(), cur.tolist(), ends,
+                            lines()))
     return ends, tuple(np.concatenate(v) for v in zip(*visits))
 
 
-def _tail(A, B, cap, ramps, steps, values, ends):
+def _tail(A, B, cap, ramps, steps, values, ends, lines):
     """
     Step the few ramps left one at a time on Python floats; return their visits.
 
     The steps are converted to Python floats a block at a time (the block doubles while the
-    ramp runs); a line step (``_line_steps``) is ``x + beta``. Each ramp's end goes into
-    ``ends``.
+    ramp runs, up to ``_TAIL_BLOCK`` steps: few are converted past the landing), the pieces
+    of line steps not at all: a line step is ``x + beta`` (``lines``: ``beta`` and which steps
+    are line steps, ``_LineSteps``). Each ramp's end goes into ``ends``.
     """
     N = cap.size
-    beta, line = _line_steps(A, B)
+    beta, line = lines
     out = []
     for k, i, x in zip(ramps, steps, values):
         begin, xs, size, landed = i, [], 16, False
         while not landed and i < N:
             stop = min(N, i + size)
-            size *= 2
+            size = min(2 * size, _TAIL_BLOCK)
             on_line = line[i:stop]
             others = i + np.flatnonzero(~on_line)       # their pieces as Python floats
             pieces = zip(A[:, others].T.tolist(), B[:, others].T.tolist())
@@ -164,7 +170,7 @@ def _tail(A, B, cap, ramps, steps, values, ends):
                     low = x + b
                 else:
                     a_col, b_col = next(pieces)
-                    low = min([a * x + b for a, b in zip(a_col, b_col)])
+                    low = min([p * x + q for p, q in zip(a_col, b_col)])
                 x = max(min(here, low), 0.0)
                 i += 1
                 xs.append(x)
@@ -176,15 +182,25 @@ def _tail(A, B, cap, ramps, steps, values, ends):
     return out
 
 
-def _line_steps(A, B):
+class _LineSteps:
     """
-    Return each step's smallest ``B`` (N,) and which steps are line steps (N,).
+    Each step's smallest ``B`` (N,) and which steps are line steps (N,), found on first use.
 
     A line step has every piece of slope 1 (the path's curvature is zero there): its step is
     ``x + min_j B_j``, with the very rounding of the loop (``1 * x`` is x, and adding to x is
     monotone, so the smallest sum is x plus the smallest B).
     """
-    beta = np.min(B, axis=0)
-    line = (np.all((A == 1.0) | ((A == 0.0) & np.isinf(B)), axis=0) & np.isfinite(beta)
-            & (beta >= 0.0))        # the floor at 0 never binds
-    return beta, line
+
+    def __init__(self, A, B):
+        """Keep the pieces ``A``, ``B`` (J, N) of the recurrence."""
+        self._A, self._B, self._found = A, B, None
+
+    def __call__(self):
+        """Return ``beta`` and the line steps (each (N,)), computed once."""
+        if self._found is None:
+            A, B = self._A, self._B
+            beta = np.min(B, axis=0)
+            line = (np.all((A == 1.0) | ((A == 0.0) & np.isinf(B)), axis=0)
+                    & np.isfinite(beta) & (beta >= 0.0))        # the floor at 0 never binds
+            self._found = beta, line
+        return self._found
