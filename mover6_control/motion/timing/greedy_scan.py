@@ -25,6 +25,8 @@ import numpy as np
 _FEW = 4
 # The most steps of a ramp converted to Python floats at once.
 _TAIL_BLOCK = 256
+# From this many steps on, the ramps read each step's pieces from one row (``by_step``).
+_ROWS_FROM = 50_000
 # Columns per block of the array operations over all steps (a (J, block) array in the cache).
 _BLOCK = 8192
 
@@ -123,9 +125,20 @@ def _walk(A, B, cap, starts, first, lines):
     step, cur = starts[ramp], first[ramp]
     visits = [(ramp, step, cur)]
     lowest = np.minimum.reduce
+    J = A.shape[0]
+    if ramp.size > _FEW and N >= _ROWS_FROM:
+        pieces = lines.by_step()
     while ramp.size > _FEW:
         here = cap[step]
-        nxt = lowest(A[:, step] * cur + B[:, step], axis=0)
+        if N >= _ROWS_FROM:
+            # Each step's pieces side by side in a row: a ramp's step reads one row of the
+            # memory rather than one entry of each of 2J rows.
+            both = pieces[step]
+            t = both[:, :J] * cur[:, None]
+            t += both[:, J:]
+            nxt = lowest(t, axis=1)
+        else:
+            nxt = lowest(A[:, step] * cur + B[:, step], axis=0)
         landed = here <= nxt
         np.minimum(here, nxt, out=nxt)
         np.maximum(nxt, 0.0, out=nxt)
@@ -193,7 +206,18 @@ class _LineSteps:
 
     def __init__(self, A, B):
         """Keep the pieces ``A``, ``B`` (J, N) of the recurrence."""
-        self._A, self._B, self._found = A, B, None
+        self._A, self._B, self._found, self._rows = A, B, None, None
+
+    def by_step(self):
+        """Return the pieces of each step side by side, ``[A_i, B_i]`` (N, 2J), made once."""
+        if self._rows is None:
+            J, N = self._A.shape
+            self._rows = np.empty((N, 2 * J))
+            for lo in range(0, N, _BLOCK):
+                part = slice(lo, lo + _BLOCK)
+                self._rows[part, :J] = self._A[:, part].T
+                self._rows[part, J:] = self._B[:, part].T
+        return self._rows
 
     def __call__(self):
         """Return ``beta`` and the line steps (each (N,)), computed once."""
