@@ -28,7 +28,7 @@ _TAIL_BLOCK = 256
 # From this many steps on, the ramps read each step's pieces from one row (``by_step``).
 _ROWS_FROM = 50_000
 # Columns per block of the array operations over all steps (a (J, block) array in the cache).
-_BLOCK = 8192
+_STEP_BLOCK = 8192
 
 
 def greedy_scan(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray) -> np.ndarray:
@@ -102,8 +102,8 @@ def _step(A, B, cap, x):
     A block of columns at a time: the (J, block) temporaries stay in the cache.
     """
     out = np.empty(cap.size)
-    for lo in range(0, cap.size, _BLOCK):
-        part = slice(lo, lo + _BLOCK)
+    for lo in range(0, cap.size, _STEP_BLOCK):
+        part = slice(lo, lo + _STEP_BLOCK)
         t = A[:, part] * x[part]
         t += B[:, part]
         np.minimum.reduce(t, axis=0, out=out[part])
@@ -213,8 +213,8 @@ class _LineSteps:
         if self._rows is None:
             J, N = self._A.shape
             self._rows = np.empty((N, 2 * J))
-            for lo in range(0, N, _BLOCK):
-                part = slice(lo, lo + _BLOCK)
+            for lo in range(0, N, _STEP_BLOCK):
+                part = slice(lo, lo + _STEP_BLOCK)
                 self._rows[part, :J] = self._A[:, part].T
                 self._rows[part, J:] = self._B[:, part].T
         return self._rows

@@ -45,7 +45,7 @@ _JERK_MARGIN = 1e-2
 # The most patterns of finite constraints the static range takes one at a time.
 _PATTERNS = 32
 # Grid intervals per block of the constraint arrays (a (2n, block) array stays in the cache).
-_BLOCK = 8192
+_INTERVAL_BLOCK = 8192
 
 
 def _grid(path, n_grid):
@@ -216,8 +216,8 @@ def _pieces(ends, delta, a, limit):
     N, n = dq0.shape
     back_A, back_B, back_cap = np.empty((2 * n, N)), np.empty((2 * n, N)), np.empty(N)
     fwd_A, fwd_B = np.empty((2 * n, N)), np.empty((2 * n, N))
-    for lo in range(0, N, _BLOCK):
-        part = slice(lo, lo + _BLOCK)
+    for lo in range(0, N, _INTERVAL_BLOCK):
+        part = slice(lo, lo + _INTERVAL_BLOCK)
         gamma, slope, cap = _stage_lines(dq0[part].T, ddq0[part].T, dq1[part].T, ddq1[part].T,
                                          delta[part], a)
         s_hi = _static_range(gamma, slope, np.minimum(cap, limit[part]))
