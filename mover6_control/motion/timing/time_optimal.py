@@ -174,6 +174,9 @@ def _pair_minimum_by_pattern(g, s, tiny):
     """
     m, R = g.shape
     code = (1 << np.arange(m)) @ np.isfinite(g)
+    if np.all(code == code[0]):         # one pattern (every row finite, the usual case)
+        use = [j for j in range(m) if int(code[0]) >> j & 1]
+        return _pair_minimum(g[use], s[use], tiny) if len(use) < m else _pair_minimum(g, s, tiny)
     patterns, group = np.unique(code, return_inverse=True)
     if patterns.size > _PATTERNS:
         return _pair_minimum(g, s, tiny)

@@ -71,6 +71,12 @@ def test_static_range_over_finite_constraints_is_that_over_all_pairs():
         ours = time_optimal._pair_minimum_by_pattern(g, s, tiny)
         assert np.array_equal(ours, plain)
         assert np.isinf(ours[0]) and np.isinf(ours[1])
+    # One pattern throughout: all rows finite, or the same joints still everywhere.
+    for still_rows in ([], [2, 8], [0, 1, 6, 7]):
+        g1 = rng.uniform(0.01, 5.0, (m, R))
+        g1[still_rows] = np.inf
+        assert np.array_equal(time_optimal._pair_minimum_by_pattern(g1, s, True),
+                              time_optimal._pair_minimum(g1, s, True))
     # More patterns than are taken one at a time: all rows at once, the same numbers.
     many = rng.random((m, R)) < 0.3
     g2 = np.where(many, np.inf, g)
