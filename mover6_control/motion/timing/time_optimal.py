@@ -429,18 +429,15 @@ def _within_limits(path, timing, traj, v, a, seg, ends, samples=6):
     if _grid_points_at_starts(path, timing, seg):
         # Sampled at its time, grid point k < N is the start of interval k: its path
         # derivatives are ``ends[0]``, ``ends[1]``; the same numbers, without the search.
-        qd, qdd = _joint_rates(ends[0], ends[1], timing.sd[:-1], timing.u)
+        at_grid = _largest_ratios(ends[0], ends[1], timing.sd[:-1], timing.u, v, a)
         t = np.concatenate([t_grid[-1:], t])
     else:
-        qd, qdd = np.zeros((0, v.size)), np.zeros((0, v.size))
+        at_grid = (0.0, 0.0)
         t = np.concatenate([t_grid, t])
     s, sd, sdd, _ = timing.profile(t)
     dq, ddq = path.evaluate(s, path.segment_of(s), (1, 2))
-    qd_t, qdd_t = _joint_rates(dq, ddq, sd, sdd)
-    factor = max(1.0, float(np.max(np.abs(qd) / v, initial=0.0)),
-                 float(np.max(np.abs(qd_t) / v)),
-                 float(np.sqrt(np.max(np.abs(qdd) / a, initial=0.0))),
-                 float(np.sqrt(np.max(np.abs(qdd_t) / a))))
+    sampled = _largest_ratios(dq, ddq, sd, sdd, v, a)
+    factor = max(1.0, at_grid[0], sampled[0], float(np.sqrt(max(at_grid[1], sampled[1]))))
     if factor <= 1.0:
         return traj
     return PathTrajectory(path, ScaledTiming(timing, factor * (1.0 + 1e-4)))
@@ -450,6 +447,21 @@ def _joint_rates(dq, ddq, sd, sdd):
     """Return the joint rates and accelerations (m, n) from the path's and the timing's."""
     sd = sd[:, None]
     return dq * sd, dq * sdd[:, None] + ddq * sd ** 2
+
+
+def _largest_ratios(dq, ddq, sd, sdd, v, a):
+    """
+    Return the largest ``|qd| / v`` and ``|qdd| / a`` (``_joint_rates``) over all rows (m,).
+
+    A block of rows at a time (the temporaries stay in the cache); 0 for no rows.
+    """
+    speed = accel = 0.0
+    for lo in range(0, sd.size, _INTERVAL_BLOCK):
+        part = slice(lo, lo + _INTERVAL_BLOCK)
+        qd, qdd = _joint_rates(dq[part], ddq[part], sd[part], sdd[part])
+        speed = max(speed, float(np.max(np.abs(qd) / v)))
+        accel = max(accel, float(np.max(np.abs(qdd) / a)))
+    return speed, accel
 
 
 def _grid_points_at_starts(path, timing, seg):
@@ -480,7 +492,17 @@ def _arc_intervals_within(path, timing, segment, k, ends, v, a):
     sdot^2``, ``dx / ds = 2 u``) has the second derivative ``5 u q^(3) + x q^(4)``, at most
     ``R (5 |u| / r^2 + x / r^3)``, so it exceeds the larger of its end values by at most
     ``R dphi^2 / 8 (5 |u| + x / r)``. Both bounds within the limits: no samples needed.
+    A block of intervals at a time (the (block, n) temporaries stay in the cache).
     """
+    within = np.empty(k.size, dtype=bool)
+    for lo in range(0, k.size, _INTERVAL_BLOCK):
+        part = slice(lo, lo + _INTERVAL_BLOCK)
+        within[part] = _arc_block_within(path, timing, segment[part], k[part], ends, v, a)
+    return within
+
+
+def _arc_block_within(path, timing, segment, k, ends, v, a):
+    """Return ``_arc_intervals_within`` for the intervals ``k`` of one block."""
     dq0, ddq0, dq1, ddq1 = (d[k] for d in ends)
     amplitude, radius = path.arc_shape(segment)
     bump = amplitude * ((timing.s_grid[k + 1] - timing.s_grid[k]) / radius)[:, None] ** 2 / 8.0

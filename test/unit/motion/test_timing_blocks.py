@@ -4,13 +4,15 @@ The time-optimal timing's parts that were made faster give the very numbers of t
 Each part below reorders or skips work without changing an operation on a number that counts:
 the constraints staged a block of grid intervals at a time, the static range over each
 column's finite constraints only, the grid points' limit samples taken from the derivatives at
-hand, the smoothing integral computed on first use, and the passes' recurrence on a grid long
-enough that the ramps read each step's pieces from one row. Each is compared with the plain
+hand, the smoothing integral computed on first use, the passes' recurrence on a grid long
+enough that the ramps read each step's pieces from one row, and the path evaluated, the arcs
+checked and the limit ratios taken a block at a time. Each is compared with the plain
 computation bit for bit.
 """
 
 import pickle
 
+from mover6_control.motion import blended_path as blended_path_module
 from mover6_control.motion.blended_path import blended_path
 from mover6_control.motion.timing import greedy_scan, time_optimal
 from mover6_control.motion.timing.path_timing import FilteredTiming
@@ -157,3 +159,39 @@ def test_long_grid_ramps_read_rows():
     A[unused], B[unused] = 0.0, np.inf
     x = greedy_scan.greedy_scan_columns(0.0, A, B, cap)
     assert np.array_equal(x, loop(0.0, A, B, cap))
+
+
+def test_path_evaluated_by_blocks_is_evaluated_point_by_point():
+    path = blended_path(random_walk(2000, 9), 1e-2, 'arc')
+    s = np.linspace(0.0, path.length, 3 * _point_block() + 17)
+    seg = path.segment_of(s)
+    whole = path.evaluate(s, seg)
+    for lo in range(0, s.size, 997):           # small calls: no blocks
+        part = slice(lo, lo + 997)
+        for ours, plain in zip(whole, path.evaluate(s[part], seg[part])):
+            assert np.array_equal(ours[part], plain)
+
+
+def _point_block():
+    """Return how many points ``BlendedPath.evaluate`` takes at once."""
+    return blended_path_module._POINT_BLOCK
+
+
+def test_arc_check_and_limit_ratios_by_blocks_are_those_of_all_rows():
+    Q = random_walk(1000, 12)
+    traj = time_optimal.time_parameterize(Q, V, 1.0)
+    timing = traj.timing
+    while not hasattr(timing, 's_grid'):
+        timing = timing.base
+    path = traj.path
+    seg = path.segment_of(timing.s_grid[:-1])
+    ends = path.evaluate(timing.s_grid[:-1], seg, (1, 2)) * 2      # (the starts as ends too)
+    arcs = np.flatnonzero(path.is_blend(seg))
+    assert arcs.size > 2 * time_optimal._INTERVAL_BLOCK
+    ours = time_optimal._arc_intervals_within(path, timing, seg[arcs], arcs, ends, V, 1.0)
+    plain = time_optimal._arc_block_within(path, timing, seg[arcs], arcs, ends, V, 1.0)
+    assert np.array_equal(ours, plain)
+    speed, accel = time_optimal._largest_ratios(ends[0], ends[1], timing.sd[:-1], timing.u,
+                                                V, 1.0)
+    qd, qdd = time_optimal._joint_rates(ends[0], ends[1], timing.sd[:-1], timing.u)
+    assert speed == np.max(np.abs(qd) / V) and accel == np.max(np.abs(qdd) / 1.0)
