@@ -234,6 +234,10 @@ class BlendedPath:
         """Return which of the segments ``segment`` (m,) are blends (arc, quintic), not lines."""
         return self._code[np.asarray(segment, dtype=int)] != _KIND_CODE['line']
 
+    def is_quintic(self, segment: np.ndarray) -> np.ndarray:
+        """Return which of the segments ``segment`` (m,) are quintic blends."""
+        return self._code[np.asarray(segment, dtype=int)] == _KIND_CODE['quintic']
+
 
 def distinct_waypoints(Q: np.ndarray) -> np.ndarray:
     """Return ``Q`` (m, n) without consecutive repeats; raise when fewer than two are left."""

@@ -62,7 +62,7 @@ def _grid(path, n_grid):
     count = np.maximum(2, np.ceil((b - a) / ds)).astype(int)
     blends = np.flatnonzero(path.is_blend(np.arange(a.size)))
     if blends.size:
-        quintic = np.array([path.kinds[i] == 'quintic' for i in blends.tolist()])
+        quintic = path.is_quintic(blends)
         per, least = np.where(quintic, 2.0, 1.0), np.where(quintic, 8, 2)
         count[blends] = np.maximum(np.maximum(count[blends], least),
                                    np.ceil(per * path.turns()[blends] / _MAX_TURN).astype(int))
