@@ -173,6 +173,8 @@ def _pair_minimum_by_pattern(g, s, tiny):
     ``_PATTERNS``): all rows at once.
     """
     m, R = g.shape
+    if m > 62:                  # the pattern would not fit in one integer
+        return _pair_minimum(g, s, tiny)
     code = (1 << np.arange(m)) @ np.isfinite(g)
     if np.all(code == code[0]):         # one pattern (every row finite, the usual case)
         use = [j for j in range(m) if int(code[0]) >> j & 1]
