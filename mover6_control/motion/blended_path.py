@@ -40,6 +40,8 @@ _HERMITE5 = _frozen([[1.0, 0.0, 0.0, -10.0, 15.0, -6.0],
 # _FALLING[k][j] = j! / (j - k)!: the factor of sigma^(j - k) in the k-th derivative of sigma^j.
 _FALLING = tuple(_frozen([np.prod(np.arange(j - k + 1, j + 1)) if j >= k else 0.0
                           for j in range(6)]) for k in range(4))
+# Points per block of ``BlendedPath.evaluate`` (its (block, n) temporaries stay in the cache).
+_POINT_BLOCK = 8192
 # BlendedPath segment kinds, as codes for batch evaluation.
 _KIND_CODE = {'line': 0, 'arc': 1, 'quintic': 2}
 _KIND_NAME = {code: kind for kind, code in _KIND_CODE.items()}
@@ -139,6 +141,15 @@ class BlendedPath:
         segment = np.asarray(segment, dtype=int).reshape(-1)
         n = self.n_joints
         out = {k: np.zeros((s.size, n)) for k in orders}
+        if s.size > _POINT_BLOCK and not np.any(self._code == _KIND_CODE['quintic']):
+            # A block of points at a time: the temporaries stay in the cache (the same
+            # operations on each point; not with quintics, whose matrix products could sum
+            # in another order at another size).
+            for lo in range(0, s.size, _POINT_BLOCK):
+                part = slice(lo, lo + _POINT_BLOCK)
+                for k, values in zip(orders, self.evaluate(s[part], segment[part], orders)):
+                    out[k][part] = values
+            return tuple(out[k] for k in orders)
         code = self._code[segment]
         stacks = self._stacks
         if s.size == 1:         # one point (a control tick): no search by kind
@@ -222,6 +233,10 @@ class BlendedPath:
     def is_blend(self, segment: np.ndarray) -> np.ndarray:
         """Return which of the segments ``segment`` (m,) are blends (arc, quintic), not lines."""
         return self._code[np.asarray(segment, dtype=int)] != _KIND_CODE['line']
+
+    def is_quintic(self, segment: np.ndarray) -> np.ndarray:
+        """Return which of the segments ``segment`` (m,) are quintic blends."""
+        return self._code[np.asarray(segment, dtype=int)] == _KIND_CODE['quintic']
 
 
 def distinct_waypoints(Q: np.ndarray) -> np.ndarray:

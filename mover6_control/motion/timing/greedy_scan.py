@@ -22,7 +22,13 @@ from __future__ import annotations
 import numpy as np
 
 # Ramps still running below which the rest are stepped on Python floats.
-_FEW = 8
+_FEW = 4
+# The most steps of a ramp converted to Python floats at once.
+_TAIL_BLOCK = 256
+# From this many steps on, the ramps read each step's pieces from one row (``by_step``).
+_ROWS_FROM = 50_000
+# Columns per block of the array operations over all steps (a (J, block) array in the cache).
+_STEP_BLOCK = 8192
 
 
 def greedy_scan(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray) -> np.ndarray:
@@ -64,9 +70,10 @@ def greedy_scan_columns(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray
     count = starts.size
     ends = np.full(count, -1)
     walk = np.flatnonzero(np.diff(starts, prepend=-2) != 1)
-    seen = []
+    seen, lines = [], _LineSteps(A, B)
     while True:
-        ends[walk], (ramp, position, values) = _walk(A, B, cap, starts[walk], first[walk])
+        ends[walk], (ramp, position, values) = _walk(A, B, cap, starts[walk], first[walk],
+                                                     lines)
         seen.append((walk[ramp], position, values))
         after = np.searchsorted(starts, ends, side='right')
         real, i, follow = [], 0, after.tolist()
@@ -89,86 +96,135 @@ def greedy_scan_columns(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray
 
 
 def _step(A, B, cap, x):
-    """Return ``min(cap_i, min_j A_ji x_i + B_ji)`` for every step i (N,) from ``x`` (N,)."""
-    return np.minimum(cap, np.min(A * x + B, axis=0))
+    """
+    Return ``min(cap_i, min_j A_ji x_i + B_ji)`` for every step i (N,) from ``x`` (N,).
+
+    A block of columns at a time: the (J, block) temporaries stay in the cache.
+    """
+    out = np.empty(cap.size)
+    for lo in range(0, cap.size, _STEP_BLOCK):
+        part = slice(lo, lo + _STEP_BLOCK)
+        t = A[:, part] * x[part]
+        t += B[:, part]
+        np.minimum.reduce(t, axis=0, out=out[part])
+    return np.minimum(cap, out, out=out)
 
 
-def _walk(A, B, cap, starts, first):
+def _walk(A, B, cap, starts, first, lines):
     """
     Step every ramp from its start (positions (W,), values ``first``) until it lands on a cap.
 
-    One array operation per step for all ramps still running; the last few run on Python
-    floats (an array operation on a handful of entries costs more than the floats), a stretch
-    of line steps at once (``_line_runs``). Return
-    each ramp's last position (W,) and every value a ramp passes: ramp, position and value
-    (each (V,)).
+    One array operation per step for all ramps still running, while there are many; the rest
+    run on Python floats (``_tail``; ``lines``: the line steps, a ``_LineSteps``). Return each
+    ramp's last position (W,) and every value a ramp passes: ramp, position and value (each
+    (V,)).
     """
     N = cap.size
     ends = starts.copy()
     ramp = np.flatnonzero(starts < N)
     step, cur = starts[ramp], first[ramp]
     visits = [(ramp, step, cur)]
+    lowest = np.minimum.reduce
+    J = A.shape[0]
+    if ramp.size > _FEW and N >= _ROWS_FROM:
+        pieces = lines.by_step()
     while ramp.size > _FEW:
-        low = np.min(A[:, step] * cur + B[:, step], axis=0)
         here = cap[step]
-        nxt = np.maximum(np.minimum(here, low), 0.0)
-        landed = here <= low
+        if N >= _ROWS_FROM:
+            # Each step's pieces side by side in a row: a ramp's step reads one row of the
+            # memory rather than one entry of each of 2J rows.
+            both = pieces[step]
+            t = both[:, :J] * cur[:, None]
+            t += both[:, J:]
+            nxt = lowest(t, axis=1)
+        else:
+            nxt = lowest(A[:, step] * cur + B[:, step], axis=0)
+        landed = here <= nxt
+        np.minimum(here, nxt, out=nxt)
+        np.maximum(nxt, 0.0, out=nxt)
         step = step + 1
         visits.append((ramp, step, nxt))
         done = landed | (step >= N)
-        ends[ramp[done]] = step[done]
-        keep = ~done
-        ramp, step, cur = ramp[keep], step[keep], nxt[keep]
-    tail = ([], [], [])
-    runs = _line_runs(A, B) if ramp.size else None
-    for k, i, x in zip(ramp.tolist(), step.tolist(), cur.tolist()):
-        while True:
-            if runs is not None and runs[0][i] > i:
-                # A stretch of line steps: x_{i+1} = x_i + beta_i until it lands on a cap.
-                end, beta = runs[0][i], runs[1]
-                values = np.cumsum(np.concatenate([[x], beta[i:end]]))
-                landed = np.flatnonzero(cap[i:end] <= values[1:])
-                if landed.size:
-                    end = i + int(landed[0]) + 1
-                    values[end - i] = cap[end - 1]
-                tail[0].extend([k] * (end - i))
-                tail[1].extend(range(i + 1, end + 1))
-                tail[2].extend(values[1:end - i + 1].tolist())
-                i, x = end, float(values[end - i])
-                if landed.size or i >= N:
-                    ends[k] = i
-                    break
-                continue
-            low = min(a * x + b for a, b in zip(A[:, i].tolist(), B[:, i].tolist()))
-            here = float(cap[i])
-            x = max(min(here, low), 0.0)
-            i += 1
-            tail[0].append(k)
-            tail[1].append(i)
-            tail[2].append(x)
-            if here <= low or i >= N:
-                ends[k] = i
-                break
-    visits.append(tuple(np.array(v, dtype=t) for v, t in zip(tail, (np.intp, np.intp, float))))
+        if done.any():
+            ends[ramp[done]] = step[done]
+            keep = ~done
+            ramp, step, cur = ramp[keep], step[keep], nxt[keep]
+        else:
+            cur = nxt
+    if ramp.size:
+        visits.extend(_tail(A, B, cap, ramp.tolist(), step.tolist(), cur.tolist(), ends,
+                            lines()))
     return ends, tuple(np.concatenate(v) for v in zip(*visits))
 
 
-def _line_runs(A, B):
+def _tail(A, B, cap, ramps, steps, values, ends, lines):
     """
-    Return, per step, where its stretch of line steps ends (N,), and each step's ``beta`` (N,).
+    Step the few ramps left one at a time on Python floats; return their visits.
+
+    The steps are converted to Python floats a block at a time (the block doubles while the
+    ramp runs, up to ``_TAIL_BLOCK`` steps: few are converted past the landing), the pieces
+    of line steps not at all: a line step is ``x + beta`` (``lines``: ``beta`` and which steps
+    are line steps, ``_LineSteps``). Each ramp's end goes into ``ends``.
+    """
+    N = cap.size
+    beta, line = lines
+    out = []
+    for k, i, x in zip(ramps, steps, values):
+        begin, xs, size, landed = i, [], 16, False
+        while not landed and i < N:
+            stop = min(N, i + size)
+            size = min(2 * size, _TAIL_BLOCK)
+            on_line = line[i:stop]
+            others = i + np.flatnonzero(~on_line)       # their pieces as Python floats
+            pieces = zip(A[:, others].T.tolist(), B[:, others].T.tolist())
+            for here, is_line, b in zip(cap[i:stop].tolist(), on_line.tolist(),
+                                        beta[i:stop].tolist()):
+                if is_line:
+                    low = x + b
+                else:
+                    a_col, b_col = next(pieces)
+                    low = min([p * x + q for p, q in zip(a_col, b_col)])
+                x = max(min(here, low), 0.0)
+                i += 1
+                xs.append(x)
+                if here <= low:
+                    landed = True
+                    break
+        ends[k] = i
+        out.append((np.full(i - begin, k), np.arange(begin + 1, i + 1), np.array(xs)))
+    return out
+
+
+class _LineSteps:
+    """
+    Each step's smallest ``B`` (N,) and which steps are line steps (N,), found on first use.
 
     A line step has every piece of slope 1 (the path's curvature is zero there): its step is
-    ``x + min_j B_j``, with the very rounding of the loop (adding to x is monotone, so the
-    smallest sum is x plus the smallest B). Stepping a stretch of them is one cumulative sum
-    started at x: the same additions in the same order. ``end[i] == i`` where step i is no
-    line step.
+    ``x + min_j B_j``, with the very rounding of the loop (``1 * x`` is x, and adding to x is
+    monotone, so the smallest sum is x plus the smallest B).
     """
-    N = A.shape[1]
-    beta = np.min(B, axis=0)
-    line = (np.all((A == 1.0) | ((A == 0.0) & np.isinf(B)), axis=0) & np.isfinite(beta)
-            & (beta >= 0.0))        # the floor at 0 never binds
-    index = np.arange(N)
-    # The first step at or after i that is no line step.
-    stop = np.where(line, N, index)
-    end = np.minimum.accumulate(stop[::-1])[::-1]
-    return end, beta
+
+    def __init__(self, A, B):
+        """Keep the pieces ``A``, ``B`` (J, N) of the recurrence."""
+        self._A, self._B, self._found, self._rows = A, B, None, None
+
+    def by_step(self):
+        """Return the pieces of each step side by side, ``[A_i, B_i]`` (N, 2J), made once."""
+        if self._rows is None:
+            J, N = self._A.shape
+            self._rows = np.empty((N, 2 * J))
+            for lo in range(0, N, _STEP_BLOCK):
+                part = slice(lo, lo + _STEP_BLOCK)
+                self._rows[part, :J] = self._A[:, part].T
+                self._rows[part, J:] = self._B[:, part].T
+        return self._rows
+
+    def __call__(self):
+        """Return ``beta`` and the line steps (each (N,)), computed once."""
+        if self._found is None:
+            A, B = self._A, self._B
+            beta = np.min(B, axis=0)
+            line = (np.all((A == 1.0) | ((A == 0.0) & np.isinf(B)), axis=0)
+                    & np.isfinite(beta) & (beta >= 0.0))        # the floor at 0 never binds
+            self._found = beta, line
+        return self._found

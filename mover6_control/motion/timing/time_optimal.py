@@ -42,6 +42,10 @@ _MAX_TURN = 0.05
 _LIMIT_MARGIN = 1e-3
 # The jerk-limited timing is checked on samples: slow it 1 % more than they ask for.
 _JERK_MARGIN = 1e-2
+# The most patterns of finite constraints the static range takes one at a time.
+_PATTERNS = 32
+# Grid intervals per block of the constraint arrays (a (2n, block) array stays in the cache).
+_INTERVAL_BLOCK = 8192
 
 
 def _grid(path, n_grid):
@@ -58,7 +62,7 @@ def _grid(path, n_grid):
     count = np.maximum(2, np.ceil((b - a) / ds)).astype(int)
     blends = np.flatnonzero(path.is_blend(np.arange(a.size)))
     if blends.size:
-        quintic = np.array([path.kinds[i] == 'quintic' for i in blends.tolist()])
+        quintic = path.is_quintic(blends)
         per, least = np.where(quintic, 2.0, 1.0), np.where(quintic, 8, 2)
         count[blends] = np.maximum(np.maximum(count[blends], least),
                                    np.ceil(per * path.turns()[blends] / _MAX_TURN).astype(int))
@@ -129,19 +133,65 @@ def _static_range(gamma, slope, limit):
         # at least 2 min(gamma) / 1e-15, so where that reaches the limit it cannot count
         # anyway and need not be masked (the usual case: gamma is a_max / |q'|).
         tiny = not np.all(2.0 * np.min(g, axis=0) / 1e-15 >= bound)
-        ratios = np.empty((m * (m - 1) // 2, rows.size))
-        at = 0
-        with np.errstate(divide='ignore', invalid='ignore'):
-            for d in range(1, m):           # the pairs (i, i + d)
-                part = ratios[at:at + m - d]
-                np.subtract(s[:-d], s[d:], out=part)
-                np.abs(part, out=part)
-                if tiny:
-                    part[part <= 1e-15] = 0.0       # divides to inf (gamma > 0)
-                np.divide(g[:-d] + g[d:], part, out=part)
-                at += m - d
-        hi[rows] = np.minimum(bound, np.min(ratios, axis=0))
+        hi[rows] = np.minimum(bound, _pair_minimum_by_pattern(g, s, tiny))
     return hi
+
+
+def _pair_minimum(g, s, tiny):
+    """
+    Return ``min (g_i + g_j) / |s_i - s_j|`` over the pairs i < j of rows (m, R), per column.
+
+    Row against row by distance (the pairs (i, i + d)), in one buffer. A difference of at most
+    1e-15 divides to inf where ``tiny``. Fewer than two rows: inf.
+    """
+    m, R = g.shape
+    if m < 2:
+        return np.full(R, np.inf)
+    ratios = np.empty((m * (m - 1) // 2, R))
+    at = 0
+    with np.errstate(divide='ignore', invalid='ignore'):
+        for d in range(1, m):           # the pairs (i, i + d)
+            part = ratios[at:at + m - d]
+            np.subtract(s[:-d], s[d:], out=part)
+            np.abs(part, out=part)
+            if tiny:
+                part[part <= 1e-15] = 0.0       # divides to inf (gamma > 0)
+            np.divide(g[:-d] + g[d:], part, out=part)
+            at += m - d
+    return np.min(ratios, axis=0)
+
+
+def _pair_minimum_by_pattern(g, s, tiny):
+    """
+    Return ``_pair_minimum`` over the finite rows of each column alone, columns grouped by them.
+
+    A pair with an infinite ``g`` has an infinite ratio (its difference is finite), so it
+    never is the minimum: leaving it out changes nothing. Where joints stand still (their
+    constraints are infinite on the whole blend) that leaves a few rows of the 2n, and far
+    fewer pairs. Each pair's ratio is the same number in any order of its rows (the
+    difference only changes sign, the sum commutes). Many patterns (more than
+    ``_PATTERNS``): all rows at once.
+    """
+    m, R = g.shape
+    if m > 62:                  # the pattern would not fit in one integer
+        return _pair_minimum(g, s, tiny)
+    code = (1 << np.arange(m)) @ np.isfinite(g)
+    if np.all(code == code[0]):         # one pattern (every row finite, the usual case)
+        use = [j for j in range(m) if int(code[0]) >> j & 1]
+        return _pair_minimum(g[use], s[use], tiny) if len(use) < m else _pair_minimum(g, s, tiny)
+    patterns, group = np.unique(code, return_inverse=True)
+    if patterns.size > _PATTERNS:
+        return _pair_minimum(g, s, tiny)
+    order = np.argsort(group, kind='stable')
+    ends = np.cumsum(np.bincount(group, minlength=patterns.size)).tolist()
+    lowest = np.empty(R)
+    begin = 0
+    for pattern, end in zip(patterns.tolist(), ends):
+        cols = order[begin:end]
+        use = [j for j in range(m) if pattern >> j & 1]
+        lowest[cols] = _pair_minimum(g[np.ix_(use, cols)], s[np.ix_(use, cols)], tiny)
+        begin = end
+    return lowest
 
 
 def _distinct_lines(gamma, slope):
@@ -157,17 +207,41 @@ def _distinct_lines(gamma, slope):
     return keep
 
 
-def _backward_pass(gamma, slope, keep, delta, s_hi):
+def _pieces(ends, delta, a, limit):
     """
-    Return the upper ends ``hi`` (N + 1,) of TOPP-RA's controllable sets ``K_k = [0, hi[k]]``.
+    Return the pieces of both passes' recurrences: backward ``(A, B, cap)``, forward ``(A, B)``.
 
-    ``K_N = {0}``. The lower ends are 0 throughout: x = 0 admits u = 0 at every interval, so
-    the next set's lower end never binds. Below the static range ``s_hi`` (N,), ``x_k + 2
-    delta u`` must land in ``K_{k+1}`` with some u in ``|u - slope_j x_k| <= gamma_j``:
-    ``hi_k = min(cap_k, min_j (hi_{k+1} + 2 delta gamma_j) / (1 + 2 delta slope_j))`` over the
-    rows with ``c_j = slope_j + 1 / (2 delta) > 0``; a row with ``c_j < 0`` caps ``hi_k`` at
-    ``gamma_j / |c_j|`` whatever comes next. The recurrence runs from the end, solved by
-    ``greedy_scan``. ``keep``: the constraints that count (``_distinct_lines``).
+    ``ends``: the path's first and second derivatives at both ends of every interval ((N, n)
+    each); ``limit`` (N,): the caps the speed limits and the stops give. Each interval's
+    constraints (``_stage_lines``), their static range (``_static_range``) and which count
+    (``_distinct_lines``) are a column of their own: they are computed a block of columns at a
+    time (the (2n, block) temporaries stay in the cache), into the (2n, N) pieces.
+    """
+    dq0, ddq0, dq1, ddq1 = ends
+    N, n = dq0.shape
+    back_A, back_B, back_cap = np.empty((2 * n, N)), np.empty((2 * n, N)), np.empty(N)
+    fwd_A, fwd_B = np.empty((2 * n, N)), np.empty((2 * n, N))
+    for lo in range(0, N, _INTERVAL_BLOCK):
+        part = slice(lo, lo + _INTERVAL_BLOCK)
+        gamma, slope, cap = _stage_lines(dq0[part].T, ddq0[part].T, dq1[part].T, ddq1[part].T,
+                                         delta[part], a)
+        s_hi = _static_range(gamma, slope, np.minimum(cap, limit[part]))
+        keep = _distinct_lines(gamma, slope)
+        back_A[:, part], back_B[:, part], back_cap[part] = _backward_pieces(
+            gamma, slope, keep, delta[part], s_hi)
+        fwd_A[:, part], fwd_B[:, part] = _forward_pieces(gamma, slope, keep, delta[part])
+    return (back_A, back_B, back_cap), (fwd_A, fwd_B)
+
+
+def _backward_pieces(gamma, slope, keep, delta, s_hi):
+    """
+    Return the backward pass's pieces ``A``, ``B`` (2n, N) and caps (N,) (``_backward_pass``).
+
+    Below the static range ``s_hi`` (N,), ``x_k + 2 delta u`` must land in ``K_{k+1}`` with
+    some u in ``|u - slope_j x_k| <= gamma_j``: ``hi_k = min(cap_k, min_j (hi_{k+1} + 2 delta
+    gamma_j) / (1 + 2 delta slope_j))`` over the rows with ``c_j = slope_j + 1 / (2 delta) >
+    0``; a row with ``c_j < 0`` caps ``hi_k`` at ``gamma_j / |c_j|`` whatever comes next.
+    ``keep``: the constraints that count (``_distinct_lines``).
     """
     inv = 1.0 / (2.0 * delta)
     c = slope + inv
@@ -176,21 +250,37 @@ def _backward_pass(gamma, slope, keep, delta, s_hi):
         cap = np.minimum(s_hi, np.min(np.where(minus, gamma / -c, np.inf), axis=0))
         A = np.where(plus, inv / c, 0.0)
         B = np.where(plus, gamma / c, np.inf)
+    return A, B, cap
+
+
+def _backward_pass(pieces):
+    """
+    Return the upper ends ``hi`` (N + 1,) of TOPP-RA's controllable sets ``K_k = [0, hi[k]]``.
+
+    ``K_N = {0}``. The lower ends are 0 throughout: x = 0 admits u = 0 at every interval, so
+    the next set's lower end never binds. The recurrence (``_backward_pieces``) runs from the
+    end, solved by ``greedy_scan``.
+    """
+    A, B, cap = pieces
     return greedy_scan.greedy_scan_columns(0.0, A[:, ::-1], B[:, ::-1], cap[::-1])[::-1].copy()
 
 
-def _forward_pass(gamma, slope, keep, delta, hi, x0):
+def _forward_pieces(gamma, slope, keep, delta):
+    """Return the forward pass's pieces ``A``, ``B`` (2n, N) (``_forward_pass``)."""
+    two_d = 2.0 * delta
+    return np.where(keep, 1.0 + two_d * slope, 0.0), np.where(keep, two_d * gamma, np.inf)
+
+
+def _forward_pass(pieces, delta, hi, x0):
     """
     Return the greedy timing: ``x`` (N + 1,) and ``u`` (N,), the largest admissible ``u``.
 
     Each step takes the largest ``u`` the upper lines ``gamma + slope x`` allow that still
     lands in the next controllable set ``[0, hi[k + 1]]``: ``x_{k+1} = min(hi_{k+1}, min_j
-    ((1 + 2 delta slope_j) x_k + 2 delta gamma_j))`` over the constraints ``keep``, solved by
-    ``greedy_scan``.
+    ((1 + 2 delta slope_j) x_k + 2 delta gamma_j))`` over the constraints that count
+    (``_forward_pieces``), solved by ``greedy_scan``.
     """
-    two_d = 2.0 * delta
-    A = np.where(keep, 1.0 + two_d * slope, 0.0)
-    B = np.where(keep, two_d * gamma, np.inf)
+    A, B = pieces
     x = greedy_scan.greedy_scan_columns(x0, A, B, hi[1:])
     return x, (x[1:] - x[:-1]) / (2.0 * delta)
 
@@ -251,11 +341,11 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
         x_cap[1:] = np.minimum(x_cap[1:], jcap1)
     x_cap[_nearest(s_grid, np.asarray(path.stops, dtype=float))] = 0.0
     x_cap[-1] = 0.0
-    gamma, slope, cap = _stage_lines(d0[1].T, d0[2].T, d1[1].T, d1[2].T, delta, a)
-    s_hi = _static_range(gamma, slope, np.minimum(cap, x_cap[:-1]))
-    keep = _distinct_lines(gamma, slope)
-    hi = _backward_pass(gamma, slope, keep, delta, s_hi)
-    x, u = _forward_pass(gamma, slope, keep, delta, hi, _start_x(path, qd_start, 0.0, hi[0]))
+    backward, forward = _pieces((d0[1], d0[2], d1[1], d1[2]), delta, a, x_cap[:-1])
+    hi = _backward_pass(backward)
+    del backward        # (2n, N) arrays: the memory goes back before the next are made
+    x, u = _forward_pass(forward, delta, hi, _start_x(path, qd_start, 0.0, hi[0]))
+    del forward
     sd = np.sqrt(x)
     dt = 2.0 * delta / np.maximum(sd[:-1] + sd[1:], 1e-300)
     if not np.all(np.isfinite(dt)):
@@ -337,17 +427,60 @@ def _within_limits(path, timing, traj, v, a, seg, ends, samples=6):
     frac = np.arange(1, samples + 1) / (samples + 1.0)
     arcs = np.flatnonzero(path.is_blend(seg))
     arcs = arcs[~_arc_intervals_within(path, timing, seg[arcs], arcs, ends, v, a)]
-    t = np.concatenate([t_grid, (t_grid[arcs, None] + (t_grid[arcs + 1] - t_grid[arcs])[:, None]
-                                 * frac).ravel()])
+    t = (t_grid[arcs, None] + (t_grid[arcs + 1] - t_grid[arcs])[:, None] * frac).ravel()
+    if _grid_points_at_starts(path, timing, seg):
+        # Sampled at its time, grid point k < N is the start of interval k: its path
+        # derivatives are ``ends[0]``, ``ends[1]``; the same numbers, without the search.
+        at_grid = _largest_ratios(ends[0], ends[1], timing.sd[:-1], timing.u, v, a)
+        t = np.concatenate([t_grid[-1:], t])
+    else:
+        at_grid = (0.0, 0.0)
+        t = np.concatenate([t_grid, t])
     s, sd, sdd, _ = timing.profile(t)
     dq, ddq = path.evaluate(s, path.segment_of(s), (1, 2))
-    sd = sd[:, None]
-    qd = dq * sd
-    qdd = dq * sdd[:, None] + ddq * sd ** 2
-    factor = max(1.0, float(np.max(np.abs(qd) / v)), float(np.sqrt(np.max(np.abs(qdd) / a))))
+    sampled = _largest_ratios(dq, ddq, sd, sdd, v, a)
+    factor = max(1.0, at_grid[0], sampled[0], float(np.sqrt(max(at_grid[1], sampled[1]))))
     if factor <= 1.0:
         return traj
     return PathTrajectory(path, ScaledTiming(timing, factor * (1.0 + 1e-4)))
+
+
+def _joint_rates(dq, ddq, sd, sdd):
+    """Return the joint rates and accelerations (m, n) from the path's and the timing's."""
+    sd = sd[:, None]
+    return dq * sd, dq * sdd[:, None] + ddq * sd ** 2
+
+
+def _largest_ratios(dq, ddq, sd, sdd, v, a):
+    """
+    Return the largest ``|qd| / v`` and ``|qdd| / a`` (``_joint_rates``) over all rows (m,).
+
+    A block of rows at a time (the temporaries stay in the cache); 0 for no rows.
+    """
+    speed = accel = 0.0
+    for lo in range(0, sd.size, _INTERVAL_BLOCK):
+        part = slice(lo, lo + _INTERVAL_BLOCK)
+        qd, qdd = _joint_rates(dq[part], ddq[part], sd[part], sdd[part])
+        speed = max(speed, float(np.max(np.abs(qd) / v)))
+        accel = max(accel, float(np.max(np.abs(qdd) / a)))
+    return speed, accel
+
+
+def _grid_points_at_starts(path, timing, seg):
+    """
+    Return whether ``timing.profile`` at each grid time but the last is interval k's start.
+
+    So it is when the grid times rise strictly (the search finds interval k at its own time,
+    where ``tau`` is 0: ``s`` is ``s_grid[k]``, the speed ``sd[k]``, the acceleration
+    ``u[k]``) and every grid point lies before its segment's end (the search for the segment
+    finds interval k's own: the first point of a segment is its start, the others rise to
+    below the end).
+    """
+    s_grid, t_grid = timing.s_grid, timing.t_grid
+    last = np.append(np.flatnonzero(seg[1:] != seg[:-1]), seg.size - 1)
+    return bool(np.all(t_grid[1:] > t_grid[:-1])
+                and np.all(s_grid[last] < path.starts[seg[last] + 1])
+                and np.all(path.starts[1:] > path.starts[:-1]))
 
 
 def _arc_intervals_within(path, timing, segment, k, ends, v, a):
@@ -361,7 +494,17 @@ def _arc_intervals_within(path, timing, segment, k, ends, v, a):
     sdot^2``, ``dx / ds = 2 u``) has the second derivative ``5 u q^(3) + x q^(4)``, at most
     ``R (5 |u| / r^2 + x / r^3)``, so it exceeds the larger of its end values by at most
     ``R dphi^2 / 8 (5 |u| + x / r)``. Both bounds within the limits: no samples needed.
+    A block of intervals at a time (the (block, n) temporaries stay in the cache).
     """
+    within = np.empty(k.size, dtype=bool)
+    for lo in range(0, k.size, _INTERVAL_BLOCK):
+        part = slice(lo, lo + _INTERVAL_BLOCK)
+        within[part] = _arc_block_within(path, timing, segment[part], k[part], ends, v, a)
+    return within
+
+
+def _arc_block_within(path, timing, segment, k, ends, v, a):
+    """Return ``_arc_intervals_within`` for the intervals ``k`` of one block."""
     dq0, ddq0, dq1, ddq1 = (d[k] for d in ends)
     amplitude, radius = path.arc_shape(segment)
     bump = amplitude * ((timing.s_grid[k + 1] - timing.s_grid[k]) / radius)[:, None] ** 2 / 8.0
