@@ -199,8 +199,8 @@ def _wrap(q):
     if np.ndim(x) == 0:
         return x % (2.0 * np.pi) - np.pi
     out = x - np.pi
-    outside = (x < 0.0) | (x >= 2.0 * np.pi)
-    if outside.any():
+    if x.size and (x.min() < 0.0 or x.max() >= 2.0 * np.pi):
+        outside = (x < 0.0) | (x >= 2.0 * np.pi)
         out[outside] = x[outside] % (2.0 * np.pi) - np.pi
     return out
 
@@ -356,7 +356,10 @@ def _alias(q, ref, lo, hi, within_limits):
     q = ref + _wrap(q - ref)
     if not within_limits:
         return q, None
-    q = _into_range(q, lo, hi)
+    # A turn up can bring a value inside only if the smallest one turned up is <= hi, a turn
+    # down only if the largest one turned down is >= lo (rounding is monotone): else none moves.
+    if q.size and (q.min() + 2.0 * np.pi <= hi or q.max() - 2.0 * np.pi >= lo):
+        q = _into_range(q, lo, hi)
     return q, (q >= lo - 1e-9) & (q <= hi + 1e-9)
 
 
