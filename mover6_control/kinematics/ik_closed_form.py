@@ -250,8 +250,8 @@ def pose_errors_batch(T_goal: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np
 class _Plan:
     """The batch solver's constants of one ``WristGeometry``, prepared once (``_plan``)."""
 
-    rows: np.ndarray       # (27, 16): per-pose rows, linear in the pose's 16 entries
-    offset: np.ndarray     # (27, 1): their constant parts
+    rows: np.ndarray       # (39, 12): per-pose rows, linear in the pose's top 12 entries
+    offset: np.ndarray     # (39, 1): their constant parts
     q3: tuple              # phi3, rho3, safe rho3, (|e|^2 + |u|^2) / 2: q3's equation
     elbow: np.ndarray      # (2, 3): the plane coordinates of x - r2 are k0 + cos q3 k1 + sin q3 k2
     sigma: float           # w3 = sigma w2 exactly (+-1), or 0: turn about w3 in full
@@ -267,14 +267,15 @@ def _plan(geo: WristGeometry) -> _Plan:
     Return the constants of the batch solver for ``geo``.
 
     Everything the solver needs of a pose before any joint is known is linear in the pose's
-    entries (with a constant part): 27 rows of one matrix product per block of poses,
+    top 12 entries (with a constant part): 39 rows of one matrix product per block of poses,
 
     - 0-2: q1's equation ``a cos q1 + b sin q1 = c``;
     - 3-8: the wrist centre seen from axis 2 after turning back by q1, in the plane normal to
       w2 with the basis (e1, e2): ``d = D0 + cos q1 D1 + sin q1 D2`` for each of e1, e2;
     - 9-26: the goal's axes ``g`` (R_goal M^T w6 and R_goal M^T x6) turned back by q1, in the
       basis (e1, e2, w2): ``g . Rot(w1, q1) b = g . b_par + cos q1 g . b_perp
-      + sin q1 g . (w1 x b)`` for b = e1, e2, w2.
+      + sin q1 g . (w1 x b)`` for b = e1, e2, w2;
+    - 27-38: the pose's entries themselves (for the FK check, in the same layout).
     """
     w1, w2, w3, w4, w5, w6 = geo.omega
     r1, r2, r3 = geo.r[:3]
@@ -290,17 +291,17 @@ def _plan(geo: WristGeometry) -> _Plan:
     s12 = np.dot(w1, w2)
 
     def of_p(k):
-        """Row of ``p . k`` (p = R wit + t) over the pose's 16 entries."""
-        row = np.zeros((4, 4))
+        """Row of ``p . k`` (p = R wit + t) over the pose's top 12 entries."""
+        row = np.zeros((3, 4))
         row[:3, :3] = np.outer(k, wit)
         row[:3, 3] = k
-        return row.reshape(16)
+        return row.reshape(12)
 
     def of_g(gc, k):
         """Row of ``(R gc) . k``."""
-        row = np.zeros((4, 4))
+        row = np.zeros((3, 4))
         row[:3, :3] = np.outer(k, gc)
-        return row.reshape(16)
+        return row.reshape(12)
 
     rows, offset = [], []
     ka, kb = w2 - s12 * w1, _cross(w1, w2)
@@ -330,6 +331,8 @@ def _plan(geo: WristGeometry) -> _Plan:
     den = s45 ** 2 - 1.0
     n45 = _cross(w4, w5)
     wb = _wrist_basis(geo)
+    rows += list(np.eye(12))                           # 27-38: the pose's entries, for the check
+    offset += [0.0] * 12
     plan = _Plan(rows=np.array(rows), offset=np.array(offset)[:, None],
                  q3=(float(np.arctan2(b3, a3)), float(rho3), float(rho3 if rho3 > 1e-12 else 1.0),
                      float((np.dot(e, e) + np.dot(u, u)) / 2.0)),
@@ -397,7 +400,7 @@ def _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok):
     Q[...] = q_ref[:, None, :]
     ok[...] = False
     used_ref = np.zeros(m, dtype=bool)
-    X = plan.rows @ T.reshape(m, 16).T
+    X = plan.rows @ T.reshape(m, 16)[:, :12].T
     X += plan.offset
     # q1 (two roots per pose): a cos q1 + b sin q1 = c.
     a, b, c = X[0], X[1], X[2]
@@ -523,7 +526,7 @@ def _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok):
     if len(pos):
         F = np.empty((12, len(pos)))
         F[...] = _fk_rows(arm, [(W[6 + 2 * i], W[7 + 2 * i]) for i in range(6)])
-        F -= T.reshape(-1, 16)[pose, :12].T
+        F -= X[27:].take(pose, axis=1)
         F *= F
         position = F[3] + F[7] + F[11]
         chord = F[0] + F[1] + F[2] + F[4] + F[5] + F[6] + F[8] + F[9] + F[10]
