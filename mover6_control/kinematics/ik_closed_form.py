@@ -345,7 +345,6 @@ def _plan(geo: WristGeometry) -> _Plan:
     return plan
 
 
-_FLIP = np.array([1.0, -1.0])
 _WRIST_BLOCK = 4096      # branches reaching the wrist per block of ik_closed_form_batch
 
 
@@ -366,9 +365,24 @@ def _alias(q, ref, lo, hi, within_limits):
     return q, (q >= lo - 1e-9) & (q <= hi + 1e-9)
 
 
-def _keep(ok, inside, n):
-    """Return the flat indices of the (n, 2) entries ``ok`` (n, 1) and, given, ``inside``."""
-    return np.flatnonzero(np.broadcast_to(ok, (n, 2)) if inside is None else ok & inside)
+def _keep(ok, inside):
+    """
+    Return where the (2, n) entries are ``ok`` (n,) and (given) ``inside``: entry and root.
+
+    The flat index ``root * n + entry`` is split into the entry (n) and the root (0 or 1).
+    """
+    n = len(ok)
+    flat = np.flatnonzero(np.broadcast_to(ok, (2, n)) if inside is None else ok & inside)
+    root = flat >= n
+    return flat, flat - n * root, root
+
+
+def _pair(a, b, op):
+    """Return the (2, n) array of ``a + b`` and ``op(a, b)`` (the two roots or flips)."""
+    out = np.empty((2,) + np.shape(a if np.ndim(a) else b))
+    np.add(a, b, out=out[0])
+    op(a, b, out=out[1])
+    return out
 
 
 def _cos_sin_of_atan2(y, x):
@@ -399,6 +413,7 @@ def _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok):
     lo, hi = arm.lower, arm.upper
     Q[...] = q_ref[:, None, :]
     ok[...] = False
+    ref = np.ascontiguousarray(q_ref.T)                        # (6, m): each joint's row
     used_ref = np.zeros(m, dtype=bool)
     X = plan.rows @ T.reshape(m, 16)[:, :12].T
     X += plan.offset
@@ -407,18 +422,17 @@ def _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok):
     rho = np.sqrt(a * a + b * b)
     ok1 = np.abs(c) <= rho + 1e-12
     delta = np.arccos(np.clip(c / np.where(rho > 1e-12, rho, 1.0), -1.0, 1.0))
-    q1 = np.arctan2(b, a)[:, None] + delta[:, None] * _FLIP                    # (m, 2)
+    q1 = _pair(np.arctan2(b, a), delta, np.subtract)                         # (2, m)
     shoulder = rho < 1e-9
     if shoulder.any():
-        q1[shoulder] = q_ref[shoulder, :1]
+        q1[:, shoulder] = ref[0, shoulder]
         ok1 |= shoulder & (np.abs(c) < 1e-9)
         used_ref |= shoulder
-    q1a, inside = _alias(q1, q_ref[:, :1], lo[0], hi[0], within_limits)
-    sel = _keep(ok1[:, None], inside, m)
-    pose = sel >> 1
-    pos = sel << 2
-    carry = q1a.reshape(-1)[sel][None]
-    q1 = q1.reshape(-1)[sel]
+    q1a, inside = _alias(q1, ref[0], lo[0], hi[0], within_limits)
+    sel, pose, root = _keep(ok1, inside)
+    pos = pose * 8 + 4 * root
+    carry = q1a.reshape(-1).take(sel)[None]
+    q1 = q1.reshape(-1).take(sel)
     s1, c1 = np.sin(q1), np.cos(q1)
     # q3 (two roots per branch): the wrist centre's distance to axis 2, law of cosines.
     D = X[3:9].take(pose, axis=1)
@@ -427,15 +441,14 @@ def _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok):
     phi3, rho3, safe3, half = plan.q3
     rhs = 0.5 * (dx * dx + dy * dy) - half
     ok3 = np.abs(rhs) <= rho3 + 1e-12
-    q3 = phi3 + np.arccos(np.clip(rhs / safe3, -1.0, 1.0))[:, None] * _FLIP    # (n, 2)
-    q3a, inside = _alias(q3, q_ref[pose, 2, None], lo[2], hi[2], within_limits)
-    sel = _keep(ok3[:, None], inside, len(ok3))
-    j = sel >> 1
-    pos = pos[j] + ((sel & 1) << 1)
+    q3 = _pair(phi3, np.arccos(np.clip(rhs / safe3, -1.0, 1.0)), np.subtract)  # (2, n)
+    q3a, inside = _alias(q3, ref[2].take(pose), lo[2], hi[2], within_limits)
+    sel, j, root = _keep(ok3, inside)
+    pos = pos[j] + 2 * root
     pose = pos >> 3
     carry = np.concatenate([carry.take(j, axis=1), q3a.reshape(1, -1).take(sel, axis=1)])
     s1, c1, dx, dy = s1[j], c1[j], dx[j], dy[j]
-    q3 = q3.reshape(-1)[sel]
+    q3 = q3.reshape(-1).take(sel)
     s3, c3 = np.sin(q3), np.cos(q3)
     # q2 turns x - r2 (x: the wrist centre turned by q3) onto d, both in the elbow plane.
     k = plan.elbow
@@ -443,7 +456,7 @@ def _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok):
     uy = k[1, 0] + c3 * k[1, 1] + s3 * k[1, 2]
     y2 = ux * dy - uy * dx
     x2 = ux * dx + uy * dy
-    q2a, inside = _alias(np.arctan2(y2, x2), q_ref[pose, 1], lo[1], hi[1], within_limits)
+    q2a, inside = _alias(np.arctan2(y2, x2), ref[1].take(pose), lo[1], hi[1], within_limits)
     carry = np.concatenate([carry, q2a[None]])                                # q1, q3, q2
     if inside is not None:
         sel = np.flatnonzero(inside)
@@ -480,25 +493,22 @@ def _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok):
     gamma = np.sqrt(np.maximum(gamma2, 0.0))
     lever = np.sqrt((beta ** 2 + gamma ** 2) * nn45)
     singular = lever < 1e-9
-    gamma = gamma[:, None] * _FLIP                                             # (n, 2)
-    alpha, beta = alpha[:, None], beta[:, None]
+    gamma = np.stack([gamma, -gamma])                                         # (2, n): flips
     y5 = (alpha * k5[0] + beta * k5[1]) + gamma * k5[2]
     x5 = (alpha * k5[3] + beta * k5[4]) + gamma * k5[5]
-    q5a, inside5 = _alias(np.arctan2(y5, x5), q_ref[pose, 4, None], lo[4], hi[4],
-                          within_limits)
-    y4 = beta * an[:, None] + gamma * am[:, None]
-    x4 = beta * (a5 - s45 * a4)[:, None] + gamma * an[:, None]
+    q5a, inside5 = _alias(np.arctan2(y5, x5), ref[4].take(pose), lo[4], hi[4], within_limits)
+    y4 = beta * an + gamma * am
+    x4 = beta * (a5 - s45 * a4) + gamma * an
     q4 = np.arctan2(y4, x4)
+    ref4 = ref[3].take(pose)
     if singular.any():
         used_ref[pose[singular]] = True
-        ref4 = np.broadcast_to(q_ref[pose, 3, None], q4.shape)
-        q4 = np.where(singular[:, None], ref4, q4)
-        y4 = np.where(singular[:, None], np.sin(ref4), y4)
-        x4 = np.where(singular[:, None], np.cos(ref4), x4)
-    q4a, inside4 = _alias(q4, q_ref[pose, 3, None], lo[3], hi[3], within_limits)
-    sel = _keep(ok_w[:, None], None if inside5 is None else inside5 & inside4, len(ok_w))
-    j = sel >> 1
-    pos = pos[j] + (sel & 1)
+        q4 = np.where(singular, ref4, q4)
+        y4 = np.where(singular, np.sin(ref4), y4)
+        x4 = np.where(singular, np.cos(ref4), x4)
+    q4a, inside4 = _alias(q4, ref4, lo[3], hi[3], within_limits)
+    sel, j, root = _keep(ok_w, None if inside5 is None else inside5 & inside4)
+    pos = pos[j] + root
     pose = pos >> 3
     c5, s5 = _cos_sin_of_atan2(y5.reshape(-1)[sel], x5.reshape(-1)[sel])
     c4, s4 = _cos_sin_of_atan2(y4.reshape(-1)[sel], x4.reshape(-1)[sel])
@@ -506,7 +516,7 @@ def _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok):
     d = tx.take(j, axis=1)
     h = [d[3 * i] + c5 * d[3 * i + 1] + s5 * d[3 * i + 2] for i in range(6)]
     y6, x6 = h[0] + c4 * h[1] + s4 * h[2], h[3] + c4 * h[4] + s4 * h[5]
-    q6a, inside = _alias(np.arctan2(y6, x6), q_ref[pose, 5], lo[5], hi[5], within_limits)
+    q6a, inside = _alias(np.arctan2(y6, x6), ref[5].take(pose), lo[5], hi[5], within_limits)
     c6, s6 = _cos_sin_of_atan2(y6, x6)
     # Joints (rows 0-5) and their sines and cosines (6-17), for the FK check.
     W = np.empty((18, len(sel)))
