@@ -457,15 +457,18 @@ def _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok):
     y2 = ux * dy - uy * dx
     x2 = ux * dx + uy * dy
     q2a, inside = _alias(np.arctan2(y2, x2), ref[1].take(pose), lo[1], hi[1], within_limits)
-    carry = np.concatenate([carry, q2a[None]])                                # q1, q3, q2
+    # Rows of the branches that reach the wrist: q1, q2, q3, then s1, c1, s2, c2, s3, c3.
+    A = np.concatenate([carry[:1], q2a[None], carry[1:], s1[None], c1[None], x2[None],
+                        y2[None], s3[None], c3[None]])
     if inside is not None:
-        sel = np.flatnonzero(inside)
-        pos, pose = pos[sel], pose[sel]
-        carry = carry.take(sel, axis=1)
-        s1, c1, s3, c3, x2, y2 = s1[sel], c1[sel], s3[sel], c3[sel], x2[sel], y2[sel]
+        A = A.take(np.flatnonzero(inside), axis=1)
+        pos = pos[inside]
+        pose = pos >> 3
     n_wrist = n = len(pos)
+    s1, c1, s3, c3 = A[3], A[4], A[7], A[8]
     # The goal's two axes turned back by q1, q2, q3, in the basis (e1, e2, w2) of the plane.
-    c2, s2 = _cos_sin_of_atan2(y2, x2)
+    A[6], A[5] = _cos_sin_of_atan2(A[6], A[5])
+    s2, c2 = A[5], A[6]
     G = X[9:27].take(pose, axis=1).reshape(6, 3, n)
     G = G[:, 0] + c1 * G[:, 1] + s1 * G[:, 2]                                  # (6, n)
     if plan.sigma:
@@ -517,25 +520,27 @@ def _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok):
     h = [d[3 * i] + c5 * d[3 * i + 1] + s5 * d[3 * i + 2] for i in range(6)]
     y6, x6 = h[0] + c4 * h[1] + s4 * h[2], h[3] + c4 * h[4] + s4 * h[5]
     q6a, inside = _alias(np.arctan2(y6, x6), ref[5].take(pose), lo[5], hi[5], within_limits)
-    c6, s6 = _cos_sin_of_atan2(y6, x6)
-    # Joints (rows 0-5) and their sines and cosines (6-17), for the FK check.
-    W = np.empty((18, len(sel)))
-    W[0], W[2], W[1] = carry.take(j, axis=1)
-    W[3], W[4], W[5] = q4a.reshape(-1)[sel], q5a.reshape(-1)[sel], q6a
-    W[6], W[7], W[10], W[11] = s1[j], c1[j], s3[j], c3[j]
-    W[8], W[9] = s2[j], c2[j]
-    W[12:] = s4, c4, s5, c5, s6, c6
+    # The same rows for the wrist: q4, q5, q6, s4, c4, s5, c5, s6, c6.
+    B = np.empty((9, len(sel)))
+    np.take(q4a, sel, out=B[0])
+    np.take(q5a, sel, out=B[1])
+    B[2], B[3], B[4], B[5], B[6] = q6a, s4, c4, s5, c5
+    B[8], B[7] = _cos_sin_of_atan2(y6, x6)
     if inside is not None:
-        sel = np.flatnonzero(inside)
-        W, pos, pose = W.take(sel, axis=1), pos[sel], pose[sel]
-    Q.reshape(-1, 6)[pos] = W[:6].T
+        keep = np.flatnonzero(inside)
+        j, B, pos = j[keep], B.take(keep, axis=1), pos[keep]
+        pose = pos >> 3
+    A = A.take(j, axis=1)
+    Q.reshape(-1, 6)[pos] = np.concatenate([A[:3], B[:3]]).T
+    sin_cos = [(A[3], A[4]), (A[5], A[6]), (A[7], A[8]), (B[3], B[4]), (B[5], B[6]),
+               (B[7], B[8])]
     # FK check of the candidates left, on squared figures (no roots): |dp|^2 < tol^2 and the
     # rotation chord |R - R_goal|_F^2 = 8 sin^2(angle / 2) < 8 sin^2(tol / 2). The chain is
     # multiplied out from the sines and cosines found above (of the same angles up to whole
     # turns).
     if len(pos):
         F = np.empty((12, len(pos)))
-        F[...] = _fk_rows(arm, [(W[6 + 2 * i], W[7 + 2 * i]) for i in range(6)])
+        F[...] = _fk_rows(arm, sin_cos)
         F -= X[27:].take(pose, axis=1)
         F *= F
         position = F[3] + F[7] + F[11]
