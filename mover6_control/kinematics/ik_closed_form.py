@@ -736,10 +736,12 @@ def ik_closed_form_batch(arm: ArmModel, T: np.ndarray, within_limits: bool = Tru
 
     ``Q[k, b]`` is branch ``b`` of pose ``k`` [rad]; ``valid`` marks the branches that reproduce
     the pose by FK within ``tol`` ([m] and [rad]) and, with ``within_limits``, respect the joint
-    limits. Poses are checked for shape and finiteness only (no orthonormality test: use
-    ``ik_closed_form`` for one untrusted pose). ``q_ref`` (6,) or (m, 6) picks q1 and q4 at
-    shoulder and wrist singularities. Raises ``InvalidInputError`` for arms the closed form
-    does not cover. ``chunk`` poses are solved at a time (cache-sized blocks).
+    limits. A branch that is not valid is no solution (one dropped before the FK check holds
+    ``q_ref``'s values, see ``solve_candidates``). Poses are checked for shape and finiteness
+    only (no orthonormality test: use ``ik_closed_form`` for one untrusted pose). ``q_ref``
+    (6,) or (m, 6) picks q1 and q4 at shoulder and wrist singularities. Raises
+    ``InvalidInputError`` for arms the closed form does not cover. At most ``chunk`` poses are
+    solved at a time, fewer when many branches reach the wrist (cache-sized blocks).
     """
     geo = wrist_geometry(arm)
     T = as_finite_array(T, (None, 4, 4), 'poses')
