@@ -34,7 +34,6 @@ from functools import lru_cache
 from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.forward import fk_batch
 from mover6_control.kinematics.rotations import validate_transform
 from mover6_control.validation import as_finite_array
 import numpy as np
@@ -74,56 +73,6 @@ def _cross(a, b):
 def _norm(v):
     """Return the Euclidean norm of a 3-vector as a float."""
     return float(np.sqrt(v @ v))
-
-
-def _dot(a, b):
-    """Return the dot product over the last axis."""
-    return np.einsum('...i,...i->...', a, b)
-
-
-def _skew(w):
-    """Return the matrix ``K`` with ``K v = w x v``."""
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
-def _times(v, A):
-    """Return ``A @ v`` for vectors ``v`` (..., 3) and a constant (3, 3) ``A``, as one product."""
-    return (v.reshape(-1, 3) @ A.T).reshape(v.shape)
-
-
-def _rotate(w, theta, v):
-    """Rotate vectors ``v`` (..., 3) about unit ``w`` (3,) by ``theta`` (...) [rad]."""
-    return _rotate_sc(w, np.sin(theta), np.cos(theta), v)
-
-
-def _rotate_sc(w, s, c, v):
-    """Rotate ``v`` (..., 3) about unit ``w`` (3,) by the angle of sine and cosine ``s``, ``c``."""
-    K = _skew(w)
-    return v + s[..., None] * _times(v, K) + (1.0 - c)[..., None] * _times(v, K @ K)
-
-
-def _subproblem1(w, u, v):
-    """Return the angle about ``w`` that turns ``u`` onto ``v`` and ``|u|`` normal to ``w``."""
-    P = np.eye(3) - np.outer(w, w)
-    up = _times(u, P)
-    wu = _times(up, _skew(w))
-    return (np.arctan2(_dot(wu, v), _dot(up, v)), np.sqrt(_dot(up, up)))
-
-
-def _angle_from(w, u, v):
-    """Return the angle about ``w`` that turns the constant ``u`` (3,) onto ``v`` (..., 3)."""
-    up = u - np.dot(u, w) * w
-    # atan2(w . (up x v), up . v) = atan2(v . (w x up), v . up): one product for both.
-    both = v.reshape(-1, 3) @ np.stack([_cross(w, up), up], axis=1)
-    return np.arctan2(both[:, 0], both[:, 1]).reshape(v.shape[:-1])
-
-
-def _atan2_cos_sin(y, x):
-    """Return ``atan2(y, x)`` and its cosine and sine, ``x / hypot``, ``y / hypot`` (1, 0 at 0)."""
-    h = np.hypot(x, y)
-    zero = h == 0.0
-    inv = 1.0 / np.where(zero, 1.0, h)
-    return np.arctan2(y, x), np.where(zero, 1.0, x * inv), y * inv
 
 
 @lru_cache(maxsize=16)             # a WristGeometry is immutable and hashed by identity
@@ -172,21 +121,6 @@ def _q5_constants(geo: WristGeometry) -> tuple:
     up = w6 - np.dot(w6, w5) * w5
     n45 = _cross(w4, w5)
     return tuple(float(np.dot(v, c)) for c in (_cross(w5, up), up) for v in (w4, w5, n45))
-
-
-def _dots(v, B):
-    """Return ``v . B[:, j]`` for vectors ``v`` (..., 3) and constants ``B`` (3, k): k rows."""
-    return (B.T @ v.reshape(-1, 3).T).reshape((B.shape[1],) + v.shape[:-1])
-
-
-def _cos_sin(a, b, c, tol):
-    """Solve ``a cos t + b sin t = c``: both roots (..., 2), solvable mask, ``hypot(a, b)``."""
-    rho = np.hypot(a, b)
-    safe = np.where(rho > tol, rho, 1.0)
-    ok = np.abs(c) <= rho + tol
-    delta = np.arccos(np.clip(c / safe, -1.0, 1.0))
-    phi = np.arctan2(b, a)
-    return np.stack([phi + delta, phi - delta], axis=-1), ok, rho
 
 
 def wrist_geometry(arm: ArmModel) -> WristGeometry:
@@ -265,8 +199,8 @@ def _wrap(q):
     if np.ndim(x) == 0:
         return x % (2.0 * np.pi) - np.pi
     out = x - np.pi
-    outside = (x < 0.0) | (x >= 2.0 * np.pi)
-    if outside.any():
+    if x.size and (x.min() < 0.0 or x.max() >= 2.0 * np.pi):
+        outside = (x < 0.0) | (x >= 2.0 * np.pi)
         out[outside] = x[outside] % (2.0 * np.pi) - np.pi
     return out
 
@@ -312,98 +246,476 @@ def pose_errors_batch(T_goal: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np
     return dp, 2.0 * np.arcsin(np.clip(chord / (2.0 * np.sqrt(2.0)), 0.0, 1.0))
 
 
-def _candidates(geo, T, q_ref):
+@dataclass(frozen=True, eq=False)
+class _Plan:
+    """The batch solver's constants of one ``WristGeometry``, prepared once (``_plan``)."""
+
+    rows: np.ndarray       # (39, 12): per-pose rows, linear in the pose's top 12 entries
+    offset: np.ndarray     # (39, 1): their constant parts
+    q3: tuple              # phi3, rho3, safe rho3, (|e|^2 + |u|^2) / 2: q3's equation
+    elbow: np.ndarray      # (2, 3): the plane coordinates of x - r2 are k0 + cos q3 k1 + sin q3 k2
+    sigma: float           # w3 = sigma w2 exactly (+-1), or 0: turn about w3 in full
+    w3: np.ndarray         # (3,): w3 in the basis (e1, e2, w2) of the elbow plane
+    tv_basis: np.ndarray   # (4, 3): w4, w5, n45, w4 x n45 in that basis
+    tx_basis: np.ndarray   # (18, 3): the columns of ``_q6_basis`` in that basis
+    wrist: tuple           # alpha, beta, gamma^2 and q5 constants
+
+
+@lru_cache(maxsize=16)             # a WristGeometry is immutable and hashed by identity
+def _plan(geo: WristGeometry) -> _Plan:
     """
-    Return the joints of all 8 candidates, a mask of solvable ones and where q_ref was used.
+    Return the constants of the batch solver for ``geo``.
 
-    The joints as solved, each once per branch it depends on: q1 (m, 2), q2 and q3 (m, 2, 2),
-    q4, q5, q6 (m, 2, 2, 2) (shoulder, elbow, wrist flip); the mask (m, 2, 2, 2).
+    Everything the solver needs of a pose before any joint is known is linear in the pose's
+    top 12 entries (with a constant part): 39 rows of one matrix product per block of poses,
 
-    The last (m,) marks poses at a shoulder or wrist singularity, whose q1 or q4 came from
-    ``q_ref``.
+    - 0-2: q1's equation ``a cos q1 + b sin q1 = c``;
+    - 3-8: the wrist centre seen from axis 2 after turning back by q1, in the plane normal to
+      w2 with the basis (e1, e2): ``d = D0 + cos q1 D1 + sin q1 D2`` for each of e1, e2;
+    - 9-26: the goal's axes ``g`` (R_goal M^T w6 and R_goal M^T x6) turned back by q1, in the
+      basis (e1, e2, w2): ``g . Rot(w1, q1) b = g . b_par + cos q1 g . b_perp
+      + sin q1 g . (w1 x b)`` for b = e1, e2, w2;
+    - 27-38: the pose's entries themselves (for the FK check, in the same layout).
+    """
+    w1, w2, w3, w4, w5, w6 = geo.omega
+    r1, r2, r3 = geo.r[:3]
+    p0 = geo.wrist_point
+    e1 = _cross(w2, [1.0, 0.0, 0.0])
+    if _norm(e1) < 0.5:
+        e1 = _cross(w2, [0.0, 1.0, 0.0])
+    e1 = e1 / _norm(e1)
+    e2 = _cross(w2, e1)
+    basis = np.array([e1, e2, w2])                     # rows: coordinates in the plane basis
+    M_R = geo.M[:3, :3]
+    wit = geo.wrist_in_tip
+    s12 = np.dot(w1, w2)
+
+    def of_p(k):
+        """Row of ``p . k`` (p = R wit + t) over the pose's top 12 entries."""
+        row = np.zeros((3, 4))
+        row[:3, :3] = np.outer(k, wit)
+        row[:3, 3] = k
+        return row.reshape(12)
+
+    def of_g(gc, k):
+        """Row of ``(R gc) . k``."""
+        row = np.zeros((3, 4))
+        row[:3, :3] = np.outer(k, gc)
+        return row.reshape(12)
+
+    rows, offset = [], []
+    ka, kb = w2 - s12 * w1, _cross(w1, w2)
+    rows += [of_p(ka), of_p(kb), of_p(-s12 * w1)]
+    offset += [-np.dot(r1, ka), -np.dot(r1, kb), np.dot(w2, p0 - r1) + s12 * np.dot(r1, w1)]
+    for e in (e1, e2):
+        par = np.dot(w1, e) * w1
+        ew1 = _cross(e, w1)
+        rows += [of_p(par), of_p(e - par), of_p(-ew1)]
+        offset += [np.dot(r1 - r2, e) - np.dot(r1, par), -np.dot(r1, e - par), np.dot(r1, ew1)]
+    for gc in (M_R.T @ w6, M_R.T @ geo.x6):
+        for b in basis:
+            par = np.dot(w1, b) * w1
+            rows += [of_g(gc, par), of_g(gc, b - par), of_g(gc, _cross(w1, b))]
+            offset += [0.0, 0.0, 0.0]
+    e = (r3 - r2) - np.dot(r3 - r2, w2) * w2
+    u = (p0 - r3) - np.dot(p0 - r3, w2) * w2
+    a3, b3 = np.dot(e, u), np.dot(e, _cross(w3, u))
+    rho3 = np.hypot(a3, b3)
+    v = p0 - r3
+    v_par = np.dot(v, w3) * w3
+    elbow = basis[:2] @ np.column_stack([(r3 - r2) + v_par, v - v_par, _cross(w3, v)])
+    sigma = float(np.dot(w2, w3))
+    sigma = sigma if np.array_equal(w3, sigma * w2) and abs(sigma) == 1.0 else 0.0
+    w4, w5 = geo.omega[3], geo.omega[4]
+    s45, s56 = np.dot(w4, w5), np.dot(w5, w6)
+    den = s45 ** 2 - 1.0
+    n45 = _cross(w4, w5)
+    wb = _wrist_basis(geo)
+    rows += list(np.eye(12))                           # 27-38: the pose's entries, for the check
+    offset += [0.0] * 12
+    plan = _Plan(rows=np.array(rows), offset=np.array(offset)[:, None],
+                 q3=(float(np.arctan2(b3, a3)), float(rho3), float(rho3 if rho3 > 1e-12 else 1.0),
+                     float((np.dot(e, e) + np.dot(u, u)) / 2.0)),
+                 elbow=elbow, sigma=sigma, w3=basis @ w3,
+                 tv_basis=np.ascontiguousarray((basis @ wb[:, :4]).T),
+                 tx_basis=np.ascontiguousarray((basis @ wb[:, 4:]).T),
+                 wrist=(s45, s56, den, float(np.dot(n45, n45))) + _q5_constants(geo))
+    for a in (plan.rows, plan.offset, plan.elbow, plan.w3, plan.tv_basis, plan.tx_basis):
+        a.setflags(write=False)
+    return plan
+
+
+_WRIST_BLOCK = 4096      # branches reaching the wrist per block of ik_closed_form_batch
+
+
+def _alias(q, ref, lo, hi, within_limits):
+    """
+    Return ``q`` aliased nearest ``ref`` (and into [lo, hi]) and where it is inside the limits.
+
+    The steps of ``nearest_alias`` for one joint: the same numbers. Without ``within_limits``
+    the mask is None (every value kept).
+    """
+    q = ref + _wrap(q - ref)
+    if not within_limits:
+        return q, None
+    # A turn up can bring a value inside only if the smallest one turned up is <= hi, a turn
+    # down only if the largest one turned down is >= lo (rounding is monotone): else none moves.
+    if q.size and (q.min() + 2.0 * np.pi <= hi or q.max() - 2.0 * np.pi >= lo):
+        q = _into_range(q, lo, hi)
+    return q, (q >= lo - 1e-9) & (q <= hi + 1e-9)
+
+
+def _keep(ok, inside):
+    """
+    Return where the (2, n) entries are ``ok`` (n,) and (given) ``inside``: entry and root.
+
+    The flat index ``root * n + entry`` is split into the entry (n) and the root (0 or 1).
+    """
+    n = len(ok)
+    flat = np.flatnonzero(np.broadcast_to(ok, (2, n)) if inside is None else ok & inside)
+    root = flat >= n
+    return flat, flat - n * root, root
+
+
+def _pair(a, b, op):
+    """Return the (2, n) array of ``a + b`` and ``op(a, b)`` (the two roots or flips)."""
+    out = np.empty((2,) + np.shape(a if np.ndim(a) else b))
+    np.add(a, b, out=out[0])
+    op(a, b, out=out[1])
+    return out
+
+
+def _cos_sin_of_atan2(y, x):
+    """Return the cosine and sine of ``atan2(y, x)``: ``x / hypot``, ``y / hypot`` (1, 0 at 0)."""
+    h = np.sqrt(x * x + y * y)
+    zero = h == 0.0
+    if zero.any():
+        h[zero] = 1.0
+        x = np.where(zero, 1.0, x)
+    inv = 1.0 / h
+    return x * inv, y * inv
+
+
+def _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok):
+    """
+    Fill ``Q`` (m, 8, 6) and ``ok`` (m, 8) for poses ``T`` (m, 4, 4).
+
+    Returns the used-ref mask (m,) and the number of branches that reached the wrist.
+
+    The steps of the module docstring, on flat arrays of the branches still in question: a
+    branch whose joint is unsolvable or (with ``within_limits``) outside its limits is dropped
+    as soon as that joint is known, before the joints after it are solved. ``pos`` follows each
+    branch's place in ``Q`` (pose * 8 + shoulder * 4 + elbow * 2 + wrist flip); ``carry`` its
+    joints so far. Branches that are dropped keep ``q_ref``'s values in ``Q``.
     """
     m = len(T)
-    om, r = geo.omega, geo.r
-    w1, w2, w3, w4, w5, w6 = om
-    R_goal = T[:, :3, :3]
-    p = np.einsum('mij,j->mi', R_goal, geo.wrist_in_tip) + T[:, :3, 3]      # (m, 3)
-    p0 = geo.wrist_point
-    # q1: w2 . (Rot(w1, -q1)(p - r1) + r1) = w2 . p0
-    v = p - r[0]
-    v1 = _dot(v, w1)
-    s12 = np.dot(w1, w2)
-    a = _dot(v, w2) - v1 * s12
-    b = -_dot(_cross(w1, v), w2)
-    c = np.dot(w2, p0 - r[0]) - v1 * s12
-    q1, ok1, rho1 = _cos_sin(a, b, c, 1e-12)
-    shoulder = rho1 < 1e-9
-    q1 = np.where(shoulder[:, None], q_ref[:, None, 0], q1)
-    ok1 = ok1 | (shoulder & (np.abs(c) < 1e-9))
-    # sin and cos of q1 and q3 once each: both turn the wrist centre and the goal's axes.
+    plan = _plan(geo)
+    lo, hi = arm.lower, arm.upper
+    Q[...] = q_ref[:, None, :]
+    ok[...] = False
+    ref = np.ascontiguousarray(q_ref.T)                        # (6, m): each joint's row
+    used_ref = np.zeros(m, dtype=bool)
+    X = plan.rows @ T.reshape(m, 16)[:, :12].T
+    X += plan.offset
+    # q1 (two roots per pose): a cos q1 + b sin q1 = c.
+    a, b, c = X[0], X[1], X[2]
+    rho = np.sqrt(a * a + b * b)
+    ok1 = np.abs(c) <= rho + 1e-12
+    delta = np.arccos(np.clip(c / np.where(rho > 1e-12, rho, 1.0), -1.0, 1.0))
+    q1 = _pair(np.arctan2(b, a), delta, np.subtract)                         # (2, m)
+    shoulder = rho < 1e-9
+    if shoulder.any():
+        q1[:, shoulder] = ref[0, shoulder]
+        ok1 |= shoulder & (np.abs(c) < 1e-9)
+        used_ref |= shoulder
+    q1a, inside = _alias(q1, ref[0], lo[0], hi[0], within_limits)
+    sel, pose, root = _keep(ok1, inside)
+    pos = pose * 8 + 4 * root
+    carry = q1a.reshape(-1).take(sel)[None]
+    q1 = q1.reshape(-1).take(sel)
     s1, c1 = np.sin(q1), np.cos(q1)
-    p1 = r[0] + _rotate_sc(w1, -s1, c1, (p - r[0])[:, None, :])             # (m, 2, 3)
-    # q3: distance of the wrist centre to axis 2, law of cosines about axis 3.
-    e = (r[2] - r[1]) - np.dot(r[2] - r[1], w2) * w2
-    u = (p0 - r[2]) - np.dot(p0 - r[2], w2) * w2
-    d_vec = (p1 - r[1]) - _dot(p1 - r[1], w2)[..., None] * w2
-    c3 = (_dot(d_vec, d_vec) - np.dot(e, e) - np.dot(u, u)) / 2.0
-    q3, ok3, _ = _cos_sin(np.dot(e, u), np.dot(e, _cross(w3, u)), c3, 1e-12)  # (m, 2, 2)
+    # q3 (two roots per branch): the wrist centre's distance to axis 2, law of cosines.
+    D = X[3:9].take(pose, axis=1)
+    dx = D[0] + c1 * D[1] + s1 * D[2]
+    dy = D[3] + c1 * D[4] + s1 * D[5]
+    phi3, rho3, safe3, half = plan.q3
+    rhs = 0.5 * (dx * dx + dy * dy) - half
+    ok3 = np.abs(rhs) <= rho3 + 1e-12
+    q3 = _pair(phi3, np.arccos(np.clip(rhs / safe3, -1.0, 1.0)), np.subtract)  # (2, n)
+    q3a, inside = _alias(q3, ref[2].take(pose), lo[2], hi[2], within_limits)
+    sel, j, root = _keep(ok3, inside)
+    pos = pos[j] + 2 * root
+    pose = pos >> 3
+    carry = np.concatenate([carry.take(j, axis=1), q3a.reshape(1, -1).take(sel, axis=1)])
+    s1, c1, dx, dy = s1[j], c1[j], dx[j], dy[j]
+    q3 = q3.reshape(-1).take(sel)
     s3, c3 = np.sin(q3), np.cos(q3)
-    x = r[2] + _rotate_sc(w3, s3, c3, np.broadcast_to(p0 - r[2], q3.shape + (3,)))
-    q2, _ = _subproblem1(w2, x - r[1], p1[:, :, None, :] - r[1])             # (m, 2, 2)
-    q1_pair = q1
-    q1 = np.broadcast_to(q1[:, :, None], q2.shape)
-    # The wrist must turn R_w = R03^T R_goal M^T; only R_w w6 and R_w x6 are needed, and
-    # R03^T v = Rot(w3, -q3) Rot(w2, -q2) Rot(w1, -q1) v.
-    M_R = geo.M[:3, :3]
-    goal = R_goal.reshape(-1, 3) @ np.stack([M_R.T @ w6, M_R.T @ geo.x6], axis=1)
-    goal = goal.reshape(m, 1, 3, 2).transpose(0, 1, 3, 2)                    # (m, 1, 2, 3)
-    goal = _rotate_sc(w1, -s1[:, :, None], c1[:, :, None], np.broadcast_to(goal, (m, 2, 2, 3)))
-    goal = _rotate(w2, -q2[..., None], np.broadcast_to(goal[:, :, None], q2.shape + (2, 3)))
-    goal = _rotate_sc(w3, -s3[..., None], c3[..., None], goal)                # (m, 2, 2, 2, 3)
-    # Every product the wrist needs of R_w w6 (tv) and R_w x6 (tx) with constant vectors, in
-    # one product: tv . (w4, w5, n45, w4 x n45) and tx . the columns of _q6_basis.
-    B = _wrist_basis(geo)
-    a4, a5, an, am = _dots(goal[..., 0, :], B[:, :4])                         # (m, 2, 2) each
-    # q4, q5: Rot4 Rot5 w6 = R_w w6 (subproblem 2 with axes through the wrist centre):
-    # z = alpha w4 + beta w5 + gamma n45, with gamma = +-sqrt(gamma2) (the wrist flip).
-    s45 = np.dot(w4, w5)
-    den = s45 ** 2 - 1.0
-    s56 = np.dot(w5, w6)
+    # q2 turns x - r2 (x: the wrist centre turned by q3) onto d, both in the elbow plane.
+    k = plan.elbow
+    ux = k[0, 0] + c3 * k[0, 1] + s3 * k[0, 2]
+    uy = k[1, 0] + c3 * k[1, 1] + s3 * k[1, 2]
+    y2 = ux * dy - uy * dx
+    x2 = ux * dx + uy * dy
+    q2a, inside = _alias(np.arctan2(y2, x2), ref[1].take(pose), lo[1], hi[1], within_limits)
+    # Rows of the branches that reach the wrist: q1, q2, q3, then s1, c1, s2, c2, s3, c3.
+    A = np.concatenate([carry[:1], q2a[None], carry[1:], s1[None], c1[None], x2[None],
+                        y2[None], s3[None], c3[None]])
+    if inside is not None:
+        A = A.take(np.flatnonzero(inside), axis=1)
+        pos = pos[inside]
+        pose = pos >> 3
+    n_wrist = n = len(pos)
+    s1, c1, s3, c3 = A[3], A[4], A[7], A[8]
+    # The goal's two axes turned back by q1, q2, q3, in the basis (e1, e2, w2) of the plane.
+    A[6], A[5] = _cos_sin_of_atan2(A[6], A[5])
+    s2, c2 = A[5], A[6]
+    G = X[9:27].take(pose, axis=1).reshape(6, 3, n)
+    G = G[:, 0] + c1 * G[:, 1] + s1 * G[:, 2]                                  # (6, n)
+    if plan.sigma:
+        cq, sq = c2 * c3 - plan.sigma * s2 * s3, s2 * c3 + plan.sigma * c2 * s3
+    else:
+        cq, sq = c2, s2
+    turned = np.empty((2, 3, n))
+    for i in range(2):
+        x, y = G[3 * i], G[3 * i + 1]
+        turned[i, 0] = x * cq + y * sq
+        turned[i, 1] = y * cq - x * sq
+        turned[i, 2] = G[3 * i + 2]
+    if not plan.sigma:
+        turned = _turn_back(plan.w3, s3, c3, turned)
+    tv = plan.tv_basis @ turned[0]                                             # (4, n)
+    tx = plan.tx_basis @ turned[1]                                             # (18, n)
+    # The wrist: z = alpha w4 + beta w5 +- gamma n45 (subproblem 2), q5 then q4.
+    s45, s56, den, nn45 = plan.wrist[:4]
+    k5 = plan.wrist[4:]
+    a4, a5, an, am = tv
     alpha = (s45 * s56 - a4) / den
     beta = (s45 * a4 - s56) / den
-    n45 = _cross(w4, w5)
-    nn45 = np.dot(n45, n45)
     gamma2 = (1.0 - alpha ** 2 - beta ** 2 - 2.0 * alpha * beta * s45) / nn45
     ok_w = gamma2 > -1e-9
     gamma = np.sqrt(np.maximum(gamma2, 0.0))
-    gamma = np.stack([gamma, -gamma], axis=-1)                                # (m, 2, 2, 2)
-    alpha, beta = alpha[..., None], beta[..., None]
-    # q5 turns w6 onto z: atan2(z . (w5 x u6), z . u6), u6 = w6 normal to w5; z's dot
-    # products with constants are alpha, beta and gamma times constants.
-    k5 = _q5_constants(geo)
-    q5, c5, s5 = _atan2_cos_sin(alpha * k5[0] + beta * k5[1] + gamma * k5[2],
-                                alpha * k5[3] + beta * k5[4] + gamma * k5[5])
-    # q4 turns z onto tv about w4 (subproblem 1): u = z normal to w4 is
-    # beta (w5 - s45 w4) + gamma n45, two orthogonal parts, so |u| (the lever) has no
-    # cancellation; atan2((w4 x u) . tv, u . tv).
-    a4, a5, an, am = (x[..., None] for x in (a4, a5, an, am))
     lever = np.sqrt((beta ** 2 + gamma ** 2) * nn45)
-    q4, c4, s4 = _atan2_cos_sin(beta * an + gamma * am, beta * (a5 - s45 * a4) + gamma * an)
     singular = lever < 1e-9
+    gamma = np.stack([gamma, -gamma])                                         # (2, n): flips
+    y5 = (alpha * k5[0] + beta * k5[1]) + gamma * k5[2]
+    x5 = (alpha * k5[3] + beta * k5[4]) + gamma * k5[5]
+    q5a, inside5 = _alias(np.arctan2(y5, x5), ref[4].take(pose), lo[4], hi[4], within_limits)
+    y4 = beta * an + gamma * am
+    x4 = beta * (a5 - s45 * a4) + gamma * an
+    q4 = np.arctan2(y4, x4)
+    ref4 = ref[3].take(pose)
     if singular.any():
-        ref4 = np.broadcast_to(q_ref[:, None, None, None, 3], q4.shape)
+        used_ref[pose[singular]] = True
         q4 = np.where(singular, ref4, q4)
-        c4 = np.where(singular, np.cos(ref4), c4)
-        s4 = np.where(singular, np.sin(ref4), s4)
-    # q6: Rot6 x6 = Rot5^T Rot4^T R_w x6, of which only two dot products are needed (see
-    # _q6_basis): products of tx with constants, then of sin and cos of q4 and q5.
-    d = _dots(goal[..., 1, None, :], B[:, 4:])                                # (m, 2, 2, 1) each
+        y4 = np.where(singular, np.sin(ref4), y4)
+        x4 = np.where(singular, np.cos(ref4), x4)
+    q4a, inside4 = _alias(q4, ref4, lo[3], hi[3], within_limits)
+    sel, j, root = _keep(ok_w, None if inside5 is None else inside5 & inside4)
+    pos = pos[j] + root
+    pose = pos >> 3
+    c5, s5 = _cos_sin_of_atan2(y5.reshape(-1)[sel], x5.reshape(-1)[sel])
+    c4, s4 = _cos_sin_of_atan2(y4.reshape(-1)[sel], x4.reshape(-1)[sel])
+    # q6 from two dot products of the turned R_w x6 (see _q6_basis).
+    d = tx.take(j, axis=1)
     h = [d[3 * i] + c5 * d[3 * i + 1] + s5 * d[3 * i + 2] for i in range(6)]
-    q6 = np.arctan2(h[0] + c4 * h[1] + s4 * h[2], h[3] + c4 * h[4] + s4 * h[5])
-    ok = ok1[:, None, None, None] & ok3[:, :, None, None] & ok_w[..., None]
-    used_ref = shoulder | (lever < 1e-9).reshape(m, -1).any(axis=1)
-    return (q1_pair, q2, q3, q4, q5, q6), np.broadcast_to(ok, q4.shape), used_ref
+    y6, x6 = h[0] + c4 * h[1] + s4 * h[2], h[3] + c4 * h[4] + s4 * h[5]
+    q6a, inside = _alias(np.arctan2(y6, x6), ref[5].take(pose), lo[5], hi[5], within_limits)
+    # The same rows for the wrist: q4, q5, q6, s4, c4, s5, c5, s6, c6.
+    B = np.empty((9, len(sel)))
+    np.take(q4a, sel, out=B[0])
+    np.take(q5a, sel, out=B[1])
+    B[2], B[3], B[4], B[5], B[6] = q6a, s4, c4, s5, c5
+    B[8], B[7] = _cos_sin_of_atan2(y6, x6)
+    if inside is not None:
+        keep = np.flatnonzero(inside)
+        j, B, pos = j[keep], B.take(keep, axis=1), pos[keep]
+        pose = pos >> 3
+    A = A.take(j, axis=1)
+    Q.reshape(-1, 6)[pos] = np.concatenate([A[:3], B[:3]]).T
+    sin_cos = [(A[3], A[4]), (A[5], A[6]), (A[7], A[8]), (B[3], B[4]), (B[5], B[6]),
+               (B[7], B[8])]
+    # FK check of the candidates left, on squared figures (no roots): |dp|^2 < tol^2 and the
+    # rotation chord |R - R_goal|_F^2 = 8 sin^2(angle / 2) < 8 sin^2(tol / 2). The chain is
+    # multiplied out from the sines and cosines found above (of the same angles up to whole
+    # turns).
+    if len(pos):
+        F = np.empty((12, len(pos)))
+        F[...] = _fk_rows(arm, sin_cos)
+        F -= X[27:].take(pose, axis=1)
+        F *= F
+        position = F[3] + F[7] + F[11]
+        chord = F[0] + F[1] + F[2] + F[4] + F[5] + F[6] + F[8] + F[9] + F[10]
+        ok.reshape(-1)[pos] = (position < tol ** 2) & (chord < 8.0 * np.sin(tol / 2.0) ** 2)
+    return used_ref, n_wrist
+
+
+def _times(a, b):
+    """Return ``a * b`` for floats or arrays, skipping exact zeros and ones of floats."""
+    if isinstance(a, float):
+        if a == 0.0 or (isinstance(b, float) and b == 0.0):
+            return 0.0
+        return b if a == 1.0 else a * b
+    if isinstance(b, float):
+        return a if b == 1.0 else (0.0 if b == 0.0 else a * b)
+    return a * b
+
+
+def _plus(a, b):
+    """Return ``a + b`` for floats or arrays, skipping exact float zeros."""
+    if isinstance(a, float) and a == 0.0:
+        return b
+    if isinstance(b, float) and b == 0.0:
+        return a
+    return a + b
+
+
+def _frame_times(R, p, A, t):
+    """Return the frame ``(R, p) (A, t)`` (3 x 3 and 3 entries, floats or arrays)."""
+    R2 = [[0.0] * 3 for _ in range(3)]
+    p2 = list(p)
+    for k in range(3):
+        for j in range(3):
+            for m in range(3):
+                R2[k][j] = _plus(R2[k][j], _times(R[k][m], A[m][j]))
+            p2[k] = _plus(p2[k], _times(R[k][j], t[j]))
+    return R2, p2
+
+
+@lru_cache(maxsize=16)             # an ArmModel is immutable and hashed by identity
+def _chain_steps(arm: ArmModel) -> tuple:
+    """Return per joint its origin (rotation rows, translation) and axis as Python floats."""
+    def split(T):
+        return T[:3, :3].tolist(), T[:3, 3].tolist()
+    return (tuple((split(origin), tuple(axis.tolist()))
+                  for origin, axis in zip(arm.origins, arm.axes)), split(arm.tool))
+
+
+def _rotation(axis, s, c):
+    """Return ``Rot(axis, q)`` (3 x 3, floats or arrays) of sine ``s`` and cosine ``c``."""
+    j = int(np.argmax(np.abs(axis)))
+    if abs(abs(axis[j]) - 1.0) < 1e-15 and sum(abs(x) for x in axis) == abs(axis[j]):
+        a, b = (j + 1) % 3, (j + 2) % 3
+        s = s if axis[j] > 0.0 else -s
+        rot = [[0.0] * 3 for _ in range(3)]
+        rot[j][j] = 1.0
+        rot[a][a], rot[b][b], rot[b][a], rot[a][b] = c, c, s, -s
+        return rot
+    K = [[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]]
+    KK = (np.array(K) @ np.array(K)).tolist()
+    v = 1.0 - c
+    return [[_plus(_plus(float(k == j), _times(K[k][j], s)), _times(KK[k][j], v))
+             for j in range(3)] for k in range(3)]
+
+
+def _fk_entries(arm, sin_cos):
+    """
+    Return the tip pose's top rows (12 entries, row-major) of the joints given by sin and cos.
+
+    ``sin_cos``: per joint its sine and cosine. The chain of ``forward`` (origin, then the turn
+    about the joint's axis) entry by entry; entries that are exact constants (the zeros and ones
+    of the origins) cost nothing.
+    """
+    steps, (tool_R, tool_t) = _chain_steps(arm)
+    R = [[float(k == j) for j in range(3)] for k in range(3)]
+    p = [0.0, 0.0, 0.0]
+    for ((O_R, O_t), axis), (s, c) in zip(steps, sin_cos):
+        R, p = _frame_times(R, p, O_R, O_t)
+        R, _ = _frame_times(R, [0.0] * 3, _rotation(axis, s, c), [0.0] * 3)
+    R, p = _frame_times(R, p, tool_R, tool_t)
+    return [R[0][0], R[0][1], R[0][2], p[0], R[1][0], R[1][1], R[1][2], p[1],
+            R[2][0], R[2][1], R[2][2], p[2]]
+
+
+class _Slot:
+    """A value of the FK chain while ``_fk_program`` records it: its operations go on a list."""
+
+    __slots__ = ('ops', 'index')
+
+    def __init__(self, ops, index):
+        self.ops, self.index = ops, index
+
+    def _record(self, ufunc, *args):
+        out = _Slot(self.ops, self.ops.count)
+        self.ops.count += 1
+        self.ops.append((ufunc, out.index,
+                         tuple(a.index if isinstance(a, _Slot) else float(a) for a in args)))
+        return out
+
+    def __mul__(self, other):
+        return self._record(np.multiply, self, other)
+
+    def __rmul__(self, other):
+        return self._record(np.multiply, other, self)
+
+    def __add__(self, other):
+        return self._record(np.add, self, other)
+
+    def __radd__(self, other):
+        return self._record(np.add, other, self)
+
+    def __rsub__(self, other):
+        return self._record(np.subtract, other, self)
+
+    def __neg__(self):
+        return self._record(np.negative, self)
+
+
+class _Ops(list):
+    """The recorded operations, and the number of values (slots) they use."""
+
+    count = 0
+
+
+@lru_cache(maxsize=16)             # an ArmModel is immutable and hashed by identity
+def _fk_program(arm: ArmModel) -> tuple:
+    """
+    Return the array operations of ``_fk_entries`` for ``arm``, recorded once.
+
+    Slots 2 i and 2 i + 1 hold joint i's sine and cosine; then ``(ufunc, out, args, free)`` in
+    order (an int arg is a slot, a float a constant; ``free``: the slots used for the last
+    time), the number of slots and the 12 entries (slot or constant).
+    """
+    ops = _Ops()
+    ops.count = 12
+    entries = _fk_entries(arm, [(_Slot(ops, 2 * i), _Slot(ops, 2 * i + 1)) for i in range(6)])
+    entries = tuple(e.index if isinstance(e, _Slot) else float(e) for e in entries)
+    # After each operation, the slots no longer needed are let go (the working set stays in
+    # cache): a slot's last use, unless it is an entry.
+    last = {}
+    for k, (_, _, args) in enumerate(ops):
+        for a in args:
+            if type(a) is int:
+                last[a] = k
+    done = [[] for _ in ops]
+    for slot, k in last.items():
+        if slot not in entries:
+            done[k].append(slot)
+    return (tuple((ufunc, out, args, tuple(free))
+                  for (ufunc, out, args), free in zip(ops, done)), ops.count, entries)
+
+
+def _fk_rows(arm, sin_cos):
+    """Return ``_fk_entries`` for arrays of sines and cosines (its recorded operations)."""
+    ops, count, entries = _fk_program(arm)
+    v = [None] * count
+    for i, (s, c) in enumerate(sin_cos):
+        v[2 * i], v[2 * i + 1] = s, c
+    for ufunc, out, args, free in ops:
+        v[out] = ufunc(*[v[a] if type(a) is int else a for a in args])
+        for a in free:
+            v[a] = None
+    return [v[e] if type(e) is int else e for e in entries]
+
+
+def _turn_back(w, s, c, v):
+    """Turn ``v`` (2, 3, n) by minus the angle of sine, cosine ``s``, ``c`` about ``w`` (3,)."""
+    out = np.empty_like(v)
+    d = (w[0] * v[:, 0] + w[1] * v[:, 1] + w[2] * v[:, 2]) * (1.0 - c)
+    for i in range(3):
+        a, b = (i + 1) % 3, (i + 2) % 3
+        cross = w[a] * v[:, b] - w[b] * v[:, a]                   # (w x v)_i
+        out[:, i] = v[:, i] * c - cross * s + w[i] * d
+    return out
 
 
 def _as_q_ref(arm, q_ref, m):
@@ -418,16 +730,18 @@ def _as_q_ref(arm, q_ref, m):
 
 def ik_closed_form_batch(arm: ArmModel, T: np.ndarray, within_limits: bool = True,
                          q_ref: np.ndarray | None = None, tol: float = VERIFY_TOL,
-                         chunk: int = 1024) -> tuple[np.ndarray, np.ndarray]:
+                         chunk: int = 4096) -> tuple[np.ndarray, np.ndarray]:
     """
     Solve many poses at once: ``T`` (m, 4, 4) -> ``(Q (m, 8, 6), valid (m, 8))``.
 
     ``Q[k, b]`` is branch ``b`` of pose ``k`` [rad]; ``valid`` marks the branches that reproduce
     the pose by FK within ``tol`` ([m] and [rad]) and, with ``within_limits``, respect the joint
-    limits. Poses are checked for shape and finiteness only (no orthonormality test: use
-    ``ik_closed_form`` for one untrusted pose). ``q_ref`` (6,) or (m, 6) picks q1 and q4 at
-    shoulder and wrist singularities. Raises ``InvalidInputError`` for arms the closed form
-    does not cover. ``chunk`` poses are solved at a time (cache-sized blocks).
+    limits. A branch that is not valid is no solution (one dropped before the FK check holds
+    ``q_ref``'s values, see ``solve_candidates``). Poses are checked for shape and finiteness
+    only (no orthonormality test: use ``ik_closed_form`` for one untrusted pose). ``q_ref``
+    (6,) or (m, 6) picks q1 and q4 at shoulder and wrist singularities. Raises
+    ``InvalidInputError`` for arms the closed form does not cover. At most ``chunk`` poses are
+    solved at a time, fewer when many branches reach the wrist (cache-sized blocks).
     """
     geo = wrist_geometry(arm)
     T = as_finite_array(T, (None, 4, 4), 'poses')
@@ -435,9 +749,15 @@ def ik_closed_form_batch(arm: ArmModel, T: np.ndarray, within_limits: bool = Tru
     q_ref = _as_q_ref(arm, q_ref, m)
     Q = np.empty((m, N_BRANCHES, 6))
     ok = np.empty((m, N_BRANCHES), dtype=bool)
-    for lo in range(0, m, chunk):
-        sl = slice(lo, lo + chunk)
-        Q[sl], ok[sl] = solve_candidates(arm, geo, T[sl], q_ref[sl], within_limits, tol)
+    # Blocks of poses whose arrays stay in cache: at most ``chunk`` poses and about
+    # _WRIST_BLOCK branches reaching the wrist (the first, small block measures how many do).
+    lo, size = 0, min(chunk, 512)
+    while lo < m:
+        sl = slice(lo, lo + size)
+        _, n_wrist = _solve(arm, geo, T[sl], q_ref[sl], within_limits, tol, Q[sl], ok[sl])
+        per_pose = n_wrist / len(Q[sl])
+        lo += size
+        size = int(min(chunk, max(64, _WRIST_BLOCK / max(per_pose, 1e-3))))
     return Q, ok
 
 
@@ -448,36 +768,17 @@ def solve_candidates(arm: ArmModel, geo: WristGeometry, T: np.ndarray, q_ref: np
     Return the 8 candidates (m, 8, 6) of poses ``T`` (m, 4, 4) and the mask of verified ones.
 
     The unchecked core of ``ik_closed_form_batch`` for callers that solve pose after pose:
-    ``geo`` from ``wrist_geometry(arm)``, ``q_ref`` (m, 6) already validated. With
-    ``return_ref_used`` a third array (m,) marks the singular poses whose q1 or q4 came from
-    ``q_ref``.
+    ``geo`` from ``wrist_geometry(arm)``, ``q_ref`` (m, 6) already validated. A branch dropped
+    before the FK check (one of its joints has no solution or, with ``within_limits``, is
+    outside the limits) holds ``q_ref``'s values; one the FK check refuses holds its joints.
+    With ``return_ref_used`` a third array (m,) marks the
+    singular poses whose q1 or q4 came from ``q_ref`` (q4: on a branch whose q1..q3 are kept).
     """
-    joints, ok, used_ref = _candidates(geo, T, q_ref)
     m = len(T)
-    # Each joint aliased nearest q_ref (and into its limits) once per branch it depends on
-    # (``nearest_alias`` joint by joint: the same numbers), then spread over the 8 branches.
-    Q = np.empty((m, 2, 2, 2, 6))
-    for j, q in enumerate(joints):
-        ref = q_ref[:, j].reshape((m,) + (1,) * (q.ndim - 1))
-        q = ref + _wrap(q - ref)
-        spread = q.shape + (1,) * (4 - q.ndim)
-        if within_limits:
-            lo, hi = arm.lower[j], arm.upper[j]
-            q = _into_range(q, lo, hi)
-            ok = ok & ((q >= lo - 1e-9) & (q <= hi + 1e-9)).reshape(spread)
-        Q[..., j] = q.reshape(spread)
-    Q = Q.reshape(m, N_BRANCHES, 6)
-    ok = np.array(ok).reshape(m, N_BRANCHES)   # writable: the FK check fills it in place
-    # FK check of the candidates still in question (often half of them or fewer), on squared
-    # figures (no roots): |dp|^2 < tol^2 and the rotation chord
-    # |R - R_goal|_F^2 = 8 sin^2(angle / 2) < 8 sin^2(tol / 2).
-    flat = np.flatnonzero(ok)
-    if len(flat):
-        diff = (fk_batch(arm, Q.reshape(-1, 6)[flat])[:, :3]
-                - T[flat // N_BRANCHES, :3])
-        sq = diff * diff
-        ok.reshape(-1)[flat] = ((sq[..., 3].sum(-1) < tol ** 2)
-                                & (sq[..., :3].sum((-2, -1)) < 8.0 * np.sin(tol / 2.0) ** 2))
+    Q = np.empty((m, N_BRANCHES, 6))
+    ok = np.empty((m, N_BRANCHES), dtype=bool)
+    used_ref, _ = _solve(arm, geo, np.asarray(T, dtype=float), np.asarray(q_ref, dtype=float),
+                         within_limits, tol, Q, ok)
     return (Q, ok, used_ref) if return_ref_used else (Q, ok)
 
 
