@@ -87,14 +87,17 @@ def test_static_range_over_finite_constraints_is_that_over_all_pairs():
                           time_optimal._pair_minimum(g2, s, True))
 
 
-def test_grid_points_sampled_from_the_derivatives_at_hand():
-    Q = random_walk(60, 11)
+def timed_on_grid(Q):
+    """Return the timing of ``Q`` on its grid, its path and each grid interval's segment."""
     traj = time_optimal.time_parameterize(Q, V, 1.0)
     timing = traj.timing
     while not hasattr(timing, 's_grid'):
         timing = timing.base
-    path = traj.path
-    seg = path.segment_of(timing.s_grid[:-1])
+    return timing, traj.path, traj.path.segment_of(timing.s_grid[:-1])
+
+
+def test_grid_points_sampled_from_the_derivatives_at_hand():
+    timing, path, seg = timed_on_grid(random_walk(60, 11))
     assert time_optimal._grid_points_at_starts(path, timing, seg)
     # What the profile and the path give at the grid times but the last ...
     s, sd, sdd, _ = timing.profile(timing.t_grid[:-1])
@@ -110,21 +113,14 @@ def test_grid_points_sampled_from_the_derivatives_at_hand():
 def test_grid_points_not_at_the_starts_are_searched():
     # Grid times that do not rise (an interval of no time): the search would find the next
     # interval, so the grid points go through the profile as before.
-    traj = time_optimal.time_parameterize(random_walk(20, 2), V, 1.0)
-    timing = traj.timing
-    while not hasattr(timing, 's_grid'):
-        timing = timing.base
-    seg = traj.path.segment_of(timing.s_grid[:-1])
+    timing, path, seg = timed_on_grid(random_walk(20, 2))
     flat = type(timing)(timing.s_grid, timing.sd, timing.u, timing.t_grid.copy())
     flat.t_grid[5] = flat.t_grid[4]
-    assert not time_optimal._grid_points_at_starts(traj.path, flat, seg)
+    assert not time_optimal._grid_points_at_starts(path, flat, seg)
 
 
 def test_smoothing_integral_on_first_use():
-    traj = time_optimal.time_parameterize(random_walk(20, 4), V, 1.0)
-    timing = traj.timing
-    while not hasattr(timing, 's_grid'):
-        timing = timing.base
+    timing, _, _ = timed_on_grid(random_walk(20, 4))
     assert '_cum' not in timing.__dict__          # a timing that is not smoothed: not made
     copy = pickle.loads(pickle.dumps(timing))
     t = timing.t_grid
@@ -178,13 +174,7 @@ def _point_block():
 
 
 def test_arc_check_and_limit_ratios_by_blocks_are_those_of_all_rows():
-    Q = random_walk(1000, 12)
-    traj = time_optimal.time_parameterize(Q, V, 1.0)
-    timing = traj.timing
-    while not hasattr(timing, 's_grid'):
-        timing = timing.base
-    path = traj.path
-    seg = path.segment_of(timing.s_grid[:-1])
+    timing, path, seg = timed_on_grid(random_walk(1000, 12))
     ends = path.evaluate(timing.s_grid[:-1], seg, (1, 2)) * 2      # (the starts as ends too)
     arcs = np.flatnonzero(path.is_blend(seg))
     assert arcs.size > 2 * time_optimal._INTERVAL_BLOCK
