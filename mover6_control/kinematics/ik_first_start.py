@@ -17,6 +17,7 @@ from functools import lru_cache
 import math
 from typing import TYPE_CHECKING
 
+from mover6_control.kinematics.rotations import rotation_log_batch
 import numpy as np
 from scipy.linalg.lapack import dposv
 
@@ -183,8 +184,6 @@ def _log(E):
     s = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
     c = 0.5 * (E[0] + E[4] + E[8] - 1.0)
     if c < -0.99 and s < 0.1:           # near a half turn: the batch's careful branch
-        from mover6_control.kinematics.ik_numeric import rotation_log_batch
-
         return rotation_log_batch(np.array(E).reshape(1, 3, 3))[0].tolist()
     scale = math.atan2(s, c) / s if s > 1e-12 else 1.0
     return [x * scale for x in v]

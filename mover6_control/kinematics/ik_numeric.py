@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.ik_first_start import first_start
-from mover6_control.kinematics.rotations import validate_transform
+from mover6_control.kinematics.rotations import rotation_log_batch, validate_transform
 from mover6_control.validation import as_finite_array
 import numpy as np
 
@@ -51,35 +51,6 @@ class NumericIKResult:
     iterations: int            # batched iterations run
     restarts: int              # random re-seeds used after the first batch of starts
     cost: float                # weighted cost e^T W e at q
-
-
-def rotation_log_batch(R: np.ndarray) -> np.ndarray:
-    """
-    Return rotation vectors (..., 3) [rad] of rotation matrices (..., 3, 3).
-
-    Accurate near zero (uses the skew part) and at pi (uses the symmetric part).
-    """
-    v = np.empty(R.shape[:-1])
-    v[..., 0] = R[..., 2, 1] - R[..., 1, 2]
-    v[..., 1] = R[..., 0, 2] - R[..., 2, 0]
-    v[..., 2] = R[..., 1, 0] - R[..., 0, 1]
-    v *= 0.5
-    s = np.sqrt((v * v).sum(-1))
-    c = 0.5 * (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0)
-    angle = np.arctan2(s, c)
-    scale = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 1.0)
-    out = v * scale[..., None]
-    if c.min() < -0.99:
-        near_pi = (c < -0.99) & (s < 0.1)
-        # angle ~ pi: the axis from the largest column of a a^T = (sym(R) - c I) / (1 - c).
-        Rn, cn = R[near_pi], c[near_pi, None, None]
-        B = (0.5 * (Rn + Rn.transpose(0, 2, 1)) - cn * np.eye(3)) / (1.0 - cn)
-        idx = np.argmax(np.diagonal(B, axis1=-2, axis2=-1), axis=-1)
-        axis = B[np.arange(len(B)), :, idx]
-        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
-        sign = np.where(np.einsum('ki,ki->k', axis, v[near_pi]) < 0.0, -1.0, 1.0)
-        out[near_pi] = axis * (sign * angle[near_pi])[:, None]
-    return out
 
 
 @dataclass(frozen=True, eq=False)

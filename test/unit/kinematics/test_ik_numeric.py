@@ -6,9 +6,8 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import from_dh, minibot, mover6
 from mover6_control.kinematics.forward import fk, fk_batch, jacobian
 from mover6_control.kinematics.ik_numeric import (closest_within_limits, ik_numeric,
-                                                  pose_residual_batch, rotation_log_batch,
-                                                  screw_chain)
-from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc
+                                                  pose_residual_batch, screw_chain)
+from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc, rotation_log_batch
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
