@@ -33,8 +33,10 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
-from mover6_control.errors import InvalidInputError
+from mover6_control.kinematics.ik_one_pose import ik_one_pose
 from mover6_control.kinematics.rotations import validate_transform
+from mover6_control.kinematics.wrist import (cross3, norm3, VERIFY_TOL, wrist_geometry,
+                                             WristGeometry)
 from mover6_control.validation import as_finite_array
 import numpy as np
 
@@ -42,37 +44,6 @@ if TYPE_CHECKING:
     from mover6_control.kinematics.arm import ArmModel
 
 N_BRANCHES = 8
-VERIFY_TOL = 1e-6        # [m] and [rad]: an FK round trip worse than this is not a solution
-_PARALLEL_TOL = 1e-7     # |omega_a x omega_b| under this: parallel axes (URDF rounding)
-_POINT_TOL = 1e-7        # [m] axes that pass closer than this meet
-
-
-@dataclass(frozen=True, eq=False)
-class WristGeometry:
-    """Space-frame screws at ``q = 0`` of a 6R arm that the closed form can solve."""
-
-    omega: np.ndarray         # (6, 3) unit joint axes in the base frame at q = 0
-    r: np.ndarray             # (6, 3) a point on each axis [m]
-    M: np.ndarray             # (4, 4) tip pose at q = 0
-    wrist_point: np.ndarray   # (3,) wrist centre at q = 0, base frame [m]
-    wrist_in_tip: np.ndarray  # (3,) wrist centre in the tip frame [m] (constant)
-    x6: np.ndarray            # (3,) a unit vector normal to omega_6
-
-
-def _cross(a, b):
-    """Return the cross product of (..., 3) arrays (np.cross is slow on small inputs)."""
-    a = np.asarray(a, dtype=float)
-    b = np.asarray(b, dtype=float)
-    out = np.empty(np.broadcast(a, b).shape)
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
-
-
-def _norm(v):
-    """Return the Euclidean norm of a 3-vector as a float."""
-    return float(np.sqrt(v @ v))
 
 
 @lru_cache(maxsize=16)             # a WristGeometry is immutable and hashed by identity
@@ -88,11 +59,11 @@ def _q6_basis(geo: WristGeometry) -> np.ndarray:
     """
     w4, w5, w6 = geo.omega[3:]
     b = geo.x6 - np.dot(geo.x6, w6) * w6
-    a = _cross(w6, b)
+    a = cross3(w6, b)
 
     def parts(w, v):
         par = np.dot(v, w) * w
-        return par, v - par, _cross(w, v)
+        return par, v - par, cross3(w, v)
 
     columns = []
     for target in (a, b):
@@ -108,8 +79,8 @@ def _q6_basis(geo: WristGeometry) -> np.ndarray:
 def _wrist_basis(geo: WristGeometry) -> np.ndarray:
     """Return (3, 22): w4, w5, n45 = w4 x w5, w4 x n45, then the columns of ``_q6_basis``."""
     w4, w5 = geo.omega[3], geo.omega[4]
-    n45 = _cross(w4, w5)
-    B = np.column_stack([w4, w5, n45, _cross(w4, n45), _q6_basis(geo)])
+    n45 = cross3(w4, w5)
+    B = np.column_stack([w4, w5, n45, cross3(w4, n45), _q6_basis(geo)])
     B.setflags(write=False)
     return B
 
@@ -119,73 +90,8 @@ def _q5_constants(geo: WristGeometry) -> tuple:
     """Return z . (w5 x u6) and z . u6 per unit of alpha, beta, gamma (u6: w6 normal to w5)."""
     w4, w5, w6 = geo.omega[3:]
     up = w6 - np.dot(w6, w5) * w5
-    n45 = _cross(w4, w5)
-    return tuple(float(np.dot(v, c)) for c in (_cross(w5, up), up) for v in (w4, w5, n45))
-
-
-def wrist_geometry(arm: ArmModel) -> WristGeometry:
-    """
-    Return the ``WristGeometry`` of ``arm`` or raise ``InvalidInputError`` saying what is missing.
-
-    Requires 6 revolute joints, axes 4-6 meeting in a point, axes 2 and 3 parallel and axis 1
-    not parallel to them.
-    """
-    if arm.n_joints != 6:
-        raise InvalidInputError(
-            f'closed-form IK needs a 6-joint arm, {arm.name} has {arm.n_joints}')
-    frames = np.empty((7, 4, 4))      # at q = 0 every joint rotation is the identity
-    frames[0] = arm.origins[0]
-    for i in range(1, 6):
-        frames[i] = frames[i - 1] @ arm.origins[i]
-    frames[6] = frames[5] @ arm.tool
-    omega = np.einsum('nij,nj->ni', frames[:6, :3, :3], arm.axes)
-    r = frames[:6, :3, 3].copy()
-    # Least-squares point nearest to the three wrist axes.
-    A = np.zeros((3, 3))
-    rhs = np.zeros(3)
-    for i in (3, 4, 5):
-        P = np.eye(3) - np.outer(omega[i], omega[i])
-        A += P
-        rhs += P @ r[i]
-    if _norm(_cross(omega[3], omega[4])) < 1e-6 or _norm(
-            _cross(omega[4], omega[5])) < 1e-6:
-        raise InvalidInputError(f'{arm.name}: neighbouring wrist axes are parallel; '
-                                'no spherical wrist (use ik_numeric)')
-    centre = np.linalg.solve(A, rhs)
-    for i in (3, 4, 5):
-        off = (centre - r[i]) - np.dot(centre - r[i], omega[i]) * omega[i]
-        if _norm(off) > _POINT_TOL:
-            raise InvalidInputError(
-                f'{arm.name}: axes 4, 5, 6 do not meet in one point (axis {i + 1} misses it by '
-                f'{_norm(off):.3g} m); no spherical wrist (use ik_numeric)')
-    if _norm(_cross(omega[1], omega[2])) > _PARALLEL_TOL:
-        raise InvalidInputError(
-            f'{arm.name}: axes 2 and 3 are not parallel; this closed form needs a planar elbow '
-            '(use ik_numeric)')
-    if _norm(_cross(omega[0], omega[1])) < 1e-6:
-        raise InvalidInputError(f'{arm.name}: axis 1 is parallel to axis 2 (use ik_numeric)')
-    w2 = omega[1]
-    e = (r[2] - r[1]) - np.dot(r[2] - r[1], w2) * w2
-    u = (centre - r[2]) - np.dot(centre - r[2], w2) * w2
-    if _norm(e) < _POINT_TOL or _norm(u) < _POINT_TOL:
-        raise InvalidInputError(f'{arm.name}: degenerate elbow (zero link length)')
-    M = frames[6]
-    x6 = _cross(omega[5], [1.0, 0.0, 0.0])
-    if _norm(x6) < 0.5:
-        x6 = _cross(omega[5], [0.0, 1.0, 0.0])
-    geometry = WristGeometry(omega=omega, r=r, M=M, wrist_point=centre,
-                             wrist_in_tip=M[:3, :3].T @ (centre - M[:3, 3]),
-                             x6=x6 / _norm(x6))
-    return geometry
-
-
-def has_spherical_wrist(arm: ArmModel) -> bool:
-    """Return True when ``ik_closed_form`` can solve ``arm``."""
-    try:
-        wrist_geometry(arm)
-    except InvalidInputError:
-        return False
-    return True
+    n45 = cross3(w4, w5)
+    return tuple(float(np.dot(v, c)) for c in (cross3(w5, up), up) for v in (w4, w5, n45))
 
 
 def _wrap(q):
@@ -280,11 +186,11 @@ def _plan(geo: WristGeometry) -> _Plan:
     w1, w2, w3, w4, w5, w6 = geo.omega
     r1, r2, r3 = geo.r[:3]
     p0 = geo.wrist_point
-    e1 = _cross(w2, [1.0, 0.0, 0.0])
-    if _norm(e1) < 0.5:
-        e1 = _cross(w2, [0.0, 1.0, 0.0])
-    e1 = e1 / _norm(e1)
-    e2 = _cross(w2, e1)
+    e1 = cross3(w2, [1.0, 0.0, 0.0])
+    if norm3(e1) < 0.5:
+        e1 = cross3(w2, [0.0, 1.0, 0.0])
+    e1 = e1 / norm3(e1)
+    e2 = cross3(w2, e1)
     basis = np.array([e1, e2, w2])                     # rows: coordinates in the plane basis
     M_R = geo.M[:3, :3]
     wit = geo.wrist_in_tip
@@ -304,32 +210,32 @@ def _plan(geo: WristGeometry) -> _Plan:
         return row.reshape(12)
 
     rows, offset = [], []
-    ka, kb = w2 - s12 * w1, _cross(w1, w2)
+    ka, kb = w2 - s12 * w1, cross3(w1, w2)
     rows += [of_p(ka), of_p(kb), of_p(-s12 * w1)]
     offset += [-np.dot(r1, ka), -np.dot(r1, kb), np.dot(w2, p0 - r1) + s12 * np.dot(r1, w1)]
     for e in (e1, e2):
         par = np.dot(w1, e) * w1
-        ew1 = _cross(e, w1)
+        ew1 = cross3(e, w1)
         rows += [of_p(par), of_p(e - par), of_p(-ew1)]
         offset += [np.dot(r1 - r2, e) - np.dot(r1, par), -np.dot(r1, e - par), np.dot(r1, ew1)]
     for gc in (M_R.T @ w6, M_R.T @ geo.x6):
         for b in basis:
             par = np.dot(w1, b) * w1
-            rows += [of_g(gc, par), of_g(gc, b - par), of_g(gc, _cross(w1, b))]
+            rows += [of_g(gc, par), of_g(gc, b - par), of_g(gc, cross3(w1, b))]
             offset += [0.0, 0.0, 0.0]
     e = (r3 - r2) - np.dot(r3 - r2, w2) * w2
     u = (p0 - r3) - np.dot(p0 - r3, w2) * w2
-    a3, b3 = np.dot(e, u), np.dot(e, _cross(w3, u))
+    a3, b3 = np.dot(e, u), np.dot(e, cross3(w3, u))
     rho3 = np.hypot(a3, b3)
     v = p0 - r3
     v_par = np.dot(v, w3) * w3
-    elbow = basis[:2] @ np.column_stack([(r3 - r2) + v_par, v - v_par, _cross(w3, v)])
+    elbow = basis[:2] @ np.column_stack([(r3 - r2) + v_par, v - v_par, cross3(w3, v)])
     sigma = float(np.dot(w2, w3))
     sigma = sigma if np.array_equal(w3, sigma * w2) and abs(sigma) == 1.0 else 0.0
     w4, w5 = geo.omega[3], geo.omega[4]
     s45, s56 = np.dot(w4, w5), np.dot(w5, w6)
     den = s45 ** 2 - 1.0
-    n45 = _cross(w4, w5)
+    n45 = cross3(w4, w5)
     wb = _wrist_basis(geo)
     rows += list(np.eye(12))                           # 27-38: the pose's entries, for the check
     offset += [0.0] * 12
@@ -793,8 +699,6 @@ def ik_closed_form(arm: ArmModel, T: np.ndarray, within_limits: bool = True,
     (``ik_one_pose``). Rows are sorted by distance to ``q_ref`` (default: zeros), nearest first.
     Raises ``InvalidInputError`` for a bad pose or an arm without a spherical wrist.
     """
-    from mover6_control.kinematics.ik_one_pose import ik_one_pose  # it builds on this module
-
     T = validate_transform(T, 'pose')
     ref = np.zeros(arm.n_joints) if q_ref is None else arm.check_q(q_ref, 'q_ref')
     sols = np.array(ik_one_pose(arm, T.tolist(), ref.tolist(), within_limits, tol))

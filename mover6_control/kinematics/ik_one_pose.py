@@ -17,8 +17,8 @@ from functools import lru_cache
 import math
 from typing import TYPE_CHECKING
 
-from mover6_control.kinematics.ik_closed_form import VERIFY_TOL, wrist_geometry
 from mover6_control.kinematics.ik_first_start import IDENTITY_ROWS
+from mover6_control.kinematics.wrist import VERIFY_TOL, wrist_geometry
 import numpy as np
 
 if TYPE_CHECKING:

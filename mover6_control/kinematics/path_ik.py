@@ -45,10 +45,11 @@ from typing import TYPE_CHECKING
 from mover6_control.errors import InvalidInputError, NotATransformError
 from mover6_control.kinematics.forward import condition_number, fk_batch, jacobian_batch
 from mover6_control.kinematics.ik_closed_form import (nearest_alias, pose_errors_batch,
-                                                      solve_candidates, VERIFY_TOL, wrist_geometry)
+                                                      solve_candidates)
 from mover6_control.kinematics.ik_numeric import DEFAULT_WEIGHTS, ik_numeric
 from mover6_control.kinematics.rotations import pose_error
 from mover6_control.kinematics.unreachable import path_failure, unreachable_error
+from mover6_control.kinematics.wrist import VERIFY_TOL, wrist_geometry
 from mover6_control.validation import as_finite_array, as_positive
 from mover6_control.values import ORTHONORMAL_TOL
 import numpy as np

@@ -15,12 +15,12 @@ from typing import Optional, TYPE_CHECKING
 
 from mover6_control.errors import UnreachableError
 from mover6_control.kinematics.forward import condition_number, fk
-from mover6_control.kinematics.ik_closed_form import (has_spherical_wrist, ik_closed_form,
-                                                      wrist_geometry)
+from mover6_control.kinematics.ik_closed_form import ik_closed_form
 from mover6_control.kinematics.ik_numeric import DEFAULT_WEIGHTS, ik_numeric
 from mover6_control.kinematics.path_ik import solve_path, validate_poses
 from mover6_control.kinematics.rotations import pose_error
 from mover6_control.kinematics.unreachable import unreachable_error
+from mover6_control.kinematics.wrist import has_spherical_wrist, wrist_geometry
 from mover6_control.values import ToolPose
 import numpy as np
 

@@ -23,7 +23,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from mover6_control.kinematics.arm import ArmModel
-    from mover6_control.kinematics.ik_closed_form import WristGeometry
+    from mover6_control.kinematics.wrist import WristGeometry
 
 
 def _closest(arm, T, seeds, weights):

@@ -5,10 +5,10 @@ from hypothesis import strategies as st
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import from_dh, minibot, mover6
 from mover6_control.kinematics.forward import fk, fk_batch
-from mover6_control.kinematics.ik_closed_form import (has_spherical_wrist, ik_closed_form,
-                                                      ik_closed_form_batch, pose_errors_batch,
-                                                      wrist_geometry)
+from mover6_control.kinematics.ik_closed_form import (ik_closed_form, ik_closed_form_batch,
+                                                      pose_errors_batch)
 from mover6_control.kinematics.rotations import euler_zyx_to_matrix, pose_from_xyzabc
+from mover6_control.kinematics.wrist import has_spherical_wrist, wrist_geometry
 import numpy as np
 import pytest
 from scipy.optimize import brentq

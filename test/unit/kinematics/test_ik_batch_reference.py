@@ -15,8 +15,8 @@ import math
 from mover6_control.kinematics.arm import minibot, mover6
 from mover6_control.kinematics.forward import fk, fk_batch
 from mover6_control.kinematics.ik_closed_form import (_wrap, ik_closed_form_batch,
-                                                      solve_candidates, VERIFY_TOL,
-                                                      wrist_geometry)
+                                                      solve_candidates)
+from mover6_control.kinematics.wrist import VERIFY_TOL, wrist_geometry
 import numpy as np
 import pytest
 

@@ -6,10 +6,11 @@ from mover6_control.errors import InvalidInputError, REASONS, UnreachableError
 from mover6_control.kinematics.arm import from_dh, minibot, mover6
 from mover6_control.kinematics.forward import condition_number, fk, fk_batch
 from mover6_control.kinematics.ik_closed_form import (ik_closed_form, nearest_alias,
-                                                      solve_candidates, wrist_geometry)
+                                                      solve_candidates)
 from mover6_control.kinematics.path_ik import (branch_steps, holds_pose, PathSolution,
                                                single_turn, solve_path)
 from mover6_control.kinematics.rotations import pose_error, pose_from_xyzabc
+from mover6_control.kinematics.wrist import wrist_geometry
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
