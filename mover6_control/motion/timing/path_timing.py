@@ -10,6 +10,7 @@ of a path followed with a timing: what the continuous profile plays.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 from mover6_control.motion.blended_path import BlendedPath
 from mover6_control.motion.timing.trajectories import JointTrajectory
@@ -30,20 +31,17 @@ class GridTiming:
     u: np.ndarray           # (N,) path acceleration per interval [rad/s^2]
     t_grid: np.ndarray      # (N + 1,) [s]
 
-    def _cumulative(self) -> np.ndarray:
+    @cached_property
+    def _cum(self) -> np.ndarray:
         """
         Return the integral of s at the grid times (N + 1,), computed on first use.
 
         Only the smoothing (``FilteredTiming``, jerk limits) asks for it: a timing that is
         not smoothed does not pay for it.
         """
-        cum = self.__dict__.get('_cum')
-        if cum is None:
-            dt = np.diff(self.t_grid)
-            pieces = self.s_grid[:-1] * dt + self.sd[:-1] * dt ** 2 / 2 + self.u * dt ** 3 / 6
-            cum = np.concatenate([[0.0], np.cumsum(pieces)])
-            object.__setattr__(self, '_cum', cum)
-        return cum
+        dt = np.diff(self.t_grid)
+        pieces = self.s_grid[:-1] * dt + self.sd[:-1] * dt ** 2 / 2 + self.u * dt ** 3 / 6
+        return np.concatenate([[0.0], np.cumsum(pieces)])
 
     @property
     def duration(self) -> float:
@@ -77,7 +75,7 @@ class GridTiming:
         k = np.minimum(np.searchsorted(self.t_grid, tc, side='right') - 1, self.u.size - 1)
         tau = tc - self.t_grid[k]
         part = self.s_grid[k] * tau + self.sd[k] * tau ** 2 / 2 + self.u[k] * tau ** 3 / 6
-        return self._cumulative()[k] + part + self.s_grid[-1] * np.maximum(t - self.duration, 0.0)
+        return self._cum[k] + part + self.s_grid[-1] * np.maximum(t - self.duration, 0.0)
 
     def time_at(self, s: np.ndarray) -> np.ndarray:
         """Return the first time [s] at which the path position reaches ``s`` (m,)."""
