@@ -293,28 +293,25 @@ def solve_path(arm: ArmModel, poses: np.ndarray, q_start: np.ndarray, *,
     # Singularity check on the rows solved so far (all at once): fail where the condition
     # number is above max_condition and rising, unless an earlier waypoint failed.
     k_end = m if stop is None else stop[1]
-    # Every row in order: the inserted ones before the waypoint they lead to (none inserted,
-    # the usual case: the rows are the waypoints', copied in one call each).
-    rows_q, rows_p, rows_k, rows_new = [], [], [], []
-    for k in range(k_end) if bridges else ():
-        if k in bridges:
-            rows_q.append(bridges[k][0])
-            rows_p.append(bridges[k][1])
-            rows_k.append(np.full(len(bridges[k][0]), k))
-            rows_new.append(np.ones(len(bridges[k][0]), dtype=bool))
-        rows_q.append(Q[k:k + 1])
-        rows_p.append(P[k:k + 1])
-        rows_k.append([k])
-        rows_new.append([False])
-    if k_end and not bridges:
-        Q_all, P_all = Q[:k_end].copy(), P[:k_end].copy()
-        k_all, new_all = np.arange(k_end), np.zeros(k_end, dtype=bool)
-    elif k_end:
+    # Every row in order: the inserted ones before the waypoint they lead to. None inserted
+    # (the usual case): the rows are the waypoints', copied in one call each.
+    if bridges and k_end:
+        rows_q, rows_p, rows_k, rows_new = [], [], [], []
+        for k in range(k_end):
+            if k in bridges:
+                rows_q.append(bridges[k][0])
+                rows_p.append(bridges[k][1])
+                rows_k.append(np.full(len(bridges[k][0]), k))
+                rows_new.append(np.ones(len(bridges[k][0]), dtype=bool))
+            rows_q.append(Q[k:k + 1])
+            rows_p.append(P[k:k + 1])
+            rows_k.append([k])
+            rows_new.append([False])
         Q_all, P_all = np.concatenate(rows_q), np.concatenate(rows_p)
         k_all, new_all = np.concatenate(rows_k).astype(int), np.concatenate(rows_new)
     else:
-        Q_all, P_all = Q[:0], P[:0]
-        k_all, new_all = np.zeros(0, dtype=int), np.zeros(0, dtype=bool)
+        Q_all, P_all = Q[:k_end].copy(), P[:k_end].copy()
+        k_all, new_all = np.arange(k_end), np.zeros(k_end, dtype=bool)
     cond = _condition_numbers(arm, Q_all)
     if max_condition is not None and k_end:
         before = np.concatenate([[condition_number(arm, q_start_arr)], cond[:-1]])
