@@ -95,6 +95,14 @@ def ready(executor, probe, planner):
                       and planner.states.q is not None, each=probe.publish_state)
 
 
+def controller_idle(executor, probe, controller):
+    """Wait until the controller has valid joint states and is idle: it can take a demand."""
+    def idle():
+        with controller.lock:
+            return controller.core.state == 'idle'
+    assert spin_until(executor, idle, each=probe.publish_state)
+
+
 def test_a_demand_the_controller_takes(ros):
     """Received, then taken: the answers name the goal and its motion; nothing waits."""
     executor, add = ros
@@ -102,11 +110,7 @@ def test_a_demand_the_controller_takes(ros):
     controller = add(ControllerNode())
     probe = add(Probe())
     ready(executor, probe, planner)
-
-    def idle():
-        with controller.lock:
-            return controller.core.state == 'idle'
-    assert spin_until(executor, idle, each=probe.publish_state)
+    controller_idle(executor, probe, controller)
     probe.send_goal()
     assert spin_until(executor, lambda: any(a.answer == Answer.TAKEN for a in probe.answers),
                       each=probe.publish_state)
@@ -123,9 +127,11 @@ def test_a_demand_the_controller_refuses(ros):
     """The controller's collision check (off in the planner) refuses it: controller_refused."""
     executor, add = ros
     planner = add(PlannerNode(parameter_overrides=[Parameter('collision_check', value=False)]))
-    add(ControllerNode(parameter_overrides=[Parameter('keep_out_boxes', value=BOX_AT_GOAL)]))
+    box = Parameter('keep_out_boxes', value=BOX_AT_GOAL)
+    controller = add(ControllerNode(parameter_overrides=[box]))
     probe = add(Probe())
     ready(executor, probe, planner)
+    controller_idle(executor, probe, controller)    # not ready would be the other answer
     probe.send_goal()
     assert spin_until(executor, lambda: probe.said(1, 'refused'), each=probe.publish_state)
     values = probe.said(1, 'refused')[0]
