@@ -6,7 +6,7 @@ rounded within ``max_deviation``). The timing along it is TOPP-RA's (Pham and Ph
 2018): on a grid of path positions ``s`` [rad of joint-space arc length], with ``x = sdot^2``
 and ``u = sddot`` constant per grid interval, a backward pass computes the set of controllable
 ``x`` at each grid point, and a greedy forward pass takes the largest admissible ``u``; both
-passes run as array operations, ramp by ramp (``motion.greedy_scan``). Joint
+passes are one compiled loop each (``motion.timing.greedy_scan``). Joint
 velocity and acceleration limits are enforced at both ends of every grid interval. The result
 is the time-optimal timing of this path up to the grid resolution (a ``GridTiming``,
 ``motion.path_timing``).
@@ -262,7 +262,7 @@ def _backward_pass(pieces):
     end, solved by ``greedy_scan``.
     """
     A, B, cap = pieces
-    return greedy_scan.greedy_scan_columns(0.0, A[:, ::-1], B[:, ::-1], cap[::-1])[::-1].copy()
+    return greedy_scan.greedy_scan_columns(0.0, A, B, cap, reverse=True)
 
 
 def _forward_pieces(gamma, slope, keep, delta):

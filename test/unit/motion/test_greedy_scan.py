@@ -1,14 +1,15 @@
 """
-The TOPP passes' recurrence solved ramp by ramp gives the very numbers of a step-by-step loop.
+The TOPP passes' compiled recurrence gives the very numbers of a step-by-step Python loop.
 
-``greedy_scan`` reorders the steps of ``x_{i+1} = max(0, min(cap_i, min_j A_ij x_i + B_ij))``
-(all ramps at once) but takes the same operations on the same numbers, so it must agree with
-the plain loop bit for bit: on random recurrences with rising pieces only (the backward pass),
-with falling ones too (the forward pass), with ramps that start inside other ramps, and at the
-edges (no steps, nothing below the caps, a start below the first cap).
+``greedy_scan`` takes the steps of ``x_{i+1} = max(0, min(cap_i, min_j A_ij x_i + B_ij))``
+compiled (numba), with the same operations on the same numbers, so it must agree with the plain
+loop bit for bit: on random recurrences with rising pieces only (the backward pass), with
+falling ones too (the forward pass), with long stretches below the caps, at the edges (no
+steps, nothing below the caps, a start below the first cap), run from the end (the backward
+pass's direction), and on a grid of 55,000 steps.
 """
 
-from mover6_control.motion.timing.greedy_scan import greedy_scan
+from mover6_control.motion.timing.greedy_scan import greedy_scan, greedy_scan_columns
 import numpy as np
 import pytest
 
@@ -90,3 +91,22 @@ def test_edges():
     x = greedy_scan(0.0, A[:, :1], np.full((n, 1), 0.5), cap)
     assert np.array_equal(x, loop(0.0, A[:, :1], np.full((n, 1), 0.5), cap))
     assert x[1] == 0.5 and x[4] == 2.0
+
+
+def test_run_from_the_end_is_the_loop_over_the_reversed_steps():
+    # The backward pass: x_N = x0, and x_i from x_{i+1} with step i's pieces and cap.
+    A, B, cap = problem(7, falling=0.0)
+    x = greedy_scan_columns(0.0, A.T, B.T, cap, reverse=True)
+    ref = loop(0.0, A[::-1], B[::-1], cap[::-1])[::-1]
+    assert np.array_equal(x, ref), np.flatnonzero(x != ref)[:10]
+    assert x[-1] == 0.0
+
+
+def test_a_long_grid_in_both_directions():
+    # A 1000-waypoint goal's grid is 20,000 steps, a 10,000-waypoint one's 200,000.
+    A, B, cap = problem(11, n=55_000, pieces=12, falling=0.05, lines=0.7)
+    for reverse in (False, True):
+        x = greedy_scan_columns(0.25, A.T, B.T, cap, reverse=reverse)
+        order = slice(None, None, -1) if reverse else slice(None)
+        ref = loop(0.25, A[order], B[order], cap[order])[order]
+        assert np.array_equal(x, ref)

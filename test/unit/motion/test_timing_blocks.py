@@ -4,8 +4,7 @@ The time-optimal timing's parts that were made faster give the very numbers of t
 Each part below reorders or skips work without changing an operation on a number that counts:
 the constraints staged a block of grid intervals at a time, the static range over each
 column's finite constraints only, the grid points' limit samples taken from the derivatives at
-hand, the smoothing integral computed on first use, the passes' recurrence on a grid long
-enough that the ramps read each step's pieces from one row, and the path evaluated, the arcs
+hand, the smoothing integral computed on first use, and the path evaluated, the arcs
 checked and the limit ratios taken a block at a time. Each is compared with the plain
 computation bit for bit.
 """
@@ -14,7 +13,7 @@ import pickle
 
 from mover6_control.motion import blended_path as blended_path_module
 from mover6_control.motion.blended_path import blended_path
-from mover6_control.motion.timing import greedy_scan, time_optimal
+from mover6_control.motion.timing import time_optimal
 from mover6_control.motion.timing.path_timing import FilteredTiming
 import numpy as np
 
@@ -131,30 +130,6 @@ def test_smoothing_integral_on_first_use():
     assert np.array_equal(copy.integral(t), timing.integral(t))
     smooth = FilteredTiming(timing, 0.2)
     assert np.all(np.isfinite(smooth.profile(np.linspace(0.0, smooth.duration, 50))[0]))
-
-
-def loop(x0, A, B, cap):
-    """Return the recurrence one step at a time (the reference), pieces by columns (J, N)."""
-    x = [float(x0)]
-    for a_col, b_col, c in zip(A.T.tolist(), B.T.tolist(), cap.tolist()):
-        low = min(a * x[-1] + b for a, b in zip(a_col, b_col))
-        x.append(max(0.0, min(c, low)))
-    return np.array(x)
-
-
-def test_long_grid_ramps_read_rows():
-    # More steps than ``_ROWS_FROM``: the ramps read each step's pieces side by side.
-    rng = np.random.default_rng(5)
-    n = greedy_scan._ROWS_FROM + 5000
-    cap = np.abs(1.0 + 0.6 * np.sin(np.arange(n) / 7.0) + rng.normal(0.0, 0.3, n))
-    cap[rng.random(n) < 0.03] = 0.0
-    A = rng.uniform(0.7, 1.4, (12, n))
-    A[rng.random((12, n)) < 0.05] *= -3.0
-    B = rng.uniform(0.001, 0.1, (12, n))
-    unused = rng.random((12, n)) < 0.2
-    A[unused], B[unused] = 0.0, np.inf
-    x = greedy_scan.greedy_scan_columns(0.0, A, B, cap)
-    assert np.array_equal(x, loop(0.0, A, B, cap))
 
 
 def test_path_evaluated_by_blocks_is_evaluated_point_by_point():
