@@ -26,10 +26,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-_SIGNATURE = 'float64[::1](float64, float64[:, ::1], float64[:, ::1], float64[::1], boolean)'
+_SCAN_SIGNATURE = 'float64[::1](float64, float64[:, ::1], float64[:, ::1], float64[::1], boolean)'
 
 
-@numba.njit(_SIGNATURE, cache=True, nogil=True)
+@numba.njit(_SCAN_SIGNATURE, cache=True, nogil=True, error_model='numpy')
 def _scan(x0, A, B, cap, reverse):  # pragma: no cover (compiled: coverage sees no lines)
     """Return ``x`` (N + 1,) of the recurrence; ``reverse``: stepped from the end (module)."""
     J, N = A.shape

@@ -27,7 +27,7 @@ from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.motion.blended_path import blended_path, distinct_waypoints
-from mover6_control.motion.timing import greedy_scan
+from mover6_control.motion.timing import greedy_scan, topp_pieces
 from mover6_control.motion.timing.path_timing import (FilteredTiming, GridTiming, PathTrajectory,
                                                       ScaledTiming)
 from mover6_control.motion.timing.trajectories import Limit
@@ -42,9 +42,7 @@ _MAX_TURN = 0.05
 _LIMIT_MARGIN = 1e-3
 # The jerk-limited timing is checked on samples: slow it 1 % more than they ask for.
 _JERK_MARGIN = 1e-2
-# The most patterns of finite constraints the static range takes one at a time.
-_PATTERNS = 32
-# Grid intervals per block of the constraint arrays (a (2n, block) array stays in the cache).
+# Grid intervals per block of the limit checks' arrays (a (block, n) array stays in the cache).
 _INTERVAL_BLOCK = 8192
 
 
@@ -75,200 +73,16 @@ def _grid(path, n_grid):
     return s_grid, seg
 
 
-def _stage_lines(dq0, ddq0, dq1, ddq1, delta, a_max):
-    """
-    Return the acceleration constraints of all intervals as ``|u - slope x| <= gamma``.
-
-    ``gamma`` and ``slope`` are (2n, N), one row per constraint and a column per interval (the
-    minimum over the constraints is then an element-wise one over rows): constraint j of
-    interval k is ``u >= -gamma + slope x`` and ``u <= gamma + slope x`` (``gamma`` > 0;
-    ``inf`` and slope 0 where it does not involve ``u``); a constraint whose ``u`` coefficient
-    vanishes bounds ``x`` alone and is returned in ``x_cap`` (N,). Constraints: the
-    acceleration at the start of the interval (``x_k``) and at its end (``x_k + 2 delta u``),
-    with the path derivatives (given as (n, N)) of the interval's own segment.
-    """
-    n, N = dq0.shape
-    P, C = np.empty((2 * n, N)), np.empty((2 * n, N))     # row-major: contiguous rows
-    P[:n], P[n:], C[:n], C[n:] = dq0, dq1 + 2.0 * delta * ddq1, ddq0, ddq1
-    A = np.concatenate([a_max, a_max])[:, None]
-    # a / |P| is (+-a) / P to the bit (division rounds the magnitude, the sign apart).
-    absP = np.abs(P)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        gamma = A / absP
-        slope = np.negative(C, out=C) / P
-    small = absP <= 1e-12
-    x_cap = np.full(N, np.inf)
-    if np.any(small):
-        gamma[small], slope[small] = np.inf, 0.0
-        k = np.flatnonzero(np.any(small, axis=0))
-        Ck = np.abs(C[:, k])                    # C was negated in place: |C| alike
-        flat = small[:, k] & (Ck > 1e-12)
-        with np.errstate(divide='ignore'):
-            x_cap[k] = np.min(np.where(flat, A / Ck, np.inf), axis=0)
-    return gamma, slope, x_cap
-
-
-def _static_range(gamma, slope, limit):
-    """
-    Return, per interval, the smaller of ``limit`` (N,) and the acceleration lines' range.
-
-    The range is the largest x at which the acceleration lines admit some u.
-    Some u meets ``|u - slope_j x| <= gamma_j`` for all j if and only if every pair i, j has
-    ``|slope_i - slope_j| x <= gamma_i + gamma_j``; the range starts at 0 (``gamma`` > 0:
-    x = 0 always admits u = 0). Columns whose slopes are all equal (lines) have no upper bound.
-    Nor need the pairs be tried where ``2 min(gamma) / (max(slope) - min(slope))`` reaches
-    ``limit`` already: no pair's ratio is below it (rounding is monotone, so that holds for
-    the computed ratios too), and the minimum is ``limit`` itself.
-    """
-    m, N = gamma.shape
-    spread = np.max(slope, axis=0) - np.min(slope, axis=0)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        low = 2.0 * np.min(gamma, axis=0) / spread
-    hi = limit.copy()
-    rows = np.flatnonzero((spread > 1e-15) & ~(low >= limit))
-    if rows.size:
-        g, s = gamma[:, rows], slope[:, rows]
-        bound = limit[rows]
-        # A pair of nearly equal slopes (|difference| <= 1e-15) bounds nothing; its ratio is
-        # at least 2 min(gamma) / 1e-15, so where that reaches the limit it cannot count
-        # anyway and need not be masked (the usual case: gamma is a_max / |q'|).
-        tiny = not np.all(2.0 * np.min(g, axis=0) / 1e-15 >= bound)
-        hi[rows] = np.minimum(bound, _pair_minimum_by_pattern(g, s, tiny))
-    return hi
-
-
-def _pair_minimum(g, s, tiny):
-    """
-    Return ``min (g_i + g_j) / |s_i - s_j|`` over the pairs i < j of rows (m, R), per column.
-
-    Row against row by distance (the pairs (i, i + d)), in one buffer. A difference of at most
-    1e-15 divides to inf where ``tiny``. Fewer than two rows: inf.
-    """
-    m, R = g.shape
-    if m < 2:
-        return np.full(R, np.inf)
-    ratios = np.empty((m * (m - 1) // 2, R))
-    at = 0
-    with np.errstate(divide='ignore', invalid='ignore'):
-        for d in range(1, m):           # the pairs (i, i + d)
-            part = ratios[at:at + m - d]
-            np.subtract(s[:-d], s[d:], out=part)
-            np.abs(part, out=part)
-            if tiny:
-                part[part <= 1e-15] = 0.0       # divides to inf (gamma > 0)
-            np.divide(g[:-d] + g[d:], part, out=part)
-            at += m - d
-    return np.min(ratios, axis=0)
-
-
-def _pair_minimum_by_pattern(g, s, tiny):
-    """
-    Return ``_pair_minimum`` over the finite rows of each column alone, columns grouped by them.
-
-    A pair with an infinite ``g`` has an infinite ratio (its difference is finite), so it
-    never is the minimum: leaving it out changes nothing. Where joints stand still (their
-    constraints are infinite on the whole blend) that leaves a few rows of the 2n, and far
-    fewer pairs. Each pair's ratio is the same number in any order of its rows (the
-    difference only changes sign, the sum commutes). Many patterns (more than
-    ``_PATTERNS``): all rows at once.
-    """
-    m, R = g.shape
-    if m > 62:                  # the pattern would not fit in one integer
-        return _pair_minimum(g, s, tiny)
-    code = (1 << np.arange(m)) @ np.isfinite(g)
-    if np.all(code == code[0]):         # one pattern (every row finite, the usual case)
-        use = [j for j in range(m) if int(code[0]) >> j & 1]
-        return _pair_minimum(g[use], s[use], tiny) if len(use) < m else _pair_minimum(g, s, tiny)
-    patterns, group = np.unique(code, return_inverse=True)
-    if patterns.size > _PATTERNS:
-        return _pair_minimum(g, s, tiny)
-    order = np.argsort(group, kind='stable')
-    ends = np.cumsum(np.bincount(group, minlength=patterns.size)).tolist()
-    lowest = np.empty(R)
-    begin = 0
-    for pattern, end in zip(patterns.tolist(), ends):
-        cols = order[begin:end]
-        use = [j for j in range(m) if pattern >> j & 1]
-        lowest[cols] = _pair_minimum(g[np.ix_(use, cols)], s[np.ix_(use, cols)], tiny)
-        begin = end
-    return lowest
-
-
-def _distinct_lines(gamma, slope):
-    """
-    Return which constraints (N, 2n) are finite and not a repeat of another in their row.
-
-    On a line the constraint at the end of an interval repeats the one at its start (the
-    path's derivatives are constant): it gives the very same bounds, so it is dropped.
-    """
-    n = gamma.shape[0] // 2
-    keep = np.isfinite(gamma)
-    keep[n:] &= ~((gamma[n:] == gamma[:n]) & (slope[n:] == slope[:n]))
-    return keep
-
-
-def _pieces(ends, delta, a, limit):
-    """
-    Return the pieces of both passes' recurrences: backward ``(A, B, cap)``, forward ``(A, B)``.
-
-    ``ends``: the path's first and second derivatives at both ends of every interval ((N, n)
-    each); ``limit`` (N,): the caps the speed limits and the stops give. Each interval's
-    constraints (``_stage_lines``), their static range (``_static_range``) and which count
-    (``_distinct_lines``) are a column of their own: they are computed a block of columns at a
-    time (the (2n, block) temporaries stay in the cache), into the (2n, N) pieces.
-    """
-    dq0, ddq0, dq1, ddq1 = ends
-    N, n = dq0.shape
-    back_A, back_B, back_cap = np.empty((2 * n, N)), np.empty((2 * n, N)), np.empty(N)
-    fwd_A, fwd_B = np.empty((2 * n, N)), np.empty((2 * n, N))
-    for lo in range(0, N, _INTERVAL_BLOCK):
-        part = slice(lo, lo + _INTERVAL_BLOCK)
-        gamma, slope, cap = _stage_lines(dq0[part].T, ddq0[part].T, dq1[part].T, ddq1[part].T,
-                                         delta[part], a)
-        s_hi = _static_range(gamma, slope, np.minimum(cap, limit[part]))
-        keep = _distinct_lines(gamma, slope)
-        back_A[:, part], back_B[:, part], back_cap[part] = _backward_pieces(
-            gamma, slope, keep, delta[part], s_hi)
-        fwd_A[:, part], fwd_B[:, part] = _forward_pieces(gamma, slope, keep, delta[part])
-    return (back_A, back_B, back_cap), (fwd_A, fwd_B)
-
-
-def _backward_pieces(gamma, slope, keep, delta, s_hi):
-    """
-    Return the backward pass's pieces ``A``, ``B`` (2n, N) and caps (N,) (``_backward_pass``).
-
-    Below the static range ``s_hi`` (N,), ``x_k + 2 delta u`` must land in ``K_{k+1}`` with
-    some u in ``|u - slope_j x_k| <= gamma_j``: ``hi_k = min(cap_k, min_j (hi_{k+1} + 2 delta
-    gamma_j) / (1 + 2 delta slope_j))`` over the rows with ``c_j = slope_j + 1 / (2 delta) >
-    0``; a row with ``c_j < 0`` caps ``hi_k`` at ``gamma_j / |c_j|`` whatever comes next.
-    ``keep``: the constraints that count (``_distinct_lines``).
-    """
-    inv = 1.0 / (2.0 * delta)
-    c = slope + inv
-    plus, minus = keep & (c > 1e-15), keep & (c < -1e-15)
-    with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
-        cap = np.minimum(s_hi, np.min(np.where(minus, gamma / -c, np.inf), axis=0))
-        A = np.where(plus, inv / c, 0.0)
-        B = np.where(plus, gamma / c, np.inf)
-    return A, B, cap
-
-
 def _backward_pass(pieces):
     """
     Return the upper ends ``hi`` (N + 1,) of TOPP-RA's controllable sets ``K_k = [0, hi[k]]``.
 
     ``K_N = {0}``. The lower ends are 0 throughout: x = 0 admits u = 0 at every interval, so
-    the next set's lower end never binds. The recurrence (``_backward_pieces``) runs from the
+    the next set's lower end never binds. The recurrence (``topp_pieces``) runs from the
     end, solved by ``greedy_scan``.
     """
     A, B, cap = pieces
     return greedy_scan.greedy_scan_columns(0.0, A, B, cap, reverse=True)
-
-
-def _forward_pieces(gamma, slope, keep, delta):
-    """Return the forward pass's pieces ``A``, ``B`` (2n, N) (``_forward_pass``)."""
-    two_d = 2.0 * delta
-    return np.where(keep, 1.0 + two_d * slope, 0.0), np.where(keep, two_d * gamma, np.inf)
 
 
 def _forward_pass(pieces, delta, hi, x0):
@@ -278,7 +92,7 @@ def _forward_pass(pieces, delta, hi, x0):
     Each step takes the largest ``u`` the upper lines ``gamma + slope x`` allow that still
     lands in the next controllable set ``[0, hi[k + 1]]``: ``x_{k+1} = min(hi_{k+1}, min_j
     ((1 + 2 delta slope_j) x_k + 2 delta gamma_j))`` over the constraints that count
-    (``_forward_pieces``), solved by ``greedy_scan``.
+    (``topp_pieces``), solved by ``greedy_scan``.
     """
     A, B = pieces
     x = greedy_scan.greedy_scan_columns(x0, A, B, hi[1:])
@@ -341,7 +155,7 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
         x_cap[1:] = np.minimum(x_cap[1:], jcap1)
     x_cap[_nearest(s_grid, np.asarray(path.stops, dtype=float))] = 0.0
     x_cap[-1] = 0.0
-    backward, forward = _pieces((d0[1], d0[2], d1[1], d1[2]), delta, a, x_cap[:-1])
+    backward, forward = topp_pieces.pieces((d0[1], d0[2], d1[1], d1[2]), delta, a, x_cap[:-1])
     hi = _backward_pass(backward)
     del backward        # (2n, N) arrays: the memory goes back before the next are made
     x, u = _forward_pass(forward, delta, hi, _start_x(path, qd_start, 0.0, hi[0]))
