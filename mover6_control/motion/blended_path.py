@@ -206,16 +206,16 @@ class BlendedPath:
             return self.params[i][2]
         return float((self.starts[i + 1] - self.starts[i]) / self.params[i][1])
 
-    def arc_shape(self, segment: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def arc_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """
-        Return the amplitudes (m, n) and radii (m,) [rad] of the arcs ``segment`` (m,).
+        Return every segment's arc vectors ``x``, ``y`` (k, n) and radius (k,) [rad].
 
-        On an arc each joint's ``q'`` and ``r q''`` are sinusoids in ``s / r`` of that
-        amplitude, ``sqrt(x_i^2 + y_i^2)`` (at most 1).
+        An arc's point at ``phi = s / r`` along it is ``c + r (x cos phi + y sin phi)``, so
+        each joint's ``q'`` and ``r q''`` are sinusoids in ``phi`` of amplitude
+        ``sqrt(x_i^2 + y_i^2)`` (at most 1); a line's rows are zeros and its radius 1. The
+        arrays themselves: read them, never write.
         """
-        segment = np.asarray(segment, dtype=int)
-        x, y = self._stacks['x'][segment], self._stacks['y'][segment]
-        return np.sqrt(x * x + y * y), self._radius[segment]
+        return self._stacks['x'], self._stacks['y'], self._radius
 
     def turns(self) -> np.ndarray:
         """Return how far the tangent turns along each segment (k,) [rad] (0 on a line)."""

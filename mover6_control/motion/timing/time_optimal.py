@@ -27,7 +27,7 @@ from typing import Optional, Sequence
 
 from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.motion.blended_path import blended_path, distinct_waypoints
-from mover6_control.motion.timing import greedy_scan, topp_pieces
+from mover6_control.motion.timing import arc_bounds, greedy_scan, topp_pieces
 from mover6_control.motion.timing.path_timing import (FilteredTiming, GridTiming, PathTrajectory,
                                                       ScaledTiming)
 from mover6_control.motion.timing.trajectories import Limit
@@ -233,14 +233,15 @@ def _within_limits(path, timing, traj, v, a, seg, ends, samples=6):
     zero: the joint rates move monotonically between their values at the grid points and the
     accelerations are those at the interval's start, so the limits hold in between with the
     margin they have at the grid points, and lines need no interior samples. Neither need the
-    arc intervals that ``_arc_intervals_within`` shows to be within the limits throughout
+    arc intervals that ``arc_bounds.intervals_within`` shows to be within the limits throughout
     (``ends``: the path's first and second derivatives at both ends of every interval): their
     samples could not raise the factor above 1, nor above a larger one found elsewhere.
     """
     t_grid = timing.t_grid
     frac = np.arange(1, samples + 1) / (samples + 1.0)
     arcs = np.flatnonzero(path.is_blend(seg))
-    arcs = arcs[~_arc_intervals_within(path, timing, seg[arcs], arcs, ends, v, a)]
+    arcs = arcs[~arc_bounds.intervals_within(path.arc_rows(), timing, seg[arcs], arcs, ends, v,
+                                             a)]
     t = (t_grid[arcs, None] + (t_grid[arcs + 1] - t_grid[arcs])[:, None] * frac).ravel()
     if _grid_points_at_starts(path, timing, seg):
         # Sampled at its time, grid point k < N is the start of interval k: its path
@@ -295,39 +296,6 @@ def _grid_points_at_starts(path, timing, seg):
     return bool(np.all(t_grid[1:] > t_grid[:-1])
                 and np.all(s_grid[last] < path.starts[seg[last] + 1])
                 and np.all(path.starts[1:] > path.starts[:-1]))
-
-
-def _arc_intervals_within(path, timing, segment, k, ends, v, a):
-    """
-    Return which arc intervals ``k`` (m,) (on arcs ``segment``) keep ``v``, ``a`` throughout.
-
-    On an arc of radius r each joint's path derivative ``q'`` is a sinusoid of amplitude
-    ``R <= 1`` in the angle ``phi = s / r``, so inside an interval spanning ``dphi`` it exceeds
-    the larger of its end values by at most ``R dphi^2 / 8``; the speed ``sdot`` lies between
-    its end values (u is constant). The joint's acceleration ``g(s) = u q' + x q''`` (``x =
-    sdot^2``, ``dx / ds = 2 u``) has the second derivative ``5 u q^(3) + x q^(4)``, at most
-    ``R (5 |u| / r^2 + x / r^3)``, so it exceeds the larger of its end values by at most
-    ``R dphi^2 / 8 (5 |u| + x / r)``. Both bounds within the limits: no samples needed.
-    A block of intervals at a time (the (block, n) temporaries stay in the cache).
-    """
-    within = np.empty(k.size, dtype=bool)
-    for lo in range(0, k.size, _INTERVAL_BLOCK):
-        part = slice(lo, lo + _INTERVAL_BLOCK)
-        within[part] = _arc_block_within(path, timing, segment[part], k[part], ends, v, a)
-    return within
-
-
-def _arc_block_within(path, timing, segment, k, ends, v, a):
-    """Return ``_arc_intervals_within`` for the intervals ``k`` of one block."""
-    dq0, ddq0, dq1, ddq1 = (d[k] for d in ends)
-    amplitude, radius = path.arc_shape(segment)
-    bump = amplitude * ((timing.s_grid[k + 1] - timing.s_grid[k]) / radius)[:, None] ** 2 / 8.0
-    sd0, sd1, u = timing.sd[k, None], timing.sd[k + 1, None], timing.u[k, None]
-    speed = (np.maximum(np.abs(dq0), np.abs(dq1)) + bump) * np.maximum(sd0, sd1)
-    x_top = np.maximum(sd0, sd1) ** 2
-    accel = (np.maximum(np.abs(u * dq0 + sd0 ** 2 * ddq0), np.abs(u * dq1 + sd1 ** 2 * ddq1))
-             + bump * (5.0 * np.abs(u) + x_top / radius[:, None]))
-    return np.all((speed <= v) & (accel <= a), axis=1)
 
 
 def _jerk_limited(path, timing, v, a, j):

@@ -39,6 +39,8 @@ import numpy as np
 # Below these a path derivative, or a difference of slopes, counts as zero.
 _ZERO_P = 1e-12
 _ZERO_SLOPE = 1e-15
+# A pair's ratio is computed where ``total <= s_hi * diff * _SLACK`` (else it cannot be below).
+_SLACK = 1.0 + 1e-9
 
 _M = 'float64[:, ::1]'
 _V = 'float64[::1]'
@@ -76,6 +78,11 @@ def _pieces(dq0, ddq0, dq1, ddq1, delta, a, limit):  # pragma: no cover (compile
                     x_cap = min(x_cap, a[i] / absC)
             else:
                 gamma[r], slope[r] = a[i] / absP, -C / P
+        # The lines that count: finite, and an end line not a repeat of its start's.
+        for r in range(m):
+            keep[r] = gamma[r] < inf
+            if r >= n and gamma[r] == gamma[r - n] and slope[r] == slope[r - n]:
+                keep[r] = False
         # The static range, below the caps.
         bound = min(x_cap, limit[k])
         s_max, s_min, g_min = slope[0], slope[0], gamma[0]
@@ -85,20 +92,19 @@ def _pieces(dq0, ddq0, dq1, ddq1, delta, a, limit):  # pragma: no cover (compile
         spread = s_max - s_min
         s_hi = bound
         if spread > _ZERO_SLOPE and not (2.0 * g_min / spread >= bound):
+            # The pairs of lines that count (a repeat gives its twin's ratios, and none with
+            # it); a ratio is divided out only where it can be below the smallest so far (by
+            # a margin far above the roundings: the same minimum).
             for p in range(m):
-                if gamma[p] == inf:
+                if not keep[p]:
                     continue
                 for q in range(p + 1, m):
-                    if gamma[q] == inf:
+                    if not keep[q]:
                         continue
                     diff = abs(slope[p] - slope[q])
-                    if diff > _ZERO_SLOPE:
-                        s_hi = min(s_hi, (gamma[p] + gamma[q]) / diff)
-        # The lines that count: finite, and an end line not a repeat of its start's.
-        for r in range(m):
-            keep[r] = gamma[r] < inf
-            if r >= n and gamma[r] == gamma[r - n] and slope[r] == slope[r - n]:
-                keep[r] = False
+                    total = gamma[p] + gamma[q]
+                    if diff > _ZERO_SLOPE and total <= s_hi * diff * _SLACK:
+                        s_hi = min(s_hi, total / diff)
         # Both passes' pieces.
         inv = 1.0 / two_d
         cap = s_hi

@@ -3,8 +3,8 @@ The time-optimal timing's parts that were made faster give the very numbers of t
 
 Each part below reorders or skips work without changing an operation on a number that counts:
 the grid points' limit samples taken from the derivatives at
-hand, the smoothing integral computed on first use, and the path evaluated, the arcs
-checked and the limit ratios taken a block at a time. Each is compared with the plain
+hand, the smoothing integral computed on first use, and the path evaluated and the limit
+ratios taken a block at a time. Each is compared with the plain
 computation bit for bit.
 """
 
@@ -88,14 +88,10 @@ def _point_block():
     return blended_path_module._POINT_BLOCK
 
 
-def test_arc_check_and_limit_ratios_by_blocks_are_those_of_all_rows():
+def test_limit_ratios_by_blocks_are_those_of_all_rows():
     timing, path, seg = timed_on_grid(random_walk(1000, 12))
     ends = path.evaluate(timing.s_grid[:-1], seg, (1, 2)) * 2      # (the starts as ends too)
-    arcs = np.flatnonzero(path.is_blend(seg))
-    assert arcs.size > 2 * time_optimal._INTERVAL_BLOCK
-    ours = time_optimal._arc_intervals_within(path, timing, seg[arcs], arcs, ends, V, 1.0)
-    plain = time_optimal._arc_block_within(path, timing, seg[arcs], arcs, ends, V, 1.0)
-    assert np.array_equal(ours, plain)
+    assert timing.u.size > 2 * time_optimal._INTERVAL_BLOCK
     speed, accel = time_optimal._largest_ratios(ends[0], ends[1], timing.sd[:-1], timing.u,
                                                 V, 1.0)
     qd, qdd = time_optimal._joint_rates(ends[0], ends[1], timing.sd[:-1], timing.u)
