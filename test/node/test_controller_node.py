@@ -5,6 +5,7 @@ import time
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
+from mover6_control.nodes.controller.demand_thread import WORKER_POINTS
 from mover6_control.nodes.controller.node import ControllerNode
 from mover6_control.nodes.messages import conversions, demand_messages
 from mover6_control.nodes.runtime import local_dds
@@ -440,10 +441,12 @@ def test_continuous_demands_never_stall_the_ticks():
     """
     Long continuous demands, one replacing a running motion: no tick is late.
 
-    The continuous law plans a 100-waypoint demand for tens of milliseconds (more on a loaded
-    machine) in the executor thread, which here also serves the fake arm; the tick thread must
-    go on at its period meanwhile. Judged by the node's own ``max_tick_gap`` and by the stamps
-    of the JointJog commands (taken by the tick thread; a deep queue so none is dropped).
+    The largest demand the controller plans in its own process (``WORKER_POINTS`` - 1
+    waypoints; larger ones go to its planning process) takes the continuous law about 15 ms of
+    CPU (more on a loaded machine) in the demand thread, while the executor also serves the
+    fake arm; the tick thread must go on at its period meanwhile. Judged by the node's own
+    ``max_tick_gap`` and by the stamps of the JointJog commands (taken by the tick thread; a
+    deep queue so none is dropped).
     """
     undo = steady_interpreter()                   # as the controller's main() starts
     context = rclpy.Context()
@@ -472,7 +475,8 @@ def test_continuous_demands_never_stall_the_ticks():
         taken = []
         for motion, (start, goal) in enumerate([(np.zeros(6), GOAL), (GOAL / 2, -GOAL / 2)], 1):
             sent = time.monotonic()
-            arm.demand_pub.publish(demand_messages.make_demands(wavy_path(start, goal)))
+            arm.demand_pub.publish(demand_messages.make_demands(
+                wavy_path(start, goal, WORKER_POINTS - 1)))
             taken.append(spin_until(lambda: arm.status().get('motion_id') == str(motion)
                                     and arm.status().get('state') == 'executing') - sent)
             if motion == 1:                       # the second replaces the running first

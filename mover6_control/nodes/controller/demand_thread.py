@@ -53,14 +53,17 @@ WAIT_FOR_STATES = (WAITING_FOR_STATES, FAULT)
 # Rounds of one demand's taking at most: DEMAND_ATTEMPTS plans, and waits for the state.
 DEMAND_ROUNDS = DEMAND_ATTEMPTS + 3
 # A demand of this many waypoints or more is planned in the planning process (plan_worker):
-# planning it here holds the interpreter lock that the tick needs. Measured (continuous law,
-# load 24, CPU of this process per demand): 22 waypoints 8 ms here, 0.8 ms through the worker,
-# 100: 15 / 0.9 ms, 1,000: 149 / 2.7 ms, at about the same wall time. Below it a demand stays
-# here, and so does every demand while the worker starts (seconds: the first such demand starts
-# it): a demand must not wait for it; but one of WORKER_WAIT_POINTS or more waits (it takes
-# seconds to plan anyway: here it would stall the tick from the start).
-WORKER_POINTS = 100
-WORKER_WAIT_POINTS = 1000
+# planning it here holds the interpreter lock that the tick needs, between the compiled parts
+# of the timing (motion/timing: they run without it). Measured (continuous law with the
+# collision guard, CPU of one demand, 2026-12-07): 100 waypoints 2.8 ms, 1,000: 12.9 ms, 2,000:
+# 26.7 ms, 5,000: 79 ms, 10,000: 184 ms; through the worker a 1,000-waypoint demand took 20-60 ms
+# longer (pickles, a second process waiting for a CPU beside the stack) than here. Below
+# WORKER_POINTS (at most about 15 ms, what 100 waypoints cost when the limit was 100) a demand
+# stays here, and so does every demand while the worker starts (seconds: the first such demand
+# starts it): a demand must not wait for it; but one of WORKER_WAIT_POINTS or more (about 150 ms,
+# what 1,000 waypoints cost when that limit was 1,000) waits: here it would hold the tick back.
+WORKER_POINTS = 1200
+WORKER_WAIT_POINTS = 8000
 
 
 # What the queue takes: a message, a message and its timing, or a callable that returns either
