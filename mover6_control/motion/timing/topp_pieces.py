@@ -94,9 +94,13 @@ def _pieces(dq0, ddq0, dq1, ddq1, delta, a, limit):  # pragma: no cover (compile
         if spread > _ZERO_SLOPE and not (2.0 * g_min / spread >= bound):
             # The pairs of lines that count (a repeat gives its twin's ratios, and none with
             # it); a ratio is divided out only where it can be below the smallest so far (by
-            # a margin far above the roundings: the same minimum).
+            # a margin far above the roundings: the same minimum). No pair of line p can be
+            # where ``(gamma_p + min(gamma)) / (its largest slope difference)`` is not.
             for p in range(m):
                 if not keep[p]:
+                    continue
+                widest = max(s_max - slope[p], slope[p] - s_min)
+                if gamma[p] + g_min >= s_hi * widest * _SLACK:
                     continue
                 for q in range(p + 1, m):
                     if not keep[q]:
