@@ -8,8 +8,9 @@ joints is unsolvable or (with ``within_limits``) outside its limits, and every b
 checked by forward kinematics. As array operations on flat arrays of branches, the
 interpreter's per-operation cost and the temporaries were most of the time (about 1 us a pose,
 and a few hundred us for one pose); here the 8 branches of a pose are nested loops on floats,
-compiled, run without the interpreter lock (``nogil``): about 0.6 us a pose, most of it
-``atan2``. The constants come from ``ik_closed_form._plan`` (per wrist geometry) and
+compiled, run without the interpreter lock (``nogil``): about 0.5 us a pose on the bench's
+Mover6 poses (the C library's ``atan2``, ``sincos`` and ``acos`` a third of it). The
+constants come from ``ik_closed_form._plan`` (per wrist geometry) and
 ``ik_closed_form._fk_chain`` (per arm).
 
 Each number is computed by the operations of the array formulation, in the same order (numba
@@ -97,6 +98,43 @@ def _turn_back(w0, w1, w2, s, c, v0, v1, v2):  # pragma: no cover (compiled)
             (v2 * c - (w0 * v1 - w1 * v0) * s) + w2 * d)
 
 
+@numba.njit(cache=True, nogil=True, error_model='numpy')
+def _row_times(a0, a1, a2, M):  # pragma: no cover (compiled)
+    """Return the row ``(a0, a1, a2) M`` (``M`` 3 x 3 row-major, 9 floats), in index order."""
+    return ((a0 * M[0] + a1 * M[3]) + a2 * M[6], (a0 * M[1] + a1 * M[4]) + a2 * M[7],
+            (a0 * M[2] + a1 * M[5]) + a2 * M[8])
+
+
+@numba.njit(cache=True, nogil=True, error_model='numpy')
+def _times(R, M):  # pragma: no cover (compiled)
+    """Return ``R M`` of two 3 x 3 matrices as row-major 9-tuples."""
+    x0, x1, x2 = _row_times(R[0], R[1], R[2], M)
+    y0, y1, y2 = _row_times(R[3], R[4], R[5], M)
+    z0, z1, z2 = _row_times(R[6], R[7], R[8], M)
+    return (x0, x1, x2, y0, y1, y2, z0, z1, z2)
+
+
+@numba.njit(cache=True, nogil=True, error_model='numpy')
+def _turned_about(R, j, c, s):  # pragma: no cover (compiled)
+    """
+    Return ``R Rot(e_j, q)`` (row-major 9-tuples) of cosine ``c`` and signed sine ``s``.
+
+    Columns ``a = j + 1`` and ``b = j + 2`` (mod 3) turn: ``a c + b s`` and ``a (-s) + b c``,
+    what ``R`` times the rotation's matrix gives with its zeros and ones left out.
+    """
+    if j == 0:
+        return (R[0], R[1] * c + R[2] * s, R[1] * -s + R[2] * c,
+                R[3], R[4] * c + R[5] * s, R[4] * -s + R[5] * c,
+                R[6], R[7] * c + R[8] * s, R[7] * -s + R[8] * c)
+    if j == 1:
+        return (R[2] * -s + R[0] * c, R[1], R[2] * c + R[0] * s,
+                R[5] * -s + R[3] * c, R[4], R[5] * c + R[3] * s,
+                R[8] * -s + R[6] * c, R[7], R[8] * c + R[6] * s)
+    return (R[0] * c + R[1] * s, R[0] * -s + R[1] * c, R[2],
+            R[3] * c + R[4] * s, R[3] * -s + R[4] * c, R[5],
+            R[6] * c + R[7] * s, R[6] * -s + R[7] * c, R[8])
+
+
 @numba.njit(_SOLVE_SIGNATURE, cache=True, nogil=True, error_model='numpy')
 def solve_poses(T, q_ref, row_nnz, row_cols, row_vals, offset, k, elbow, w3, tv_basis,
                 tx_basis, lo, hi, frames, turns, identity, axis_index, within_limits, tol2,
@@ -121,7 +159,7 @@ def solve_poses(T, q_ref, row_nnz, row_cols, row_vals, offset, k, elbow, w3, tv_
     tv = np.empty(4)
     tx = np.empty(18)
     sc = np.empty(12)
-    R, R2, rot, p = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
+    rot = np.empty((3, 3))
     phi3, rho3, safe3, half, sigma = k[0], k[1], k[2], k[3], k[4]
     s45, s56, den, nn45 = k[5], k[6], k[7], k[8]
     for i in range(m):
@@ -250,50 +288,37 @@ def solve_poses(T, q_ref, row_nnz, row_cols, row_vals, offset, k, elbow, w3, tv_
                     Q[i, branch, 0], Q[i, branch, 1], Q[i, branch, 2] = q1a, q2a, q3a
                     Q[i, branch, 3], Q[i, branch, 4], Q[i, branch, 5] = q4a, q5a, q6a
                     # The FK check: the chain multiplied out (the module docstring).
-                    for u in range(3):
-                        for v in range(3):
-                            R[u, v] = 1.0 if u == v else 0.0
-                        p[u] = 0.0
+                    Rt = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+                    pt = (0.0, 0.0, 0.0)
                     for f in range(7):
-                        for u in range(3):
-                            p[u] = (((p[u] + R[u, 0] * frames[f, 0, 3])
-                                     + R[u, 1] * frames[f, 1, 3]) + R[u, 2] * frames[f, 2, 3])
+                        t0, t1, t2 = frames[f, 0, 3], frames[f, 1, 3], frames[f, 2, 3]
+                        pt = (((pt[0] + Rt[0] * t0) + Rt[1] * t1) + Rt[2] * t2,
+                              ((pt[1] + Rt[3] * t0) + Rt[4] * t1) + Rt[5] * t2,
+                              ((pt[2] + Rt[6] * t0) + Rt[7] * t1) + Rt[8] * t2)
                         if not identity[f]:
-                            for u in range(3):
-                                for v in range(3):
-                                    R2[u, v] = ((R[u, 0] * frames[f, 0, v]
-                                                 + R[u, 1] * frames[f, 1, v])
-                                                + R[u, 2] * frames[f, 2, v])
-                            for u in range(9):
-                                R[u // 3, u % 3] = R2[u // 3, u % 3]
+                            Rt = _times(Rt, (frames[f, 0, 0], frames[f, 0, 1], frames[f, 0, 2],
+                                             frames[f, 1, 0], frames[f, 1, 1], frames[f, 1, 2],
+                                             frames[f, 2, 0], frames[f, 2, 1], frames[f, 2, 2]))
                         if f == 6:
                             break
                         sf, cf = sc[2 * f], sc[2 * f + 1]
                         j = axis_index[f]
                         if j >= 0:                  # a frame axis: two columns turn
-                            ca, cb = (j + 1) % 3, (j + 2) % 3
-                            sf = turns[f, 1, cb, ca] * sf
-                            for u in range(3):
-                                Ra, Rb = R[u, ca], R[u, cb]
-                                R[u, ca] = Ra * cf + Rb * sf
-                                R[u, cb] = Ra * -sf + Rb * cf
+                            sign = turns[f, 1, (j + 2) % 3, (j + 1) % 3]
+                            Rt = _turned_about(Rt, j, cf, sign * sf)
                             continue
                         w = 1.0 - cf
                         for u in range(3):
                             for v in range(3):
                                 rot[u, v] = ((turns[f, 0, u, v] + turns[f, 1, u, v] * sf)
                                              + turns[f, 2, u, v] * w)
-                        for u in range(3):
-                            for v in range(3):
-                                R2[u, v] = ((R[u, 0] * rot[0, v] + R[u, 1] * rot[1, v])
-                                            + R[u, 2] * rot[2, v])
-                        for u in range(9):
-                            R[u // 3, u % 3] = R2[u // 3, u % 3]
+                        Rt = _times(Rt, (rot[0, 0], rot[0, 1], rot[0, 2], rot[1, 0], rot[1, 1],
+                                         rot[1, 2], rot[2, 0], rot[2, 1], rot[2, 2]))
                     position, chord = 0.0, 0.0
                     for u in range(3):
-                        d = p[u] - T[i, u, 3]
+                        d = pt[u] - T[i, u, 3]
                         position += d * d
                         for v in range(3):
-                            d = R[u, v] - T[i, u, v]
+                            d = Rt[3 * u + v] - T[i, u, v]
                             chord += d * d
                     ok[i, branch] = position < tol2 and chord < chord2
