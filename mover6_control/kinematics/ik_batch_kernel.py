@@ -135,6 +135,20 @@ def _turned_about(R, j, c, s):  # pragma: no cover (compiled)
             R[6] * c + R[7] * s, R[6] * -s + R[7] * c, R[8])
 
 
+@numba.njit(cache=True, nogil=True, error_model='numpy')
+def _off_arc(y, x, arc, j):  # pragma: no cover (compiled)
+    """
+    Return True when ``atan2(y, x)`` is surely outside joint ``j``'s limits, whole turns aside.
+
+    ``arc[j]``: the cosine and sine of the range's middle m and the cosine of its half width h
+    plus 1e-9 (the limit test's slack) plus 1e-7 (far above the rounding of this test and of
+    ``atan2``), or -2 when that reaches pi (no angle is surely outside). The angle is at least
+    h + 1e-7 from m (mod 2 pi) when ``cos(angle - m) < cos(h + 1e-7)``, and then no whole turn
+    of it (``_alias``) is within the limits: the branch is dropped before its ``atan2``.
+    """
+    return x * arc[j, 0] + y * arc[j, 1] < arc[j, 2] * math.sqrt(x * x + y * y)
+
+
 @numba.njit(_SOLVE_SIGNATURE, cache=True, nogil=True, error_model='numpy')
 def solve_poses(T, q_ref, row_nnz, row_cols, row_vals, offset, k, elbow, w3, tv_basis,
                 tx_basis, lo, hi, frames, turns, identity, axis_index, within_limits, tol2,
@@ -161,6 +175,12 @@ def solve_poses(T, q_ref, row_nnz, row_cols, row_vals, offset, k, elbow, w3, tv_
     sc = np.empty(12)
     rot = np.empty((3, 3))
     phi3, rho3, safe3, half, sigma = k[0], k[1], k[2], k[3], k[4]
+    arc = np.empty((6, 3))
+    for j in range(6):
+        half_width = 0.5 * (hi[j] - lo[j]) + 1e-9 + 1e-7
+        middle = 0.5 * (lo[j] + hi[j])
+        arc[j, 0], arc[j, 1] = math.cos(middle), math.sin(middle)
+        arc[j, 2] = math.cos(half_width) if within_limits and half_width < math.pi else -2.0
     s45, s56, den, nn45 = k[5], k[6], k[7], k[8]
     for i in range(m):
         ref0, ref1, ref2 = q_ref[i, 0], q_ref[i, 1], q_ref[i, 2]
@@ -218,6 +238,8 @@ def solve_poses(T, q_ref, row_nnz, row_cols, row_vals, offset, k, elbow, w3, tv_
                 uy = (elbow[1, 0] + c3 * elbow[1, 1]) + s3 * elbow[1, 2]
                 y2 = ux * dy - uy * dx
                 x2 = ux * dx + uy * dy
+                if _off_arc(y2, x2, arc, 1):
+                    continue
                 q2a, inside = _alias(math.atan2(y2, x2), ref1, lo[1], hi[1], within_limits)
                 if not inside:
                     continue
@@ -255,6 +277,8 @@ def solve_poses(T, q_ref, row_nnz, row_cols, row_vals, offset, k, elbow, w3, tv_
                     g = gamma if flip == 0 else -gamma
                     y5 = (alpha * k[9] + beta * k[10]) + g * k[11]
                     x5 = (alpha * k[12] + beta * k[13]) + g * k[14]
+                    if _off_arc(y5, x5, arc, 4):
+                        continue
                     q5a, inside = _alias(math.atan2(y5, x5), ref4, lo[4], hi[4],
                                          within_limits)
                     if not inside:
@@ -264,6 +288,8 @@ def solve_poses(T, q_ref, row_nnz, row_cols, row_vals, offset, k, elbow, w3, tv_
                     else:
                         y4 = beta * an + g * am
                         x4 = beta * (a5 - s45 * a4) + g * an
+                        if _off_arc(y4, x4, arc, 3):
+                            continue
                         q4 = math.atan2(y4, x4)
                     q4a, inside = _alias(q4, ref3, lo[3], hi[3], within_limits)
                     if not inside:
@@ -278,6 +304,8 @@ def solve_poses(T, q_ref, row_nnz, row_cols, row_vals, offset, k, elbow, w3, tv_
                     h4 = (tx[12] + c5 * tx[13]) + s5 * tx[14]
                     h5 = (tx[15] + c5 * tx[16]) + s5 * tx[17]
                     y6, x6 = (h0 + c4 * h1) + s4 * h2, (h3 + c4 * h4) + s4 * h5
+                    if _off_arc(y6, x6, arc, 5):
+                        continue
                     q6a, inside = _alias(math.atan2(y6, x6), ref5, lo[5], hi[5],
                                          within_limits)
                     if not inside:
