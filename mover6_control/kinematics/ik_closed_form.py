@@ -1,5 +1,5 @@
 """
-Closed-form inverse kinematics of 6R arms with a spherical wrist: every solution, vectorised.
+Closed-form inverse kinematics of 6R arms with a spherical wrist: every solution, in batches.
 
 The solver is derived from the model's own geometry (product of exponentials at ``q = 0``), not
 written for one robot. It applies to any 6R ``ArmModel`` whose
@@ -25,6 +25,13 @@ returned). Every candidate is checked by forward kinematics, and those out of jo
 dropped when ``within_limits`` is set. At a wrist
 singularity (axes 4 and 6 aligned) only q4 + q6 matters: q4 is taken from ``q_ref``; likewise q1
 at a shoulder singularity (wrist centre on axis 1).
+
+This module prepares the constants of an arm (``_plan``: what is linear in the pose, the elbow
+and wrist bases; ``_fk_chain``: the chain for the FK check) and checks the inputs; the steps
+themselves, per pose, run compiled (numba) in ``ik_batch_kernel``: as array operations they
+cost about 1 us a pose in interpreter overhead and temporaries, compiled about 0.5 us
+(issue 32). The one-pose ``ik_closed_form`` runs the same steps on Python floats
+(``ik_one_pose``).
 """
 
 from __future__ import annotations
@@ -33,6 +40,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
+from mover6_control.kinematics.ik_batch_kernel import solve_poses
 from mover6_control.kinematics.ik_one_pose import ik_one_pose
 from mover6_control.kinematics.rotations import validate_transform
 from mover6_control.kinematics.wrist import (cross3, norm3, VERIFY_TOL, wrist_geometry,
@@ -156,15 +164,16 @@ def pose_errors_batch(T_goal: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np
 class _Plan:
     """The batch solver's constants of one ``WristGeometry``, prepared once (``_plan``)."""
 
-    rows: np.ndarray       # (39, 12): per-pose rows, linear in the pose's top 12 entries
-    offset: np.ndarray     # (39, 1): their constant parts
-    q3: tuple              # phi3, rho3, safe rho3, (|e|^2 + |u|^2) / 2: q3's equation
+    row_nnz: np.ndarray    # (27,): per-pose rows, linear in the pose's top 12 entries: per row
+    row_cols: np.ndarray   # (27, 12): its number of nonzero entries, their columns (in order)
+    row_vals: np.ndarray   # (27, 12): and their values (a zero entry adds nothing to the sum)
+    offset: np.ndarray     # (27,): their constant parts
+    k: np.ndarray          # (15,): q3's equation (phi3, rho3, safe rho3, (|e|^2 + |u|^2) / 2),
+    #                        sigma, the wrist's s45, s56, s45^2 - 1, |n45|^2 and q5's constants
     elbow: np.ndarray      # (2, 3): the plane coordinates of x - r2 are k0 + cos q3 k1 + sin q3 k2
-    sigma: float           # w3 = sigma w2 exactly (+-1), or 0: turn about w3 in full
     w3: np.ndarray         # (3,): w3 in the basis (e1, e2, w2) of the elbow plane
     tv_basis: np.ndarray   # (4, 3): w4, w5, n45, w4 x n45 in that basis
     tx_basis: np.ndarray   # (18, 3): the columns of ``_q6_basis`` in that basis
-    wrist: tuple           # alpha, beta, gamma^2 and q5 constants
 
 
 @lru_cache(maxsize=16)             # a WristGeometry is immutable and hashed by identity
@@ -173,15 +182,17 @@ def _plan(geo: WristGeometry) -> _Plan:
     Return the constants of the batch solver for ``geo``.
 
     Everything the solver needs of a pose before any joint is known is linear in the pose's
-    top 12 entries (with a constant part): 39 rows of one matrix product per block of poses,
+    top 12 entries (with a constant part): 27 rows,
 
     - 0-2: q1's equation ``a cos q1 + b sin q1 = c``;
     - 3-8: the wrist centre seen from axis 2 after turning back by q1, in the plane normal to
       w2 with the basis (e1, e2): ``d = D0 + cos q1 D1 + sin q1 D2`` for each of e1, e2;
     - 9-26: the goal's axes ``g`` (R_goal M^T w6 and R_goal M^T x6) turned back by q1, in the
       basis (e1, e2, w2): ``g . Rot(w1, q1) b = g . b_par + cos q1 g . b_perp
-      + sin q1 g . (w1 x b)`` for b = e1, e2, w2;
-    - 27-38: the pose's entries themselves (for the FK check, in the same layout).
+      + sin q1 g . (w1 x b)`` for b = e1, e2, w2.
+
+    ``sigma`` is +-1 when w3 = sigma w2 exactly (q2 and q3 then turn about one axis), else 0
+    (a turn about w3 in full).
     """
     w1, w2, w3, w4, w5, w6 = geo.omega
     r1, r2, r3 = geo.r[:3]
@@ -237,391 +248,86 @@ def _plan(geo: WristGeometry) -> _Plan:
     den = s45 ** 2 - 1.0
     n45 = cross3(w4, w5)
     wb = _wrist_basis(geo)
-    rows += list(np.eye(12))                           # 27-38: the pose's entries, for the check
-    offset += [0.0] * 12
-    plan = _Plan(rows=np.array(rows), offset=np.array(offset)[:, None],
-                 q3=(float(np.arctan2(b3, a3)), float(rho3), float(rho3 if rho3 > 1e-12 else 1.0),
-                     float((np.dot(e, e) + np.dot(u, u)) / 2.0)),
-                 elbow=elbow, sigma=sigma, w3=basis @ w3,
+    k = (float(np.arctan2(b3, a3)), float(rho3), float(rho3 if rho3 > 1e-12 else 1.0),
+         float((np.dot(e, e) + np.dot(u, u)) / 2.0), sigma, s45, s56, den,
+         float(np.dot(n45, n45))) + _q5_constants(geo)
+    rows = np.array(rows)
+    row_nnz = np.count_nonzero(rows, axis=1)
+    row_cols = np.zeros(rows.shape, dtype=np.int64)
+    row_vals = np.zeros(rows.shape)
+    for r, row in enumerate(rows):
+        cols = np.flatnonzero(row)
+        row_cols[r, :len(cols)], row_vals[r, :len(cols)] = cols, row[cols]
+    plan = _Plan(row_nnz=row_nnz.astype(np.int64), row_cols=row_cols, row_vals=row_vals,
+                 offset=np.array(offset), k=np.array(k, dtype=float),
+                 elbow=np.ascontiguousarray(elbow), w3=basis @ w3,
                  tv_basis=np.ascontiguousarray((basis @ wb[:, :4]).T),
-                 tx_basis=np.ascontiguousarray((basis @ wb[:, 4:]).T),
-                 wrist=(s45, s56, den, float(np.dot(n45, n45))) + _q5_constants(geo))
-    for a in (plan.rows, plan.offset, plan.elbow, plan.w3, plan.tv_basis, plan.tx_basis):
+                 tx_basis=np.ascontiguousarray((basis @ wb[:, 4:]).T))
+    for a in (plan.row_nnz, plan.row_cols, plan.row_vals, plan.offset, plan.k, plan.elbow,
+              plan.w3, plan.tv_basis, plan.tx_basis):
         a.setflags(write=False)
     return plan
 
 
-_WRIST_BLOCK = 4096      # branches reaching the wrist per block of ik_closed_form_batch
-
-
-def _alias(q, ref, lo, hi, within_limits):
+@lru_cache(maxsize=16)             # an ArmModel is immutable and hashed by identity
+def _fk_chain(arm: ArmModel) -> tuple:
     """
-    Return ``q`` aliased nearest ``ref`` (and into [lo, hi]) and where it is inside the limits.
+    Return the URDF chain of ``forward`` as the compiled FK check reads it (``ik_batch_kernel``).
 
-    The steps of ``nearest_alias`` for one joint: the same numbers. Without ``within_limits``
-    the mask is None (every value kept).
+    ``frames`` (7, 3, 4): each joint's origin, then the tool, top rows; ``identity`` (7,): the
+    frames that do not turn; ``axis_index`` (6,): for a joint turning about a frame axis (+-x,
+    y or z, as ``forward`` tells them apart) that axis, else -1; ``turns`` (6, 3, 3, 3): the
+    turn of the other joints as ``Rot(axis, q) = (I + sin q K) + (1 - cos q) K K`` (Rodrigues:
+    ``I``, ``K``, ``K K``), and for a frame axis its sign at ``turns[i, 1, j + 2, j + 1]``
+    (indices mod 3).
     """
-    q = ref + _wrap(q - ref)
-    if not within_limits:
-        return q, None
-    # A turn up can bring a value inside only if the smallest one turned up is <= hi, a turn
-    # down only if the largest one turned down is >= lo (rounding is monotone): else none moves.
-    if q.size and (q.min() + 2.0 * np.pi <= hi or q.max() - 2.0 * np.pi >= lo):
-        q = _into_range(q, lo, hi)
-    return q, (q >= lo - 1e-9) & (q <= hi + 1e-9)
-
-
-def _keep(ok, inside):
-    """
-    Return where the (2, n) entries are ``ok`` (n,) and (given) ``inside``: entry and root.
-
-    The flat index ``root * n + entry`` is split into the entry (n) and the root (0 or 1).
-    """
-    n = len(ok)
-    flat = np.flatnonzero(np.broadcast_to(ok, (2, n)) if inside is None else ok & inside)
-    root = flat >= n
-    return flat, flat - n * root, root
-
-
-def _pair(a, b, op):
-    """Return the (2, n) array of ``a + b`` and ``op(a, b)`` (the two roots or flips)."""
-    out = np.empty((2,) + np.shape(a if np.ndim(a) else b))
-    np.add(a, b, out=out[0])
-    op(a, b, out=out[1])
-    return out
-
-
-def _cos_sin_of_atan2(y, x):
-    """Return the cosine and sine of ``atan2(y, x)``: ``x / hypot``, ``y / hypot`` (1, 0 at 0)."""
-    h = np.sqrt(x * x + y * y)
-    zero = h == 0.0
-    if zero.any():
-        h[zero] = 1.0
-        x = np.where(zero, 1.0, x)
-    inv = 1.0 / h
-    return x * inv, y * inv
+    frames = np.array([T[:3] for T in list(arm.origins) + [arm.tool]])
+    identity = np.array([np.array_equal(F[:, :3], np.eye(3)) for F in frames])
+    turns = np.zeros((arm.n_joints, 3, 3, 3))
+    axis_index = np.full(arm.n_joints, -1, dtype=np.int64)
+    for i, axis in enumerate(arm.axes.tolist()):
+        j = int(np.argmax(np.abs(axis)))
+        if abs(abs(axis[j]) - 1.0) < 1e-15 and sum(abs(x) for x in axis) == abs(axis[j]):
+            turns[i, 1, (j + 2) % 3, (j + 1) % 3] = 1.0 if axis[j] > 0.0 else -1.0
+            axis_index[i] = j
+        else:
+            K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
+                          [-axis[1], axis[0], 0.0]])
+            turns[i] = np.eye(3), K, K @ K
+    for a in (frames, identity, turns, axis_index):
+        a.setflags(write=False)
+    return frames, turns, identity, axis_index
 
 
 def _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok):
     """
-    Fill ``Q`` (m, 8, 6) and ``ok`` (m, 8) for poses ``T`` (m, 4, 4).
+    Fill ``Q`` (m, 8, 6) and ``ok`` (m, 8) for poses ``T`` (m, 4, 4); return the used-ref mask.
 
-    Returns the used-ref mask (m,) and the number of branches that reached the wrist.
-
-    The steps of the module docstring, on flat arrays of the branches still in question: a
+    The steps of the module docstring, per pose in the compiled loop of ``ik_batch_kernel``: a
     branch whose joint is unsolvable or (with ``within_limits``) outside its limits is dropped
-    as soon as that joint is known, before the joints after it are solved. ``pos`` follows each
-    branch's place in ``Q`` (pose * 8 + shoulder * 4 + elbow * 2 + wrist flip); ``carry`` its
-    joints so far. Branches that are dropped keep ``q_ref``'s values in ``Q``.
+    as soon as that joint is known, before the joints after it are solved, and keeps
+    ``q_ref``'s values in ``Q``. Branch ``shoulder * 4 + elbow * 2 + wrist flip``.
     """
-    m = len(T)
     plan = _plan(geo)
-    lo, hi = arm.lower, arm.upper
-    Q[...] = q_ref[:, None, :]
-    ok[...] = False
-    ref = np.ascontiguousarray(q_ref.T)                        # (6, m): each joint's row
-    used_ref = np.zeros(m, dtype=bool)
-    X = plan.rows @ T.reshape(m, 16)[:, :12].T
-    X += plan.offset
-    # q1 (two roots per pose): a cos q1 + b sin q1 = c.
-    a, b, c = X[0], X[1], X[2]
-    rho = np.sqrt(a * a + b * b)
-    ok1 = np.abs(c) <= rho + 1e-12
-    delta = np.arccos(np.clip(c / np.where(rho > 1e-12, rho, 1.0), -1.0, 1.0))
-    q1 = _pair(np.arctan2(b, a), delta, np.subtract)                         # (2, m)
-    shoulder = rho < 1e-9
-    if shoulder.any():
-        q1[:, shoulder] = ref[0, shoulder]
-        ok1 |= shoulder & (np.abs(c) < 1e-9)
-        used_ref |= shoulder
-    q1a, inside = _alias(q1, ref[0], lo[0], hi[0], within_limits)
-    sel, pose, root = _keep(ok1, inside)
-    pos = pose * 8 + 4 * root
-    carry = q1a.reshape(-1).take(sel)[None]
-    q1 = q1.reshape(-1).take(sel)
-    s1, c1 = np.sin(q1), np.cos(q1)
-    # q3 (two roots per branch): the wrist centre's distance to axis 2, law of cosines.
-    D = X[3:9].take(pose, axis=1)
-    dx = D[0] + c1 * D[1] + s1 * D[2]
-    dy = D[3] + c1 * D[4] + s1 * D[5]
-    phi3, rho3, safe3, half = plan.q3
-    rhs = 0.5 * (dx * dx + dy * dy) - half
-    ok3 = np.abs(rhs) <= rho3 + 1e-12
-    q3 = _pair(phi3, np.arccos(np.clip(rhs / safe3, -1.0, 1.0)), np.subtract)  # (2, n)
-    q3a, inside = _alias(q3, ref[2].take(pose), lo[2], hi[2], within_limits)
-    sel, j, root = _keep(ok3, inside)
-    pos = pos[j] + 2 * root
-    pose = pos >> 3
-    carry = np.concatenate([carry.take(j, axis=1), q3a.reshape(1, -1).take(sel, axis=1)])
-    s1, c1, dx, dy = s1[j], c1[j], dx[j], dy[j]
-    q3 = q3.reshape(-1).take(sel)
-    s3, c3 = np.sin(q3), np.cos(q3)
-    # q2 turns x - r2 (x: the wrist centre turned by q3) onto d, both in the elbow plane.
-    k = plan.elbow
-    ux = k[0, 0] + c3 * k[0, 1] + s3 * k[0, 2]
-    uy = k[1, 0] + c3 * k[1, 1] + s3 * k[1, 2]
-    y2 = ux * dy - uy * dx
-    x2 = ux * dx + uy * dy
-    q2a, inside = _alias(np.arctan2(y2, x2), ref[1].take(pose), lo[1], hi[1], within_limits)
-    # Rows of the branches that reach the wrist: q1, q2, q3, then s1, c1, s2, c2, s3, c3.
-    A = np.concatenate([carry[:1], q2a[None], carry[1:], s1[None], c1[None], x2[None],
-                        y2[None], s3[None], c3[None]])
-    if inside is not None:
-        A = A.take(np.flatnonzero(inside), axis=1)
-        pos = pos[inside]
-        pose = pos >> 3
-    n_wrist = n = len(pos)
-    s1, c1, s3, c3 = A[3], A[4], A[7], A[8]
-    # The goal's two axes turned back by q1, q2, q3, in the basis (e1, e2, w2) of the plane.
-    A[6], A[5] = _cos_sin_of_atan2(A[6], A[5])
-    s2, c2 = A[5], A[6]
-    G = X[9:27].take(pose, axis=1).reshape(6, 3, n)
-    G = G[:, 0] + c1 * G[:, 1] + s1 * G[:, 2]                                  # (6, n)
-    if plan.sigma:
-        cq, sq = c2 * c3 - plan.sigma * s2 * s3, s2 * c3 + plan.sigma * c2 * s3
-    else:
-        cq, sq = c2, s2
-    turned = np.empty((2, 3, n))
-    for i in range(2):
-        x, y = G[3 * i], G[3 * i + 1]
-        turned[i, 0] = x * cq + y * sq
-        turned[i, 1] = y * cq - x * sq
-        turned[i, 2] = G[3 * i + 2]
-    if not plan.sigma:
-        turned = _turn_back(plan.w3, s3, c3, turned)
-    tv = plan.tv_basis @ turned[0]                                             # (4, n)
-    tx = plan.tx_basis @ turned[1]                                             # (18, n)
-    # The wrist: z = alpha w4 + beta w5 +- gamma n45 (subproblem 2), q5 then q4.
-    s45, s56, den, nn45 = plan.wrist[:4]
-    k5 = plan.wrist[4:]
-    a4, a5, an, am = tv
-    alpha = (s45 * s56 - a4) / den
-    beta = (s45 * a4 - s56) / den
-    gamma2 = (1.0 - alpha ** 2 - beta ** 2 - 2.0 * alpha * beta * s45) / nn45
-    ok_w = gamma2 > -1e-9
-    gamma = np.sqrt(np.maximum(gamma2, 0.0))
-    lever = np.sqrt((beta ** 2 + gamma ** 2) * nn45)
-    singular = lever < 1e-9
-    gamma = np.stack([gamma, -gamma])                                         # (2, n): flips
-    y5 = (alpha * k5[0] + beta * k5[1]) + gamma * k5[2]
-    x5 = (alpha * k5[3] + beta * k5[4]) + gamma * k5[5]
-    q5a, inside5 = _alias(np.arctan2(y5, x5), ref[4].take(pose), lo[4], hi[4], within_limits)
-    y4 = beta * an + gamma * am
-    x4 = beta * (a5 - s45 * a4) + gamma * an
-    q4 = np.arctan2(y4, x4)
-    ref4 = ref[3].take(pose)
-    if singular.any():
-        used_ref[pose[singular]] = True
-        q4 = np.where(singular, ref4, q4)
-        y4 = np.where(singular, np.sin(ref4), y4)
-        x4 = np.where(singular, np.cos(ref4), x4)
-    q4a, inside4 = _alias(q4, ref4, lo[3], hi[3], within_limits)
-    sel, j, root = _keep(ok_w, None if inside5 is None else inside5 & inside4)
-    pos = pos[j] + root
-    pose = pos >> 3
-    c5, s5 = _cos_sin_of_atan2(y5.reshape(-1)[sel], x5.reshape(-1)[sel])
-    c4, s4 = _cos_sin_of_atan2(y4.reshape(-1)[sel], x4.reshape(-1)[sel])
-    # q6 from two dot products of the turned R_w x6 (see _q6_basis).
-    d = tx.take(j, axis=1)
-    h = [d[3 * i] + c5 * d[3 * i + 1] + s5 * d[3 * i + 2] for i in range(6)]
-    y6, x6 = h[0] + c4 * h[1] + s4 * h[2], h[3] + c4 * h[4] + s4 * h[5]
-    q6a, inside = _alias(np.arctan2(y6, x6), ref[5].take(pose), lo[5], hi[5], within_limits)
-    # The same rows for the wrist: q4, q5, q6, s4, c4, s5, c5, s6, c6.
-    B = np.empty((9, len(sel)))
-    np.take(q4a, sel, out=B[0])
-    np.take(q5a, sel, out=B[1])
-    B[2], B[3], B[4], B[5], B[6] = q6a, s4, c4, s5, c5
-    B[8], B[7] = _cos_sin_of_atan2(y6, x6)
-    if inside is not None:
-        keep = np.flatnonzero(inside)
-        j, B, pos = j[keep], B.take(keep, axis=1), pos[keep]
-        pose = pos >> 3
-    A = A.take(j, axis=1)
-    Q.reshape(-1, 6)[pos] = np.concatenate([A[:3], B[:3]]).T
-    sin_cos = [(A[3], A[4]), (A[5], A[6]), (A[7], A[8]), (B[3], B[4]), (B[5], B[6]),
-               (B[7], B[8])]
-    # FK check of the candidates left, on squared figures (no roots): |dp|^2 < tol^2 and the
-    # rotation chord |R - R_goal|_F^2 = 8 sin^2(angle / 2) < 8 sin^2(tol / 2). The chain is
-    # multiplied out from the sines and cosines found above (of the same angles up to whole
-    # turns).
-    if len(pos):
-        F = np.empty((12, len(pos)))
-        F[...] = _fk_rows(arm, sin_cos)
-        F -= X[27:].take(pose, axis=1)
-        F *= F
-        position = F[3] + F[7] + F[11]
-        chord = F[0] + F[1] + F[2] + F[4] + F[5] + F[6] + F[8] + F[9] + F[10]
-        ok.reshape(-1)[pos] = (position < tol ** 2) & (chord < 8.0 * np.sin(tol / 2.0) ** 2)
-    return used_ref, n_wrist
+    used_ref = np.empty(len(T), dtype=bool)
+    solve_poses(np.ascontiguousarray(T, dtype=np.float64),
+                np.ascontiguousarray(q_ref, dtype=np.float64), plan.row_nnz, plan.row_cols,
+                plan.row_vals, plan.offset, plan.k, plan.elbow, plan.w3, plan.tv_basis,
+                plan.tx_basis, _limits(arm, 'lower'), _limits(arm, 'upper'), *_fk_chain(arm),
+                bool(within_limits), float(tol) ** 2, 8.0 * float(np.sin(tol / 2.0)) ** 2, Q, ok,
+                used_ref)
+    return used_ref
 
 
-def _times(a, b):
-    """Return ``a * b`` for floats or arrays, skipping exact zeros and ones of floats."""
-    if isinstance(a, float):
-        if a == 0.0 or (isinstance(b, float) and b == 0.0):
-            return 0.0
-        return b if a == 1.0 else a * b
-    if isinstance(b, float):
-        return a if b == 1.0 else (0.0 if b == 0.0 else a * b)
-    return a * b
-
-
-def _plus(a, b):
-    """Return ``a + b`` for floats or arrays, skipping exact float zeros."""
-    if isinstance(a, float) and a == 0.0:
-        return b
-    if isinstance(b, float) and b == 0.0:
-        return a
-    return a + b
-
-
-def _frame_times(R, p, A, t):
-    """Return the frame ``(R, p) (A, t)`` (3 x 3 and 3 entries, floats or arrays)."""
-    R2 = [[0.0] * 3 for _ in range(3)]
-    p2 = list(p)
-    for k in range(3):
-        for j in range(3):
-            for m in range(3):
-                R2[k][j] = _plus(R2[k][j], _times(R[k][m], A[m][j]))
-            p2[k] = _plus(p2[k], _times(R[k][j], t[j]))
-    return R2, p2
+def _limits(arm, which):
+    """Return the arm's ``lower`` or ``upper`` limits as a C-contiguous float64 array."""
+    return np.ascontiguousarray(getattr(arm, which), dtype=np.float64)
 
 
 @lru_cache(maxsize=16)             # an ArmModel is immutable and hashed by identity
-def _chain_steps(arm: ArmModel) -> tuple:
-    """Return per joint its origin (rotation rows, translation) and axis as Python floats."""
-    def split(T):
-        return T[:3, :3].tolist(), T[:3, 3].tolist()
-    return (tuple((split(origin), tuple(axis.tolist()))
-                  for origin, axis in zip(arm.origins, arm.axes)), split(arm.tool))
-
-
-def _rotation(axis, s, c):
-    """Return ``Rot(axis, q)`` (3 x 3, floats or arrays) of sine ``s`` and cosine ``c``."""
-    j = int(np.argmax(np.abs(axis)))
-    if abs(abs(axis[j]) - 1.0) < 1e-15 and sum(abs(x) for x in axis) == abs(axis[j]):
-        a, b = (j + 1) % 3, (j + 2) % 3
-        s = s if axis[j] > 0.0 else -s
-        rot = [[0.0] * 3 for _ in range(3)]
-        rot[j][j] = 1.0
-        rot[a][a], rot[b][b], rot[b][a], rot[a][b] = c, c, s, -s
-        return rot
-    K = [[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]]
-    KK = (np.array(K) @ np.array(K)).tolist()
-    v = 1.0 - c
-    return [[_plus(_plus(float(k == j), _times(K[k][j], s)), _times(KK[k][j], v))
-             for j in range(3)] for k in range(3)]
-
-
-def _fk_entries(arm, sin_cos):
-    """
-    Return the tip pose's top rows (12 entries, row-major) of the joints given by sin and cos.
-
-    ``sin_cos``: per joint its sine and cosine. The chain of ``forward`` (origin, then the turn
-    about the joint's axis) entry by entry; entries that are exact constants (the zeros and ones
-    of the origins) cost nothing.
-    """
-    steps, (tool_R, tool_t) = _chain_steps(arm)
-    R = [[float(k == j) for j in range(3)] for k in range(3)]
-    p = [0.0, 0.0, 0.0]
-    for ((O_R, O_t), axis), (s, c) in zip(steps, sin_cos):
-        R, p = _frame_times(R, p, O_R, O_t)
-        R, _ = _frame_times(R, [0.0] * 3, _rotation(axis, s, c), [0.0] * 3)
-    R, p = _frame_times(R, p, tool_R, tool_t)
-    return [R[0][0], R[0][1], R[0][2], p[0], R[1][0], R[1][1], R[1][2], p[1],
-            R[2][0], R[2][1], R[2][2], p[2]]
-
-
-class _Slot:
-    """A value of the FK chain while ``_fk_program`` records it: its operations go on a list."""
-
-    __slots__ = ('ops', 'index')
-
-    def __init__(self, ops, index):
-        self.ops, self.index = ops, index
-
-    def _record(self, ufunc, *args):
-        out = _Slot(self.ops, self.ops.count)
-        self.ops.count += 1
-        self.ops.append((ufunc, out.index,
-                         tuple(a.index if isinstance(a, _Slot) else float(a) for a in args)))
-        return out
-
-    def __mul__(self, other):
-        return self._record(np.multiply, self, other)
-
-    def __rmul__(self, other):
-        return self._record(np.multiply, other, self)
-
-    def __add__(self, other):
-        return self._record(np.add, self, other)
-
-    def __radd__(self, other):
-        return self._record(np.add, other, self)
-
-    def __rsub__(self, other):
-        return self._record(np.subtract, other, self)
-
-    def __neg__(self):
-        return self._record(np.negative, self)
-
-
-class _Ops(list):
-    """The recorded operations, and the number of values (slots) they use."""
-
-    count = 0
-
-
-@lru_cache(maxsize=16)             # an ArmModel is immutable and hashed by identity
-def _fk_program(arm: ArmModel) -> tuple:
-    """
-    Return the array operations of ``_fk_entries`` for ``arm``, recorded once.
-
-    Slots 2 i and 2 i + 1 hold joint i's sine and cosine; then ``(ufunc, out, args, free)`` in
-    order (an int arg is a slot, a float a constant; ``free``: the slots used for the last
-    time), the number of slots and the 12 entries (slot or constant).
-    """
-    ops = _Ops()
-    ops.count = 12
-    entries = _fk_entries(arm, [(_Slot(ops, 2 * i), _Slot(ops, 2 * i + 1)) for i in range(6)])
-    entries = tuple(e.index if isinstance(e, _Slot) else float(e) for e in entries)
-    # After each operation, the slots no longer needed are let go (the working set stays in
-    # cache): a slot's last use, unless it is an entry.
-    last = {}
-    for k, (_, _, args) in enumerate(ops):
-        for a in args:
-            if type(a) is int:
-                last[a] = k
-    done = [[] for _ in ops]
-    for slot, k in last.items():
-        if slot not in entries:
-            done[k].append(slot)
-    return (tuple((ufunc, out, args, tuple(free))
-                  for (ufunc, out, args), free in zip(ops, done)), ops.count, entries)
-
-
-def _fk_rows(arm, sin_cos):
-    """Return ``_fk_entries`` for arrays of sines and cosines (its recorded operations)."""
-    ops, count, entries = _fk_program(arm)
-    v = [None] * count
-    for i, (s, c) in enumerate(sin_cos):
-        v[2 * i], v[2 * i + 1] = s, c
-    for ufunc, out, args, free in ops:
-        v[out] = ufunc(*[v[a] if type(a) is int else a for a in args])
-        for a in free:
-            v[a] = None
-    return [v[e] if type(e) is int else e for e in entries]
-
-
-def _turn_back(w, s, c, v):
-    """Turn ``v`` (2, 3, n) by minus the angle of sine, cosine ``s``, ``c`` about ``w`` (3,)."""
-    out = np.empty_like(v)
-    d = (w[0] * v[:, 0] + w[1] * v[:, 1] + w[2] * v[:, 2]) * (1.0 - c)
-    for i in range(3):
-        a, b = (i + 1) % 3, (i + 2) % 3
-        cross = w[a] * v[:, b] - w[b] * v[:, a]                   # (w x v)_i
-        out[:, i] = v[:, i] * c - cross * s + w[i] * d
-    return out
+def _geometry(arm: ArmModel) -> WristGeometry:
+    """Return the arm's ``WristGeometry``, made once per arm (``_plan`` is cached by it)."""
+    return wrist_geometry(arm)
 
 
 def _as_q_ref(arm, q_ref, m):
@@ -647,23 +353,17 @@ def ik_closed_form_batch(arm: ArmModel, T: np.ndarray, within_limits: bool = Tru
     only (no orthonormality test: use ``ik_closed_form`` for one untrusted pose). ``q_ref``
     (6,) or (m, 6) picks q1 and q4 at shoulder and wrist singularities. Raises
     ``InvalidInputError`` for arms the closed form does not cover. At most ``chunk`` poses are
-    solved at a time, fewer when many branches reach the wrist (cache-sized blocks).
+    solved per call of the compiled loop (``ik_batch_kernel``).
     """
-    geo = wrist_geometry(arm)
+    geo = _geometry(arm)
     T = as_finite_array(T, (None, 4, 4), 'poses')
     m = len(T)
     q_ref = _as_q_ref(arm, q_ref, m)
     Q = np.empty((m, N_BRANCHES, 6))
     ok = np.empty((m, N_BRANCHES), dtype=bool)
-    # Blocks of poses whose arrays stay in cache: at most ``chunk`` poses and about
-    # _WRIST_BLOCK branches reaching the wrist (the first, small block measures how many do).
-    lo, size = 0, min(chunk, 512)
-    while lo < m:
-        sl = slice(lo, lo + size)
-        _, n_wrist = _solve(arm, geo, T[sl], q_ref[sl], within_limits, tol, Q[sl], ok[sl])
-        per_pose = n_wrist / len(Q[sl])
-        lo += size
-        size = int(min(chunk, max(64, _WRIST_BLOCK / max(per_pose, 1e-3))))
+    for lo in range(0, m, max(int(chunk), 1)):
+        sl = slice(lo, lo + max(int(chunk), 1))
+        _solve(arm, geo, T[sl], q_ref[sl], within_limits, tol, Q[sl], ok[sl])
     return Q, ok
 
 
@@ -683,8 +383,7 @@ def solve_candidates(arm: ArmModel, geo: WristGeometry, T: np.ndarray, q_ref: np
     m = len(T)
     Q = np.empty((m, N_BRANCHES, 6))
     ok = np.empty((m, N_BRANCHES), dtype=bool)
-    used_ref, _ = _solve(arm, geo, np.asarray(T, dtype=float), np.asarray(q_ref, dtype=float),
-                         within_limits, tol, Q, ok)
+    used_ref = _solve(arm, geo, T, q_ref, within_limits, tol, Q, ok)
     return (Q, ok, used_ref) if return_ref_used else (Q, ok)
 
 
