@@ -30,3 +30,21 @@ colcon_build() {
     }
     touch "$stamp"
 }
+
+compile_kernels() {
+    # The numba kernels (motion/timing, kinematics/ik_batch_kernel) into their on-disk cache,
+    # beside the installed modules and beside the sources (the tests import those), once per
+    # build: no node compiles them at its start (several seconds each; from the cache about one).
+    local stamp="$WS/.kernels"
+    if [ -f "$stamp" ] && [ "$stamp" -nt "$WS/.built" ]; then
+        return 0
+    fi
+    log "compiling the kernels (numba, once per build; log: $WS/kernels.log)"
+    { (cd "$WS" && python -m mover6_control.tools.compile_kernels) \
+        && (cd "$ROOT" && python -m mover6_control.tools.compile_kernels); } >"$WS/kernels.log" 2>&1 || {
+        tail -n 20 "$WS/kernels.log" >&2
+        log "compiling the kernels failed; full log: $WS/kernels.log"
+        return 1
+    }
+    touch "$stamp"
+}

@@ -1,6 +1,6 @@
 # shellcheck shell=bash
-# Everything a command needs, in order: venv, system libraries, build, local DDS (sourced by
-# run.sh; every command but help calls ensure).
+# Everything a command needs, in order: venv, system libraries, build, the compiled kernels,
+# local DDS (sourced by run.sh; every command but help calls ensure).
 
 ensure() {
     if [ -z "${MOVER6_SYSTEM_ROS:-}" ] && have_system_ros; then
@@ -16,6 +16,7 @@ ensure() {
     activate
     colcon_build
     activate
+    compile_kernels
     local_dds
 }
 
