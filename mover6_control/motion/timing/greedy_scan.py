@@ -49,17 +49,6 @@ def _scan(x0, A, B, cap, reverse):  # pragma: no cover (compiled: coverage sees 
     return x
 
 
-def greedy_scan(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray) -> np.ndarray:
-    """
-    Return ``x`` (N + 1,) of ``x_{i+1} = max(0, min(cap_i, min_j A_ij x_i + B_ij))``.
-
-    ``A``, ``B`` (N, J): the pieces of each step (an unused one: ``A = 0``, ``B = inf``);
-    ``cap`` (N,) >= 0. The same as ``greedy_scan_columns`` on ``A.T``, ``B.T``.
-    """
-    return greedy_scan_columns(x0, np.asarray(A, dtype=float).T, np.asarray(B, dtype=float).T,
-                               cap)
-
-
 def greedy_scan_columns(x0: float, A: np.ndarray, B: np.ndarray, cap: np.ndarray,
                         reverse: bool = False) -> np.ndarray:
     """

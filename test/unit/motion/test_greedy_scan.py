@@ -1,7 +1,7 @@
 """
 The TOPP passes' compiled recurrence gives the very numbers of a step-by-step Python loop.
 
-``greedy_scan`` takes the steps of ``x_{i+1} = max(0, min(cap_i, min_j A_ij x_i + B_ij))``
+``greedy_scan_columns`` takes the steps of ``x_{i+1} = max(0, min(cap_i, min_j A_ij x_i + B_ij))``
 compiled (numba), with the same operations on the same numbers, so it must agree with the plain
 loop bit for bit: on random recurrences with rising pieces only (the backward pass), with
 falling ones too (the forward pass), with long stretches below the caps, at the edges (no
@@ -9,9 +9,15 @@ steps, nothing below the caps, a start below the first cap), run from the end (t
 pass's direction), and on a grid of 55,000 steps.
 """
 
-from mover6_control.motion.timing.greedy_scan import greedy_scan, greedy_scan_columns
+from mover6_control.motion.timing.greedy_scan import greedy_scan_columns
 import numpy as np
 import pytest
+
+
+def greedy_scan(x0, A, B, cap):
+    """Return the compiled recurrence of pieces by rows (N, J): its columns are the steps."""
+    return greedy_scan_columns(x0, np.asarray(A, dtype=float).T, np.asarray(B, dtype=float).T,
+                               cap)
 
 
 def loop(x0, A, B, cap):
