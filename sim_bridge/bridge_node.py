@@ -4,8 +4,9 @@ The sim_bridge node: the MuJoCo arm on ROS 2, standing in for the Mover6 and its
 Subscribes /JointJog (control_msgs/JointJog: ``velocities`` by joint name; ``displacements``,
 ``duration`` and the stamp are ignored, as the vendor driver ignores them) and ~/reset_to
 (sensor_msgs/JointState: reset to the named ``position`` values, unnamed joints to
-``initial_q``). Publishes /joint_states (names joint1..joint6, position, velocity, effort,
-stamped) at ``publish_rate``, at ``rest_publish_rate`` while the arm rests (no command moves it
+``initial_q``). Publishes /joint_states (names joint1..joint6 and the URDF's joints outside the
+arm's chain, the gripper, which the simulated arm has not fitted: at 0, closed; position,
+velocity, effort, stamped) at ``publish_rate``, at ``rest_publish_rate`` while the arm rests (no command moves it
 and every joint is still, as the real arm's driver publishes at 10 to 20 Hz; the first step of a
 command that moves it publishes at ``publish_rate`` again), and, with ``publish_clock``, /clock
 after every physics step. ~/status (diagnostic_msgs/DiagnosticStatus, transient local), once a
@@ -42,6 +43,7 @@ import os
 import threading
 import time
 from typing import Any, Callable, Optional
+import xml.etree.ElementTree as ET
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -52,6 +54,7 @@ from mover6_control.nodes.runtime import params, shutdown
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.nodes.runtime.qos import STATUS_QOS, STREAM_READER_QOS
 from mover6_control.parameters import SIM_BRIDGE
+from mover6_control.resources import CONFIG_DIR
 import numpy as np
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -81,6 +84,26 @@ def make_arm(limit_set: str, urdf_path: str) -> ArmModel:
     if urdf_path:
         return load_urdf(urdf_path)
     return mover6(limit_set)
+
+
+def unfitted_joints(arm: ArmModel, urdf_path: str) -> dict:
+    """
+    Return {name: position} of the URDF's moving joints outside ``arm``'s chain (the gripper).
+
+    The simulated arm has none of them fitted: /joint_states carries each at rest at 0 (within
+    its limits), since MoveIt's robot model (and robot_state_publisher's) has every joint of the
+    URDF. The URDF is ``urdf_path``, or the shipped one.
+    """
+    root = ET.parse(urdf_path or os.path.join(CONFIG_DIR, 'mover6.urdf')).getroot()
+    out = {}
+    for joint in root.findall('joint'):
+        if joint.get('type') == 'fixed' or joint.get('name') in arm.joint_names:
+            continue
+        limit = joint.find('limit')
+        lower = float(limit.get('lower', 0.0)) if limit is not None else 0.0
+        upper = float(limit.get('upper', 0.0)) if limit is not None else 0.0
+        out[joint.get('name')] = min(max(0.0, lower), upper) if lower <= upper else 0.0
+    return out
 
 
 def pacing_from_parameters(p: dict, config: SimConfig) -> Pacing:
@@ -163,6 +186,7 @@ class SimBridgeNode(Node):
         self.guard.after_set(self.on_parameters_set)
         p = {name: self.get_parameter(name).value for name in SIM_BRIDGE}
         self.arm = make_arm(p['limit_set'], p['urdf_path'])
+        self.unfitted = unfitted_joints(self.arm, p['urdf_path'])
         config = sim_config_from_parameters(p.get)
         self.pacing = pacing_from_parameters(p, config)
         self.sim = Simulator(self.arm, config, home_q=list(p['initial_q']))
@@ -197,9 +221,11 @@ class SimBridgeNode(Node):
         status = self.create_publisher(DiagnosticStatus, '~/status', STATUS_QOS)
         clock = (self.create_publisher(Clock, 'clock', 10) if self.pacing.publish_clock
                  else None)
+        names = tuple(self.arm.joint_names) + tuple(self.unfitted)
         return BridgeOutputs(self.get_logger(), joint_states, status, contacts, clock,
-                             cdr.JointStateWriter(self.arm.joint_names), self.get_clock(),
-                             sim_stamps=self.pacing.publish_clock)
+                             cdr.JointStateWriter(names), self.get_clock(),
+                             sim_stamps=self.pacing.publish_clock,
+                             unfitted=tuple(self.unfitted.values()))
 
     # What tests and benchmarks read of the parts.
     @property

@@ -72,13 +72,15 @@ class BridgeOutputs:
     """
     Where the bridge's products go: /joint_states, /clock, ~/status, ~/contacts and the log.
 
-    ``joint_states`` takes serialized messages (``state_writer``'s bytes); ``clock`` is None
+    ``joint_states`` takes serialized messages (``state_writer``'s bytes: the arm's joints, then
+    the ``unfitted`` positions of the joints the simulation has not, at rest); ``clock`` is None
     without ``publish_clock``; ``node_clock`` stamps /joint_states unless ``sim_stamps`` (then a
     reading's sim time does).
     """
 
     def __init__(self, logger: Any, joint_states: Any, status: Any, contacts: Any,
-                 clock: Optional[Any], state_writer: Any, node_clock: Any, sim_stamps: bool):
+                 clock: Optional[Any], state_writer: Any, node_clock: Any, sim_stamps: bool,
+                 unfitted: tuple = ()):
         """Keep the publishers, the writer and the clock."""
         self.logger = logger
         self.joint_states = joint_states
@@ -88,6 +90,8 @@ class BridgeOutputs:
         self.state_writer = state_writer
         self.node_clock = node_clock
         self.sim_stamps = sim_stamps
+        self.unfitted_q = [float(x) for x in unfitted]
+        self.unfitted_zero = [0.0] * len(unfitted)
 
     def publish_state(self, reading: JointReading) -> None:
         """Publish a ``JointReading`` on /joint_states (sim time stamps with sim_stamps)."""
@@ -97,7 +101,9 @@ class BridgeOutputs:
         else:
             sec, nanosec = divmod(now_ns(self.node_clock), 1_000_000_000)
         self.joint_states.publish(self.state_writer.serialize(
-            sec, nanosec, reading.q.tolist(), reading.qd.tolist(), reading.effort.tolist()))
+            sec, nanosec, reading.q.tolist() + self.unfitted_q,
+            reading.qd.tolist() + self.unfitted_zero,
+            reading.effort.tolist() + self.unfitted_zero))
 
     def publish_clock(self, t: float) -> None:
         """Publish /clock at sim time ``t`` [s] (nothing without a /clock publisher)."""

@@ -3,7 +3,8 @@ Write the files made from the package's tables: ``./run.sh generate``.
 
 ``python -m mover6_control.tools.generate ROOT`` writes ``config/<node>.yaml`` and
 ``docs/parameters.md`` (``mover6_control.parameter_files``, from ``mover6_control.parameters``)
-under the repository ``ROOT``; with ``--check`` it writes nothing and lists the files that
+and the generated MoveIt files ``config/moveit/`` (``mover6_control.tools.moveit_config``) under
+the repository ``ROOT``; with ``--check`` it writes nothing and lists the files that
 differ from what it would write (exit 1). The files are committed; a test checks them.
 """
 
@@ -12,13 +13,22 @@ import os
 import sys
 from typing import Optional
 
-from mover6_control.parameter_files import generated_files
+from mover6_control import parameter_files
+from mover6_control.tools import moveit_config
 
 
-def differing(root: str) -> list[str]:
+def generated_files() -> dict[str, str]:
+    """Return {path under the repository: text} of every generated file."""
+    files = dict(parameter_files.generated_files())
+    files.update({f'config/moveit/{name}': text
+                  for name, text in moveit_config.generated_files().items()})
+    return files
+
+
+def differing(root: str, files: Optional[dict[str, str]] = None) -> list[str]:
     """Return the generated files under ``root`` whose text is not the generator's output."""
     out = []
-    for path, text in generated_files().items():
+    for path, text in (generated_files() if files is None else files).items():
         try:
             with open(os.path.join(root, path)) as f:
                 if f.read() == text:
@@ -31,11 +41,12 @@ def differing(root: str) -> list[str]:
 
 def write(root: str) -> list[str]:
     """Write every generated file under ``root``; return the paths that changed."""
-    changed = differing(root)
-    for path, text in generated_files().items():
-        if path in changed:
-            with open(os.path.join(root, path), 'w') as f:
-                f.write(text)
+    files = generated_files()
+    changed = differing(root, files)
+    for path in changed:
+        os.makedirs(os.path.dirname(os.path.join(root, path)), exist_ok=True)
+        with open(os.path.join(root, path), 'w') as f:
+            f.write(files[path])
     return changed
 
 

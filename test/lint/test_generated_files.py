@@ -2,8 +2,10 @@
 The files made from the package's tables are committed as the generator writes them.
 
 ``config/<node>.yaml`` and ``docs/parameters.md`` come from ``mover6_control.parameters``
-(``./run.sh generate``, ``mover6_control.parameter_files``): an edit of the table without
-running the generator, or an edit of a generated file by hand, fails here.
+(``./run.sh generate``, ``mover6_control.parameter_files``), the generated files of
+``config/moveit/`` from the URDF, the collision checker, the driver's joint file and the table
+(``mover6_control.tools.moveit_config``): an edit of a source without running the generator, or
+an edit of a generated file by hand, fails here.
 """
 
 from mover6_control.tools.generate import differing

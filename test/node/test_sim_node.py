@@ -14,8 +14,10 @@ os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 from control_msgs.msg import JointJog  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from mover6_control.kinematics.arm import mover6  # noqa: E402
 from mover6_control.nodes.messages import conversions  # noqa: E402
 from mover6_control.nodes.runtime.qos import STATUS_QOS  # noqa: E402
+from mover6_control.resources import CONFIG_DIR  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 import rclpy  # noqa: E402
@@ -24,7 +26,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 from ros_testing import spin_until  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
-from sim_bridge.bridge_node import SimBridgeNode  # noqa: E402
+from sim_bridge.bridge_node import SimBridgeNode, unfitted_joints  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
 NAMES = [f'joint{i}' for i in range(1, 7)]
@@ -93,16 +95,22 @@ class Harness:
         self.jog_pub.publish(msg)
 
     def latest(self):
-        """Return (stamp [s], q, qd, effort) of the newest /joint_states."""
+        """Return (stamp [s], q, qd, effort) of the arm's joints in the newest /joint_states."""
         msg = self.states[-1]
-        return (conversions.stamp_to_seconds(msg.header.stamp), np.array(msg.position),
-                np.array(msg.velocity), np.array(msg.effort))
+        return (conversions.stamp_to_seconds(msg.header.stamp), arm(msg, 'position'),
+                arm(msg, 'velocity'), arm(msg, 'effort'))
 
     def close(self):
         """Destroy both nodes."""
         self.executor.shutdown()
         self.bridge.destroy_node()
         self.node.destroy_node()
+
+
+def arm(msg, field):
+    """Return the arm's six values of a JointState's ``field``, by name (the gripper follows)."""
+    at = [list(msg.name).index(name) for name in NAMES]
+    return np.array(getattr(msg, field))[at]
 
 
 @pytest.fixture
@@ -122,7 +130,8 @@ def stamp_rate(messages):
 
 def test_joint_states_are_complete_and_at_the_rate(harness):
     """
-    Names joint1..joint6, position, velocity and effort; 100 Hz while moving, 20 Hz at rest.
+    Names joint1..joint6 and the gripper; position, velocity and effort; 100 Hz while moving,
+    20 Hz at rest.
 
     At rest (nothing moves the arm) /joint_states come at ``rest_publish_rate``, as the real
     arm's driver publishes; a JointJog stream that moves the arm brings ``publish_rate`` back,
@@ -136,8 +145,11 @@ def test_joint_states_are_complete_and_at_the_rate(harness):
     start = len(h.states)
     assert h.spin_until(lambda: len(h.states) >= start + 30)
     msg = h.states[-1]
-    assert list(msg.name) == NAMES
-    assert len(msg.position) == len(msg.velocity) == len(msg.effort) == 6
+    assert list(msg.name) == NAMES + ['gripper']     # every joint of the URDF
+    assert len(msg.position) == len(msg.velocity) == len(msg.effort) == 7
+    # No gripper is fitted to the simulated arm: closed and still, whatever the arm does.
+    g = list(msg.name).index('gripper')
+    assert (msg.position[g], msg.velocity[g], msg.effort[g]) == (0.0, 0.0, 0.0)
     rate = stamp_rate(h.states[start:])
     assert 18.0 < rate < 22.0, rate
     assert h.spin_until(lambda: statuses and statuses[-1]['joint_states_rate'] == '20')
@@ -145,18 +157,18 @@ def test_joint_states_are_complete_and_at_the_rate(harness):
 
     v = [0.3, 0.0, 0.0, 0.0, 0.0, 0.0]
     h.jog(v)
-    assert h.spin_until(lambda: abs(h.states[-1].velocity[0] - v[0]) < 1e-3)
+    assert h.spin_until(lambda: abs(arm(h.states[-1], 'velocity')[0] - v[0]) < 1e-3)
     moving = len(h.states)
     stream = h.stream(v)
     assert h.spin_until(lambda: len(h.states) >= moving + 150)     # 1.5 s at 100 Hz
     h.stop_stream(stream)
-    assert h.states[moving:][-1].velocity[0] == pytest.approx(v[0], abs=1e-3)
+    assert arm(h.states[moving:][-1], 'velocity')[0] == pytest.approx(v[0], abs=1e-3)
     rate = stamp_rate(h.states[moving:])
     assert 90.0 < rate < 110.0, rate
     assert any(s['at_rest'] == 'false' and s['joint_states_rate'] == '100' for s in statuses)
 
     # The stream ended: the joints halt when it goes stale, then the rest rate again.
-    assert h.spin_until(lambda: abs(h.states[-1].velocity[0]) < 1e-5)
+    assert h.spin_until(lambda: abs(arm(h.states[-1], 'velocity')[0]) < 1e-5)
     resting = len(h.states) + 2
     assert h.spin_until(lambda: len(h.states) >= resting + 20)
     rate = stamp_rate(h.states[resting:])
@@ -199,12 +211,12 @@ def test_jog_moves_at_the_commanded_speed_then_halts_when_stale(harness):
     # it did not halt early: the last message before the timeout (less jitter) still moved
     before = [m for m in h.states
               if t_last < conversions.stamp_to_seconds(m.header.stamp) < t_last + timeout - 0.05]
-    assert before and np.allclose(before[-1].velocity, v, atol=1e-3)
+    assert before and np.allclose(arm(before[-1], 'velocity'), v, atol=1e-3)
     # and after the timeout (plus delivery and braking: the exact bound of timeout plus one
     # step is shown on the Simulator, where receipt times are known) every message is at rest
     after = [m for m in h.states
              if conversions.stamp_to_seconds(m.header.stamp) > t_last + timeout + 0.1]
-    assert after and all(np.all(np.abs(m.velocity) < 1e-2 * np.abs(v)) for m in after)
+    assert after and all(np.all(np.abs(arm(m, 'velocity')) < 1e-2 * np.abs(v)) for m in after)
 
 
 BAD = [
@@ -297,7 +309,7 @@ def test_vendor_mode_publishes_at_20_hz_and_holds_the_command(harness):
     assert h.spin_until(lambda: len(h.states) > start + 30)      # 1.5 s, no renewal
     stamps = np.array([conversions.stamp_to_seconds(m.header.stamp) for m in h.states[start:]])
     np.testing.assert_allclose(np.diff(stamps), 0.05, atol=1e-9)
-    speeds = [m.velocity[0] for m in h.states[-10:]]
+    speeds = [arm(m, 'velocity')[0] for m in h.states[-10:]]
     expected = 0.5 * h.bridge.arm.velocity_limits[0] * 0.25
     np.testing.assert_allclose(speeds, expected, rtol=1e-3)
 
@@ -473,3 +485,15 @@ def test_physics_priority_raises_the_physics_thread_or_says_why(right):
     else:
         assert 'physics_priority 20: real-time scheduling refused' in done.stderr, done.stderr
         assert out['rt_priority'] == 0
+
+
+def test_unfitted_joints_are_the_urdfs_joints_outside_the_chain(tmp_path):
+    """The shipped URDF: the gripper at 0 (closed); another URDF: 0 or the nearer limit."""
+    arm = mover6()
+    assert unfitted_joints(arm, '') == {'gripper': 0.0}
+    with open(os.path.join(CONFIG_DIR, 'mover6.urdf')) as f:
+        text = f.read()
+    assert 'lower="0" upper="0.03"' in text
+    other = tmp_path / 'other.urdf'
+    other.write_text(text.replace('lower="0" upper="0.03"', 'lower="0.01" upper="0.03"'))
+    assert unfitted_joints(arm, str(other)) == {'gripper': 0.01}

@@ -129,6 +129,29 @@ def test_flange_transform_is_forward_kinematics(harness, q):
         np.testing.assert_allclose(T[:3, 3], [0.345, 0.0, 0.4425], atol=1e-9)
 
 
+def test_the_gripper_joint_places_its_finger(harness):
+    """
+    /joint_states as the sim bridge and the driver publish them (the arm and the gripper).
+
+    The seventh name moves the URDF's gripper_finger along its axis; the arm's chain is the
+    forward kinematics of its six joints, whatever else the message names.
+    """
+    q = [0.3, -0.4, 0.9, 1.2, -0.7, 2.0]
+    stamp = conversions.seconds_to_stamp(99.0)
+    harness.tf.clear()
+
+    def sent_and_seen():
+        harness.joints.publish(conversions.make_joint_state(NAMES + ['gripper'], q + [0.02],
+                                                            stamp=stamp))
+        return any(m.transforms and m.transforms[0].header.stamp == stamp for m in harness.tf)
+    assert wait_until(sent_and_seen, LIMIT, harness.spin)
+    msg = next(m for m in harness.tf if m.transforms[0].header.stamp == stamp)
+    np.testing.assert_allclose(chain(msg.transforms, 'base_link', 'link6'),
+                               fk(mover6(), np.array(q)), atol=1e-6)
+    finger = chain(msg.transforms, 'link6', 'gripper_finger')
+    np.testing.assert_allclose(finger[:3, 3], [0.0, 0.02, 0.03], atol=1e-9)   # axis y, at 0.03
+
+
 def test_frame_prefix_and_partial_joint_states():
     """frame_prefix prefixes every frame; only the joints a message names are published."""
     h = Harness(frame_prefix='arm1/')
