@@ -15,33 +15,29 @@
 # Needs an environment where the package is built and sourced (./run.sh launch does that).
 set -uo pipefail
 
-prefix=$(python3 -c 'from ament_index_python.packages import get_package_prefix as p; print(p("mover6_control"))' 2>/dev/null) || {
-    echo 'launch.sh: package mover6_control not found: build and source it (./run.sh launch)' >&2
-    exit 1
-}
 for arg in "$@"; do
     case "$arg" in -h | --help) exec python3 -m mover6_control.stack help ;; esac
 done
-# The options' values (checked: exit 2 with the choices) and start_stack, the nodes' start
-# lines: the one stack definition, mover6_control/stack.py.
-stack=$(python3 -m mover6_control.stack shell -- "$@") || exit $?
-eval "$stack"
+# One Python process (mover6_control/launch_shell.py) prints: the package's prefix; the options'
+# values (checked: exit 2 with the choices) and start_stack, the nodes' start lines, from the one
+# stack definition, mover6_control/stack.py; the DDS setup: on this machine (UDP on 127.0.0.1, no
+# shared memory: the package's Fast DDS profile) unless the user chose their own DDS setup (robot
+# network), docs/dds.md; which nodes are essential (their exit stops the stack) and which are
+# helpers (started again with back-off), mover6_control/node_roles.py; the namespace, checked by
+# ROS's naming rules (the TF frame prefix is the stack's).
+setup=$(python3 -m mover6_control.launch_shell -- "$@")
+rc=$?
+if [ "$rc" != 0 ]; then
+    python3 -c 'import mover6_control' 2>/dev/null \
+        || echo 'launch.sh: package mover6_control not found: build and source it (./run.sh launch)' >&2
+    exit "$rc"
+fi
+eval "$setup"
 if [ "$rviz" = true ] && ! command -v rviz2 >/dev/null; then
     echo 'launch.sh: --rviz: rviz2 is not installed here (it comes with a ROS 2 desktop install)' >&2
     exit 2
 fi
-# DDS stays on this machine (UDP on 127.0.0.1, no shared memory: the package's Fast DDS profile)
-# unless the user chose their own DDS setup (robot network); docs/dds.md.
-dds=$(python3 -m mover6_control.nodes.runtime.local_dds env) || exit 1
-eval "$dds"
 bin="$prefix/lib/mover6_control"
-# Which nodes are essential (their exit stops the stack) and which are helpers (started again
-# with back-off): the one table, mover6_control/node_roles.py.
-roles=$(python3 -m mover6_control.node_roles shell) || exit 1
-eval "$roles"
-# The namespace, checked by ROS's naming rules (the TF frame prefix is the stack's).
-checked=$(python3 -m mover6_control.nodes.runtime.names "$namespace") || exit 2
-read -r namespace _ <<<"$checked"
 ns_args=()
 [ "$namespace" != / ] && ns_args=(-r "__ns:=$namespace")
 share="$prefix/share/mover6_control/config"

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 import os
+import xml.etree.ElementTree as ElementTree
 
 from mover6_control.errors import InvalidInputError
 from mover6_control.parameters import LIMIT_SETS   # the limit sets mover6() takes
@@ -136,6 +137,94 @@ class ArmModel:
         return out
 
 
+@dataclass(frozen=True)
+class _UrdfLimit:
+    """A joint's <limit>: each attribute a float, None where the file leaves it out."""
+
+    lower: float | None
+    upper: float | None
+    velocity: float | None
+
+
+@dataclass(frozen=True, eq=False)
+class _UrdfJoint:
+    """A joint of a URDF file as ``load_urdf`` reads it (origin None without <origin>)."""
+
+    name: str
+    type: str     # noqa: A003 - URDF's word
+    parent: str
+    child: str
+    origin: np.ndarray | None
+    axis: np.ndarray
+    limit: _UrdfLimit | None
+
+
+def _origin_matrix(element) -> np.ndarray | None:
+    """
+    Return the (4, 4) transform of an <origin> (``xyz``, ``rpy``: Rz(y) Ry(p) Rx(r)), or None.
+
+    The operations are those of the URDF readers' common recipe (a translation times the static
+    x-y-z Euler rotation), so the model's origins are the same numbers bit for bit.
+    """
+    if element is None:
+        return None
+    xyz = np.array(list(map(float, element.get('xyz', '0 0 0').split())))
+    ai, aj, ak = np.array(list(map(float, element.get('rpy', '0 0 0').split())))
+    si, sj, sk = np.sin(ai), np.sin(aj), np.sin(ak)
+    ci, cj, ck = np.cos(ai), np.cos(aj), np.cos(ak)
+    cc, cs = ci * ck, ci * sk
+    sc, ss = si * ck, si * sk
+    R = np.eye(4)
+    R[0, 0], R[0, 1], R[0, 2] = cj * ck, sj * sc - cs, sj * cc + ss
+    R[1, 0], R[1, 1], R[1, 2] = cj * sk, sj * ss + cc, sj * cs - sc
+    R[2, 0], R[2, 1], R[2, 2] = -sj, cj * si, cj * ci
+    T = np.identity(4)
+    T[:3, 3] = xyz[:3]
+    M = np.dot(np.dot(np.identity(4), T), R)
+    M /= M[3, 3]
+    return M
+
+
+def _optional_float(text: str | None) -> float | None:
+    """Return ``float(text)``, None for a missing attribute."""
+    return float(text) if text is not None else None
+
+
+def _read_urdf(path: str) -> tuple:
+    """
+    Return the robot's name, its link names and its joints (``_UrdfJoint``) of a URDF file.
+
+    The standard library's XML reader: the arm needs only the <link> names and each <joint>'s
+    type, parent, child, origin, axis and limit (the meshes and the scene are the console's).
+    """
+    try:
+        robot = ElementTree.parse(path).getroot()
+        joints = []
+        for element in robot.findall('joint'):
+            parent, child = element.find('parent'), element.find('child')
+            if parent is None or child is None:
+                raise InvalidInputError(
+                    f'joint "{element.get("name")}" needs a parent and a child link in {path}')
+            axis = element.find('axis')
+            limit = element.find('limit')
+            joints.append(_UrdfJoint(
+                name=element.attrib['name'], type=element.get('type'),
+                parent=parent.get('link'), child=child.get('link'),
+                origin=_origin_matrix(element.find('origin')),
+                axis=(np.array([1.0, 0, 0]) if axis is None
+                      else np.array(list(map(float, axis.get('xyz', '1 0 0').split())))),
+                limit=None if limit is None else _UrdfLimit(
+                    lower=_optional_float(limit.get('lower')),
+                    upper=_optional_float(limit.get('upper')),
+                    velocity=_optional_float(limit.get('velocity')))))
+        links = {link.get('name') for link in robot.findall('link')}
+        return robot.attrib['name'], links, joints
+    except ElementTree.ParseError as err:
+        raise InvalidInputError(f'{path} is not XML: {err}') from None
+    except (KeyError, ValueError) as err:
+        raise InvalidInputError(f'{path} is not a readable URDF: {err!r}') from None
+
+
 def load_urdf(path: str, base_link: str = 'base_link', tip_link: str | None = None,
               name: str | None = None) -> ArmModel:
     """
@@ -145,15 +234,10 @@ def load_urdf(path: str, base_link: str = 'base_link', tip_link: str | None = No
     ``tip_link`` defaults to the single leaf link of the tree. Only revolute (and continuous)
     joints are moving joints; any other moving type raises.
     """
-    import yourdfpy  # local import: parsing is the only place that needs it
-
     if not os.path.isfile(path):
         raise InvalidInputError(f'URDF file not found: {path}')
-    robot = yourdfpy.URDF.load(path, load_meshes=False, build_scene_graph=False,
-                               build_collision_scene_graph=False)
-    joints = robot.robot.joints
+    robot_name, links, joints = _read_urdf(path)
     by_child = {j.child: j for j in joints}
-    links = {link.name for link in robot.robot.links}
     if base_link not in links:
         raise InvalidInputError(f'base link "{base_link}" is not in {path}')
     if tip_link is None:
@@ -195,7 +279,7 @@ def load_urdf(path: str, base_link: str = 'base_link', tip_link: str | None = No
             lower.append(lim.lower)
             upper.append(lim.upper)
         vel.append(lim.velocity if lim is not None and lim.velocity else 1.0)
-    return ArmModel(name=name or robot.robot.name, joint_names=tuple(names),
+    return ArmModel(name=name or robot_name, joint_names=tuple(names),
                     origins=np.array(origins), axes=np.array(axes), tool=pending,
                     lower=np.array(lower), upper=np.array(upper),
                     velocity_limits=np.array(vel), base_link=base_link, tip_link=tip_link)
