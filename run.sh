@@ -7,6 +7,7 @@
 #   python.sh        the Python that makes the venv (3.11 for the PyPI ROS), or advice
 #   venv.sh          the venv, made once, activated with the workspace on top
 #   system_libs.sh   EGL/GL for offscreen rendering
+#   browser.sh       the headless Chromium + chromedriver the console's e2e test drives
 #   build.sh         colcon build, skipped when nothing changed; the numba kernels compiled
 #   ensure.sh        all of the above in order, then the local DDS configuration
 #   network.sh       a private network namespace (only loopback), a DDS domain of our own

@@ -1,13 +1,13 @@
 """
-Which of the launched nodes are essential and which are helpers: the one table (issue 31).
+Which of the launched nodes are essential and which are helpers: the one table.
 
 An essential node is the arm or what commands it: the simulated arm (``sim_bridge``), the
 CAN-level Mover6 and the driver on it (``can_sim``, ``driver``) and the ``controller``. Without
 one of them the arm cannot be driven safely, so its exit stops the stack (the controller's last
 zero command, the driver's disable, the bridge's halt after its command timeout): the launchers
-report it and stop every node, as before. A helper only shows, plans or records: the
+report it and stop every node. A helper only shows, plans or records: the
 ``planner``, the ``state_publisher`` (or robot_state_publisher), the ``markers``, the
-``recorder``, a ``console`` (none exists yet) and RViz. A helper that exits is reported and
+``recorder``, the ``console`` and RViz. A helper that exits is reported and
 started again after ``restart_delay`` (doubling from ``RESTART_DELAY`` to ``MAX_RESTART_DELAY``,
 back to the first delay once it ran ``STEADY_RUN``); the arm and the controller go on.
 

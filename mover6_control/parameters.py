@@ -1,12 +1,13 @@
 """
-The parameters of the three nodes, declared once: name, type, default, unit, range, meaning.
+The parameters of every node, declared once: name, type, default, unit, range, meaning.
 
-``PLANNER``, ``CONTROLLER`` and ``SIM_BRIDGE`` map each parameter name to a frozen
-``ParameterSpec``. The nodes declare their ROS parameters from these tables (with the range or
-the allowed values in the descriptor, ``ros2 param describe`` shows them) and refuse a value that
-``check_value`` refuses; ``config/<node>.yaml`` and ``docs/parameters.md`` are generated from
-them (``./run.sh generate``, ``parameter_files``) and the defaults of the core's settings
-dataclasses are checked against them by the tests.
+``PLANNER``, ``CONTROLLER``, ``SIM_BRIDGE``, ``DRIVER``, ``STATE_PUBLISHER``, ``MARKERS`` and
+``RECORDER`` (``NODES``, by node name) map each parameter name to a frozen ``ParameterSpec``.
+The nodes declare their ROS parameters from these tables (with the range or the allowed values
+in the descriptor, ``ros2 param describe`` shows them) and refuse a value that ``check_value``
+refuses; ``config/<node>.yaml`` and ``docs/parameters.md`` are generated from them (``./run.sh
+generate``, ``parameter_files``) and the defaults of the core's settings dataclasses are checked
+against them by the tests.
 
 ROS-free and in the base layer, so every layer can import it: the tables of allowed values are
 defined here once (``PROFILES``, ``LIMIT_SETS``, ``JOG_UNITS``, ``TOOL_SHAPES``, ``POSE_MOTIONS``,
@@ -35,7 +36,7 @@ class ParameterSpec:
     valid; a ``float_list`` has exactly ``length`` values, or a multiple of ``multiple_of``
     (0: any number but none); ``read_only`` parameters are set at start and cannot change while
     the node runs. What relates one parameter to another (a capsule tool at least as long as
-    wide) is checked by the node's whole configuration (``nodes.params.declare``).
+    wide) is checked by the node's whole configuration (``nodes.runtime.params.declare``).
     """
 
     name: str

@@ -266,7 +266,7 @@ class PhysicsThread:
         in wall time but each with the command it had before (a command first runs the steps
         due before it came). Waking for every 2 ms step cost more CPU than the steps. With
         ``publish_clock`` (a /clock after every step: sim-time nodes wait on it) and in
-        vendor_driver mode every step is a wake-up, as before.
+        vendor_driver mode every step is a wake-up.
         """
         last_view = 0.0
         while not self.stop_event.is_set():

@@ -235,7 +235,7 @@ class DemandIntake:
             job = PlanJob(self.law_for(pending.profile), q_start, pending.waypoints,
                           shared.derived.velocity_limits, qd_start, pending.timing,
                           self.arm.lower, self.arm.upper)
-            plan, note = job.run(self.core_state.collision_guard)   # checked as before
+            plan, note = job.run(self.core_state.collision_guard)   # checked by the guard too
         shared.timing = note
         self.robot.give(plan, pending.now if start is None else start)
         shared.motion_id += 1

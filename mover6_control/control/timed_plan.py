@@ -23,7 +23,7 @@ acceleration (piece ends and stationary points, not samples) must stay within th
 limits and ``a_max``, and the positions within the joint limits. ``plan_demand`` otherwise plans
 the law's time-optimal motion through the same points and says why (``TimingError``'s reason),
 so a caller logs it and reports it. Points whose ``time_from_start`` are all zero are untimed:
-the law's plan, as before.
+the law's plan.
 """
 
 from __future__ import annotations

@@ -29,8 +29,8 @@ at a shoulder singularity (wrist centre on axis 1).
 This module prepares the constants of an arm (``_plan``: what is linear in the pose, the elbow
 and wrist bases; ``_fk_chain``: the chain for the FK check) and checks the inputs; the steps
 themselves, per pose, run compiled (numba) in ``ik_batch_kernel``: as array operations they
-cost about 1 us a pose in interpreter overhead and temporaries, compiled about 0.5 us
-(issue 32). The one-pose ``ik_closed_form`` runs the same steps on Python floats
+cost about 1 us a pose in interpreter overhead and temporaries, compiled about 0.5 us.
+The one-pose ``ik_closed_form`` runs the same steps on Python floats
 (``ik_one_pose``).
 """
 

@@ -8,7 +8,9 @@ mover6_control: the one entry point.
   ./run.sh demo            start the nodes headless, run the showcase (recorded), print the results
   ./run.sh test            colcon build + colcon test (pytest summary on the console)
                            (inside a private network namespace when the machine allows one)
-  ./run.sh launch [args]   the three nodes in the foreground until Ctrl-C (scripts/launch.sh)
+  ./run.sh launch [args]   the stack (the arm or its driver, controller, planner, state
+                           publisher, markers) in the foreground until Ctrl-C (scripts/launch.sh;
+                           --help lists the options)
   ./run.sh goal ...        the goal CLI (./run.sh goal --help)
   ./run.sh console [--port P]  the web console on http://127.0.0.1:8080 (docs/console.md)
   ./run.sh record [-o BAG] [TOPICS]  record the stack's topics (rosbag2 MCAP) until Ctrl-C
@@ -18,7 +20,8 @@ mover6_control: the one entry point.
   ./run.sh bench [--quick] the benchmarks: tables on the console, JSON in bench/results/
   ./run.sh generate [--check]  write config/<node>.yaml and docs/parameters.md from the
                            parameter table (mover6_control/parameters.py)
-  ./run.sh setup           only set up (also done on first use of any other command)
+  ./run.sh setup           only set up, with the browser of the console's test (the rest is
+                           also done on first use of any other command)
   ./run.sh exec CMD ...    run CMD inside the project environment
 
 On a machine with a sourced ROS 2 Jazzy install it uses that install. Otherwise it makes a

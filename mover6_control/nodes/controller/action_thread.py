@@ -1,5 +1,5 @@
 """
-The controller's action server on a node, an executor and a thread of its own (issue 21).
+The controller's action server on a node, an executor and a thread of its own.
 
 rclpy builds a received goal as Python objects in the thread of the executor that serves the
 action server: a 10,000-point ``FollowJointTrajectory`` goal is 10,000 ``JointTrajectoryPoint``

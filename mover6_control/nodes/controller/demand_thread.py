@@ -54,14 +54,12 @@ WAIT_FOR_STATES = (WAITING_FOR_STATES, FAULT)
 DEMAND_ROUNDS = DEMAND_ATTEMPTS + 3
 # A demand of this many waypoints or more is planned in the planning process (plan_worker):
 # planning it here holds the interpreter lock that the tick needs, between the compiled parts
-# of the timing (motion/timing: they run without it). Measured (continuous law with the
-# collision guard, CPU of one demand, 2026-12-07): 100 waypoints 2.8 ms, 1,000: 12.9 ms, 2,000:
-# 26.7 ms, 5,000: 79 ms, 10,000: 184 ms; through the worker a 1,000-waypoint demand took 20-60 ms
-# longer (pickles, a second process waiting for a CPU beside the stack) than here. Below
-# WORKER_POINTS (at most about 15 ms, what 100 waypoints cost when the limit was 100) a demand
-# stays here, and so does every demand while the worker starts (seconds: the first such demand
-# starts it): a demand must not wait for it; but one of WORKER_WAIT_POINTS or more (about 150 ms,
-# what 1,000 waypoints cost when that limit was 1,000) waits: here it would hold the tick back.
+# of the timing (motion/timing: they run without it); through the worker a demand costs the
+# pickles and a second process waiting for a CPU beside the stack (bench/HISTORY.md has the
+# figures). Below WORKER_POINTS (at most about 15 ms of CPU) a demand stays here, and so does
+# every demand while the worker starts (seconds: the first such demand starts it): a demand
+# must not wait for it; but one of WORKER_WAIT_POINTS or more (about 150 ms) waits: here it
+# would hold the tick back.
 WORKER_POINTS = 1200
 WORKER_WAIT_POINTS = 8000
 

@@ -2,7 +2,7 @@
 The controller's /JointJog: one command a tick, written as bytes, and the zero that holds the arm.
 
 All six joints, stamped with the node clock, velocities only; serialized by
-``cdr.JointJogWriter`` (no message object per tick, issue 21). The vendor driver keeps the last
+``cdr.JointJogWriter`` (no message object per tick). The vendor driver keeps the last
 command forever, so the node sends a zero when a tick fails and when it closes.
 """
 

@@ -91,7 +91,7 @@ class ControllerNode(Node):
         self.joint_names = list(self.core.arm.joint_names)
         self.last_q = None          # the latest valid joint positions, for the action server
         self.destroyed, self.has_states = False, threading.Event()   # set: valid states
-        self.states_reader = cdr.JointStateReader()   # /joint_states read as bytes (issue 21)
+        self.states_reader = cdr.JointStateReader()   # /joint_states read as bytes (cdr)
         clock_ns = lambda: now_ns(self.get_clock())   # noqa: E731
 
         jog_pub, figures = self.create_publisher(JointJog, 'JointJog', 10), TickFigures()

@@ -4,8 +4,7 @@ The serialized (CDR) form of the two 100 Hz messages, written and read without r
 /joint_states (sensor_msgs/JointState) and /JointJog (control_msgs/JointJog) go every 10 ms
 between the sim bridge (or the driver) and the controller. rclpy builds a Python message object
 per sample and converts it field by field to the C struct and back; on a node that does little
-else that conversion was a large part of its idle CPU (issue 21; measured per publish on a loaded
-2-core machine: a JointState built and published 270 us of CPU, the same bytes published 125 us).
+else that conversion is a large part of its idle CPU (``./run.sh bench idle``).
 So the nodes publish bytes (``Publisher.publish`` takes a serialized message) built here with
 one ``struct`` call, and subscribe with ``raw=True`` and read the few fields they need here.
 
@@ -18,7 +17,7 @@ count, then the elements. ``test/node/test_cdr.py`` checks the bytes against rcl
 
 A reader raises ``ValueError`` on anything it does not expect (another layout, a truncated
 sample): the node then takes rclpy's own deserialization and its usual checks, so an odd but
-valid message is never lost and a malformed one is refused with the reason as before.
+valid message is never lost and a malformed one is refused with the reason.
 """
 
 import struct

@@ -2,8 +2,8 @@
 The one guard every callback of every node runs through: bad input is refused, the node goes on.
 
 A callback that raises inside rclpy's executor ends the executor's spin, and with it the node's
-process (issue 31: one ``/pose_goal`` with a NaN in its quaternion ended the markers node, and
-the launcher then stopped the whole stack). Each node makes one ``CallbackGuard`` and creates
+process (one ``/pose_goal`` with a NaN in its quaternion would end the markers node, and the
+launcher then the whole stack). Each node makes one ``CallbackGuard`` and creates
 its subscriptions, services, timers and parameter callbacks through it (``subscription``,
 ``service``, ``timer``, ``set_check``, ``after_set``; ``action_callbacks`` for an action
 server's goal and cancel callbacks). A callback that raises is then one refused input:

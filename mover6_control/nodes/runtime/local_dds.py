@@ -220,7 +220,7 @@ def default_environment(environ: Mapping[str, str]) -> dict:
     The local configuration on every machine (nothing sent leaves loopback, and no shared
     memory: no 1/3 s stall of every publish when a process joins the graph), unless the user set
     DDS variables of their own (a robot network: left as they are) or ``MOVER6_DDS=localhost``
-    (ROS's ``LOCALHOST`` discovery, as before; docs/dds.md).
+    (ROS's ``LOCALHOST`` discovery; docs/dds.md).
     """
     mode = environ.get(MODE_ENV, '')
     requested(environ)                      # an unknown mode is refused

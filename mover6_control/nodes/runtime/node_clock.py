@@ -4,14 +4,14 @@ A node clock's time and sleep without rclpy's ``Time`` objects (100 times a seco
 ``Clock.now()`` builds a ``Time`` (a Python object with its checks) each call, about 15 us of CPU
 on a loaded machine; a ROS clock that is not on sim time reads the system clock, which
 ``time.time_ns()`` reads for a fraction of that. On sim time (``use_sim_time``, /clock), or any
-other clock, it is ``clock.now()`` as before.
+other clock, it is ``clock.now()``.
 
 ``Clock.sleep_until`` creates a jump callback, a ``ClockEvent``, a shutdown callback on the
 context and ``Time`` objects per call: measured on the loaded 2-core machine, 160 us of CPU per
 1 ms sleep against 60 us for ``time.sleep`` (the controller's tick sleeps 100 times a second).
 ``sleep_until_ns`` sleeps with ``time.sleep`` instead while the clock reads the system clock,
 at most ``MAX_NAP`` at a time so that a shutdown is seen; on sim time it is
-``Clock.sleep_until`` as before.
+``Clock.sleep_until``.
 """
 
 import time

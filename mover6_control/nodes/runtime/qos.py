@@ -12,9 +12,9 @@ and /tf_static, and the markers': a reader that starts late (RViz) gets the last
 ``STREAM_READER_QOS`` (best effort) is how the nodes read the 100 Hz streams /joint_states and
 /JointJog, as ROS reads sensor data: a sample lost is replaced by the next one 10 ms later, and
 a reliable reader would cost every sample an acknowledgement and its writer the bookkeeping
-(issue 21: the controller's, the bridge's and the planner's Fast DDS event threads went from
-0.5 % of a core each to none). The writers stay reliable, so reliable readers (a recorder,
-robot_state_publisher, the driver) are served as before; a best-effort reader matches either.
+(each node's Fast DDS event thread busy with them). The writers stay reliable, so reliable
+readers (a recorder, robot_state_publisher, the driver) are served too; a best-effort reader
+matches either.
 ``LATEST_READER_QOS`` is the same for a reader that only keeps the latest sample (the planner).
 """
 
