@@ -18,14 +18,14 @@ set -uo pipefail
 for arg in "$@"; do
     case "$arg" in -h | --help) exec python3 -m mover6_control.stack help ;; esac
 done
-# One Python process (mover6_control/launch_shell.py) prints: the package's prefix; the options'
+# One Python process (mover6_control/tools/launch_shell.py) prints: the package's prefix; the options'
 # values (checked: exit 2 with the choices) and start_stack, the nodes' start lines, from the one
 # stack definition, mover6_control/stack.py; the DDS setup: on this machine (UDP on 127.0.0.1, no
 # shared memory: the package's Fast DDS profile) unless the user chose their own DDS setup (robot
 # network), docs/dds.md; which nodes are essential (their exit stops the stack) and which are
 # helpers (started again with back-off), mover6_control/node_roles.py; the namespace, checked by
 # ROS's naming rules (the TF frame prefix is the stack's).
-setup=$(python3 -m mover6_control.launch_shell -- "$@")
+setup=$(python3 -m mover6_control.tools.launch_shell -- "$@")
 rc=$?
 if [ "$rc" != 0 ]; then
     python3 -c 'import mover6_control' 2>/dev/null \

@@ -6,9 +6,9 @@ Subscribes /JointJog (control_msgs/JointJog: ``velocities`` by joint name; ``dis
 (sensor_msgs/JointState: reset to the named ``position`` values, unnamed joints to
 ``initial_q``). Publishes /joint_states (names joint1..joint6 and the URDF's joints outside the
 arm's chain, the gripper, which the simulated arm has not fitted: at 0, closed; position,
-velocity, effort, stamped) at ``publish_rate``, at ``rest_publish_rate`` while the arm rests (no command moves it
-and every joint is still, as the real arm's driver publishes at 10 to 20 Hz; the first step of a
-command that moves it publishes at ``publish_rate`` again), and, with ``publish_clock``, /clock
+velocity, effort, stamped) at ``publish_rate``, at ``rest_publish_rate`` while the arm rests
+(no command moves it and every joint is still, as the real arm's driver publishes at 10 to 20 Hz;
+the first step of a command that moves it publishes at ``publish_rate`` again), and, with ``publish_clock``, /clock
 after every physics step. ~/status (diagnostic_msgs/DiagnosticStatus, transient local), once a
 second: sim time, the real-time factor measured since the last report, the /joint_states rate
 in force, whether the arm rests, pacing overruns and rejected /JointJog messages. Services: ~/reset

@@ -18,8 +18,8 @@ def test_launch_sh_reads_the_table():
     assert f"ESSENTIAL='{' '.join(ESSENTIAL)}'" in out and f'RESTART_DELAY={RESTART_DELAY}' in out
     with open(os.path.join(os.path.dirname(CONFIG_DIR), 'scripts', 'launch.sh')) as f:
         script = f.read()
-    assert 'python3 -m mover6_control.launch_shell -- "$@"' in script
-    setup = subprocess.run([sys.executable, '-m', 'mover6_control.launch_shell', '--'],
+    assert 'python3 -m mover6_control.tools.launch_shell -- "$@"' in script
+    setup = subprocess.run([sys.executable, '-m', 'mover6_control.tools.launch_shell', '--'],
                            capture_output=True, text=True, check=True,
                            cwd=os.path.dirname(CONFIG_DIR)).stdout
     assert node_roles.shell() in setup

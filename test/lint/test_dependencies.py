@@ -234,8 +234,8 @@ def test_every_key_is_rosdeps_and_needed():
     print(f'\npackage.xml keys ({len(keys)}), each a rosdep key of Jazzy on noble'
           f' ({os.path.basename(path)}) or an interface package of interfaces/:')
     for key, tag in keys.items():
-        print(f'  {tag:12s} {key}' + ('  (built from interfaces/ where missing)'
-                                       if key in interfaces else ''))
+        note = '  (built from interfaces/ where missing)' if key in interfaces else ''
+        print(f'  {tag:12s} {key}{note}')
 
 
 def test_the_tables_name_no_module_nothing_imports():

@@ -130,8 +130,9 @@ def stamp_rate(messages):
 
 def test_joint_states_are_complete_and_at_the_rate(harness):
     """
-    Names joint1..joint6 and the gripper; position, velocity and effort; 100 Hz while moving,
-    20 Hz at rest.
+    Name joint1..joint6 and the gripper, at the moving and the resting rate.
+
+    Position, velocity and effort; 100 Hz while moving, 20 Hz at rest.
 
     At rest (nothing moves the arm) /joint_states come at ``rest_publish_rate``, as the real
     arm's driver publishes; a JointJog stream that moves the arm brings ``publish_rate`` back,

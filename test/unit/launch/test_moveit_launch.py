@@ -20,10 +20,10 @@ import json
 import os
 import subprocess
 import sys
+import xml.etree.ElementTree as ET
 
 from mover6_control.resources import CONFIG_DIR
 import pytest
-import xml.etree.ElementTree as ET
 import yaml
 
 ROOT = os.path.dirname(CONFIG_DIR)
@@ -36,7 +36,7 @@ HEAVY = ('mover6_control', 'sim_bridge', 'mujoco', 'numba', 'ruckig', 'scipy', '
 REAL_LAUNCH = all(importlib.util.find_spec(m) is not None for m in ('launch', 'launch_ros'))
 IMPLEMENTATIONS = ['stand-ins'] + (['ros-launch'] if REAL_LAUNCH else [])
 
-STAND_INS = '''
+STAND_INS = """
 import sys, types
 
 
@@ -62,7 +62,7 @@ sys.modules['launch.substitutions'].LaunchConfiguration = LaunchConfiguration
 
 # Run in a fresh interpreter: load the launch file, build its description, evaluate its start
 # without MoveIt and with config/moveit/ made empty, print what it said and what was imported.
-PROBE = '''
+PROBE = """
 import importlib.util, json, sys
 if sys.argv[1] == 'stand-ins':
     exec(STAND_INS)
@@ -111,8 +111,8 @@ def test_the_check_sees_an_import_of_the_package(tmp_path):
 
 
 @pytest.mark.parametrize('implementation', IMPLEMENTATIONS)
-def test_without_moveit_it_says_so_first_and_imports_nothing_of_the_package(implementation,
-                                                                           tmp_path):
+def test_without_moveit_it_says_so_first_and_imports_nothing_of_the_package(
+        implementation, tmp_path):
     """Its own message, with config/moveit/ empty (no file read first), in a lean process."""
     probe = PROBE.replace('exec(STAND_INS)', f'exec({STAND_INS!r})')
     env = dict(os.environ)

@@ -1,7 +1,7 @@
 """
 Everything ``scripts/launch.sh`` evaluates before it starts a node, from one Python process.
 
-``python3 -m mover6_control.launch_shell -- ARGS`` prints shell assignments: ``prefix`` (the
+``python3 -m mover6_control.tools.launch_shell -- ARGS`` prints shell assignments: ``prefix`` (the
 package's install prefix), the stack's values and its ``start_stack`` function for ARGS
 (``mover6_control.stack``), the loopback-only DDS exports unless the user chose their own
 (``nodes.runtime.local_dds``), the table of essential and helper nodes (``node_roles``), and

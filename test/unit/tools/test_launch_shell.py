@@ -4,8 +4,9 @@ import os
 import shlex
 
 from ament_index_python.packages import get_package_prefix
-from mover6_control import launch_shell, node_roles, stack
+from mover6_control import node_roles, stack
 from mover6_control.nodes.runtime import local_dds
+from mover6_control.tools import launch_shell
 import pytest
 
 
