@@ -1,10 +1,16 @@
 """
 Start the three nodes as separate processes, talk to them over DDS, stop them by pid.
 
-Used by the end-to-end tests and the benchmarks: ``Stack`` starts sim_bridge, controller and
-planner (the installed executables when the package is built, ``python -m`` otherwise), each
-with its parameter file from config/ plus overrides, and logs their output to files shown when a
-test fails.
+Used by the end-to-end tests and the benchmarks: ``Stack`` starts nodes of the one stack
+definition (``mover6_control.stack.plan``, what both launchers start, for the launchers' options
+a test chooses as a user would: ``--jog-units fraction-of-max`` is ``options={'jog_units':
+'fraction_of_max'}``), each with its parameter file from config/ and the parameters the plan
+sets, then a test's own overrides as a user passes them (``MOVER6_CONTROLLER_ARGS="-p
+name:=value"``); the installed executables when the package is built, ``python -m`` otherwise.
+Their output goes to log files shown when a test fails.
+
+``GOAL_TOLERANCE``, ``SETTLE_TOLERANCE`` and ``POSITION_TOLERANCE`` are the product's promises
+about arrival, from the shipped parameters: the bounds the tests of arrival assert.
 """
 
 import contextlib
@@ -16,10 +22,20 @@ import subprocess
 import threading
 import time
 
+from mover6_control import stack as stack_definition
+from mover6_control.parameters import CONTROLLER, PLANNER
 from mover6_control.resources import CONFIG_DIR, executable_command
+import numpy as np
 from rclpy.executors import SingleThreadedExecutor
 
 ROOT = os.path.dirname(CONFIG_DIR)
+
+# [rad] the controller reports 'arrived' when every joint is this close to the goal.
+GOAL_TOLERANCE = CONTROLLER['goal_tolerance'].default
+# [rad] it then keeps converging until every joint is this close (settled), then holds.
+SETTLE_TOLERANCE = CONTROLLER['settle_tolerance'].default
+# [m] the planner's joint goal puts the tool this close to the goal's position.
+POSITION_TOLERANCE = PLANNER['position_tolerance'].default
 
 
 PR_CAPBSET_DROP, CAP_SYS_NICE = 24, 23       # linux/prctl.h, linux/capability.h
@@ -136,26 +152,50 @@ class NodeProcess:
             return ''
 
 
+def planned_parameters(options):
+    """Return {node name: {parameter: text}} the stack definition sets for launcher ``options``."""
+    text = stack_definition.parameter_text
+    return {start.name: {k: text(v) for k, v in start.parameters.items()}
+            for start in stack_definition.plan(options) if start.kind == 'node'}
+
+
 class Stack:
-    """The three nodes as processes; use as a context manager."""
+    """
+    Nodes of the stack definition as processes (by default the three); a context manager.
+
+    ``options`` are the launchers' (``mover6_control.stack.OPTIONS``: name to text); ``sim``,
+    ``controller``, ``planner``, ``driver`` (and ``params``: node name to parameters, any node)
+    are a test's overrides on top of the plan's, as a user passes them with ``-p``.
+    """
 
     def __init__(self, log_dir, sim=None, controller=None, planner=None,
                  names=('sim_bridge', 'controller', 'planner'), driver=None, ros_args=None,
-                 params=None):
+                 params=None, options=None):
         self.log_dir = str(log_dir)
         self.ros_args = dict(ros_args or {})    # node name -> extra ROS arguments
-        self.params = {'sim_bridge': sim or {}, 'controller': controller or {},
-                       'planner': planner or {}, 'driver': driver or {}}
-        self.params.update(params or {})        # node name -> parameters, any other node
+        self.options = dict(options or {})
+        self.planned = planned_parameters(self.options)
+        self.overrides = {'sim_bridge': sim or {}, 'controller': controller or {},
+                          'planner': planner or {}, 'driver': driver or {}}
+        self.overrides.update(params or {})     # node name -> parameters, any other node
         self.names = names
         self.nodes = {}
+
+    def choose(self, **options):
+        """Change launcher options, as a user starting the stack again: nodes started after."""
+        self.options.update(options)
+        self.planned = planned_parameters(self.options)
+
+    def parameters(self, name):
+        """Return the parameters node ``name`` starts with: the plan's, then the overrides."""
+        return {**self.planned.get(name, {}), **self.overrides.get(name, {})}
 
     def start(self, name):
         """Start (or restart) one node."""
         old = self.nodes.get(name)
         if old is not None and old.alive():
             old.stop()
-        self.nodes[name] = NodeProcess(name, self.log_dir, self.params.get(name, {}),
+        self.nodes[name] = NodeProcess(name, self.log_dir, self.parameters(name),
                                        ros_args=self.ros_args.get(name, ()))
         return self.nodes[name]
 
@@ -180,6 +220,40 @@ class Stack:
         """Return the tail of every node's output, for a failure message."""
         return '\n'.join(f'--- {n.name} (pid {n.pid}, alive={n.alive()}) ---\n{n.tail()}'
                          for n in self.nodes.values())
+
+
+def assert_settled(status, stack=None, settle_tolerance=SETTLE_TOLERANCE,
+                   goal_tolerance=GOAL_TOLERANCE):
+    """
+    Assert the controller's status ``status`` about a goal that ended says it kept its promise.
+
+    'arrived' inside the goal tolerance (its ``final_joint_error``), then settled inside the
+    settle tolerance (``settled_joint_error``), both [rad], the shipped ones unless given (a
+    controller on a driver with a cycle settles to one tick).
+    """
+    from mover6_control.nodes.messages.conversions import status_values
+    values = status_values(status)
+    report = f'{values}\n{stack.report() if stack is not None else ""}'
+    assert values.get('result') == 'arrived', report
+    assert float(values['final_joint_error']) <= np.max(goal_tolerance), report
+    assert float(values['settled_joint_error']) <= np.max(settle_tolerance), report
+
+
+def settled_q(client, stack=None, timeout=10.0):
+    """
+    Return a fresh /joint_states reading of goal client ``client`` once the controller settled.
+
+    Its state idle after the goal, and ``assert_settled`` of its status; then one reading that
+    came after (the pose it holds).
+    """
+    from mover6_control.nodes.messages.conversions import status_values
+    report = stack.report() if stack is not None else ''
+    assert client.spin_until(
+        lambda: status_values(client.controller_status).get('state') == 'idle', timeout), report
+    assert_settled(client.controller_status, stack)
+    client.q = None
+    assert client.spin_until(lambda: client.q is not None, timeout), report
+    return client.q.copy()
 
 
 def spin_until(executor, predicate, timeout=30.0, period=0.01, each=None):

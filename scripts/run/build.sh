@@ -15,9 +15,15 @@ colcon_build() {
         || [ -d "$WS/install/tf2_msgs" ]; then
         paths+=("interfaces/tf2_msgs")
     fi
-    if [ -f "$stamp" ] && [ -z "$(cd "$ROOT" && find package.xml setup.py setup.cfg \
-            mover6_control sim_bridge config scripts interfaces launch -newer "$stamp" \
-            -not -name '*.pyc' -print -quit 2>/dev/null)" ]; then
+    # Built again when a source is newer than the stamp, or one came or went (the list of
+    # sources is in the stamp). What builds and tests write in the source tree is no source:
+    # bytecode and numba's kernel cache (__pycache__/*.pyc, *.nbi, *.nbc beside the sources,
+    # from compile_kernels), setuptools' egg-info; nor are the folders' own times, which such
+    # a file changes.
+    local sources
+    sources=$(source_files | cksum)
+    if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$sources" ] \
+            && [ -z "$(source_files -newer "$stamp" | head -n 1)" ]; then
         return 0
     fi
     log "colcon build (${paths[*]})"
@@ -28,7 +34,15 @@ colcon_build() {
         log "colcon build failed; full log: $WS/build.log"
         return 1
     }
-    touch "$stamp"
+    printf '%s\n' "$sources" >"$stamp"
+}
+
+source_files() {
+    # The package's source files, sorted (extra find tests, e.g. -newer FILE, narrow them).
+    (cd "$ROOT" && find package.xml setup.py setup.cfg mover6_control sim_bridge config scripts \
+        interfaces launch \( -name __pycache__ -o -name '*.egg-info' \) -prune -o -type f \
+        -not -name '*.pyc' -not -name '*.nbi' -not -name '*.nbc' "$@" -print 2>/dev/null) \
+        | LC_ALL=C sort
 }
 
 compile_kernels() {

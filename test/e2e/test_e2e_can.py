@@ -44,10 +44,11 @@ GOAL = poses_from_numbers([0.445, 0.0, 0.4425, 0.0, 0.0, 0.0], quat=False, arm=A
 HOME = poses_from_numbers([0.345, 0.0, 0.4425, 0.0, 0.0, 0.0], quat=False, arm=ARM)[-1]
 # Half way back (a linear move onto HOME itself ends in its singularity and is refused).
 MID = poses_from_numbers([0.395, 0.0, 0.4425, 0.0, 0.0, 0.0], quat=False, arm=ARM)[-1]
-# The shipped defaults of a real arm, as scripts/launch.sh --hardware can starts it: the driver's
-# six silent cycles, the modules' 0.5 s watchdog (can_sim's default), the controller's
-# state_timeout of 0.5 s with the driver. Nothing here is given more than a real arm gets.
-CONTROLLER = {'limit_set': 'hardware', 'state_timeout': 0.5, 'cycle_driver': True}
+# The stack as scripts/launch.sh --hardware can-sim --limit-set hardware starts it (the
+# stack definition's parameters: the driver's six silent cycles, the modules' 0.5 s watchdog,
+# can_sim's default, the controller's state_timeout with the driver). Nothing here is given more
+# than a real arm gets.
+OPTIONS = {'hardware': 'can_sim', 'limit_set': 'hardware'}
 
 
 @pytest.fixture(scope='module')
@@ -55,10 +56,8 @@ def rig(tmp_path_factory):
     """Start can_sim, then the driver on its pty (enabled at start), controller and planner."""
     logs = tmp_path_factory.mktemp('e2e_can_logs')
     with CanSimProcess(logs, logs / 'mover6-can') as sim:
-        driver = {'can_interface': 'cpr_usb2can', 'can_channel': sim.link,
-                  'enable_on_start': True, 'limit_set': 'hardware'}
-        with Stack(logs, controller=CONTROLLER, planner={'limit_set': 'hardware'},
-                   driver=driver, names=('driver', 'controller', 'planner')) as stack:
+        with Stack(logs, options=dict(OPTIONS, can_channel=sim.link),
+                   names=('driver', 'controller', 'planner')) as stack:
             stack.nodes['can_sim'] = sim
             yield sim, stack
 
@@ -254,8 +253,7 @@ def test_corrupted_bytes_hold_and_recover(rig, client):
 def test_readme_goal_arrives_in_fraction_of_max(rig, client):
     """Restart driver and controller in the vendor's units; the same goal arrives."""
     sim, stack = rig
-    stack.params['driver']['jog_units'] = 'fraction_of_max'
-    stack.params['controller']['jog_units'] = 'fraction_of_max'
+    stack.choose(jog_units='fraction_of_max')     # --jog-units fraction-of-max
     for name in ('driver', 'controller'):       # both stop at once, then start again
         stack.nodes[name].interrupt()
     stack.start('driver')

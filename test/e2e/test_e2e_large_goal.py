@@ -41,6 +41,18 @@ def test_large_goals_never_starve_the_tick(tmp_path):
     for run in runs:
         assert run['result_code'] == 0, figures            # SUCCESSFUL
         assert run['faults'] == [], figures
-        assert run['max_tick_gap_status_s'] < max(GAP_LIMIT, gap_before), (gap_before, figures)
-        assert run['max_states_age_status_s'] < max(STATES_LIMIT, age_before), \
+        assert rose_under(run['max_tick_gap_status_s'], gap_before, GAP_LIMIT), \
+            (gap_before, figures)
+        assert rose_under(run['max_states_age_status_s'], age_before, STATES_LIMIT), \
             (age_before, figures)
+
+
+def rose_under(after, before, limit):
+    """
+    Return True when a running maximum kept ``limit`` during the goals.
+
+    ``before`` is its value before the first goal, ``after`` after a goal: one that rose
+    (after > before) rose during the goals, and must be under ``limit``; one that did not
+    saw nothing during them larger than the start-up's (a start-up stall is allowed).
+    """
+    return after <= before or after < limit

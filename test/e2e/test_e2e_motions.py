@@ -25,7 +25,8 @@ import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from ros_testing import ready_client, Stack
+from ros_testing import (assert_settled, POSITION_TOLERANCE, ready_client, SETTLE_TOLERANCE,
+                         Stack)
 from sensor_msgs.msg import JointState
 
 pytestmark = pytest.mark.e2e
@@ -37,8 +38,6 @@ A = pose_from_xyzabc(0.30, 0.05, 0.36, 0.0, HALF_PI, 0.0)
 B = pose_from_xyzabc(0.30, -0.08, 0.32, 0.0, HALF_PI, 0.0)
 VIA = pose_from_xyzabc(0.32, -0.03, 0.36, 0.0, HALF_PI, 0.0)
 C = pose_from_xyzabc(0.29, 0.10, 0.35, 0.0, HALF_PI, 0.0)
-JOINT_TOLERANCE = 0.01   # [rad] the arm's final joints against the last waypoint
-TOOL_TOLERANCE = 0.003   # [m] the arm's final tool position against the goal
 T_MAX = CONTROLLER['t_max'].default   # [s] the controller's default t_max (its config file's)
 
 
@@ -63,7 +62,7 @@ class Client(GoalClient):
 def stack(tmp_path_factory):
     """Start sim_bridge, controller (continuous profile) and planner as processes."""
     with Stack(tmp_path_factory.mktemp('e2e_motions'),
-               controller={'profile': 'continuous'}) as running:
+               options={'profile': 'continuous'}) as running:
         yield running
 
 
@@ -75,10 +74,11 @@ def client(stack):
 
 
 def arrived(client, stack, outcome, T_goal):
-    """Assert arrival from the measured /joint_states."""
+    """Assert arrival and settling (the controller's figures, then the measured /joint_states)."""
     assert outcome.arrived, f'{outcome}\n{stack.report()}'
-    assert np.abs(client.q - client.last_demands[-1]).max() < JOINT_TOLERANCE
-    assert np.linalg.norm(fk(ARM, client.q)[:3, 3] - T_goal[:3, 3]) < TOOL_TOLERANCE
+    assert_settled(client.controller_status, stack)
+    assert np.abs(client.q - client.last_demands[-1]).max() <= SETTLE_TOLERANCE
+    assert np.linalg.norm(fk(ARM, client.q)[:3, 3] - T_goal[:3, 3]) <= POSITION_TOLERANCE
 
 
 def test_every_motion_shape_arrives(stack, client):

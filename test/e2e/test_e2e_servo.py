@@ -8,12 +8,11 @@ orientation kept, and the arm is at rest within 0.3 s of the last command; the s
 frame; stale commands stop it; towards the wrist singularity it slows and halts before it with
 the reason on the status, and away from it it moves.
 
-Everything runs on the simulation's clock (``publish_clock``, ``use_sim_time``): every duration
-here, the twists' stamps and the 0.3 s to rest are the arm's own time, so a loaded machine that
-slows the physics down slows the whole test with it instead of failing it. The physics runs at
-half real time (``real_time_factor`` 0.5) so that this process, which sends the twists, keeps a
-steady rate in sim time on a loaded machine too: a gap over the 0.1 s command timeout would
-(rightly) make the controller decelerate and start the line again from where the arm is.
+The bridge and the controller run with their shipped timing (real time, the system clock), as
+the launchers start them; the bridge starts at ``Q_AWAY`` (its ``initial_q``, as a user sets it
+with ``MOVER6_SIM_ARGS``). The twists' stamps, every duration here and the 0.3 s to rest are of
+the system clock; a gap in the twists over the 0.1 s command timeout (rightly) makes the
+controller decelerate.
 """
 
 import time
@@ -30,7 +29,6 @@ import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from ros_testing import Stack, wait_until
 from sensor_msgs.msg import JointState
@@ -44,17 +42,16 @@ REST_SPEED = 0.002      # [rad/s] every joint slower than this: at rest
 
 
 class Jogger(Node):
-    """Send twists; record /joint_states, /JointJog and /controller/status in sim time."""
+    """Send twists; record /joint_states, /JointJog and /controller/status (the node's clock)."""
 
     def __init__(self):
-        super().__init__('e2e_jogger',
-                         parameter_overrides=[Parameter('use_sim_time', value=True)])
+        super().__init__('e2e_jogger')
         self.twist_pub = self.create_publisher(TwistStamped, 'controller/delta_twist_cmds', 10)
         self.reset_pub = self.create_publisher(JointState, 'sim_bridge/reset_to', 10)
         self.states = []        # (t, q, qd)
         self.jogs = []          # (t, velocities)
         self.statuses = []      # (t, DiagnosticStatus)
-        self.sent = []          # sim time of each twist sent
+        self.sent = []          # time of each twist sent
         self.create_subscription(JointState, 'joint_states', self.on_states, 10)
         self.create_subscription(JointJog, 'JointJog', self.on_jog, 50)
         qos = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -63,7 +60,7 @@ class Jogger(Node):
         self.executor_.add_node(self)
 
     def now(self):
-        """Return the sim time [s]."""
+        """Return the node's time [s] (the system clock's, as the stack's)."""
         return self.get_clock().now().nanoseconds * 1e-9
 
     def on_states(self, msg):
@@ -83,8 +80,8 @@ class Jogger(Node):
         while time.monotonic() < end:
             self.executor_.spin_once(timeout_sec=min(0.005, max(end - time.monotonic(), 0.0)))
 
-    def spin_sim(self, seconds):
-        """Serve callbacks for ``seconds`` of sim time (at most 30 times that of wall time)."""
+    def spin_for(self, seconds):
+        """Serve callbacks for ``seconds`` of the node's clock (at most 30x in wall time)."""
         end, wall_end = self.now() + seconds, time.monotonic() + 30.0 * seconds
         while self.now() < end and time.monotonic() < wall_end:
             self.spin(0.005)
@@ -109,9 +106,9 @@ class Jogger(Node):
 
     def stream(self, seconds, linear, angular, frame='base_link', age=0.0, until=None):
         """
-        Send the twist every ``1 / RATE`` for ``seconds`` (or until ``until()``), in sim time.
+        Send the twist every ``1 / RATE`` for ``seconds`` (or until ``until()``).
 
-        Return the sim time of the last one sent.
+        Return the time of the last one sent.
         """
         end = self.now() + seconds
         wall_end = time.monotonic() + 30.0 * seconds
@@ -119,7 +116,7 @@ class Jogger(Node):
         while self.now() < end and time.monotonic() < wall_end and not (until and until()):
             self.send(linear, angular, frame, age)
             last = self.now()
-            self.spin_sim(1.0 / RATE)
+            self.spin_for(1.0 / RATE)
         return last
 
     def at_rest_since(self, t):
@@ -147,16 +144,14 @@ class Jogger(Node):
             self.status()
         self.reset_pub.publish(JointState(name=list(ARM.joint_names), position=list(q)))
         assert wait_until(lambda: np.allclose(self.q, q, atol=1e-3), 5.0, self.spin), self.q
-        self.spin_sim(0.3)
+        self.spin_for(0.3)
 
 
 @pytest.fixture(scope='module')
 def jogger(tmp_path_factory):
     """Start the bridge (at Q_AWAY) and the controller as processes; yield a jogger here."""
     initial = '[' + ', '.join(f'{v:.1f}' for v in Q_AWAY) + ']'
-    with Stack(tmp_path_factory.mktemp('e2e_servo_logs'),
-               sim={'initial_q': initial, 'publish_clock': 'true', 'real_time_factor': 0.5},
-               controller={'use_sim_time': 'true'},
+    with Stack(tmp_path_factory.mktemp('e2e_servo_logs'), sim={'initial_q': initial},
                names=('sim_bridge', 'controller')) as stack:
         rclpy.init()
         node = Jogger()
@@ -179,7 +174,7 @@ def jog_line(node, frame):
     T0 = fk(ARM, node.q)
     x = np.array([1.0, 0.0, 0.0]) if frame == 'base_link' else T0[:3, 0]
     last = node.stream(2.0, [0.02, 0.0, 0.0], [0.0, 0.0, 0.0], frame)
-    node.spin_sim(1.0)
+    node.spin_for(1.0)
     T1 = fk(ARM, node.q)
     d = T1[:3, 3] - T0[:3, 3]
     along = float(d @ x)

@@ -22,16 +22,16 @@ pytestmark = pytest.mark.e2e
 
 ARM = mover6('hardware')
 GOAL = poses_from_numbers([0.445, 0.0, 0.4425, 0.0, 0.0, 0.0], quat=False, arm=ARM)[-1]
-CONTROLLER = {'limit_set': 'hardware', 'state_timeout': 0.5, 'cycle_driver': True}
+# As scripts/launch.sh --hardware can-sim --limit-set hardware starts it.
+OPTIONS = {'hardware': 'can_sim', 'limit_set': 'hardware'}
 
 
 def test_a_frame_log_of_one_goal_reads_back_with_python_cans_reader(tmp_path):
     log = tmp_path / 'frames.log'
     with CanSimProcess(tmp_path, tmp_path / 'mover6-can') as sim:
-        driver = {'can_interface': 'cpr_usb2can', 'can_channel': sim.link,
-                  'enable_on_start': True, 'limit_set': 'hardware', 'frame_log': str(log)}
-        with Stack(tmp_path, controller=CONTROLLER, planner={'limit_set': 'hardware'},
-                   driver=driver, names=('driver', 'controller', 'planner')) as stack:
+        with Stack(tmp_path, options=dict(OPTIONS, can_channel=sim.link),
+                   driver={'frame_log': str(log)},        # MOVER6_DRIVER_ARGS="-p frame_log:=..."
+                   names=('driver', 'controller', 'planner')) as stack:
             with ready_client(stack, lambda: GoalClient(name='frame_log_client'),
                               timeout=60.0) as client:
                 assert client.spin_until(

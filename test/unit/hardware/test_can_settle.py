@@ -27,7 +27,7 @@ from sim_bridge.can_sim import build_arm, BusServer
 
 ARM = mover6()
 # The set-point discipline without referencing's hold (the joint file may say a joint needs no
-# referencing; test_can_driver.py and test_referencing.py test the hold and the referencing).
+# referencing; test_can_driver.py tests the hold and the referencing).
 JOINTS = tuple(replace(j, reference_required=False) for j in load_joints()[1])
 TICKS_PER_RAD = np.array([j.ticks_per_rad for j in JOINTS])
 OFFSET = np.array([j.offset for j in JOINTS])

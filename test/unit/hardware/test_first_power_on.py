@@ -26,7 +26,7 @@ from sim_bridge.can_sim import build_arm, BusServer
 from sim_bridge.simulator import SimConfig
 
 # The set-point discipline without referencing's hold (the joint file may say a joint needs no
-# referencing; test_can_driver.py and test_referencing.py test the hold and the referencing).
+# referencing; test_can_driver.py tests the hold and the referencing).
 JOINTS = tuple(replace(j, reference_required=False) for j in load_joints()[1])
 TPR = np.array([abs(j.ticks_per_rad) for j in JOINTS])       # [ticks/rad]
 CHANNELS = itertools.count()

@@ -25,7 +25,7 @@ from mover6_control.parameters import DRIVER
 import pytest
 
 # The set-point discipline without referencing's hold (the joint file may say a joint needs no
-# referencing; test_can_driver.py and test_referencing.py test the hold and the referencing).
+# referencing; test_can_driver.py tests the hold and the referencing).
 JOINTS = tuple(replace(j, reference_required=False) for j in load_joints()[1])
 SILENT_CYCLES = DRIVER['silent_cycles'].default     # the shipped parameter
 CHANNELS = itertools.count()
