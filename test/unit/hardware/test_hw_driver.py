@@ -276,6 +276,10 @@ def test_a_missed_reply_holds_and_a_silent_module_faults_after_silent_cycles(rig
     assert 'joint4: 1 reply(ies) missed, holds' in reports[1].hold
     frozen = r.modules.setpoints(1)[-4:]
     assert len(set(frozen)) == 1, frozen                         # no motion while blind
+    # The silent module (it may still hear) keeps its last set-point through the latch: not
+    # a step back to the last position it reported.
+    blind = r.modules.setpoints(4)[-4:]
+    assert len(set(blind)) == 1, blind
     assert 'joint4: module silent for 4 cycles' in r.driver.report.hold
     r.modules.silent.clear()
     assert r.run(2).state == 'fault'                        # latched until a reset
