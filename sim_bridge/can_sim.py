@@ -322,7 +322,8 @@ class SerialArm:
             return {}
         raise InvalidInputError(
             f'unknown command {" ".join(words)!r}: status | flags JOINT FLAGS [sticky] | '
-            f'silent JOINT on|off | corrupt COUNT [JOINT] | inputs BITS | frames | unplug | replug')
+            f'silent JOINT on|off | corrupt COUNT [JOINT] | inputs BITS | frames | unplug | '
+            f'replug')
 
 
 def control(path: str, line: str, timeout: float = 5.0) -> dict:

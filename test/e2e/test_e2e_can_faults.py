@@ -301,10 +301,9 @@ def test_a_fault_in_the_middle_of_a_goal_holds_and_recovers(rig, client, fault):
           f'{1000 * t_hold:.0f} ms after it; goal ended {1000 * t_ended:.0f} ms after it: '
           f'{outcome.text}; driver: {hold_reason}')
     assert np.all(steps <= STEP_BOUND), (steps.tolist(), STEP_BOUND.tolist())
-    assert moved_after_hold == [], (
-        f'set-points moved after the hold: joints {moved_after_hold}: ' + str(
-        [[(round(t - injector.t_fault, 3), k, x) for t, k, x in after[j - 1]['frames']
-          if t <= enable_time(after)] for j in moved_after_hold]))
+    moved = [[(round(t - injector.t_fault, 3), k, x) for t, k, x in after[j - 1]['frames']
+              if t <= enable_time(after)] for j in moved_after_hold]
+    assert moved_after_hold == [], f'set-points moved after the hold: {moved_after_hold}: {moved}'
     # A new goal arrives.
     outcome = client.send_joints([HOME if goal is AWAY else AWAY], timeout=60.0)
     assert outcome.arrived, f'{outcome}\n{rig.report()}'
