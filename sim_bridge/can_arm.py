@@ -67,6 +67,7 @@ byte on the wire belongs to the serial adapter: ``sim_bridge.can_sim`` injects i
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 import math
@@ -88,6 +89,7 @@ POWER_UP_FLAGS = NOT_ENABLED | WATCHDOG | POSITION_LAG      # 0x1C
 _MIN_INTERVAL = 0.005        # [s] the shortest interval a set-point is interpolated over
 _MAX_INTERVAL = 0.2          # [s] the longest
 _MAX_STEPS = 500             # physics steps per advance() before the arm gives up catching up
+FRAMES_KEPT = 4096           # frames each module keeps for ``take_frames`` (the oldest go)
 
 
 @dataclass(frozen=True)
@@ -188,6 +190,8 @@ class MotorModule:
         self._ramp_time = _MIN_INTERVAL  # ... over this long [s]
         self._armed = {}               # kind -> time of the first of a two-command pair
         self._referencing_until = None
+        self._taken = deque(maxlen=FRAMES_KEPT)   # (time, kind, wire ticks or None)
+        self._taken_lost = 0           # frames that fell out of ``_taken`` unread
 
     # --- the wire ------------------------------------------------------------------------
 
@@ -204,6 +208,10 @@ class MotorModule:
         except protocol.ProtocolError:
             self.ignored += 1
             return None
+        if len(self._taken) == FRAMES_KEPT:
+            self._taken_lost += 1
+        self._taken.append((now, command.kind,
+                            command.position if command.kind == 'setpoint' else None))
         if command.kind == 'setpoint':
             self._take_setpoint(command, now, position)
         elif command.kind == 'reset':
@@ -339,6 +347,19 @@ class MotorModule:
         if sticky:
             self.sticky_flags |= flags
         self._stop(encoder + self.bias, now)
+
+    def take_frames(self) -> dict:
+        """
+        Return the frames taken since the last call, and forget them.
+
+        ``frames``: ``[time [s], kind, wire ticks]`` in order (kind as ``protocol.decode_command``
+        names it; ticks only for a set-point, else None), at most ``FRAMES_KEPT``; ``lost``: how
+        many older ones fell out unread.
+        """
+        frames = [list(f) for f in self._taken]
+        lost, self._taken_lost = self._taken_lost, 0
+        self._taken.clear()
+        return {'frames': frames, 'lost': lost}
 
     def status(self) -> dict:
         """Return the module's state as plain values."""
@@ -505,6 +526,10 @@ class CanArm:
     def set_silent(self, joint: int, silent: bool) -> None:
         """Make the module of ``joint`` (1..6) stop answering (True) or answer again."""
         self._module(joint).silent = bool(silent)
+
+    def take_frames(self) -> list[dict]:
+        """Return every module's frames since the last call (``MotorModule.take_frames``)."""
+        return [m.take_frames() for m in self.modules]
 
     def _module(self, joint):
         """Return the module of ``joint`` or raise."""

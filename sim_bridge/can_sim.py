@@ -22,6 +22,13 @@ one line of JSON, ``{"ok": true, ...}`` or ``{"ok": false, "error": "..."}``:
     corrupt COUNT [JOINT]        flip a byte in each of the next COUNT frames sent (of JOINT's
                                  module only, if given): the adapter's reader must drop them
     inputs BITS                  set the arm's digital inputs (joint 1's module, 0..0x7F)
+    frames                       every frame each module took since the last ``frames``, and
+                                 forgets them: ``modules`` [{frames: [[time, kind, ticks]],
+                                 lost}] (time on this process's monotonic clock [s], ``now``
+                                 beside it; kind setpoint, reset, enable, disable, reference,
+                                 set_zero; ticks the set-point on the wire, else null; at most
+                                 4096 a module, ``lost`` the older ones): the set-point steps
+                                 and the disables a driver sent, as the modules saw them
     unplug                       the adapter pulled: the pty is closed (a driver's reads and
                                  writes fail) and the link removed; the modules keep running
                                  (their watchdog stops them)
@@ -277,6 +284,8 @@ class SerialArm:
         if len(words) == 2 and words[0] == 'inputs':
             self.arm.set_inputs(_parse_int(words[1], 'BITS'))
             return {}
+        if words == ['frames']:
+            return {'now': now, 'modules': self.arm.take_frames()}
         if words == ['unplug']:
             if self.pty is not None:
                 self.written += self.pty.written
@@ -313,7 +322,8 @@ class SerialArm:
             return {}
         raise InvalidInputError(
             f'unknown command {" ".join(words)!r}: status | flags JOINT FLAGS [sticky] | '
-            f'silent JOINT on|off | corrupt COUNT [JOINT] | inputs BITS | unplug | replug')
+            f'silent JOINT on|off | corrupt COUNT [JOINT] | inputs BITS | frames | unplug | '
+            f'replug')
 
 
 def control(path: str, line: str, timeout: float = 5.0) -> dict:

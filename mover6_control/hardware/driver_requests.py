@@ -164,6 +164,10 @@ class Requests:
                 continue                     # its frames go once the modules are primed
             for n in req.joints:
                 j = self.joints[n - 1]
+                if req.kind == 'reset' and j.fault:
+                    # Silent until now: its last position is stale, read it again (disable
+                    # until it answers) rather than send it behind the reset.
+                    j.forget()
                 j.track = True
                 j.relearn = req.kind in ('reset', 'set_zero', 'reference')
                 if req.kind == 'reset':

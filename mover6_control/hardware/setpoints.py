@@ -9,7 +9,9 @@ than the commanded motion of one cycle, nor against it, so a joint found outside
 further than ``max_lag`` from its set-point) moves only inward, at the commanded speed, instead
 of jumping to the bound. The set-point starts at the measured position and keeps tracking it
 whenever the joint is not enabled or is told to (after start, a reset, a fault, referencing,
-set zero): never a jump. At rest (a zero command) the set-point is the whole tick on the wire, so
+set zero): never a jump. A joint latched silent keeps the last set-point it was sent until a
+reset (its last measured position is stale: a module that still hears would step back to it).
+At rest (a zero command) the set-point is the whole tick on the wire, so
 a later move of whole ticks lands on whole ticks. ``plausible`` tells a reply whose position
 the joint cannot have reached from one it may have.
 """
@@ -28,6 +30,11 @@ def integrate(j: JointRecord, v: float, dt: float, frozen: bool, limit_set: str,
     joint limits, ``max_lag`` [rad] how far the set-point may run from the measured position.
     """
     if j.ticks is None:
+        return
+    if j.fault and j.setpoint is not None:
+        # Latched silent: the last measured position is stale, and the module (which may still
+        # hear) is at or on its way to the last set-point sent: that one stays until a reset.
+        j.velocity = 0.0
         return
     if j.track or j.setpoint is None or j.state() not in FOLLOWING:
         j.setpoint = float(j.ticks)      # never a jump: start from where the joint is

@@ -369,6 +369,38 @@ def test_power_lost_reads_as_a_state_and_only_recover_brings_the_arm_back(rig):
     assert [m.referenced for m in arm.modules] == [True] * 4 + [False] * 2
 
 
+def test_a_failed_deactivate_goes_through_on_error_and_disables_every_module(rig):
+    """
+    A module that stops answering: deactivate cannot confirm its disable, on_error follows.
+
+    Every module is disabled (the silent one too: it still acts on what it is sent), the bus
+    is closed and the node is unconfigured; configure is refused while the module stays
+    silent, and once it answers again configure and activate bring the arm back.
+    """
+    driver, operator, arm = rig
+    activate(operator)
+    assert all(m.enabled for m in arm.modules)
+    with arm.lock:
+        arm.modules[2].silent = True              # joint 3 takes frames, answers none
+    assert wait_for(lambda: operator.bus_status().get('hold', '') != '', 10.0)
+    assert not operator.transition(Transition.TRANSITION_DEACTIVATE)
+    assert wait_for(lambda: operator.lifecycle() == 'unconfigured', 30.0), operator.lifecycle()
+    assert driver.driver is None and driver.lifecycle_state == 'unconfigured'
+    assert 'deactivate refused' in driver.last_failure, driver.last_failure
+    with arm.lock:
+        enabled = [m.enabled for m in arm.modules]
+    assert enabled == [False] * 6, enabled
+    # Still silent: configure is refused with the joint's name, the bus closed again.
+    assert not operator.transition(Transition.TRANSITION_CONFIGURE)
+    assert operator.lifecycle() == 'unconfigured' and driver.driver is None
+    assert 'joint3' in driver.last_failure, driver.last_failure
+    with arm.lock:
+        arm.modules[2].silent = False
+    assert operator.transition(Transition.TRANSITION_CONFIGURE)
+    activate(operator)
+    assert all(m.enabled for m in arm.modules)
+
+
 def test_the_jog_intake_alone():
     """Built without a node: checks, refuses by reason, commands only while not blocked."""
     commanded, refusals, blocked = [], [], ['the driver is inactive']

@@ -276,11 +276,26 @@ def test_a_missed_reply_holds_and_a_silent_module_faults_after_silent_cycles(rig
     assert 'joint4: 1 reply(ies) missed, holds' in reports[1].hold
     frozen = r.modules.setpoints(1)[-4:]
     assert len(set(frozen)) == 1, frozen                         # no motion while blind
+    # The silent module (it may still hear) keeps its last set-point through the latch: not
+    # a step back to the last position it reported.
+    blind = r.modules.setpoints(4)[-4:]
+    assert len(set(blind)) == 1, blind
     assert 'joint4: module silent for 4 cycles' in r.driver.report.hold
     r.modules.silent.clear()
     assert r.run(2).state == 'fault'                        # latched until a reset
+    # Silent again, and moved on after its last reply; it answers again just as the reset goes.
+    r.modules.silent.add(4)
+    r.modules.frozen.add(4)
+    r.modules.wire[4] += 300
+    r.run()
+    r.modules.silent.clear()
+    since = len(r.modules.log)
     r.enable()
     assert r.driver.report.state == 'enabled'
+    # Its last reported position is stale: after the reset it is read again, and every
+    # set-point the module takes is where it is.
+    recovered = [c.position for j, c in r.modules.log[since:] if j == 4 and c.kind == 'setpoint']
+    assert recovered and set(recovered) == {r.modules.wire[4]}, (recovered, r.modules.wire[4])
 
 
 def test_a_module_lost_during_enable_disables_all_six(rig):

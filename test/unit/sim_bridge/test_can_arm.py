@@ -324,3 +324,25 @@ def test_home_position_reads_in_ticks():
     for reply, scale, qi in zip(replies, arm.scales, q):
         assert reply.position == round(qi * scale.ticks_per_rad) + scale.offset
     assert math.copysign(1, arm.scales[2].ticks_per_rad) == 1       # J3's gear is positive
+
+
+def test_each_module_keeps_the_frames_it_took_until_asked(arm):
+    """``take_frames``: every frame in order (set-points with their ticks), then forgotten."""
+    send(arm, 2, protocol.RESET_ERRORS, 0.0)
+    send(arm, 2, protocol.encode_setpoint(123, 1), 0.05)
+    send(arm, 2, b'\x01', 0.06)                      # a wrong length: ignored, not taken
+    send(arm, 2, protocol.DISABLE, 0.1)
+    taken = arm.take_frames()
+    assert taken[1] == {'frames': [[0.0, 'reset', None], [0.05, 'setpoint', 123],
+                                   [0.1, 'disable', None]], 'lost': 0}
+    assert all(m == {'frames': [], 'lost': 0} for i, m in enumerate(taken) if i != 1)
+    assert arm.take_frames()[1] == {'frames': [], 'lost': 0}
+
+
+def test_the_frames_kept_are_bounded_and_the_lost_ones_counted(arm):
+    from sim_bridge.can_arm import FRAMES_KEPT
+    for k in range(FRAMES_KEPT + 5):
+        send(arm, 1, protocol.DISABLE, k * 1e-4)
+    taken = arm.take_frames()[0]
+    assert len(taken['frames']) == FRAMES_KEPT and taken['lost'] == 5
+    assert taken['frames'][0][0] == pytest.approx(5e-4)
