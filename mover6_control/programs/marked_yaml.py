@@ -2,7 +2,8 @@
 YAML read with the line of every value: the node tree of ``yaml.compose``, as small values.
 
 A ``Marked`` is a value (a dict of str to ``Marked``, a list of ``Marked``, or a scalar) with
-the 1-based line where it starts, so every error of a file can name its line.
+the 1-based line where it starts, so every error of a file can name its line; the value of a
+mapping's key is marked with the key's line (``steps:`` above its list names that line).
 """
 
 from __future__ import annotations
@@ -42,7 +43,8 @@ def _convert(node, constructor, path):
             if key in out:
                 raise ProgramError(path, key_node.start_mark.line + 1,
                                    f'key "{key}" given twice', 'syntax')
-            out[key] = _convert(value_node, constructor, path)
+            value = _convert(value_node, constructor, path)
+            out[key] = Marked(value.value, key_node.start_mark.line + 1)
         return Marked(out, line)
     if isinstance(node, yaml.SequenceNode):
         return Marked([_convert(v, constructor, path) for v in node.value], line)

@@ -9,7 +9,7 @@ The file is the user's to read and edit::
         pose: [0.35, 0.05, 0.2, 0.0, 0.0, 0.0]       # X Y Z [m] A B C [rad], for reading
 
 ``joints`` is what a point is; ``pose`` is written from them (forward kinematics, in the goal
-convention of the Mover6 report: ``tools.goal_convention``) and recomputed on load, so an edited
+convention of the Mover6 report: ``pose_convention``) and recomputed on load, so an edited
 ``pose`` changes nothing. ``PointBook`` is the file's content, changed only into a new book
 (``taught``, ``renamed``, ``deleted``).
 """
@@ -23,8 +23,8 @@ import re
 from mover6_control.kinematics.arm import ArmModel
 from mover6_control.kinematics.forward import fk
 from mover6_control.programs.marked_yaml import Marked, read_marked
+from mover6_control.programs.pose_convention import pose_numbers
 from mover6_control.programs.program_error import ProgramError
-from mover6_control.tools.goal_convention import goal_from_pose
 import numpy as np
 
 NAME_PATTERN = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*$')
@@ -50,7 +50,7 @@ class Point:
         if not arm.within_limits(q):
             raise ProgramError(path, line, f'point "{name}" is outside the joint limits: '
                                + '; '.join(arm.limit_violations(q)), 'bad_value')
-        pose = goal_from_pose(arm, fk(arm, q))
+        pose = pose_numbers(arm, fk(arm, q))
         return cls(name, tuple(float(v) for v in q), tuple(round(v, 6) for v in pose))
 
     @property

@@ -35,6 +35,7 @@ class ProgramError(Mover6Error, ValueError):
     """
 
     def __init__(self, path: str, line: int, reason: str, code: str, step: int = -1) -> None:
+        """Keep where and why; raise ``KeyError`` for a code no table holds."""
         if code not in PROGRAM_CODES and code not in REASONS:
             raise KeyError(f'no program code {code!r}')
         where = f'{path}:{line}' if line else path

@@ -34,11 +34,11 @@ from mover6_control.kinematics.forward import fk
 from mover6_control.programs.limits import CartesianLimits
 from mover6_control.programs.marked_yaml import Marked, read_marked
 from mover6_control.programs.points import load_points, PointBook
+from mover6_control.programs.pose_convention import pose_matrix
 from mover6_control.programs.program_error import ProgramError
 from mover6_control.programs.steps import (GRIPPER_ACTIONS, GripperStep, INPUT_STATES, Move,
                                            MOVE_KINDS, RepeatStep, RunStep, SpeedStep, Target,
                                            unrolled, WaitStep)
-from mover6_control.tools.goal_convention import pose_from_goal
 import numpy as np
 
 TOP_KEYS = ('program', 'points', 'steps')
@@ -116,16 +116,16 @@ def _target(ctx, marked, what):
             _fail(ctx, value['pose'].line, f'{what}: a pose is 6 numbers X Y Z [m] A B C '
                   f'[rad], got {numbers!r}')
         label = 'pose [' + ' '.join(f'{v:g}' for v in numbers) + ']'
-        return Target(label, pose_from_goal(ctx.arm, *[float(v) for v in numbers]))
+        return Target(label, pose_matrix(ctx.arm, *[float(v) for v in numbers]))
     _fail(ctx, marked.line, f'{what}: a point name or {{pose: [X, Y, Z, A, B, C]}}, got '
           f'{marked.plain()!r}')
 
 
 def _move(ctx, kind, entries, line):
     target = _target(ctx, entries[kind], kind)
-    via = _target(ctx, entries['via'], 'via') if kind == 'circ' else None
     if kind == 'circ' and 'via' not in entries:
         _fail(ctx, line, 'circ needs a via point ("via")', 'missing')
+    via = _target(ctx, entries['via'], 'via') if kind == 'circ' else None
     limits = ctx.limits
     speed = rot_speed = 0.0
     if kind in ('lin', 'circ'):

@@ -294,6 +294,9 @@ def plan_program(arm: ArmModel, program: Program, q_start: np.ndarray,
     planner's reason as the code); nothing of the plan is returned then.
     """
     q = arm.check_q(q_start, 'start joint positions')
+    if not arm.within_limits(q):
+        raise ProgramError(program.path, 0, 'the arm is outside the joint limits: '
+                           + '; '.join(arm.limit_violations(q)), 'joint_limits')
     if settings.joint is None:
         settings = PlanSettings(**{**settings.__dict__, 'joint': JointLimits.of(arm)})
     if checker is None:

@@ -27,7 +27,7 @@ class Target:
 
     @property
     def position(self) -> np.ndarray:
-        """Return the tool position (3,) [m]."""
+        """Return where the tool is: (3,) [m] in base_link."""
         return self.T[:3, 3]
 
 
