@@ -23,6 +23,7 @@ LAYER_OF = {
     'mover6_control.motion': 'motion',
     'mover6_control.control': 'control',
     'mover6_control.planning': 'planning',
+    'mover6_control.programs': 'programs',
     'mover6_control.hardware': 'hardware',
     'mover6_control.nodes': 'nodes',
     'mover6_control.tools': 'tools',
@@ -40,12 +41,14 @@ MAY_IMPORT = {
     'motion': {'base', 'kinematics'},
     'control': {'base', 'kinematics', 'motion', 'collision'},
     'planning': {'base', 'kinematics', 'motion', 'collision'},
+    'programs': {'base', 'kinematics', 'motion', 'collision', 'planning'},
     'hardware': {'base'},
     'sim': {'base', 'kinematics', 'collision', 'hardware'},
-    'nodes': {'base', 'kinematics', 'motion', 'control', 'planning', 'collision', 'hardware'},
+    'nodes': {'base', 'kinematics', 'motion', 'control', 'planning', 'collision', 'hardware',
+              'programs'},
     'sim_node': {'base', 'kinematics', 'sim', 'nodes'},
     'tools': {'base', 'kinematics', 'motion', 'control', 'planning', 'nodes', 'sim',
-              'collision', 'hardware'},
+              'collision', 'hardware', 'programs'},
 }
 
 

@@ -23,7 +23,7 @@ time-optimal.
 
 from __future__ import annotations
 
-from typing import Optional, Sequence
+from typing import Callable, Optional, Sequence
 
 from mover6_control.errors import InvalidInputError, UnreachableError
 from mover6_control.motion.blended_path import blended_path, distinct_waypoints
@@ -101,7 +101,8 @@ def _forward_pass(pieces, delta, hi, x0):
 
 def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional[Limit] = None,
                       qd_start: Optional[Sequence[float]] = None, max_deviation: float = 1e-2,
-                      n_grid: Optional[int] = None) -> PathTrajectory:
+                      n_grid: Optional[int] = None,
+                      path_caps: Optional[Callable] = None) -> PathTrajectory:
     """
     Return the time-optimal ``PathTrajectory`` along the blended path through ``Q`` (m, n).
 
@@ -116,6 +117,9 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
     ``_jerk_limited``): the path is unchanged, jerk becomes finite and within ``j_max``, and
     the motion is no longer exactly time-optimal (it lasts about ``max(2 a_max / j_max)``
     longer). ``j_max`` with a non-zero ``qd_start`` is refused.
+
+    ``path_caps(path, s_grid)``, when given, returns more caps on ``sdot^2`` at the grid
+    points (N + 1,) (``inf``: none), such as a bound on the tool's speed.
     """
     if j_max is not None and qd_start is not None and np.any(np.asarray(qd_start) != 0.0):
         raise InvalidInputError(
@@ -153,6 +157,8 @@ def time_parameterize(Q: np.ndarray, v_max: Limit, a_max: Limit, j_max: Optional
             jcap1 = np.min((0.5 * j / np.abs(d1[3])) ** (2.0 / 3.0), axis=1)
         x_cap[:-1] = np.minimum(x_cap[:-1], jcap0)
         x_cap[1:] = np.minimum(x_cap[1:], jcap1)
+    if path_caps is not None:
+        x_cap = np.minimum(x_cap, path_caps(path, s_grid))
     x_cap[_nearest(s_grid, np.asarray(path.stops, dtype=float))] = 0.0
     x_cap[-1] = 0.0
     backward, forward = topp_pieces.pieces((d0[1], d0[2], d1[1], d1[2]), delta, a, x_cap[:-1])
