@@ -326,6 +326,24 @@ CONTROLLER = _table(
       'threshold)', 1.0, 1e6),
     P('servo_joint_limit_margin', 'float', 0.1, 'rad',
       'jogging: a joint this close to a limit halts the motion towards it', 0.0, 1.0),
+    P('allow_partial_joints_goal', 'bool', False, '',
+      "follow_joint_trajectory (joint_trajectory_controller's name and default): a goal may "
+      'name only some joints; the others hold where they are'),
+    P('constraints.stopped_velocity_tolerance', 'float', 0.01, 'rad/s',
+      "follow_joint_trajectory (joint_trajectory_controller's): after the last point's time "
+      'every joint must be slower than this (unless the goal gives a velocity goal tolerance); '
+      '0 = not checked', 0.0, 10.0),
+    P('constraints.goal_time', 'float', 0.0, 's',
+      "follow_joint_trajectory (joint_trajectory_controller's): the goal tolerances must hold "
+      "this long after the last point's time, else GOAL_TOLERANCE_VIOLATED (a goal's "
+      'goal_time_tolerance replaces it); 0 = no limit but settle_timeout', 0.0, 600.0),
+    P('action_monitor_rate', 'float', 20.0, 'Hz',
+      "follow_joint_trajectory (joint_trajectory_controller's): rate of the goal's feedback and "
+      'of its checks against the tolerances', 0.1, 1000.0, read_only=True),
+    P('speed_scaling.initial_scaling_factor', 'float', 1.0, '',
+      "the speed scaling factor at start (joint_trajectory_controller's): 1 = the motions' own "
+      'timing, 0 = paused; ~/speed_scaling_input changes it while running', 0.0, 1.0,
+      read_only=True),
     *_collision_specs('it is sent directly (/joint_demands, the trajectory action)'),
 )
 

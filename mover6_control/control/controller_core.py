@@ -56,6 +56,7 @@ from mover6_control.control.motion_plan import MotionPlan, plan_stop
 from mover6_control.control.motion_ticks import MotionTicks
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.robot import Robot
+from mover6_control.control.speed_scaling import SpeedScaling
 from mover6_control.control.states_check import StatesCheck
 from mover6_control.control.status import Cause, MotionResult, StatusKey as K
 from mover6_control.control.status_report import Status, StatusReport
@@ -189,6 +190,23 @@ class ControllerCore:
                          K.CAUSE: Cause.STOP_REQUESTED, K.REASON: 'stop requested'}
         shared.step(sm.STOP, 'OK', f'stopping motion {shared.motion_id} on request')
         return True, f'stopping within {self.robot.plan.duration:.2f} s'
+
+    def request_speed_scaling(self, factor: object) -> float:
+        """
+        Ask for the speed scaling ``factor`` (0 pause .. 1 the plan's timing); return it.
+
+        The effective factor ramps to it within the acceleration limit (``speed_scaling``);
+        a factor that is not finite or outside [0, 1] raises ``InvalidInputError`` and the
+        last valid one stays.
+        """
+        factor = self.core_state.speed_scaling.request(factor)
+        self.core_state.changed = True
+        return factor
+
+    @property
+    def speed_scaling(self) -> SpeedScaling:
+        """Return the speed scaling of motions (its ``factor`` and ``target``)."""
+        return self.core_state.speed_scaling
 
     def reset(self, now: float) -> None:
         """Leave fault: wait for fresh joint states again."""

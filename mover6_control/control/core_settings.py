@@ -42,6 +42,7 @@ class CoreSettings:
         """Install ``derived``: the robot's limits, the driver's ticks, then it whole."""
         self.robot.set_limits(derived.goal_tolerance, derived.config.law.a_max, derived.ticks)
         self.driver_compensation.configure(derived)
+        self.core_state.speed_scaling.set_acceleration_limit(derived.config.law.a_max)
         self.core_state.derived = derived
 
     def reconfigure(self, config: ControllerConfig) -> bool:

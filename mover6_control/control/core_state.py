@@ -20,6 +20,7 @@ from typing import Optional
 
 from mover6_control.control import state_machine as sm
 from mover6_control.control.controller_config import ControllerConfig, DerivedConfig
+from mover6_control.control.speed_scaling import SpeedScaling
 
 
 @dataclass(eq=False)
@@ -46,7 +47,9 @@ class CoreState:
     limits in the driver's units, control period), installed whole by ``CoreSettings``;
     ``pending`` the one waiting for the running motion to end (None: none);
     ``collision_guard`` a callable(plan) that raises on a colliding motion
-    (``collision_guard.CollisionGuard``; the node sets it; None: no collision check).
+    (``collision_guard.CollisionGuard``; the node sets it; None: no collision check);
+    ``speed_scaling`` the factor motions run at (``speed_scaling.SpeedScaling``, at 1 unless
+    given; jogging and stops run at their own speed).
     """
 
     derived: DerivedConfig
@@ -66,6 +69,13 @@ class CoreState:
     result: dict = field(default_factory=dict)
     rejection: dict = field(default_factory=dict)
     collision_guard: Optional[object] = None
+    speed_scaling: Optional[SpeedScaling] = None
+
+    def __post_init__(self) -> None:
+        """Scale motions at 1 within the derived acceleration limit unless told otherwise."""
+        if self.speed_scaling is None:
+            self.speed_scaling = SpeedScaling(len(self.derived.velocity_limits),
+                                              self.derived.config.law.a_max)
 
     @property
     def config(self) -> ControllerConfig:

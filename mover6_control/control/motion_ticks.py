@@ -1,7 +1,8 @@
 """
 The ticks of a motion in the controller, one per state: executing, settling, stopping.
 
-Executing follows the plan's reference with the closed loop (a tracking error above
+Executing follows the plan's reference (its time running at the speed scaling factor,
+``speed_scaling``) with the closed loop (a tracking error above
 ``path_tolerance`` stops the motion); settling holds the goal until every joint is inside the
 goal tolerance (result 'arrived'), then closes the last of the error down to the settle
 tolerance (behind a driver with a cycle, counting what is in flight: ``driver_compensation``);
@@ -42,7 +43,7 @@ class MotionTicks:
     def executing(self, now: float) -> Optional[np.ndarray]:
         """Follow the plan's reference; on to stopping (path error) or settling (its end)."""
         shared = self.core_state
-        t = self.robot.follow(now)
+        t = self.robot.follow(now, shared.speed_scaling)
         q_ref, qd_ref = self.robot.reference
         shared.waypoint = self.robot.plan.waypoints_reached(t)
         worst = float(np.max(np.abs(self.robot.error)))

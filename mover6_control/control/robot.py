@@ -12,7 +12,9 @@ last measured of them, the demand it was given and the reference it follows:
 - ``give(plan, now)`` hands it a demand: the ``MotionPlan`` of the selected velocity law
   (``planners.plan_motion``), which it then holds and follows; ``demand`` is the plan's
   goal and ``q_initial`` where the arm was when it was given;
-- ``follow(now)`` takes the plan's reference at ``now``; ``command(gain, velocity_limits)``
+- ``follow(now, scaling)`` takes the plan's reference at ``now``: the plan time advances by
+  the time since the last call times the speed scaling factor (``speed_scaling``; None: 1),
+  and the reference velocity is the plan's times that factor; ``command(gain, velocity_limits)``
   then gives this tick's command: that reference plus the closed-loop correction on the
   measured position (``commands.closed_loop_command``); ``hold(goal)`` follows a fixed goal
   instead.
@@ -34,6 +36,7 @@ from typing import Optional, Sequence, TYPE_CHECKING
 from mover6_control.control.commands import closed_loop_command
 from mover6_control.control.joint import Joint
 from mover6_control.control.motion_plan import MotionPlan
+from mover6_control.control.speed_scaling import SpeedScaling
 from mover6_control.errors import InvalidInputError
 from mover6_control.validation import as_positive
 import numpy as np
@@ -72,6 +75,8 @@ class Robot:
         self.conflict = None             # (until [s], why): the states are not to be trusted
         self.plan = None                 # the running MotionPlan (None: none)
         self.t_plan = 0.0                # [s] when it started
+        self.plan_time = 0.0             # [s] how far into the plan the reference is
+        self._t_follow = 0.0             # [s] when the plan time was last advanced
         self.reference = None            # (q_ref, qd_ref) followed at the last command
         self.commanded = np.zeros(len(joints))   # [rad/s] the last command
 
@@ -260,17 +265,30 @@ class Robot:
     def give(self, plan: MotionPlan, now: float) -> None:
         """Follow ``plan`` (a ``MotionPlan``) from ``now`` [s]; its goal becomes the demand."""
         self.plan, self.t_plan = plan, float(now)
+        self.plan_time, self._t_follow = 0.0, float(now)
         self._demand, self._q_initial = np.array(plan.q_goal, dtype=float), self._q.copy()
 
     def drop_plan(self) -> None:
         """Stop following any plan (the reference goes too)."""
         self.plan, self.reference = None, None
 
-    def follow(self, now: float) -> float:
-        """Take the plan's reference at ``now`` [s] as the one to follow; return the plan time."""
-        t = now - self.t_plan
-        self.reference = self.plan.sample(t)
-        return t
+    def follow(self, now: float, scaling: Optional[SpeedScaling] = None) -> float:
+        """
+        Take the plan's reference at ``now`` [s] as the one to follow; return the plan time.
+
+        The plan time advances by ``now`` minus the last call's time at ``scaling``'s factor
+        (``SpeedScaling.advance``); with None it is the time since the plan was given.
+        """
+        dt = max(now - self._t_follow, 0.0)
+        self._t_follow = max(self._t_follow, float(now))
+        if scaling is None:
+            self.plan_time = max(float(now) - self.t_plan, 0.0)
+            self.reference = self.plan.sample(self.plan_time)
+        else:
+            self.plan_time, q_ref, qd_ref = scaling.advance(self.plan_time, dt,
+                                                            self.plan.sample)
+            self.reference = (q_ref, qd_ref)
+        return self.plan_time
 
     def hold(self, goal: np.ndarray) -> None:
         """Follow a fixed ``goal`` (n,) [rad] at rest (after the plan's end)."""

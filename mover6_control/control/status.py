@@ -87,6 +87,8 @@ class StatusKey(StrEnum):
     GOAL_STAMP = 'goal_stamp'        # the planner's: the stamp of the goal it is about
     MAX_TICK_GAP = 'max_tick_gap'
     MAX_STATES_AGE = 'max_states_age'    # the controller's: oldest valid states a tick saw [s]
+    SPEED_SCALING = 'speed_scaling'      # the controller's: the factor motions run at now
+    SPEED_SCALING_INPUT = 'speed_scaling_input'  # the controller's: the factor asked for
 
 
 class PlannerState(StrEnum):

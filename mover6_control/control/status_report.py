@@ -63,6 +63,8 @@ class StatusReport:
             K.JOG_UNITS: config.jog_units,
             K.RATE: f'{config.rate:g}',
             K.GOAL_TOLERANCE: ' '.join(f'{t:.6f}' for t in self.robot.goal_tolerances),
+            K.SPEED_SCALING: f'{shared.speed_scaling.factor:.3f}',
+            K.SPEED_SCALING_INPUT: f'{shared.speed_scaling.target:.3f}',
         }
         if shared.pending is not None:
             pending = shared.pending.config
