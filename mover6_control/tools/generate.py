@@ -3,7 +3,8 @@ Write the files made from the package's tables: ``./run.sh generate``.
 
 ``python -m mover6_control.tools.generate ROOT`` writes ``config/<node>.yaml`` and
 ``docs/parameters.md`` (``mover6_control.parameter_files``, from ``mover6_control.parameters``)
-under the repository ``ROOT``; with ``--check`` it writes nothing and lists the files that
+and the arm's collision model ``mover6_control/collision/body_model.py`` (derived from the
+maker's meshes, ``tools.derive_collision``) under the repository ``ROOT``; with ``--check`` it writes nothing and lists the files that
 differ from what it would write (exit 1). The files are committed; a test checks them.
 """
 
@@ -12,27 +13,33 @@ import os
 import sys
 from typing import Optional
 
-from mover6_control.parameter_files import generated_files
+from mover6_control import parameter_files
+from mover6_control.tools import derive_collision
+
+
+def generated_files() -> dict:
+    """Return {path relative to the repository: text} of every generated file."""
+    return {**parameter_files.generated_files(), **derive_collision.generated_files()}
+
+
+def _text(root: str, path: str) -> Optional[str]:
+    try:
+        with open(os.path.join(root, path)) as f:
+            return f.read()
+    except FileNotFoundError:
+        return None
 
 
 def differing(root: str) -> list[str]:
     """Return the generated files under ``root`` whose text is not the generator's output."""
-    out = []
-    for path, text in generated_files().items():
-        try:
-            with open(os.path.join(root, path)) as f:
-                if f.read() == text:
-                    continue
-        except FileNotFoundError:
-            pass
-        out.append(path)
-    return out
+    return [path for path, text in generated_files().items() if _text(root, path) != text]
 
 
 def write(root: str) -> list[str]:
     """Write every generated file under ``root``; return the paths that changed."""
-    changed = differing(root)
-    for path, text in generated_files().items():
+    files = generated_files()
+    changed = [path for path, text in files.items() if _text(root, path) != text]
+    for path, text in files.items():
         if path in changed:
             with open(os.path.join(root, path), 'w') as f:
                 f.write(text)
