@@ -115,12 +115,13 @@ def check_frame(path: str, vertices: np.ndarray, origins: np.ndarray) -> None:
     lower, upper = vertices.min(axis=0), vertices.max(axis=0)
     extent = float(np.max(np.abs(np.concatenate([lower, upper]))))
     if extent > MAX_EXTENT:
-        raise MeshError(path, f'not in its link\'s frame: it reaches {extent:.3f} m from the '
+        raise MeshError(path, f"not in its link's frame: it reaches"
+                              f' {extent:.3f} m from the '
                               f'frame (more than {MAX_EXTENT} m; a mesh in millimetres?)')
     for p in origins:
         outside = float(np.linalg.norm(np.maximum(lower - p, 0.0) + np.maximum(p - upper, 0.0)))
         if outside > FRAME_TOLERANCE:
-            raise MeshError(path, f'not in its link\'s frame: the joint origin '
+            raise MeshError(path, f"not in its link's frame: the joint origin "
                                   f'{np.round(p, 4).tolist()} m is {outside * 1e3:.1f} mm '
                                   f'outside its bounds {np.round(lower, 4).tolist()} .. '
                                   f'{np.round(upper, 4).tolist()} m')
@@ -328,5 +329,5 @@ def check_carried(arm: ArmModel, body: int, path: str, points: np.ndarray, base:
                & (world[:, 2] <= z1 - margin))
     if not np.all(ok):
         worst = world[~ok][0]
-        raise MeshError(path, f'its part said to turn inside the base leaves the base\'s '
+        raise MeshError(path, f"its part said to turn inside the base leaves the base's "
                               f'cylinders (a point at {np.round(worst, 4).tolist()} m)')

@@ -6,11 +6,12 @@ only. ``never_meeting_pairs`` sweeps those two joints over a grid across the wid
 any limit set and takes the smallest distance between the two links' shapes (MuJoCo's
 ``mj_geomDistance``). Between grid points the distance can fall by at most the grid's half step
 times how far the later link's shapes reach from each joint's axis (a rotation by ``d`` moves a
-point ``r`` from the axis by at most ``r d``; ``_Pose.reach`` bounds ``r`` at every angle), so a pair whose smallest distance on the grid
-exceeds that bound (by ``KEEP``) cannot touch anywhere in the limits: it is left out, with the
-figure that shows it. Such a pair would otherwise sit permanently close (the elbow housing and
-the forearm's root, a few millimetres apart at every angle) and make the reported self
-clearance say nothing about the pairs that can meet.
+point ``r`` from the axis by at most ``r d``; ``_Pose.reach`` bounds ``r`` at every angle),
+so a pair whose smallest distance on the grid exceeds that bound (by ``KEEP``) cannot touch
+anywhere in the limits: it is left out, with the figure that shows it. Such a pair would
+otherwise sit permanently close (the elbow housing and the forearm's tube, a few millimetres
+apart at every angle) and make the reported self clearance say nothing about the pairs that
+can meet.
 
 Only link pairs are swept (the base is the world's and carries the table; the flange carries
 the tool, whose size is a parameter). ROS-free.
@@ -56,7 +57,7 @@ class _Pose:
                        for k in (i, i + 1)]
         self.qadr = [model.jnt_qposadr[j] for j in self.joints]
 
-    def set(self, a: float, b: float) -> None:
+    def put(self, a: float, b: float) -> None:
         self.data.qpos[:] = 0.0
         self.data.qpos[self.qadr[0]], self.data.qpos[self.qadr[1]] = a, b
         mujoco.mj_kinematics(self.model, self.data)
@@ -98,7 +99,7 @@ def _sweep(pose: _Pose, pairs: list, grids: list) -> np.ndarray:
     out = np.full(len(pairs), np.inf)
     for a in grids[0]:
         for b in grids[1]:
-            pose.set(a, b)
+            pose.put(a, b)
             for k, (g1, g2) in enumerate(pairs):
                 out[k] = min(out[k], pose.distance(g1, g2))
     return out
@@ -114,7 +115,7 @@ def sweep_pair(model: mujoco.MjModel, arm: ArmModel, i: int, lower: np.ndarray,
     """
     pose = _Pose(model, arm, i)
     pairs = [(g1, g2) for g1 in pose.geoms[i] for g2 in pose.geoms[i + 2]]
-    pose.set(0.0, 0.0)
+    pose.put(0.0, 0.0)
     reach = [pose.reach(g2) for _, g2 in pairs]
     limits = [(lower[k], upper[k]) for k in (i, i + 1)]
     grids = [_grid(lo, hi, h) for (lo, hi), h in zip(limits, COARSE)]

@@ -37,6 +37,7 @@ TABLE = 'table'
 BASE = 'base'
 TOOL = 'tool'
 
+
 @dataclass(frozen=True)
 class ToolVolume:
     """

@@ -4,8 +4,9 @@ Write the files made from the package's tables: ``./run.sh generate``.
 ``python -m mover6_control.tools.generate ROOT`` writes ``config/<node>.yaml`` and
 ``docs/parameters.md`` (``mover6_control.parameter_files``, from ``mover6_control.parameters``)
 and the arm's collision model ``mover6_control/collision/body_model.py`` (derived from the
-maker's meshes, ``tools.derive_collision``) under the repository ``ROOT``; with ``--check`` it writes nothing and lists the files that
-differ from what it would write (exit 1). The files are committed; a test checks them.
+maker's meshes, ``tools.derive_collision``) under the repository ``ROOT``; with ``--check``
+it writes nothing and lists the files that differ from what it would write (exit 1).
+The files are committed; a test checks them.
 """
 
 import argparse
