@@ -21,6 +21,7 @@ setup(
         (os.path.join('share', package_name, 'config'),
          [path for path in glob('config/*') if os.path.isfile(path)]),
         (os.path.join('share', package_name, 'config', 'moveit'), glob('config/moveit/*')),
+        (os.path.join('share', package_name, 'meshes'), glob('meshes/*')),
         (os.path.join('share', package_name, 'launch'), glob('launch/*.launch.py')),
         (os.path.join('share', package_name, 'scripts'), glob('scripts/*.sh')),
         (os.path.join('share', package_name, 'rviz'), glob('rviz/*.rviz')),

@@ -1,5 +1,5 @@
 """
-Where the package's data files (URDF, DH tables, parameter YAML) are, and its executables.
+Where the package's data files (URDF, meshes, DH tables, parameter YAML) are; its executables.
 
 In a source checkout that is ``<repo>/config``; in an installed package (colcon install, a ROS 2
 workspace) it is ``share/mover6_control/config``, found through the ament index.
@@ -44,6 +44,18 @@ def _find_config_dir():
 
 
 CONFIG_DIR = _find_config_dir()
+# The package's share folder (the repository in a source checkout): config/, meshes/ ...
+SHARE_DIR = os.path.dirname(CONFIG_DIR)
+# The maker's meshes of the arm's links (Joint0.stl = base_link .. Joint6.stl = link6).
+MESH_DIR = os.path.join(SHARE_DIR, 'meshes')
+PACKAGE_URL = 'package://mover6_control/'
+
+
+def package_file(url: str) -> str:
+    """Return the file of a ``package://mover6_control/...`` URL (a plain path as it is)."""
+    if url.startswith(PACKAGE_URL):
+        return os.path.join(SHARE_DIR, url[len(PACKAGE_URL):])
+    return url
 
 
 def executable_command(name: str) -> list[str]:

@@ -6,9 +6,10 @@ i is a hinge on the URDF axis with the URDF limits as its range, and a site name
 link sits at the arm's ``tool`` transform. MuJoCo's forward kinematics therefore equals the core's
 ``fk`` to rounding error.
 
-The geoms are the collision geometry of ``mover6_control.collision.geometry`` (link capsules,
-the tool on the flange, the table plane, the base and any keep-out boxes), the very shapes the
-collision checker uses: one model of the arm's volume, not two. What URDF does not say is added
+The geoms are the collision geometry of ``mover6_control.collision.geometry`` (the link shapes
+derived from the maker's meshes, the tool on the flange, the table plane, the base and any
+keep-out boxes), the very shapes the collision checker uses: one model of the arm's volume, not
+two. What URDF does not say is added
 here, with values that are assumptions, not vendor data: masses of ``linear_density`` [kg/m]
 times the link length plus ``joint_mass`` [kg] (about 3 kg for the Mover6, near the vendor's
 stated weight of a few kilograms), shared by the geoms of each body, a reflected rotor inertia
@@ -32,7 +33,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from mover6_control.collision.geometry import (body_shapes, build_geometry, CollisionGeometry,
-                                               geom_xml, mjcf_excludes, world_geoms_xml)
+                                               contact_xml, geom_xml, world_geoms_xml)
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
 import mujoco
@@ -154,9 +155,7 @@ def build_mjcf(arm: ArmModel, options: ModelOptions | None = None,
         indent = indent[:-2]
         lines.append(f'{indent}</body>')
     lines.append('  </worldbody>')
-    lines.append('  <contact>')
-    lines += ['    ' + e for e in mjcf_excludes(geometry, [f'{j}_link' for j in arm.joint_names])]
-    lines.append('  </contact>')
+    lines += contact_xml(geometry, [f'{j}_link' for j in arm.joint_names])
     lines.append('  <actuator>')
     for joint in arm.joint_names:
         lines.append(f'    <velocity name="{joint}" joint="{joint}" kv="{_num(opt.kv)}"/>')

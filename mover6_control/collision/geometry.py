@@ -1,31 +1,32 @@
 """
 The arm's collision geometry: one description for the checker and for the simulator.
 
-Every moving link is a capsule (a segment and a radius) in the frame of the joint that moves it;
-the base is a capsule in ``base_link``; a tool volume (a capsule or a box, default a small
-gripper) sits on the flange; the table is the plane z = 0 of ``base_link`` (the plane the arm
-stands on), kept ``table_margin`` away from; keep-out zones are axis-aligned boxes in
-``base_link``. ``mjcf_geoms`` writes these same shapes as MuJoCo geoms, which
-``sim_bridge.model`` puts into the simulation model: the simulator and the checker share one
-geometry.
+Every moving link is one or more shapes (a capsule or a flat-ended cylinder: a segment and a
+radius) in the frame of the joint that moves it; the base is shapes in ``base_link``; a tool
+volume (a capsule or a box, default a small gripper) sits on the flange; the table is the plane
+z = 0 of ``base_link`` (the plane the arm stands on), kept ``table_margin`` away from; keep-out
+zones are axis-aligned boxes in ``base_link``. ``geom_xml`` writes these same shapes as MuJoCo
+geoms, which ``sim_bridge.model`` puts into the simulation model: the simulator and the checker
+share one geometry.
 
-The Mover6's capsules follow its link lengths (the URDF: base 0.130 m, shoulder 0.0625 m, upper
-arm 0.190 m, elbow offset 0.060 m, forearm 0.290 m, wrist 0.055 m) and housing radii of 35 to
-60 mm, estimated from the vendor's photos (not vendor data). The capsules of neighbouring links
-overlap at their joint, as the housings do; the ends are trimmed so that links two or more apart
-are clear of each other at home and the elbow folds to the vendor's own limit of joint 3
-(1.31 rad, the hardware limit set) with 9 mm to spare: the vendor's limits are what the real arm
-does without hitting itself. Another arm gets capsules from each joint to the next, tapering
-from 40 to 20 mm.
+The Mover6's shapes are ``body_model.BODY_SHAPES``, derived from its maker's meshes
+(``body_fit``, ``tools.derive_collision``): every point of each link's mesh is at least
+``body_model.MARGIN`` inside its link's shapes, and housings are fitted along their own axes
+(the shoulder and elbow along the joint-2 and joint-3 axes, the upper arm's side plate beside
+the axis). Another arm gets capsules from each joint to the next, tapering from 40 to 20 mm.
 
 Self-collision counts between links two or more apart in the chain (base, link1, ..., link6
-with the tool); neighbours touch at their joint by construction and are never checked.
+with the tool); neighbours touch at their joint by construction and are never checked. The
+table and the keep-out boxes are checked against every link, link1 included: the base and link1
+(the world's geoms and its child's) are kept apart by MuJoCo's contact bits (``contact_bits``),
+not by excluding the world.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from mover6_control.collision import body_model
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
 from mover6_control.kinematics.rotations import matrices_to_quaternions
@@ -35,17 +36,6 @@ import numpy as np
 TABLE = 'table'
 BASE = 'base'
 TOOL = 'tool'
-
-# Mover6 capsules per body (1..6 after joint i; 0 = base): start, end [m] in the body frame and
-# radius [m]. Body 6 (the flange) carries only the tool.
-MOVER6_CAPSULES = {
-    0: ((0.0, 0.0, 0.0), (0.0, 0.0, 0.07), 0.06),
-    1: ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0625), 0.05),
-    2: ((0.0, 0.0, 0.0), (0.0, 0.0, 0.19), 0.04),
-    3: ((0.0, 0.0, 0.0), (-0.06, 0.0, 0.0), 0.04),
-    4: ((0.0, 0.0, 0.10), (0.0, 0.0, 0.25), 0.035),
-    5: ((0.0, 0.0, 0.0), (0.0, 0.0, 0.055), 0.035),
-}
 
 
 @dataclass(frozen=True)
@@ -81,6 +71,17 @@ class Capsule:
 
     name: str
     body: int            # 0: base_link; i: the frame of joint i (1-based)
+    p0: tuple
+    p1: tuple
+    radius: float
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """A flat-ended cylinder: the segment ``p0``-``p1`` [m] of ``body``'s frame, ``radius``."""
+
+    name: str
+    body: int
     p0: tuple
     p1: tuple
     radius: float
@@ -137,9 +138,11 @@ class CollisionGeometry:
     """
     Everything the checker and the simulator collide: link capsules, tool, table, keep-out.
 
-    ``capsules`` hold the base and the links (bodies 0..n), ``tool`` the tool (a ``Capsule``,
-    a ``Box`` or None, on body n), ``keep_out`` the zones, ``table_margin`` [m] the clearance
-    kept above the table. ``body_names`` name bodies 0..n (base, link1 ..).
+    ``capsules`` hold the shapes (``Capsule`` or ``Cylinder``) of the base and the links
+    (bodies 0..n), ``tool`` the tool (a ``Capsule``, a ``Box`` or None, on body n),
+    ``keep_out`` the zones, ``table_margin`` [m] the clearance kept above the table.
+    ``body_names`` name bodies 0..n (base, link1 ..). ``excluded`` are the (i, j) body pairs
+    left out of self-collision because they can never meet (``body_pairs``).
     """
 
     arm: ArmModel = field(repr=False)
@@ -148,6 +151,7 @@ class CollisionGeometry:
     table_margin: float
     keep_out: tuple
     body_names: tuple
+    excluded: tuple = ()
 
     @property
     def shapes(self) -> tuple:
@@ -155,10 +159,11 @@ class CollisionGeometry:
         return self.capsules + ((self.tool,) if self.tool is not None else ())
 
     def self_pairs(self) -> list:
-        """Return (i, j) shape indices of ``shapes`` two or more bodies apart."""
+        """Return (i, j) shape indices of ``shapes`` two or more bodies apart, not excluded."""
         shapes = self.shapes
         return [(i, j) for i in range(len(shapes)) for j in range(i + 1, len(shapes))
-                if abs(shapes[i].body - shapes[j].body) >= 2]
+                if abs(shapes[i].body - shapes[j].body) >= 2
+                and tuple(sorted((shapes[i].body, shapes[j].body))) not in self.excluded]
 
 
 def _link_name(arm, body):
@@ -178,13 +183,14 @@ def _default_capsules(arm):
 
 
 def build_geometry(arm: ArmModel, tool: ToolVolume | None = None, table_margin: float = 0.02,
-                   keep_out=()) -> CollisionGeometry:
+                   keep_out=(), body: tuple | None = None) -> CollisionGeometry:
     """
     Return the ``CollisionGeometry`` of ``arm`` with ``tool``, ``table_margin`` [m], keep-out.
 
     ``keep_out`` is a sequence of ``KeepOutBox`` or the flat list of ``keep_out_boxes``.
-    The Mover6 (``arm.name == 'mover6'``) gets ``MOVER6_CAPSULES``; another arm capsules from
-    each joint to the next.
+    The Mover6 (``arm.name == 'mover6'``) gets ``body_model.BODY_SHAPES`` (from its meshes) and
+    leaves out ``body_model.EXCLUDED_PAIRS``, or ``body`` (shape rows, excluded pairs) when
+    given (the derivation's own); another arm capsules from each joint to the next.
     """
     tool = ToolVolume() if tool is None else tool
     if not np.isfinite(table_margin) or table_margin < 0.0:
@@ -193,15 +199,19 @@ def build_geometry(arm: ArmModel, tool: ToolVolume | None = None, table_margin: 
         keep_out = keep_out_boxes(keep_out)
     n = arm.n_joints
     names = tuple(_link_name(arm, b) for b in range(n + 1))
+    excluded = ()
     if arm.name == 'mover6' and n == 6:
-        rows = [(b, *MOVER6_CAPSULES[b]) for b in sorted(MOVER6_CAPSULES) if b > 0]
-        base = MOVER6_CAPSULES[0]
+        rows, pairs = body or (body_model.BODY_SHAPES, body_model.EXCLUDED_PAIRS)
+        kinds = {'capsule': Capsule, 'cylinder': Cylinder}
+        capsules = [kinds[kind](name, b, tuple(p0), tuple(p1), float(r))
+                    for name, b, kind, p0, p1, r in rows]
+        excluded = tuple(tuple(sorted(p[:2])) for p in pairs)
     else:
         rows = _default_capsules(arm)
         top = max(float(arm.origins[0][2, 3]), 0.02)
-        base = ((0.0, 0.0, 0.0), (0.0, 0.0, max(top - 0.05, 0.0)), 0.05)
-    capsules = [Capsule(BASE, 0, base[0], base[1], base[2])]
-    capsules += [Capsule(names[b], b, tuple(p0), tuple(p1), float(r)) for b, p0, p1, r in rows]
+        capsules = [Capsule(BASE, 0, (0.0, 0.0, 0.0), (0.0, 0.0, max(top - 0.05, 0.0)), 0.05)]
+        capsules += [Capsule(names[b], b, tuple(p0), tuple(p1), float(r))
+                     for b, p0, p1, r in rows]
     T = np.asarray(arm.tool, dtype=float)
     name = f'{names[n]} {TOOL}'
     width, depth, length = tool.size
@@ -218,7 +228,7 @@ def build_geometry(arm: ArmModel, tool: ToolVolume | None = None, table_margin: 
         tool_shape = None
     return CollisionGeometry(arm=arm, capsules=tuple(capsules), tool=tool_shape,
                              table_margin=float(table_margin), keep_out=tuple(keep_out),
-                             body_names=names)
+                             body_names=names, excluded=excluded)
 
 
 # --- MuJoCo -----------------------------------------------------------------------------------
@@ -237,34 +247,55 @@ def _quat(R):
     return np.array([w, x, y, z])
 
 
-COLLIDES = 'contype="1" conaffinity="1"'
+COLLIDES = 'contype="1" conaffinity="1"'     # the table and the keep-out boxes
+
+
+def contact_bits(body: int) -> str:
+    """
+    Return the MJCF contact bits of a shape on ``body`` (0: the base).
+
+    Two geoms collide when one's contype shares a bit with the other's conaffinity. The base
+    (2, 2) and link1 (1, 1) share none, so they never collide (they touch at joint 1 by
+    construction); every other link (1, 3) collides with both, and every link with the table
+    and the keep-out boxes (1, 1). MuJoCo itself skips a body against its parent (the other
+    neighbours) and the world's geoms against each other.
+    """
+    if body == 0:
+        return 'contype="2" conaffinity="2"'
+    if body == 1:
+        return 'contype="1" conaffinity="1"'
+    return 'contype="1" conaffinity="3"'
 
 
 def geom_xml(shape, attributes: str = '') -> str:
     """
-    Return the MJCF ``<geom>`` of a ``Capsule`` or ``Box`` in its body's frame.
+    Return the MJCF ``<geom>`` of a ``Capsule``, ``Cylinder`` or ``Box`` in its body's frame.
 
-    ``attributes`` is added as it is (mass, colour ...). Geoms collide (contype and conaffinity
-    1) with every geom but their neighbours' (``mjcf_excludes``).
+    ``attributes`` is added as it is (mass, colour ...). Geoms collide with every geom but
+    their neighbours' (``contact_bits``).
     """
     name = shape.name.replace(' ', '_')
-    extra = f' {attributes}' if attributes else ''
+    bits = contact_bits(shape.body) + (f' {attributes}' if attributes else '')
+    if isinstance(shape, Cylinder):
+        return (f'<geom name="{name}" type="cylinder" fromto="{_vec(shape.p0)} '
+                f'{_vec(shape.p1)}" size="{_num(shape.radius)}" {bits}/>')
     if isinstance(shape, Capsule):
         p0, p1 = np.asarray(shape.p0), np.asarray(shape.p1)
         if np.linalg.norm(p1 - p0) < 1e-9:
             return (f'<geom name="{name}" type="sphere" pos="{_vec(p0)}" '
-                    f'size="{_num(shape.radius)}" {COLLIDES}{extra}/>')
+                    f'size="{_num(shape.radius)}" {bits}/>')
         return (f'<geom name="{name}" type="capsule" fromto="{_vec(p0)} {_vec(p1)}" '
-                f'size="{_num(shape.radius)}" {COLLIDES}{extra}/>')
+                f'size="{_num(shape.radius)}" {bits}/>')
     return (f'<geom name="{name}" type="box" pos="{_vec(shape.center)}" '
-            f'quat="{_vec(_quat(shape.rotation))}" size="{_vec(shape.half)}" {COLLIDES}{extra}/>')
+            f'quat="{_vec(_quat(shape.rotation))}" size="{_vec(shape.half)}" {bits}/>')
 
 
 def world_geoms_xml(geometry: CollisionGeometry, table_size: float = 1.0) -> list:
     """Return the MJCF geoms fixed to the world: table plane, base, keep-out boxes."""
     lines = [f'<geom name="{TABLE}" type="plane" size="{_num(table_size)} {_num(table_size)} '
-             f'0.01" rgba="0.85 0.85 0.82 1" {COLLIDES}/>',
-             geom_xml(geometry.capsules[0], 'rgba="0.3 0.3 0.3 1" mass="1"')]
+             f'0.01" rgba="0.85 0.85 0.82 1" {COLLIDES}/>']
+    lines += [geom_xml(s, 'rgba="0.3 0.3 0.3 1" mass="1"') for s in geometry.capsules
+              if s.body == 0]
     for box in geometry.keep_out:
         lower, upper = np.asarray(box.lower), np.asarray(box.upper)
         lines.append(f'<geom name="{box.name.replace(" ", "_")}" type="box" '
@@ -273,19 +304,27 @@ def world_geoms_xml(geometry: CollisionGeometry, table_size: float = 1.0) -> lis
     return lines
 
 
+def mjcf_excludes(geometry: CollisionGeometry, body_names) -> list:
+    """
+    Return the MJCF ``<exclude>`` lines of the pairs that can never meet (``excluded``).
+
+    ``body_names`` are the MJCF names of bodies 1..n. The world is never excluded: the table
+    and the keep-out boxes are checked against every link (``contact_bits`` keeps the base and
+    link1 apart).
+    """
+    return [f'<exclude body1="{body_names[i - 1]}" body2="{body_names[j - 1]}"/>'
+            for i, j in geometry.excluded if i > 0]
+
+
+def contact_xml(geometry: CollisionGeometry, body_names) -> list:
+    """Return the MJCF ``<contact>`` section of ``mjcf_excludes`` (none when it is empty)."""
+    excludes = mjcf_excludes(geometry, body_names)
+    return ['  <contact>'] + ['    ' + e for e in excludes] + ['  </contact>'] if excludes else []
+
+
 def body_shapes(geometry: CollisionGeometry, body: int) -> list:
     """Return the shapes (link capsules and tool) on ``body`` (1..n)."""
     return [s for s in geometry.shapes if s.body == body]
-
-
-def mjcf_excludes(geometry: CollisionGeometry, body_names) -> list:
-    """
-    Return the MJCF ``<exclude>`` lines that keep neighbours apart.
-
-    ``body_names`` are the MJCF names of bodies 1..n. MuJoCo already skips parent and child
-    bodies, but not the world and its child; the base belongs to the world.
-    """
-    return [f'<exclude body1="world" body2="{body_names[0]}"/>']
 
 
 def collision_mjcf(geometry: CollisionGeometry) -> str:
@@ -317,8 +356,6 @@ def collision_mjcf(geometry: CollisionGeometry) -> str:
         indent = indent[:-2]
         lines.append(f'{indent}</body>')
     lines.append('  </worldbody>')
-    lines.append('  <contact>')
-    lines += ['    ' + e for e in mjcf_excludes(geometry, bodies)]
-    lines.append('  </contact>')
+    lines += contact_xml(geometry, bodies)
     lines.append('</mujoco>')
     return '\n'.join(lines) + '\n'

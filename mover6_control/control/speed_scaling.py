@@ -102,8 +102,8 @@ class SpeedScaling:
             # Secant between the factor kept (lam 0) and the trial: the largest lam within.
             a, c = base[2] - v_old, (trial[2] - base[2]) / lam
             with np.errstate(divide='ignore', invalid='ignore'):
-                room = np.where(c > 0.0, (bound - a) / c, np.where(c < 0.0, (-bound - a) / c,
-                                                                  np.inf))
+                below = np.where(c < 0.0, (-bound - a) / c, np.inf)
+                room = np.where(c > 0.0, (bound - a) / c, below)
             lam = min(lam, float(np.min(room))) * (1.0 - 1e-9)
             if lam <= 0.0:
                 break

@@ -3,9 +3,11 @@ Write the files made from the package's tables: ``./run.sh generate``.
 
 ``python -m mover6_control.tools.generate ROOT`` writes ``config/<node>.yaml`` and
 ``docs/parameters.md`` (``mover6_control.parameter_files``, from ``mover6_control.parameters``)
-and the generated MoveIt files ``config/moveit/`` (``mover6_control.tools.moveit_config``) under
-the repository ``ROOT``; with ``--check`` it writes nothing and lists the files that
-differ from what it would write (exit 1). The files are committed; a test checks them.
+and the generated MoveIt files ``config/moveit/`` (``mover6_control.tools.moveit_config``) and
+the arm's collision model ``mover6_control/collision/body_model.py`` (derived from the maker's
+meshes, ``tools.derive_collision``) under the repository ``ROOT``; with ``--check`` it writes
+nothing and lists the files that differ from what it would write (exit 1). The files are
+committed; a test checks them.
 """
 
 import argparse
@@ -14,12 +16,13 @@ import sys
 from typing import Optional
 
 from mover6_control import parameter_files
-from mover6_control.tools import moveit_config
+from mover6_control.tools import derive_collision, moveit_config
 
 
 def generated_files() -> dict[str, str]:
     """Return {path under the repository: text} of every generated file."""
     files = dict(parameter_files.generated_files())
+    files.update(derive_collision.generated_files())
     files.update({f'config/moveit/{name}': text
                   for name, text in moveit_config.generated_files().items()})
     return files

@@ -41,7 +41,7 @@ import os
 import xml.etree.ElementTree as ET
 
 from mover6_control.collision.checker import CollisionChecker
-from mover6_control.collision.geometry import Box, Capsule, TABLE
+from mover6_control.collision.geometry import Box, Capsule, Cylinder, TABLE
 from mover6_control.control.timed_plan import START_TOLERANCE
 from mover6_control.hardware.scaling import load_joints
 from mover6_control.kinematics.arm import ArmModel, LIMIT_SETS, mover6
@@ -205,15 +205,19 @@ def _collision(xyz: tuple, rpy: tuple, geometry: str) -> ET.Element:
 
 
 def shape_collisions(shape: object) -> list:
-    """Return the URDF ``<collision>`` elements of a checker ``Capsule`` or ``Box``."""
+    """Return the URDF ``<collision>`` elements of a checker ``Capsule``, ``Cylinder``, ``Box``."""
     if isinstance(shape, Box):
         return [_collision(shape.center, _rpy(np.array(shape.rotation)),
                            f'<box size="{" ".join(_num(2.0 * h) for h in shape.half)}"/>')]
-    assert isinstance(shape, Capsule)
+    assert isinstance(shape, (Capsule, Cylinder))
     p0, p1, r = np.array(shape.p0), np.array(shape.p1), shape.radius
     sphere = f'<sphere radius="{_num(r)}"/>'
     d = p1 - p0
     length = float(np.linalg.norm(d))
+    if isinstance(shape, Cylinder):
+        rpy = (0.0, math.atan2(math.hypot(d[0], d[1]), d[2]), math.atan2(d[1], d[0]))
+        return [_collision((p0 + p1) / 2.0, rpy, f'<cylinder radius="{_num(r)}" '
+                                                 f'length="{_num(length)}"/>')]
     if length < 1e-9:
         return [_collision(p0, (0.0, 0.0, 0.0), sphere)]
     rpy = (0.0, math.atan2(math.hypot(d[0], d[1]), d[2]), math.atan2(d[1], d[0]))
