@@ -58,7 +58,7 @@ for module, classes in names.items():
     for name in classes:
         setattr(sys.modules[module], name, type(name, (Recorded,), {}))
 sys.modules['launch.substitutions'].LaunchConfiguration = LaunchConfiguration
-'''
+"""
 
 # Run in a fresh interpreter: load the launch file, build its description, evaluate its start
 # without MoveIt and with config/moveit/ made empty, print what it said and what was imported.
@@ -81,7 +81,7 @@ else:
     context.launch_configurations.update({'namespace': '', 'use_sim_time': 'false'})
     said = [perform_substitutions(context, action.msg) for action in module.start(context)]
 print(json.dumps({'said': said, 'modules': sorted(m.split('.')[0] for m in sys.modules)}))
-'''
+"""
 
 
 def imported_modules(path):
