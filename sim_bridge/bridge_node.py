@@ -3,18 +3,17 @@ The sim_bridge node: the MuJoCo arm on ROS 2, standing in for the Mover6 and its
 
 Subscribes /JointJog (control_msgs/JointJog: ``velocities`` by joint name; ``displacements``,
 ``duration`` and the stamp are ignored, as the vendor driver ignores them) and ~/reset_to
-(sensor_msgs/JointState: reset to the named ``position`` values, unnamed joints to
-``initial_q``). Publishes /joint_states (names joint1..joint6 and the URDF's joints outside the
-arm's chain, the gripper, which the simulated arm has not fitted: at 0, closed; position,
-velocity, effort, stamped) at ``publish_rate``, at ``rest_publish_rate`` while the arm rests
-(no command moves it and every joint is still, as the real arm's driver publishes at 10 to 20 Hz;
-the first step of a command that moves it publishes at ``publish_rate`` again), and, with ``publish_clock``, /clock
-after every physics step. ~/status (diagnostic_msgs/DiagnosticStatus, transient local), once a
-second: sim time, the real-time factor measured since the last report, the /joint_states rate
-in force, whether the arm rests, pacing overruns and rejected /JointJog messages. Services: ~/reset
-(std_srvs/Trigger, to ``initial_q``), ~/pause (std_srvs/SetBool), ~/step (std_srvs/Trigger:
-one control period while paused: one /joint_states period, or one 50 ms driver cycle in
-vendor mode).
+(sensor_msgs/JointState: reset to the named ``position`` values, unnamed joints to ``initial_q``).
+Publishes /joint_states (names joint1..joint6 and the URDF's joints outside the arm's chain, the
+gripper, which the simulated arm has not fitted: at 0, closed; position, velocity, effort, stamped)
+at ``publish_rate``, at ``rest_publish_rate`` while the arm rests (no command moves it and every
+joint is still, as the real arm's driver publishes at 10 to 20 Hz; the first step of a command that
+moves it publishes at ``publish_rate`` again), and, with ``publish_clock``, /clock after every
+physics step. ~/status (diagnostic_msgs/DiagnosticStatus, transient local), once a second: sim
+time, the real-time factor measured since the last report, the /joint_states rate in force, whether
+the arm rests, pacing overruns and rejected /JointJog messages. Services: ~/reset
+(std_srvs/Trigger, to ``initial_q``), ~/pause (std_srvs/SetBool), ~/step (std_srvs/Trigger: one
+control period while paused: one /joint_states period, or one 50 ms driver cycle in vendor mode).
 
 Contacts: ~/contacts (diagnostic_msgs/DiagnosticStatus, transient local) reports what the
 simulator's collision detection found on the arm's collision geometry (the checker's shapes):

@@ -11,7 +11,7 @@ share one geometry.
 
 The Mover6's shapes are ``body_model.BODY_SHAPES``, derived from its maker's meshes
 (``body_fit``, ``tools.derive_collision``): every point of each link's mesh is at least
-``body_model.MARGIN`` inside its link's shapes, and housings are fitted along their own axes
+``body_fit.MARGIN`` inside its link's shapes, and housings are fitted along their own axes
 (the shoulder and elbow along the joint-2 and joint-3 axes, the upper arm's side plate beside
 the axis). Another arm gets capsules from each joint to the next, tapering from 40 to 20 mm.
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import os
 
+from mover6_control.hardware.protocol import INPUT_CHANNELS
 from mover6_control.kinematics.arm import ArmModel
 from mover6_control.kinematics.forward import fk
 from mover6_control.programs.limits import CartesianLimits
@@ -50,11 +51,10 @@ STEP_KEYS = {'ptp': ('ptp', 'blend'),
              'wait': ('wait',),
              'repeat': ('repeat', 'steps')}
 # The kind keys, in the order a step is recognised by ('speed' last: it is also a lin's key).
-KINDS = ('ptp', 'lin', 'circ', 'gripper', 'wait', 'repeat', 'speed')
+STEP_KINDS = ('ptp', 'lin', 'circ', 'gripper', 'wait', 'repeat', 'speed')
 WAIT_KEYS = ('input', 'state', 'timeout')
 MAX_REPEAT = 1000
 MAX_WAIT = 3600.0       # [s]
-INPUT_CHANNELS = 3      # the Mover6's digital inputs (joint 1's module)
 
 
 @dataclass(frozen=True)
@@ -152,10 +152,10 @@ def _step(ctx, marked):
         _fail(ctx, marked.line, f'a step is a mapping such as "- lin: pick", got '
               f'{marked.plain()!r}', 'syntax')
     entries = marked.value
-    kind = next((k for k in KINDS if k in entries), None)
+    kind = next((k for k in STEP_KINDS if k in entries), None)
     if kind is None:
         key = next(iter(entries))
-        _fail(ctx, entries[key].line, f'unknown step "{key}" (steps: {", ".join(KINDS)})',
+        _fail(ctx, entries[key].line, f'unknown step "{key}" (steps: {", ".join(STEP_KINDS)})',
               'unknown_key')
     for key, value in entries.items():
         if key not in STEP_KEYS[kind]:
@@ -197,11 +197,11 @@ def _wait(ctx, value, line):
                   f'{", ".join(WAIT_KEYS)})', 'unknown_key')
     if 'input' not in value.value:
         _fail(ctx, value.line, 'a wait for an input needs "input" (a channel 1-'
-              f'{INPUT_CHANNELS})', 'missing')
+              f'{len(INPUT_CHANNELS)})', 'missing')
     channel = value.value['input']
     if (isinstance(channel.value, bool) or not isinstance(channel.value, int)
-            or not 1 <= channel.value <= INPUT_CHANNELS):
-        _fail(ctx, channel.line, f'input is a channel 1-{INPUT_CHANNELS}, got '
+            or not 1 <= channel.value <= len(INPUT_CHANNELS)):
+        _fail(ctx, channel.line, f'input is a channel 1-{len(INPUT_CHANNELS)}, got '
               f'{channel.plain()!r}')
     state = value.value.get('state', Marked('high', value.line))
     if state.value not in INPUT_STATES:

@@ -41,7 +41,7 @@ MAY_IMPORT = {
     'motion': {'base', 'kinematics'},
     'control': {'base', 'kinematics', 'motion', 'collision'},
     'planning': {'base', 'kinematics', 'motion', 'collision'},
-    'programs': {'base', 'kinematics', 'motion', 'collision', 'planning'},
+    'programs': {'base', 'kinematics', 'motion', 'collision', 'planning', 'hardware'},
     'hardware': {'base'},
     'sim': {'base', 'kinematics', 'collision', 'hardware'},
     'nodes': {'base', 'kinematics', 'motion', 'control', 'planning', 'collision', 'hardware',

@@ -43,13 +43,15 @@ DEMAND_ATTEMPTS = 3
 # [s] a demand whose plan took longer than this is never planned again under the lock (the
 # ticks would wait for it): refused with the reason instead when the controller moved on again.
 LOCKED_PLAN_LIMIT = 0.02
-# Longest wait [s] of a demand that comes before the first joint states (the planner can be
-# quicker at start-up), or in a fault that fresh states clear (a stall at start-up: Fast DDS
-# discovery can hold a process for 0.33 s); then it is refused with the reason. Less than the
-# planner, which waits for the answer (``demand_answers``) without a time limit.
-DEMAND_STATE_WAIT = 2.0
+# Longest wait [s] of a demand for valid joint states, by the state it came in; then it is
+# refused with the reason. Before the first joint states (the planner can be quicker at
+# start-up, and Fast DDS discovery of the arm's publisher takes seconds on a loaded machine) it
+# waits longer than in a fault that fresh states clear (a stall: Fast DDS discovery can hold a
+# process for 0.33 s). Both are less than the planner, which waits for the answer
+# (``demand_answers``) without a time limit.
+DEMAND_STATE_WAIT = {WAITING_FOR_STATES: 10.0, FAULT: 2.0}
 # States in which a demand waits (DEMAND_STATE_WAIT) for valid joint states.
-WAIT_FOR_STATES = (WAITING_FOR_STATES, FAULT)
+WAIT_FOR_STATES = tuple(DEMAND_STATE_WAIT)
 # Rounds of one demand's taking at most: DEMAND_ATTEMPTS plans, and waits for the state.
 DEMAND_ROUNDS = DEMAND_ATTEMPTS + 3
 # A demand of this many waypoints or more is planned in the planning process (plan_worker):
@@ -239,9 +241,9 @@ class DemandThread:
         wait (None when there was none to wait for).
         """
         with self.lock:
-            waiting = self.core.state in WAIT_FOR_STATES
-        if waiting:                          # no valid states yet: wait a moment
-            until = time.monotonic() + DEMAND_STATE_WAIT if until is None else until
+            state = self.core.state
+        if state in WAIT_FOR_STATES:         # no valid states yet: wait a moment
+            until = time.monotonic() + DEMAND_STATE_WAIT[state] if until is None else until
             self.has_states.wait(max(0.0, until - time.monotonic()))
         return until
 
@@ -260,7 +262,8 @@ class DemandThread:
         if refusal is None:
             return until
         if refusal.state in WAIT_FOR_STATES:
-            until = time.monotonic() + DEMAND_STATE_WAIT if until is None else until
+            until = (time.monotonic() + DEMAND_STATE_WAIT[refusal.state] if until is None
+                     else until)
             if time.monotonic() < until:
                 return until
         raise refusal

@@ -42,4 +42,4 @@ def test_the_page_has_a_row_for_every_parameter():
     page = markdown_text()
     for node, table in NODES.items():
         section = re.search(rf'^## {node}\n(.*?)(?=^## |\Z)', page, re.M | re.S).group(1)
-        assert re.findall(r'^\| `(\w+)` \|', section, re.M) == list(table), node
+        assert re.findall(r'^\| `([\w.]+)` \|', section, re.M) == list(table), node

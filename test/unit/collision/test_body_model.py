@@ -7,7 +7,7 @@ configurations are a seeded uniform sample within the arm's limits.
 
 import os
 
-from mover6_control.collision import body_fit, body_model
+from mover6_control.collision import body_fit
 from mover6_control.collision.checker import CollisionChecker, CollisionSettings
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk_frames
@@ -44,7 +44,7 @@ def test_every_mesh_vertex_is_inside_the_model_at_random_configurations():
     """At every sampled configuration each vertex is MARGIN inside the shapes (less 1 um)."""
     rng = np.random.default_rng(41)
     worst = max(outside_model(q) for q in rng.uniform(ARM.lower, ARM.upper, (200, 6)))
-    assert worst <= -body_model.MARGIN + 1e-6, worst
+    assert worst <= -body_fit.MARGIN + 1e-6, worst
 
 
 def test_a_keep_out_box_touching_any_real_housing_is_refused():

@@ -194,8 +194,8 @@ def test_robot_state_publisher_stands_in_where_installed(launch_module, monkeypa
 def test_launch_sh_starts_the_stacks_shell_lines():
     """launch.sh evaluates the stack's values and start lines; it defines what they call."""
     script = read(LAUNCH_SH)
-    assert 'python3 -m mover6_control.stack shell -- "$@"' in script
-    assert 'eval "$stack"' in script and '\nstart_stack\n' in script
+    assert 'setup=$(python3 -m mover6_control.tools.launch_shell -- "$@")' in script
+    assert 'eval "$setup"' in script and '\nstart_stack\n' in script
     for function in ('start()', 'start_can_sim()', 'start_command()'):
         assert function in script
     assert 'exec python3 -m mover6_control.stack help' in script

@@ -131,7 +131,7 @@ def test_an_unreachable_step_refuses_the_whole_program_with_its_line(tmp_path):
 
 
 def test_a_step_into_the_table_is_refused_for_its_collision(tmp_path):
-    low = dict(POINTS, pick=[0.4, 0.45, 0.6, 0.0, 0.5, 0.0])     # the tool into the table margin
+    low = dict(POINTS, pick=[0.4, 0.6, 0.7, 0.0, 0.6, 0.0])     # the tool 63 mm into the table
     path = write_program(tmp_path, 'steps:\n  - ptp: above_pick\n  - lin: pick\n', points=low)
     with pytest.raises(ProgramError) as info:
         plan_program(ARM, load_program(ARM, path), HOME)

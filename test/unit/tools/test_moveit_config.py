@@ -5,9 +5,10 @@ MoveIt is not installed here, so ``move_group`` never reads these files in this 
 checked without it is: the SRDF and the URDFs parse with the expected structure; every group,
 chain, joint and link they name resolves in the URDF; the limits agree with the parameter table,
 the driver's joint file and the kinematic model; the controller and its action resolve to the
-controller node's server (under a namespace too: ``test/e2e/test_moveit_goals.py`` sends goals to it there). That the generated
-files are the generator's output is test/lint/test_generated_files.py's check; what the launch
-file passes, test/unit/launch/test_moveit_launch.py's.
+controller node's server (under a namespace too: ``test/e2e/test_moveit_goals.py`` sends goals to
+it there). That the generated files are the generator's output is
+test/lint/test_generated_files.py's check; what the launch file passes,
+test/unit/launch/test_moveit_launch.py's.
 """
 
 import math
