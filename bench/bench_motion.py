@@ -223,7 +223,7 @@ def bench_report_linear(arm):
     q_home = np.zeros(arm.n_joints)
     T_home = fk(arm, q_home)
     T_goal = goal_relative_to_start(T_home, 0.445, 0.0, 0.4425, 0.0, 0.0, 0.0)
-    poses = paths.linear_path(T_home, T_goal, n=20)
+    poses = paths.linear_curve(T_home, T_goal, n=20).poses
     Q, ik_used = _solve_path(arm, poses, q_home)
     line = paths.positions_of(poses)[[0, -1]]
     v = arm.velocity_limits

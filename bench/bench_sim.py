@@ -159,7 +159,7 @@ def jog_latency(duration):
                 k += 1
                 next_send += 0.01
             executor.spin_once(timeout_sec=0.002)
-        return np.array(node.latencies)
+        return np.array(node.physics.latencies)
     finally:
         executor.shutdown()
         node.destroy_node()

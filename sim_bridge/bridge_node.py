@@ -39,7 +39,6 @@ callbacks take the requests apart and call them.
 """
 
 import os
-import threading
 import time
 from typing import Any, Callable, Optional
 import xml.etree.ElementTree as ET
@@ -225,42 +224,6 @@ class SimBridgeNode(Node):
                              cdr.JointStateWriter(names), self.get_clock(),
                              sim_stamps=self.pacing.publish_clock,
                              unfitted=tuple(self.unfitted.values()))
-
-    # What tests and benchmarks read of the parts.
-    @property
-    def dt(self) -> float:
-        """Return the physics step [s]."""
-        return self.pacing.dt
-
-    @property
-    def failure(self) -> Optional[str]:
-        """Return why the physics thread stopped (None while it runs)."""
-        return self.physics.failure
-
-    @property
-    def latencies(self) -> list:
-        """Return the latest /JointJog latencies [s] (arrival to the end of its first step)."""
-        return self.physics.latencies
-
-    @property
-    def thread(self) -> threading.Thread:
-        """Return the physics thread."""
-        return self.physics.thread
-
-    @property
-    def viewer(self) -> Optional[Any]:
-        """Return the physics thread's MuJoCo viewer, or None when headless."""
-        return self.physics.viewer
-
-    @property
-    def rejected(self) -> int:
-        """Return how many /JointJog messages were refused."""
-        return self.rejections.count
-
-    @property
-    def last_rejection(self) -> str:
-        """Return why the last refused /JointJog was refused."""
-        return self.rejections.last
 
     def on_parameters_set(self, parameters: list[Parameter]) -> None:
         """

@@ -305,11 +305,6 @@ class Simulator:
         self.command_count += 1
         return True
 
-    def halt(self) -> None:
-        """Drop the command: zero velocity (also the held command in vendor mode)."""
-        self._set_held(np.zeros(self.arm.n_joints))
-        self._cmd_time = None
-
     def _set_held(self, cmd):
         """Hold ``cmd`` (n,) and what each step needs of it: its reach over the limit guard."""
         self._cmd = cmd

@@ -100,28 +100,6 @@ class ArmModel:
                 f'unknown joint "{name}" for {self.name}; joints are {list(self.joint_names)}'
             ) from None
 
-    def q_from_names(self, names: Sequence[str], values: Sequence[float],
-                     name: str = 'q') -> np.ndarray:
-        """
-        Return ``q`` (n,) in model order from joint ``names`` and their ``values``.
-
-        Every joint must appear exactly once; extra names (other joints on the same message)
-        are an error too, so that a typo cannot pass silently.
-        """
-        names = list(names)
-        values = np.asarray(values, dtype=float).reshape(-1)
-        if len(names) != len(values):
-            raise InvalidInputError(f'{len(names)} joint names but {len(values)} values')
-        if len(set(names)) != len(names):
-            raise InvalidInputError(f'joint names repeat: {names}')
-        q = np.empty(self.n_joints)
-        for joint, value in zip(names, values):
-            q[self.joint_index(joint)] = value
-        missing = [j for j in self.joint_names if j not in names]
-        if missing:
-            raise InvalidInputError(f'{name} lacks joints {missing}')
-        return self.check_q(q, name)
-
     def within_limits(self, q: np.ndarray, tol: float = 1e-9) -> bool:
         """Return True when every joint of ``q`` is inside its limits (with ``tol`` [rad])."""
         q = np.asarray(q, dtype=float)

@@ -89,13 +89,6 @@ class PathSolution:
         return float(self.joint_step.max())
 
     @property
-    def max_moving_step(self) -> float:
-        """Return the largest joint change on steps that move the tool [rad]."""
-        moving = self.joint_step if self.self_motion is None else np.where(
-            self.self_motion, 0.0, self.joint_step)
-        return float(moving.max())
-
-    @property
     def max_condition(self) -> float:
         """Return the largest Jacobian condition number along the path."""
         return float(self.condition.max())

@@ -198,14 +198,6 @@ class BlendedPath:
                     out[k][part] = powers @ poly / scale ** k
         return tuple(out[k] for k in orders)
 
-    def turn(self, i: int) -> float:
-        """Return how far the tangent turns along segment ``i`` [rad] (0 on a line)."""
-        if self.kinds[i] == 'line':
-            return 0.0
-        if self.kinds[i] == 'quintic':
-            return self.params[i][2]
-        return float((self.starts[i + 1] - self.starts[i]) / self.params[i][1])
-
     def arc_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """
         Return every segment's arc vectors ``x``, ``y`` (k, n) and radius (k,) [rad].

@@ -10,8 +10,8 @@ Shapes: linear (the Mover6 report eq. 3-10), parabolic through a lifted mid-poin
 report eq. 11-15), cubic spline through any number of via poses (the Mover6 report section 2.3.2),
 circular arc through a via point.
 
-Each ``*_path`` builder has a ``*_curve`` twin returning a ``PosePath``: the same poses, their
-curve parameters, and the curve itself (``pose_at``), so a solver can look between two samples
+Each ``*_curve`` builder returns a ``PosePath``: the poses (``poses``), their curve parameters,
+and the curve itself (``pose_at``), so a solver can look between two samples
 (``PosePath.between``) when a joint step there is too large.
 """
 
@@ -105,7 +105,12 @@ def _sampled(pose_at, params, T_start, T_goal):
 def linear_curve(T_start: np.ndarray, T_goal: np.ndarray, n: Optional[int] = None,
                  max_step: Optional[float] = None,
                  max_angle_step: Optional[float] = None) -> PosePath:
-    """Return the ``PosePath`` of ``linear_path`` (parameter ``t`` in [0, 1])."""
+    """
+    Return the ``PosePath`` on the straight line from ``T_start`` to ``T_goal``.
+
+    Position ``p(t) = (1 - t) p_start + t p_goal`` (the Mover6 report eq. 4) and SLERPed
+    orientation, ``t`` evenly spaced in [0, 1].
+    """
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
     length, angle = _check_distinct(T_start, T_goal, 'start and goal poses')
@@ -117,18 +122,6 @@ def linear_curve(T_start: np.ndarray, T_goal: np.ndarray, n: Optional[int] = Non
         return _poses(pos, slerp([0.0, 1.0], [T_start[:3, :3], T_goal[:3, :3]], t))
 
     return _sampled(pose_at, np.linspace(0.0, 1.0, count), T_start, T_goal)
-
-
-def linear_path(T_start: np.ndarray, T_goal: np.ndarray, n: Optional[int] = None,
-                max_step: Optional[float] = None,
-                max_angle_step: Optional[float] = None) -> np.ndarray:
-    """
-    Return poses (n, 4, 4) on the straight line from ``T_start`` to ``T_goal``.
-
-    Position ``p(t) = (1 - t) p_start + t p_goal`` (the Mover6 report eq. 4) and SLERPed
-    orientation, ``t`` evenly spaced in [0, 1].
-    """
-    return linear_curve(T_start, T_goal, n, max_step, max_angle_step).poses
 
 
 def parabola_coefficients(p_start: Sequence[float], p_mid: Sequence[float],
@@ -148,7 +141,13 @@ def parabola_coefficients(p_start: Sequence[float], p_mid: Sequence[float],
 def parabolic_curve(T_start: np.ndarray, T_goal: np.ndarray, peak_height: float,
                     n: Optional[int] = None, max_step: Optional[float] = None,
                     max_angle_step: Optional[float] = None) -> PosePath:
-    """Return the ``PosePath`` of ``parabolic_path`` (parameter ``t`` in [0, 1])."""
+    """
+    Return the ``PosePath`` on the Mover6 report's parabola from ``T_start`` to ``T_goal``.
+
+    The curve passes at ``t = 0.5`` through the mid-point of start and goal raised by
+    ``peak_height`` [m] along the base z axis (the Mover6 report eq. 11-15); ``t`` is evenly
+    spaced in [0, 1].
+    """
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
     peak = float(as_finite_array(peak_height, (), 'peak_height'))
@@ -156,33 +155,14 @@ def parabolic_curve(T_start: np.ndarray, T_goal: np.ndarray, peak_height: float,
     return parabolic_curve_through(T_start, mid, T_goal, n, max_step, max_angle_step)
 
 
-def parabolic_path(T_start: np.ndarray, T_goal: np.ndarray, peak_height: float,
-                   n: Optional[int] = None, max_step: Optional[float] = None,
-                   max_angle_step: Optional[float] = None) -> np.ndarray:
-    """
-    Return poses (n, 4, 4) on the Mover6 report's parabola from ``T_start`` to ``T_goal``.
-
-    The curve passes at ``t = 0.5`` through the mid-point of start and goal raised by
-    ``peak_height`` [m] along the base z axis (the Mover6 report eq. 11-15); ``t`` is evenly
-    spaced.
-    """
-    return parabolic_curve(T_start, T_goal, peak_height, n, max_step, max_angle_step).poses
-
-
-def parabolic_path_through(T_start, p_peak, T_goal, n=None, max_step=None,
-                           max_angle_step=None):
-    """
-    Return poses (n, 4, 4) on the parabola through start, ``p_peak`` (3,) [m] and goal.
-
-    The Mover6 report's eq. 12: ``r(0)`` the start, ``r(0.5)`` the peak, ``r(1)`` the goal;
-    the orientation is SLERPed from start to goal and ``t`` is evenly spaced.
-    """
-    return parabolic_curve_through(T_start, p_peak, T_goal, n, max_step, max_angle_step).poses
-
-
 def parabolic_curve_through(T_start, p_peak, T_goal, n=None, max_step=None,
                             max_angle_step=None) -> PosePath:
-    """Return the ``PosePath`` of ``parabolic_path_through`` (parameter ``t`` in [0, 1])."""
+    """
+    Return the ``PosePath`` on the parabola through start, ``p_peak`` (3,) [m] and goal.
+
+    The Mover6 report's eq. 12: ``r(0)`` the start, ``r(0.5)`` the peak, ``r(1)`` the goal;
+    the orientation is SLERPed from start to goal and ``t`` is evenly spaced in [0, 1].
+    """
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
     mid = as_finite_array(p_peak, (3,), 'p_peak')
@@ -212,23 +192,16 @@ def _resample_by_length(curve, count):
     return np.interp(np.linspace(0.0, cum[-1], count), cum, u), float(cum[-1])
 
 
-def spline_path(T_start: np.ndarray, T_vias: np.ndarray, T_goal: np.ndarray,
-                n: Optional[int] = None, max_step: Optional[float] = None,
-                max_angle_step: Optional[float] = None) -> np.ndarray:
-    """
-    Return poses (n, 4, 4) on a cubic spline through ``T_start``, every via pose and ``T_goal``.
-
-    ``T_vias`` is (k, 4, 4) with any k >= 0. The spline is C2 ('natural' ends) in a chord-length
-    parameter, sampled evenly in arc length; orientation is SLERPed between consecutive key
-    poses, reaching each via orientation at its via point.
-    """
-    return spline_curve(T_start, T_vias, T_goal, n, max_step, max_angle_step).poses
-
-
 def spline_curve(T_start: np.ndarray, T_vias: np.ndarray, T_goal: np.ndarray,
                  n: Optional[int] = None, max_step: Optional[float] = None,
                  max_angle_step: Optional[float] = None) -> PosePath:
-    """Return the ``PosePath`` of ``spline_path`` (parameter: the chord-length ``u``)."""
+    """
+    Return the ``PosePath`` on a cubic spline through ``T_start``, every via pose and ``T_goal``.
+
+    ``T_vias`` is (k, 4, 4) with any k >= 0. The spline is C2 ('natural' ends) in a chord-length
+    parameter ``u``, sampled evenly in arc length; orientation is SLERPed between consecutive key
+    poses, reaching each via orientation at its via point.
+    """
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
     vias = [] if np.size(T_vias) == 0 else [p.matrix for p in poses_of(T_vias, 'T_vias')]
@@ -286,23 +259,16 @@ def circle_through(p_a: Sequence[float], p_b: Sequence[float],
     return center, radius, e1, e2, angle(B), angle(C)
 
 
-def arc_path(T_start: np.ndarray, T_via: np.ndarray, T_goal: np.ndarray,
-             n: Optional[int] = None, max_step: Optional[float] = None,
-             max_angle_step: Optional[float] = None) -> np.ndarray:
-    """
-    Return poses (n, 4, 4) on the circular arc from ``T_start`` through a via point to ``T_goal``.
-
-    ``T_via`` is a pose (4, 4) or a point (3,) [m]. Samples are evenly spaced in angle. The
-    orientation is SLERPed from start to goal, through the via orientation at the via point
-    when a via pose is given.
-    """
-    return arc_curve(T_start, T_via, T_goal, n, max_step, max_angle_step).poses
-
-
 def arc_curve(T_start: np.ndarray, T_via: np.ndarray, T_goal: np.ndarray,
               n: Optional[int] = None, max_step: Optional[float] = None,
               max_angle_step: Optional[float] = None) -> PosePath:
-    """Return the ``PosePath`` of ``arc_path`` (parameter ``t`` in [0, 1], along the angle)."""
+    """
+    Return the ``PosePath`` on the circular arc from ``T_start`` through a via point to ``T_goal``.
+
+    ``T_via`` is a pose (4, 4) or a point (3,) [m]. Samples are evenly spaced in angle (``t`` in
+    [0, 1] along it). The orientation is SLERPed from start to goal, through the via orientation
+    at the via point when a via pose is given.
+    """
     T_start = validate_transform(T_start, 'T_start')
     T_goal = validate_transform(T_goal, 'T_goal')
     via = T_via if isinstance(T_via, ToolPose) else np.asarray(T_via, dtype=float)

@@ -289,7 +289,7 @@ def test_hostile_jointjogs_are_refused_by_reason_and_the_arm_holds(rig):
     # A speed between one and two times the maximum is clipped to it (counted), not refused.
     fast = conversions.make_joint_jog(NAMES, [0.0] * 6)
     fast.velocities = [1.5 * driver.max_speed[0]] + [0.0] * 5
-    qd, clipped = driver.jog_velocities(fast)
+    qd, clipped = driver.intake.jog_velocities(fast)
     assert clipped == 1 and qd[0] == pytest.approx(1.5 * driver.max_speed[0])
 
 

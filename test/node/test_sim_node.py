@@ -235,13 +235,13 @@ def test_every_bad_message_is_rejected_and_the_bridge_runs_on(harness):
     h = harness
     for k, (names, values, reason) in enumerate(BAD):
         h.jog(values, names)
-        assert h.spin_until(lambda: h.bridge.rejected == k + 1), (names, values)
-        assert reason in h.bridge.last_rejection
+        assert h.spin_until(lambda: h.bridge.rejections.count == k + 1), (names, values)
+        assert reason in h.bridge.rejections.last
     count = len(h.states)
     assert h.spin_until(lambda: len(h.states) > count + 10)
     h.jog([0.3], ['joint1'])
     assert h.spin_until(lambda: h.latest()[2][0] > 0.29)
-    assert h.bridge.rejected == len(BAD)
+    assert h.bridge.rejections.count == len(BAD)
 
 
 def test_speed_above_the_limit_is_clamped(harness):
@@ -279,7 +279,7 @@ def test_pause_step_resume_and_clock(harness):
     h = harness
     assert h.spin_until(lambda: len(h.clocks) > 50)
     clock = np.array([conversions.stamp_to_seconds(c.clock) for c in h.clocks[-50:]])
-    np.testing.assert_allclose(np.diff(clock), h.bridge.dt, atol=1e-9)
+    np.testing.assert_allclose(np.diff(clock), h.bridge.pacing.dt, atol=1e-9)
     assert not h.call('step', Trigger.Request()).success      # refused while running
     statuses = []
     h.node.create_subscription(DiagnosticStatus, 'sim_bridge/status', statuses.append,
@@ -319,7 +319,7 @@ def test_vendor_mode_publishes_at_20_hz_and_holds_the_command(harness):
 def test_viewer_without_a_display_runs_headless(harness):
     """Asked for a viewer with no display, the bridge warns and runs headless."""
     h = harness
-    assert h.bridge.viewer is None
+    assert h.bridge.physics.viewer is None
     count = len(h.states)
     assert h.spin_until(lambda: len(h.states) > count + 20)
 
@@ -445,16 +445,16 @@ from sim_bridge.bridge_node import SimBridgeNode
 rclpy.init()
 bridge = SimBridgeNode(parameter_overrides=[Parameter('physics_priority', value=20)])
 deadline = time.monotonic() + 30.0
-tid = bridge.thread.native_id
+tid = bridge.physics.thread.native_id
 path = f'/proc/self/task/{tid}/stat'
 while time.monotonic() < deadline:
     fields = open(path).read().rsplit(')', 1)[1].split()
     # Fields 40 and 41 of stat (the 38th and 39th after the name): rt_priority, policy.
-    if int(fields[37]) != 0 or bridge.failure or bridge.sim.time > 0.1:
+    if int(fields[37]) != 0 or bridge.physics.failure or bridge.sim.time > 0.1:
         break
     time.sleep(0.01)
 print(json.dumps({'rt_priority': int(fields[37]), 'policy': int(fields[38]),
-                  'main': scheduling_of_thread(), 'failure': bridge.failure,
+                  'main': scheduling_of_thread(), 'failure': bridge.physics.failure,
                   'stepped': bridge.sim.time > 0.0}))
 bridge.destroy_node()
 rclpy.try_shutdown()

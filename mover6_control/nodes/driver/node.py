@@ -147,10 +147,6 @@ class DriverNode(LifecycleNode):
         if driver is not None:
             driver.set_velocity(qd)
 
-    def jog_velocities(self, msg: JointJog) -> tuple[list[float], int]:
-        """Return a JointJog's velocities as the intake takes them (``JogIntake``)."""
-        return self.intake.jog_velocities(msg)
-
     def _open_driver(self, on_cycle) -> ArmDriver:
         """Open the frame log and the bus and make the driver (configure)."""
         p = self.params

@@ -59,11 +59,6 @@ def local_environment(profile: str = PROFILE) -> dict:
     return {MODE_ENV: LOCAL, RANGE_ENV: 'SYSTEM_DEFAULT', PROFILE_ENV: profile}
 
 
-def user_chose_dds(environ: Mapping[str, str]) -> bool:
-    """Return True when ``environ`` sets any DDS variable of the user's own (not empty)."""
-    return any(environ.get(name) for name in USER_DDS_ENV)
-
-
 def requested(environ: Optional[Mapping[str, str]] = None) -> bool:
     """Return True when the environment asks for the local configuration (``MOVER6_DDS``)."""
     environ = os.environ if environ is None else environ

@@ -26,7 +26,7 @@ def assert_valid_poses(poses):
 
 
 def test_linear_path_mover6_report_eq4_and_slerp():
-    poses = paths.linear_path(T0, T1, n=20)
+    poses = paths.linear_curve(T0, T1, n=20).poses
     assert poses.shape == (20, 4, 4)
     assert np.array_equal(poses[0], T0) and np.array_equal(poses[-1], T1)
     t = np.linspace(0.0, 1.0, 20)[:, None]
@@ -39,14 +39,14 @@ def test_linear_path_mover6_report_eq4_and_slerp():
 def test_mover6_report_example_keeps_home_orientation():
     T_goal = goal_relative_to_start(T0, 0.445, 0.0, 0.4425, 0.0, 0.0, 0.0)
     assert np.allclose(T_goal[:3, :3], R_HOME)
-    poses = paths.linear_path(T0, T_goal, n=20)
+    poses = paths.linear_curve(T0, T_goal, n=20).poses
     assert np.allclose(poses[:, :3, :3], R_HOME)
     assert np.allclose(np.diff(poses[:, 0, 3]), 0.1 / 19)
 
 
 @pytest.mark.parametrize('max_step, max_angle_step', [(0.01, None), (None, 0.05), (0.02, 0.1)])
 def test_linear_path_by_step_is_the_fewest_poses_within_the_steps(max_step, max_angle_step):
-    poses = paths.linear_path(T0, T1, max_step=max_step, max_angle_step=max_angle_step)
+    poses = paths.linear_curve(T0, T1, max_step=max_step, max_angle_step=max_angle_step).poses
     steps = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)
     turns = np.array([rotation_angle_between(a[:3, :3], b[:3, :3])
                       for a, b in zip(poses[:-1], poses[1:])])
@@ -67,7 +67,7 @@ def test_parabola_mover6_report_example():
     for axis in range(3):
         assert np.allclose([a[axis], b[axis], c[axis]], inv @ [A[axis], B[axis], M[axis]])
     TA, TB = make_transform(A, R_HOME), make_transform(B, np.eye(3))
-    poses = paths.parabolic_path(TA, TB, 2.0, n=101)
+    poses = paths.parabolic_curve(TA, TB, 2.0, n=101).poses
     assert np.allclose(poses[50, :3, 3], M)                            # r(0.5) = M
     assert np.array_equal(poses[0], TA) and np.array_equal(poses[-1], TB)
     t = np.linspace(0.0, 1.0, 101)[:, None]
@@ -75,7 +75,7 @@ def test_parabola_mover6_report_example():
 
 
 def test_parabola_by_step_keeps_every_step():
-    poses = paths.parabolic_path(T0, T1, 0.1, max_step=0.005)
+    poses = paths.parabolic_curve(T0, T1, 0.1, max_step=0.005).poses
     steps = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)
     assert steps.max() <= 0.005 + 1e-12
 
@@ -84,7 +84,7 @@ def test_parabola_by_step_keeps_every_step():
 def test_spline_passes_through_every_via(k):
     vias = [make_transform([0.3 - 0.02 * i, 0.05 * (i + 1), 0.42 - 0.03 * i],
                            euler_zyx_to_matrix(0.1 * i, 1.3, 0.0)) for i in range(k)]
-    poses = paths.spline_path(T0, np.array(vias).reshape(k, 4, 4), T1, max_step=0.002)
+    poses = paths.spline_curve(T0, np.array(vias).reshape(k, 4, 4), T1, max_step=0.002).poses
     assert np.array_equal(poses[0], T0) and np.array_equal(poses[-1], T1)
     steps = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)
     assert steps.max() <= 0.002 * 1.01 and steps.min() >= 0.002 * 0.8    # even in arc length
@@ -98,7 +98,7 @@ def test_spline_passes_through_every_via(k):
 
 def test_arc_through_via_point():
     via = np.array([0.33, 0.12, 0.45])
-    poses = paths.arc_path(T0, via, T1, n=401)
+    poses = paths.arc_curve(T0, via, T1, n=401).poses
     center, r, e1, e2, ang_b, ang_c = paths.circle_through(T0[:3, 3], via, T1[:3, 3])
     d = np.linalg.norm(poses[:, :3, 3] - center, axis=1)
     assert np.allclose(d, r)
@@ -113,7 +113,7 @@ def test_arc_through_via_point():
 
 def test_arc_through_via_pose_reaches_its_orientation():
     T_via = make_transform([0.33, 0.12, 0.45], euler_zyx_to_matrix(0.8, 0.9, 0.1))
-    poses = paths.arc_path(T0, T_via, T1, n=401)
+    poses = paths.arc_curve(T0, T_via, T1, n=401).poses
     j = np.argmin(np.linalg.norm(poses[:, :3, 3] - T_via[:3, 3], axis=1))
     assert rotation_angle_between(poses[j, :3, :3], T_via[:3, :3]) < 0.02
 
@@ -132,7 +132,7 @@ def test_random_linear_paths(pos, ang, n):
     Tb = make_transform(pos[3:], euler_zyx_to_matrix(*ang[3:]))
     assume(np.linalg.norm(Ta[:3, 3] - Tb[:3, 3]) >= 1e-9
            or rotation_angle_between(Ta[:3, :3], Tb[:3, :3]) >= 1e-9)   # two poses, not one
-    poses = paths.linear_path(Ta, Tb, n=n)
+    poses = paths.linear_curve(Ta, Tb, n=n).poses
     assert np.array_equal(poses[0], Ta) and np.array_equal(poses[-1], Tb)
     assert_valid_poses(poses)
     turns = np.array([rotation_angle_between(a[:3, :3], b[:3, :3])
@@ -145,18 +145,18 @@ BAD[0, 0] = 2.0
 
 
 @pytest.mark.parametrize('call', [
-    lambda: paths.linear_path(T0, T0, n=10),
-    lambda: paths.linear_path(T0, T1),
-    lambda: paths.linear_path(T0, T1, n=10, max_step=0.01),
-    lambda: paths.linear_path(T0, T1, n=1),
-    lambda: paths.linear_path(T0, T1, max_step=0.0),
-    lambda: paths.linear_path(T0, BAD, n=5),
-    lambda: paths.linear_path(np.full((4, 4), np.nan), T1, n=5),
-    lambda: paths.parabolic_path(T0, T1, float('inf'), n=5),
-    lambda: paths.spline_path(T0, np.array([T0]), T1, n=5),
-    lambda: paths.spline_path(T0, np.zeros((1, 3)), T1, n=5),
-    lambda: paths.arc_path(T0, (T0[:3, 3] + T1[:3, 3]) / 2, T1, n=5),
-    lambda: paths.arc_path(T0, T1[:3, 3], T1, n=5),
+    lambda: paths.linear_curve(T0, T0, n=10).poses,
+    lambda: paths.linear_curve(T0, T1).poses,
+    lambda: paths.linear_curve(T0, T1, n=10, max_step=0.01).poses,
+    lambda: paths.linear_curve(T0, T1, n=1).poses,
+    lambda: paths.linear_curve(T0, T1, max_step=0.0).poses,
+    lambda: paths.linear_curve(T0, BAD, n=5).poses,
+    lambda: paths.linear_curve(np.full((4, 4), np.nan), T1, n=5).poses,
+    lambda: paths.parabolic_curve(T0, T1, float('inf'), n=5).poses,
+    lambda: paths.spline_curve(T0, np.array([T0]), T1, n=5).poses,
+    lambda: paths.spline_curve(T0, np.zeros((1, 3)), T1, n=5).poses,
+    lambda: paths.arc_curve(T0, (T0[:3, 3] + T1[:3, 3]) / 2, T1, n=5).poses,
+    lambda: paths.arc_curve(T0, T1[:3, 3], T1, n=5).poses,
 ])
 def test_bad_input_raises(call):
     with pytest.raises(InvalidInputError):

@@ -200,7 +200,7 @@ def goal_near(T_start, move, turn):
 
 def via_near_line(T_start, T_goal, offset):
     """Return the mid pose of the straight line from start to goal, moved by ``offset`` [m]."""
-    T = paths.linear_path(T_start, T_goal, n=3)[1]
+    T = paths.linear_curve(T_start, T_goal, n=3).poses[1]
     T[:3, 3] += offset
     return T
 
@@ -208,12 +208,12 @@ def via_near_line(T_start, T_goal, offset):
 def shape_path(shape, T_start, T_goal, via, **sampling):
     """Return the Cartesian path of a shape (joint moves: the straight line)."""
     if shape == 'parabolic':
-        return paths.parabolic_path(T_start, T_goal, PEAK, **sampling)
+        return paths.parabolic_curve(T_start, T_goal, PEAK, **sampling).poses
     if shape == 'spline':
-        return paths.spline_path(T_start, via[None], T_goal, **sampling)
+        return paths.spline_curve(T_start, via[None], T_goal, **sampling).poses
     if shape == 'arc':
-        return paths.arc_path(T_start, via, T_goal, **sampling)
-    return paths.linear_path(T_start, T_goal, **sampling)
+        return paths.arc_curve(T_start, via, T_goal, **sampling).poses
+    return paths.linear_curve(T_start, T_goal, **sampling).poses
 
 
 def regular_pose(arm, T, settings):
@@ -321,7 +321,7 @@ def test_a_large_step_on_a_continuous_path_is_followed_not_refused():
     plan = plan_path_goal(arm, pair[0], pair[2][None], pair[1], 'arc', SHAPE_SETTINGS)
     assert plan.n_waypoints > SHAPE_SETTINGS.n_waypoints        # waypoints were inserted
     assert np.abs(np.diff(plan.q, axis=0)).max() <= SHAPE_SETTINGS.max_joint_step
-    positions = paths.arc_path(fk(arm, pair[0]), pair[2], pair[1], **DENSE)[:, :3, 3]
+    positions = paths.arc_curve(fk(arm, pair[0]), pair[2], pair[1], **DENSE).poses[:, :3, 3]
     for T in plan.poses:
         assert np.linalg.norm(positions - T[:3, 3], axis=1).min() < 1e-3
     for q, T in zip(plan.q, plan.poses):
@@ -340,8 +340,8 @@ def test_a_wrist_flip_is_still_refused_when_followed_finely(d4):
     q_a = np.array([0.0, 0.3, 0.0, 0.2, 0.3, 0.1])
     q_b = np.array([0.0, 0.3, 0.0, 0.2 + d4, -0.3, 0.1])
     curve = paths.linear_curve(fk(arm, q_a), fk(arm, q_b), n=20)
-    assert not dense_continuous(arm, paths.linear_path(curve.poses[0], curve.poses[-1], **DENSE),
-                                q_a)
+    dense = paths.linear_curve(curve.poses[0], curve.poses[-1], **DENSE).poses
+    assert not dense_continuous(arm, dense, q_a)
     with pytest.raises(UnreachableError) as err:
         solve_path(arm, curve.poses[1:], q_a, pose_between=lambda k, s: curve.between(k + 1, s))
     assert err.value.reason == 'discontinuity'
@@ -361,13 +361,13 @@ def test_readme_parabolic_from_home_within_90_deg():
     """
     goal = pose_from_xyzabc(0.30, -0.08, 0.32, 0.0, np.pi / 2, 0.0)
     T_home = fk(ARM, HOME)
-    poses = paths.parabolic_path(T_home, goal, 0.04, **DENSE)
+    poses = paths.parabolic_curve(T_home, goal, 0.04, **DENSE).poses
     assert not dense_continuous(ARM, poses, HOME)
     with pytest.raises(UnreachableError) as err:
         plan_pose_goal(ARM, HOME, goal, 'parabolic', PlannerSettings(peak_height=0.04))
     assert err.value.reason == 'joint_limits' and 'joint4' in str(err.value)
     # The straight line and a lower parabola are fine from home.
-    assert dense_continuous(ARM, paths.parabolic_path(T_home, goal, 0.02, **DENSE), HOME)
+    assert dense_continuous(ARM, paths.parabolic_curve(T_home, goal, 0.02, **DENSE).poses, HOME)
     for motion, peak in (('linear', 0.04), ('parabolic', 0.02)):
         plan_pose_goal(ARM, HOME, goal, motion, PlannerSettings(peak_height=peak))
 
@@ -381,7 +381,7 @@ def test_readme_parabolic_from_home_hardware_limits():
     """
     arm = mover6('hardware')
     goal = pose_from_xyzabc(0.30, -0.08, 0.32, 0.0, np.pi / 2, 0.0)
-    poses = paths.parabolic_path(fk(arm, HOME), goal, 0.04, **DENSE)
+    poses = paths.parabolic_curve(fk(arm, HOME), goal, 0.04, **DENSE).poses
     assert dense_continuous(arm, poses, HOME)
     plan = plan_pose_goal(arm, HOME, goal, 'parabolic', PlannerSettings(peak_height=0.04))
     assert plan.q[:, 3].max() <= 1e-9     # q4 turns negative and stays there
