@@ -1,5 +1,5 @@
 """
-The controller's tick while the ROS graph churns (issue 12, item 3).
+The controller's tick while the ROS graph churns.
 
 "Motions while 40 processes join and leave the graph; the largest tick gap and the p99 period
 error, before and after. Goal: largest gap under 30 ms, no stale-command halt at the bridge, no
@@ -22,8 +22,8 @@ as ``ros2 topic echo`` does), waits for one message and exits. Figures:
 The variants run one after the other in the same run (``--repeat N``: N times, alternately),
 each with a fresh stack; the environment applies to the controller and the bridge. The default
 rows: ``local``, the product's local configuration as it ships (UDP on 127.0.0.1, the tick and
-the physics thread at SCHED_FIFO 50 where allowed), and ``localhost``, the product before issue
-22 (Fast DDS as rmw_fastrtps sets it up under LOCALHOST, both threads at normal scheduling).
+the physics thread at SCHED_FIFO 50 where allowed), and ``localhost``, ROS's LOCALHOST
+discovery (Fast DDS as rmw_fastrtps sets it up under it, both threads at normal scheduling).
 Others (``VARIANTS``): ``local_prio0``, ``localhost_prio50`` (one of the two changes each) and
 ``async`` (``RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``). The
 machine is shared: the load average is printed and stored. Halts are counted from the bridge's
@@ -44,7 +44,7 @@ own stack comes from ``MOVER6_TICK_WATCHDOG``):
   check (``nanosleep``) for 333 ms. The shared-memory receive threads wait on the PDP mutex
   meanwhile, so /joint_states stop arriving too (``state_timeout`` 0.25 s: the controller faults).
   333 ms is a third of the default ``healthy_check_timeout_ms`` (1000): the health check of a
-  fresh, healthy port waits for the port's watchdog round (eProsima/Fast-DDS issue 6535, open).
+  fresh, healthy port waits for the port's watchdog round (eProsima/Fast-DDS#6535, open).
   Every reliable writer matched by a new process takes that path; rmw's own
   ``ros_discovery_info`` writer is matched by every new ROS process, so no QoS of ours avoids it;
 - asynchronous publication moves the JointJog write to Fast DDS's thread, which then waits for
@@ -58,9 +58,10 @@ own stack comes from ``MOVER6_TICK_WATCHDOG``):
   in the JSON lists the threads the controller ran). A GUID prefix of another host (which rmw
   does take from the XML profile) does not help either: Fast DDS picks shared memory per remote
   locator (``SHMLocator::is_shm_and_from_this_host``, the host id inside the locator), and the
-  controller still opened a joining process's port. Left: a Fast DDS with issue 6535 fixed, or
-  discovery range ``SYSTEM_DEFAULT`` with an XML profile that keeps UDP on the loopback interface
-  and drops shared memory: the package's local configuration (issue 22), the ``local`` rows;
+  controller still opened a joining process's port. Left: a Fast DDS with
+  eProsima/Fast-DDS#6535 fixed, or discovery range ``SYSTEM_DEFAULT`` with an XML profile that
+  keeps UDP on the loopback interface and drops shared memory: the package's local
+  configuration, the ``local`` rows;
 - the shorter gaps (20-150 ms, ``ticks_over_30ms``) are the process waiting for a CPU on a
   loaded machine (two cores, load 4-11 during these runs; the watchdog then finds the tick
   thread anywhere in its Python code). ``tick_priority`` alone narrowed them (period error p50
@@ -110,11 +111,11 @@ LOG_STAMP = re.compile(r'^\[\w+\] \[(\d+\.\d+)\]')   # a ROS log line: [LEVEL] [
 # The rows measured side by side: (name, DDS configuration, environment, controller parameters,
 # sim bridge parameters).
 # Every process of a row, the churn processes and this benchmark's own included, runs in the
-# row's DDS configuration: ``localhost`` is ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST as before
-# issue 22 (rmw_fastrtps adds shared memory), ``local`` the package's local configuration
+# row's DDS configuration: ``localhost`` is ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+# (rmw_fastrtps adds shared memory), ``local`` the package's local configuration
 # (``nodes.runtime.local_dds``: UDP on 127.0.0.1 only, no shared memory). Parameters not
 # given are the shipped files' (config/*.yaml): ``local`` is the product as it ships (the tick and
-# the physics thread at SCHED_FIFO 50 where allowed), ``localhost`` the product before issue 22
+# the physics thread at SCHED_FIFO 50 where allowed), ``localhost`` ROS's LOCALHOST discovery
 # (both at normal scheduling, priority 0); ``local_prio0`` and ``localhost_prio50`` swap one of
 # the two changes. ``async`` was tried against the 333 ms stall under LOCALHOST and removed none
 # of it (module doc); it stays so that it can be measured again.

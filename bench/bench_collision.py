@@ -1,5 +1,5 @@
 """
-Collision check cost (issue 14): per path, and what it adds to a goal's planning.
+Collision check cost: per path, and what it adds to a goal's planning.
 
 1. ``CollisionChecker.check_path`` on planned joint paths of 20, 100 and 1000 waypoints (the
    planner's linear moves to two goals, the check's default 0.01 rad sampling): median and p95

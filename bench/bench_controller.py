@@ -1,5 +1,5 @@
 """
-Speed of the controller (issue 5): per-tick compute time of the control law, and node jitter.
+Speed of the controller: per-tick compute time of the control law, and node jitter.
 
 Part 1, in this process without ROS: ``ControllerCore.on_named_joint_states`` + ``tick`` per
 profile against a simulated arm, many motions in a row: median and p99 of one tick [us], and the

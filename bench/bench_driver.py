@@ -1,5 +1,5 @@
 """
-Timing of the real-arm driver (issue 23): its cycle on the wire, and JointJog-to-frame latency.
+Timing of the real-arm driver: its cycle on the wire, and JointJog-to-frame latency.
 
 Set-up: the driver node in its own process, on the CPR USB2CAN framing over a pty, exactly as on
 ``/dev/ttyUSB0``; behind the pty, in a process of its own without ROS (``--wire``), the CAN-level
@@ -28,7 +28,7 @@ worker at normal priority moves the bytes), which no priority of ours covers.
 
 Variants, one after the other in the same run: the driver's defaults, ``cycle_priority`` 0
 (normal scheduling), and both while ``CHURN`` short-lived ROS processes join the graph, a few at
-a time (issue 22, item 4: the cycle keeps its period while processes join; ``bench_churn``'s
+a time (the cycle must keep its period while processes join; ``bench_churn``'s
 joining processes, started by a helper process). The load average is printed and stored: the
 machine is shared.
 

@@ -1,7 +1,7 @@
 """
 A 1000-waypoint linear pose goal through the running nodes: goal published to 'executing'.
 
-Issue 32's first row. The sim bridge, the controller and the planner start as processes over
+The sim bridge, the controller and the planner start as processes over
 DDS (their config files, the package's loopback-only DDS profile, a namespace of their own); the
 planner's ``n_waypoints`` is 1000, its ``motion`` linear. This process publishes /pose_goal
 and measures the time from the publish to the first /controller/status that says 'executing'

@@ -1,10 +1,9 @@
 """
 CPU of the three nodes at rest and while moving, with the controller's tick and the bridge's pace.
 
-Issue 21: "measured over 30 s after start-up with nothing moving, sim_bridge 19.1 %, controller
-15.3 %, planner 17.1 % of one core (51.6 % in all). Goal: at most 10 % of a core for the three
-together at idle, the controller's tick and the bridge's real-time factor unchanged; the same
-figures while moving."
+Measured over 30 s after start-up with nothing moving. Goal: at most 10 % of a core for the
+three together at idle, the controller's tick and the bridge's real-time factor unchanged; the
+same figures while moving (bench/HISTORY.md has the measurements).
 
 The sim bridge, the controller and the planner start as processes (their config files, in a
 namespace of their own). Once the controller is idle and the planner has reported, the start-up

@@ -31,7 +31,7 @@ several runs (batch: 5; per pose: 2), the usual guard against interference.
    the baseline (Mover6 only: ikpy reads URDF, the miniBOT is a DH table), with success at the
    same tolerance and at 1e-3 and the ratio of its median time to ``ik_numeric``'s.
 
-Anchors (issue 3): TRAC-IK 99.8-100 % at 0.2-0.4 ms; KDL 26-75 %.
+Anchors (published figures of the peers): TRAC-IK 99.8-100 % at 0.2-0.4 ms; KDL 26-75 %.
 """
 
 import argparse

@@ -1,5 +1,5 @@
 """
-The controller's tick while a large FollowJointTrajectory goal is taken (issue 21, item 6).
+The controller's tick while a large FollowJointTrajectory goal is taken.
 
 A 10,000-point goal (smooth, inside the limits, untimed) is received, converted and planned for
 seconds; none of that may hold up the tick. The sim bridge and the controller start as processes

@@ -4,7 +4,7 @@ The real-arm launch while processes join the graph: the controller's tick, the d
 Set-up: ``scripts/launch.sh --hardware can-sim`` exactly as a user starts it (the CAN-level
 Mover6 on a pty, the driver on it, the controller, the planner and the helpers), with the
 launchers' default DDS configuration (the package's local one: UDP on 127.0.0.1, no shared
-memory) or, with ``--dds localhost``, ROS's LOCALHOST as before. This process sends motions back
+memory) or, with ``--dds localhost``, ROS's LOCALHOST. This process sends motions back
 and forth (``/joint_demands``) while ``CHURN`` short-lived processes join the graph, a few at a
 time, each echoing ``/controller/status`` once (as ``ros2 topic echo`` does; ``bench_churn``'s).
 

@@ -1,5 +1,5 @@
 """
-Goal-to-/joint_demands latency of the planner node over DDS (issue 7).
+Goal-to-/joint_demands latency of the planner node over DDS.
 
 Starts the planner as its own process, publishes /joint_states (home pose) from this process,
 sends /pose_goal linear goals and measures the time from publishing the goal to receiving the
@@ -120,7 +120,7 @@ def main(argv=None):
         client.destroy_node()
         rclpy.try_shutdown()
         planner.stop()
-    # Issue 32's goals: p95 under 10 ms at 100 waypoints and under 60 ms at 1000.
+    # The goals: p95 under 10 ms at 100 waypoints and under 60 ms at 1000.
     p95 = {r['waypoints']: r['p95_ms'] for r in results['rows']}
     results['goal_p95_100_waypoints_ms'] = 10.0
     results['goal_p95_1000_waypoints_ms'] = 60.0

@@ -1,5 +1,5 @@
 """
-The controller profiles in simulation on the Mover6 report's linear example (issue 5).
+The controller profiles in simulation on the Mover6 report's linear example.
 
 "For the Mover6 report's linear example in simulation, per profile: time to arrive, final joint
 error, largest Cartesian deviation from the straight line."

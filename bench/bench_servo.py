@@ -1,5 +1,5 @@
 """
-Speed of jogging (issue 15): per-tick compute of the servo, and twist-to-JointJog latency.
+Speed of jogging: per-tick compute of the servo, and twist-to-JointJog latency.
 
 Part 1, in this process without ROS: ``ControllerCore.on_named_joint_states`` + ``on_twist``
 + ``tick`` while jogging a simulated arm along a line (twist mode, base frame), back and forth, and

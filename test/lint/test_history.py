@@ -18,7 +18,7 @@ import tokenize
 
 from source_tree import ROOT
 
-PACKAGES = ('mover6_control', 'sim_bridge')
+PACKAGES = ('mover6_control', 'sim_bridge', 'bench')
 HISTORY = [
     (re.compile(r'\bissues?\s+#?\d+', re.I), 'an issue number'),
     (re.compile(r'\bround\s+\d+\b', re.I), 'a round'),

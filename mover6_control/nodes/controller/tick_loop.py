@@ -9,7 +9,7 @@ state are read only under it). Nothing slow happens under that lock. JointJog an
 published outside it: a DDS write can block. Measured (``bench/bench_churn.py``): Fast DDS 2.14
 holds one send lock per participant, and its discovery thread holds it while it opens the
 shared-memory port of a process that just joined the graph, which can take 333 ms
-(eProsima/Fast-DDS issue 6535); every write of the node waits that long.
+(eProsima/Fast-DDS#6535); every write of the node waits that long.
 
 The status value ``max_tick_gap`` [s] is the longest time between two ticks since the node
 started (node clock; nominal ``1 / rate``), and a tick later than ``TICK_GAP_WARN`` logs a

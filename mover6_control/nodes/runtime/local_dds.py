@@ -3,7 +3,7 @@ The package's "this machine only" DDS configuration, and the check that a node r
 
 Under ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` rmw_fastrtps (Jazzy) always adds Fast DDS's
 shared-memory transport, whose port health check holds a participant's send lock for ~1/3 s each
-time a process joins the graph (eProsima/Fast-DDS issue 6535): every publish of the node, the
+time a process joins the graph (eProsima/Fast-DDS#6535): every publish of the node, the
 controller's tick included, stops that long. The local configuration instead is
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT`` with the shipped Fast DDS profile
 ``config/fastdds_local.xml``: UDPv4 on 127.0.0.1 only, unicast discovery to 127.0.0.1, no
@@ -82,7 +82,7 @@ def check_environment(environ: Optional[Mapping[str, str]] = None) -> None:
     problems = []
     if environ.get(RANGE_ENV) != 'SYSTEM_DEFAULT':
         problems.append(f"{RANGE_ENV} is '{environ.get(RANGE_ENV, '')}', not SYSTEM_DEFAULT "
-                        '(LOCALHOST adds shared memory, the stall of Fast DDS issue 6535)')
+                        '(LOCALHOST adds shared memory, the stall of eProsima/Fast-DDS#6535)')
     profile = environ.get(PROFILE_ENV, '')
     if not profile:
         problems.append(f'{PROFILE_ENV} is not set (Fast DDS would use its defaults: multicast '
