@@ -17,6 +17,7 @@ import time
 
 from control_msgs.msg import JointJog
 from diagnostic_msgs.msg import DiagnosticArray
+from driver_client import add_driver_services, bus, call
 from geometry_msgs.msg import PoseStamped
 from mover6_control.hardware.scaling import load_joints
 from mover6_control.kinematics.arm import mover6
@@ -28,7 +29,6 @@ from mover6_control.tools.goal_convention import poses_from_numbers
 import numpy as np
 import pytest
 from ros_testing import CanSimProcess, ready_client, Stack
-from std_srvs.srv import Trigger
 
 pytestmark = pytest.mark.e2e
 
@@ -82,28 +82,13 @@ def client(rig):
             for status in msg.status:
                 node.diagnostics[status.name] = {kv.key: kv.value for kv in status.values}
         node.create_subscription(DiagnosticArray, 'diagnostics', on_diagnostics, 100)
-        node.driver_services = {kind: node.create_client(Trigger, f'driver/{kind}')
-                                for kind in ('reset', 'enable')}
+        add_driver_services(node)
         return node
     with ready_client(stack, make, timeout=60.0) as node:
         assert node.spin_until(lambda: node.count_publishers('joint_demands') >= 2
                                and node.count_subscribers('joint_demands') >= 2, 30.0), \
             'planner or controller not on /joint_demands\n' + stack.report()
         yield node
-
-
-def bus(client):
-    """Return the driver's bus status values (empty before the first)."""
-    return client.diagnostics.get('driver: bus', {})
-
-
-def call(client, kind):
-    """Call the driver's ~/``kind`` and return the response."""
-    service = client.driver_services[kind]
-    assert service.wait_for_service(10.0), kind
-    future = service.call_async(Trigger.Request())
-    assert client.spin_until(future.done, 30.0), kind
-    return future.result()
 
 
 def recover(client, stack):

@@ -34,6 +34,7 @@ import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
+from driver_client import add_driver_services, bus, call
 from mover6_control.hardware.scaling import load_joints
 from mover6_control.kinematics.arm import mover6
 from mover6_control.parameters import DRIVER
@@ -43,7 +44,6 @@ import numpy as np
 import pytest
 import rclpy
 from ros_testing import CanSimProcess, NodeProcess, wait_until
-from std_srvs.srv import Trigger
 
 pytestmark = pytest.mark.e2e
 
@@ -111,8 +111,7 @@ def client(rig):
         for status in msg.status:
             node.diagnostics[status.name] = {kv.key: kv.value for kv in status.values}
     node.create_subscription(DiagnosticArray, 'diagnostics', on_diagnostics, 100)
-    node.driver_services = {kind: node.create_client(Trigger, f'driver/{kind}')
-                            for kind in ('reset', 'enable')}
+    add_driver_services(node)
     try:
         problem = node.wait_ready(timeout=90.0, need_planner=False)
         assert problem is None, f'{problem}\n{rig.report()}'
@@ -122,20 +121,6 @@ def client(rig):
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-
-
-def bus(client):
-    """Return the driver's bus status values (empty before the first)."""
-    return client.diagnostics.get('driver: bus', {})
-
-
-def call(client, kind):
-    """Call the driver's ~/``kind``; return the response."""
-    service = client.driver_services[kind]
-    assert service.wait_for_service(10.0), kind
-    future = service.call_async(Trigger.Request())
-    assert client.spin_until(future.done, 30.0), kind
-    return future.result()
 
 
 def true_q(sim):
