@@ -78,6 +78,20 @@ def connected(executor, probe):
     assert spin_until(executor, lambda: len(probe.statuses) >= 1)
 
 
+def goal_before_states(executor, probe):
+    """Publish GOAL before any joint states; once it says it waits, return its first status."""
+    connected(executor, probe)
+    n = len(probe.statuses)
+    msg = PoseStamped()
+    msg.header.frame_id = 'base_link'
+    msg.pose = conversions.matrix_to_pose(GOAL)
+    probe.pose_pub.publish(msg)
+    assert spin_until(executor, lambda: any(
+        conversions.status_values(m).get('result') == 'waiting_for_states'
+        for m in probe.statuses[n:]))
+    return n
+
+
 ANSWERS = ('planned', 'refused', 'failed')
 
 
@@ -158,16 +172,8 @@ def test_goal_before_any_joint_states_is_refused_after_the_wait(nodes):
 def test_goal_before_any_joint_states_waits_for_them_and_is_planned(nodes):
     """Issue 21: a goal that comes before the first states waits for them, then is planned."""
     executor, planner, probe = nodes
-    connected(executor, probe)
-    n = len(probe.statuses)
-    msg = PoseStamped()
-    msg.header.frame_id = 'base_link'
-    msg.pose = conversions.matrix_to_pose(GOAL)
-    probe.pose_pub.publish(msg)
     # The goal says it waits (and for how long at most), and nothing is planned yet.
-    assert spin_until(executor, lambda: any(
-        conversions.status_values(m).get('result') == 'waiting_for_states'
-        for m in probe.statuses[n:]))
+    n = goal_before_states(executor, probe)
     waiting = [conversions.status_values(m) for m in probe.statuses[n:]
                if conversions.status_values(m).get('result') == 'waiting_for_states'][0]
     assert waiting['wait_timeout'] == '5' and waiting['goal_id'] == '0.000000000-1'
@@ -577,15 +583,7 @@ def test_planner_answers_goals_and_stop_while_a_goal_is_pending(nodes):
     """
     executor, planner, probe = nodes
     planner.set_parameters([Parameter('state_wait_timeout', value=60.0)])
-    connected(executor, probe)
-    n = len(probe.statuses)
-    msg = PoseStamped()
-    msg.header.frame_id = 'base_link'
-    msg.pose = conversions.matrix_to_pose(GOAL)
-    probe.pose_pub.publish(msg)
-    assert spin_until(executor, lambda: any(
-        conversions.status_values(m).get('result') == 'waiting_for_states'
-        for m in probe.statuses[n:]))
+    n = goal_before_states(executor, probe)
     # A malformed goal meanwhile: refused at once, while the first one still waits.
     status = send_path_to(executor, probe, 'path_goal/arc', [GOAL] * 10000)
     assert 'arc needs exactly one via pose' in status.message
