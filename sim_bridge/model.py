@@ -36,6 +36,7 @@ from mover6_control.collision.geometry import (body_shapes, build_geometry, Coll
                                                contact_xml, geom_xml, world_geoms_xml)
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
+from mover6_control.parameters import SIM_BRIDGE   # the defaults
 import mujoco
 import numpy as np
 
@@ -44,9 +45,9 @@ import numpy as np
 class ModelOptions:
     """Physical parameters the URDF does not give; units in brackets."""
 
-    physics_dt: float = 0.002        # [s]
-    kv: float = 1000.0               # velocity servo gain [N m s/rad]
-    damping: float = 0.5             # joint viscous damping [N m s/rad]
+    physics_dt: float = SIM_BRIDGE['physics_dt'].default   # [s]
+    kv: float = SIM_BRIDGE['kv'].default         # velocity servo gain [N m s/rad]
+    damping: float = SIM_BRIDGE['damping'].default   # joint viscous damping [N m s/rad]
     armature: float = 0.01           # reflected rotor inertia [kg m^2]
     linear_density: float = 2.5      # link mass per length [kg/m]
     joint_mass: float = 0.15         # mass of each joint's motor [kg]

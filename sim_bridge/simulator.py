@@ -46,7 +46,7 @@ import math
 
 from mover6_control.errors import InvalidInputError, NonFiniteError
 from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
-from mover6_control.parameters import SIM_MODES   # what the simulator behaves as
+from mover6_control.parameters import SIM_BRIDGE, SIM_MODES   # the defaults, the modes
 from mover6_control.values import JogRequest
 import mujoco
 import numpy as np
@@ -61,9 +61,9 @@ STILL_SPEED = 1e-4       # [rad/s] a joint slower than this is still (the arm re
 class SimConfig:
     """How the simulated arm behaves; units in brackets."""
 
-    mode: str = 'rad_per_s'
-    command_timeout: float = 0.2                # [s], 'rad_per_s' only
-    speed_override: float = 0.25                # 'vendor_driver' only, in (0, 1]
+    mode: str = SIM_BRIDGE['mode'].default
+    command_timeout: float = SIM_BRIDGE['command_timeout'].default   # [s], 'rad_per_s' only
+    speed_override: float = SIM_BRIDGE['speed_override'].default   # 'vendor_driver', in (0, 1]
     vendor_cycle: float = MOVER6_DRIVER_CYCLE   # [s], 'vendor_driver' only
     tick_size: tuple = MOVER6_TICK_SIZE         # (n,) [rad], 'vendor_driver' only
     tracking_gain: float = 50.0                 # [1/s] vendor target tracking

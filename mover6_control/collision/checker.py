@@ -39,6 +39,7 @@ from mover6_control.collision.geometry import (build_geometry, collision_mjcf,
                                                ToolVolume)
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
+from mover6_control.parameters import PLANNER   # the defaults
 import mujoco
 import numpy as np
 
@@ -60,11 +61,11 @@ class CollisionSettings:
     the largest joint step between two checked samples.
     """
 
-    enabled: bool = True
+    enabled: bool = PLANNER['collision_check'].default
     tool: ToolVolume = ToolVolume()
-    table_margin: float = 0.02
-    keep_out: tuple = (0.0,) * 6
-    max_joint_step: float = 0.01
+    table_margin: float = PLANNER['table_margin'].default
+    keep_out: tuple = PLANNER['keep_out_boxes'].default
+    max_joint_step: float = PLANNER['collision_step'].default
 
     def __post_init__(self):
         """Reject settings the checker cannot use."""

@@ -30,7 +30,7 @@ from mover6_control.collision import body_model
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
 from mover6_control.kinematics.rotations import matrices_to_quaternions
-from mover6_control.parameters import TOOL_SHAPES   # the shapes ToolVolume takes
+from mover6_control.parameters import PLANNER, TOOL_SHAPES   # the defaults, the shapes
 import numpy as np
 
 TABLE = 'table'
@@ -49,8 +49,8 @@ class ToolVolume:
     gripper, 60 mm across and 80 mm long.
     """
 
-    shape: str = 'capsule'
-    size: tuple = (0.06, 0.06, 0.08)
+    shape: str = PLANNER['tool_shape'].default
+    size: tuple = PLANNER['tool_size'].default
 
     def __post_init__(self):
         """Check the shape and the size."""

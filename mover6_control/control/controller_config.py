@@ -18,6 +18,7 @@ from mover6_control.control.profiles import LawConfig
 from mover6_control.control.servo import ServoConfig
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel, MOVER6_DRIVER_CYCLE, MOVER6_TICK_SIZE
+from mover6_control.parameters import CONTROLLER   # the defaults
 from mover6_control.validation import as_positive
 import numpy as np
 
@@ -53,14 +54,14 @@ class ControllerConfig:
     """
 
     law: LawConfig = field(default_factory=LawConfig)
-    goal_tolerance: object = 0.002
-    state_timeout: float = 0.25
-    position_gain: float = 2.0
-    settle_timeout: float = 3.0
-    path_tolerance: float = 0.3
-    rate: float = 100.0
-    jog_units: str = 'rad_per_s'
-    speed_override: float = 0.25
+    goal_tolerance: object = CONTROLLER['goal_tolerance'].default
+    state_timeout: float = CONTROLLER['state_timeout'].default
+    position_gain: float = CONTROLLER['position_gain'].default
+    settle_timeout: float = CONTROLLER['settle_timeout'].default
+    path_tolerance: float = CONTROLLER['path_tolerance'].default
+    rate: float = CONTROLLER['rate'].default
+    jog_units: str = CONTROLLER['jog_units'].default
+    speed_override: float = CONTROLLER['speed_override'].default
     driver_tick_size: tuple = MOVER6_TICK_SIZE
     driver_cycle: float = MOVER6_DRIVER_CYCLE
     cycle_driver: bool = False

@@ -35,7 +35,7 @@ from mover6_control.motion.timing.spline_trajectories import (bspline_trajectory
                                                               multipoint_trapezoidal,
                                                               quintic_trajectory)
 from mover6_control.motion.timing.time_laws import trapezoid_times
-from mover6_control.parameters import PROFILES   # the names; their laws are planned here
+from mover6_control.parameters import CONTROLLER, PROFILES   # the defaults, the laws' names
 from mover6_control.validation import as_positive
 
 # Per waypoint, stopping at each: the time laws of the Jacobians and trajectories report, each
@@ -70,12 +70,12 @@ class LawConfig:
     continuous, and the deceleration of every law when stopping or replacing a motion).
     """
 
-    profile: str = 'continuous'
-    lambda_max: float = 0.5
-    t_max: float = 1.0
-    t_blend: float = 0.0
-    a_max: float = 1.0
-    j_max: float = 5.0
+    profile: str = CONTROLLER['profile'].default
+    lambda_max: float = CONTROLLER['lambda_max'].default
+    t_max: float = CONTROLLER['t_max'].default
+    t_blend: float = CONTROLLER['t_blend'].default
+    a_max: float = CONTROLLER['a_max'].default
+    j_max: float = CONTROLLER['j_max'].default
 
     def __post_init__(self):
         """Check the profile name and that every parameter is a positive number."""

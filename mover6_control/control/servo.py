@@ -41,6 +41,7 @@ from typing import Callable, Optional
 from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import ArmModel
 from mover6_control.kinematics.forward import fk_and_jacobian
+from mover6_control.parameters import CONTROLLER   # the defaults
 import numpy as np
 
 FRAMES = ('base_link', 'link6')
@@ -70,12 +71,13 @@ class ServoConfig:
     (``collision_guard.CollisionGuard.veto``) in here when it is on; None checks nothing.
     """
 
-    command_timeout: float = 0.1
-    pose_gain: float = 5.0
-    damping: float = 0.01
-    lower_singularity_threshold: float = 17.0
-    hard_stop_singularity_threshold: float = 30.0
-    joint_limit_margin: float = 0.1
+    command_timeout: float = CONTROLLER['servo_command_timeout'].default
+    pose_gain: float = CONTROLLER['servo_pose_gain'].default
+    damping: float = CONTROLLER['servo_damping'].default
+    lower_singularity_threshold: float = CONTROLLER['servo_lower_singularity_threshold'].default
+    hard_stop_singularity_threshold: float = (
+        CONTROLLER['servo_hard_stop_singularity_threshold'].default)
+    joint_limit_margin: float = CONTROLLER['servo_joint_limit_margin'].default
     a_max: float = 1.0
     veto: Optional[Callable[[np.ndarray, np.ndarray], Optional[str]]] = field(
         default=None, compare=False)

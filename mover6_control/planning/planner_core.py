@@ -19,7 +19,7 @@ from mover6_control.kinematics.path_ik import solve_path
 from mover6_control.kinematics.reachability import check_pose
 from mover6_control.kinematics.rotations import pose_error
 from mover6_control.motion import paths
-from mover6_control.parameters import PATH_MOTIONS, POSE_MOTIONS   # the shapes planned here
+from mover6_control.parameters import PATH_MOTIONS, PLANNER, POSE_MOTIONS   # defaults, shapes
 from mover6_control.values import poses_of, ToolPose
 import numpy as np
 
@@ -43,14 +43,14 @@ class PlannerSettings:
     every plan checks (``collision.enabled`` False: nothing).
     """
 
-    n_waypoints: int = 20
-    max_step: float = 0.0
-    max_angle_step: float = 0.0
-    peak_height: float = 0.05
-    max_joint_step: float = 0.35
-    max_condition: float = 1000.0
-    position_tolerance: float = 1e-3
-    orientation_tolerance: float = 0.01
+    n_waypoints: int = PLANNER['n_waypoints'].default
+    max_step: float = PLANNER['max_step'].default
+    max_angle_step: float = PLANNER['max_angle_step'].default
+    peak_height: float = PLANNER['peak_height'].default
+    max_joint_step: float = PLANNER['max_joint_step'].default
+    max_condition: float = PLANNER['max_condition'].default
+    position_tolerance: float = PLANNER['position_tolerance'].default
+    orientation_tolerance: float = PLANNER['orientation_tolerance'].default
     velocity_scale: float = 1.0
     collision: CollisionSettings = CollisionSettings()
 

@@ -1,15 +1,14 @@
 """
 One source of truth per parameter: ``mover6_control.parameters`` against everything else.
 
-The tables must agree with the core (allowed values, the Mover6's encoder ticks, the defaults of
-the settings dataclasses); ``check_value`` must refuse what a node must refuse. The parameter
-files and docs/parameters.md are made from the tables (test/lint/test_generated_files.py).
+The tables must agree with the core (allowed values, the Mover6's encoder ticks; the settings
+dataclasses take their defaults from them); ``check_value`` must refuse what a node must
+refuse. The parameter files and docs/parameters.md are made from the tables
+(test/lint/test_generated_files.py).
 """
 
-import dataclasses
 import math
 
-from mover6_control.collision.checker import CollisionSettings
 from mover6_control.collision.geometry import ToolVolume
 from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.profiles import (LawConfig, PROFILE_FAMILIES, STOP_AT_EACH_PROFILES,
@@ -19,53 +18,8 @@ from mover6_control.kinematics.arm import mover6, MOVER6_DRIVER_CYCLE, MOVER6_TI
 from mover6_control.parameters import (check_value, CONTROLLER, JOG_UNITS, LIMIT_SETS, NODES,
                                        ParameterSpec, PATH_MOTIONS, PLANNER, POSE_MOTIONS,
                                        PROFILES, SIM_BRIDGE, SIM_MODES, TOOL_SHAPES)
-from mover6_control.planning.planner_core import PlannerSettings
 import pytest
-from sim_bridge.model import ModelOptions
 from sim_bridge.simulator import SimConfig
-
-
-# (dataclass, field, table, parameter): each dataclass default that a parameter sets.
-DATACLASS_DEFAULTS = (
-    [(LawConfig, name, CONTROLLER, name)
-     for name in ('profile', 'lambda_max', 't_max', 't_blend', 'a_max', 'j_max')]
-    + [(ControllerConfig, name, CONTROLLER, name)
-       for name in ('goal_tolerance', 'state_timeout', 'position_gain', 'settle_timeout',
-                    'path_tolerance', 'rate', 'jog_units', 'speed_override',
-                    'driver_tick_size', 'driver_cycle')]
-    + [(PlannerSettings, name, PLANNER, name)
-       for name in ('n_waypoints', 'max_step', 'max_angle_step', 'peak_height',
-                    'max_joint_step', 'max_condition', 'position_tolerance',
-                    'orientation_tolerance')]
-    + [(SimConfig, name, SIM_BRIDGE, name)
-       for name in ('mode', 'command_timeout', 'speed_override')]
-    + [(ModelOptions, name, SIM_BRIDGE, name) for name in ('physics_dt', 'kv', 'damping')]
-    + [(cls, name, table, param) for table in (PLANNER, CONTROLLER)
-       for cls, name, param in ((CollisionSettings, 'enabled', 'collision_check'),
-                                (CollisionSettings, 'table_margin', 'table_margin'),
-                                (CollisionSettings, 'keep_out', 'keep_out_boxes'),
-                                (CollisionSettings, 'max_joint_step', 'collision_step'),
-                                (ToolVolume, 'shape', 'tool_shape'),
-                                (ToolVolume, 'size', 'tool_size'))]
-)
-
-
-def default_of(cls, name):
-    """Return the default of dataclass field ``name`` of ``cls``."""
-    field = {f.name: f for f in dataclasses.fields(cls)}[name]
-    if field.default_factory is not dataclasses.MISSING:
-        return field.default_factory()
-    return field.default
-
-
-@pytest.mark.parametrize('cls,name,table,param', DATACLASS_DEFAULTS,
-                         ids=lambda v: getattr(v, '__name__', str(v)))
-def test_dataclass_defaults_are_the_node_defaults(cls, name, table, param):
-    """Each core setting a parameter sets defaults to the parameter's default."""
-    value = default_of(cls, name)
-    if isinstance(value, tuple):
-        value = tuple(value)
-    assert value == table[param].default, f'{cls.__name__}.{name}'
 
 
 def test_the_law_defaults_to_what_the_node_runs():

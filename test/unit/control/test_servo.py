@@ -13,7 +13,6 @@ from mover6_control.errors import InvalidInputError
 from mover6_control.kinematics.arm import mover6
 from mover6_control.kinematics.forward import fk, jacobian, joint_rates
 from mover6_control.kinematics.rotations import rotation_angle_between
-from mover6_control.parameters import CONTROLLER
 import numpy as np
 import pytest
 
@@ -221,14 +220,6 @@ def test_bad_commands_and_settings_are_refused():
         ServoConfig(lower_singularity_threshold=30.0, hard_stop_singularity_threshold=17.0)
     with pytest.raises(InvalidInputError, match='command_timeout'):
         ServoConfig(command_timeout=0.0)
-
-
-@pytest.mark.parametrize('name', ['command_timeout', 'pose_gain', 'damping',
-                                  'lower_singularity_threshold',
-                                  'hard_stop_singularity_threshold', 'joint_limit_margin'])
-def test_servo_defaults_are_the_controller_parameters(name):
-    """Each servo setting defaults to its ``servo_*`` parameter of the controller."""
-    assert getattr(ServoConfig(), name) == CONTROLLER[f'servo_{name}'].default
 
 
 def test_a_vanishing_twist_keeps_everything_finite():
