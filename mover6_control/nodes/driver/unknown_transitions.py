@@ -7,6 +7,11 @@ the executor's spin, and with it the node. ``UnknownTransitions`` wraps the serv
 (before the node's ``CallbackGuard`` wraps every service) so such a request is answered false,
 and the reason is kept and logged: the state machine's refusal, as ``ros2 lifecycle set`` reports
 one by listing the transitions the state has.
+
+rclpy has no public way to do this: the service is the node's private
+``_service_change_state``, which this wraps. The crash is ros2/rclpy#1209, fixed upstream by
+ros2/rclpy#1319; the rclpy of this Jazzy install still raises (test/node/test_driver_node.py
+asks for activate while unconfigured). With a fixed rclpy the wrapper only adds the reason.
 """
 
 from typing import Callable
