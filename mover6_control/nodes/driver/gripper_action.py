@@ -20,20 +20,25 @@ vendor's driver publishes ``/InputChannels``) on ``/InputChannels`` as ``std_msg
 module has answered.
 
 Both run on the node's service node and executor (their callbacks wait): the node constructs
-them with that node; their callbacks go through the node's ``CallbackGuard``.
+them with that node, its ``CallbackGuard`` (their callbacks go through it) and what they read of
+the node, as functions: its ``ArmDriver`` and its lifecycle state. They read nothing else of it.
 """
 
 import math
 import threading
 import time
+from typing import Callable, Optional
 
 from control_msgs.action import GripperCommand
 from mover6_control.errors import InvalidInputError
 from mover6_control.hardware import protocol
+from mover6_control.hardware.driver import ArmDriver
 from mover6_control.hardware.gripper import STROKE
+from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from std_msgs.msg import MultiArrayDimension, UInt8MultiArray
 
@@ -57,28 +62,36 @@ def gripper_command(position: float) -> str:
 class GripperAction:
     """The GripperCommand server of the driver node (module docstring)."""
 
-    def __init__(self, node: Node, server_node: Node) -> None:
-        """Serve ``~/gripper_cmd`` of ``node`` (a driver node) on ``server_node``."""
-        self.node = node
+    def __init__(self, server_node: Node, name: str, guard: CallbackGuard,
+                 logger: RcutilsLogger, driver: Callable[[], Optional[ArmDriver]],
+                 lifecycle_state: Callable[[], str]) -> None:
+        """
+        Serve the action ``name`` (the driver node's ~/gripper_cmd) on ``server_node``.
+
+        Its callbacks go through ``guard``; ``driver()`` is the driver node's ``ArmDriver``
+        (None while it is not configured) and ``lifecycle_state()`` the label of its state.
+        """
+        self.driver = driver
+        self.lifecycle_state = lifecycle_state
+        self.logger = logger
         self.group = ReentrantCallbackGroup()
         self.server = ActionServer(
-            server_node, GripperCommand, f'{node.get_fully_qualified_name()}/gripper_cmd',
-            self.execute, callback_group=self.group, **node.guard.action_callbacks(
-                self.on_goal, lambda handle: CancelResponse.ACCEPT))
+            server_node, GripperCommand, name, self.execute, callback_group=self.group,
+            **guard.action_callbacks(self.on_goal, lambda handle: CancelResponse.ACCEPT))
 
     def on_goal(self, goal: GripperCommand.Goal) -> GoalResponse:
         """Accept a goal the gripper can do; raise (the guard rejects it, with the reason)."""
         gripper_command(goal.command.position)
-        state = self.node.lifecycle_state
-        if state != 'active' or self.node.driver is None:
+        state, driver = self.lifecycle_state(), self.driver()
+        if state != 'active' or driver is None:
             raise InvalidInputError(f'gripper refused: the driver is {state}: activate it')
-        if self.node.driver.listen_only:
+        if driver.listen_only:
             raise InvalidInputError('gripper refused: listen_only, the driver sends nothing')
         return GoalResponse.ACCEPT
 
     def execute(self, handle: ServerGoalHandle) -> GripperCommand.Result:
         """Drive the gripper and wait for the estimated gap to reach the target."""
-        driver = self.node.driver
+        driver = self.driver()
         command = gripper_command(handle.request.command.position)
         result = GripperCommand.Result()
         if driver is None:                 # deactivated and cleaned up since the goal came
@@ -87,7 +100,7 @@ class GripperAction:
         report = driver.report
         if report is not None and report.link == 'lost':
             handle.abort()
-            self.node.get_logger().warning('gripper: aborted, the link to the adapter is lost')
+            self.logger.warning('gripper: aborted, the link to the adapter is lost')
             return result
         deadline = time.monotonic() + driver.set_gripper(command) + SLACK
         wake = threading.Event()
@@ -107,7 +120,7 @@ class GripperAction:
             handle.publish_feedback(feedback)
             wake.wait(GRIPPER_FEEDBACK_PERIOD)
         handle.succeed()
-        self.node.get_logger().info(f'gripper: {command}, gap {result.position:.4f} m')
+        self.logger.info(f'gripper: {command}, gap {result.position:.4f} m')
         return result
 
     def destroy(self) -> None:
@@ -118,16 +131,21 @@ class GripperAction:
 class InputPublisher:
     """/InputChannels: the arm's digital inputs, from the driver's reports (module docstring)."""
 
-    def __init__(self, node: Node, server_node: Node) -> None:
-        """Publish for ``node`` (a driver node, its ``driver``) on a timer of ``server_node``."""
-        self.node = node
+    def __init__(self, node: Node, guard: CallbackGuard, server_node: Node,
+                 driver: Callable[[], Optional[ArmDriver]]) -> None:
+        """
+        Publish on ``node`` from a timer of ``server_node`` (through ``guard``).
+
+        ``driver()`` is the driver node's ``ArmDriver`` (None while it is not configured).
+        """
+        self.driver = driver
         self.publisher = node.create_publisher(UInt8MultiArray, '/InputChannels', 10)
-        self.timer = node.guard.timer(1.0 / INPUT_RATE, self.publish, on=server_node,
-                                      source='InputChannels')
+        self.timer = guard.timer(1.0 / INPUT_RATE, self.publish, on=server_node,
+                                 source='InputChannels')
 
     def publish(self) -> None:
         """Publish the inputs of the latest report, once joint 1's module has answered."""
-        driver = self.node.driver
+        driver = self.driver()
         report = driver.report if driver is not None else None
         if report is None or not report.inputs:
             return

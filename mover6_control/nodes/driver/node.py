@@ -103,8 +103,12 @@ class DriverNode(LifecycleNode):
                                        rate=self._live('diagnostics_rate'))
         self.guard.subscription(JointJog, 'JointJog', self.intake.on_jog, 10)
         self.trigger_services = TriggerServices(self, self.guard, SERVICES, self.run_service)
-        self.gripper_action = GripperAction(self, self.trigger_services.node)
-        self.inputs = InputPublisher(self, self.trigger_services.node)
+        self.gripper_action = GripperAction(
+            self.trigger_services.node, f'{self.get_fully_qualified_name()}/gripper_cmd',
+            self.guard, self.get_logger(), driver=lambda: self.driver,
+            lifecycle_state=lambda: self.lifecycle_state)
+        self.inputs = InputPublisher(self, self.guard, self.trigger_services.node,
+                                     driver=lambda: self.driver)
         self._start = self.guard.timer(0.01, self._start_transitions)
 
     # --- the parts' inputs ---
