@@ -25,7 +25,7 @@ from mover6_control.control.status import PlannerResult
 from mover6_control.errors import Mover6Error
 from mover6_control.kinematics.arm import ArmModel
 from mover6_control.nodes.messages import demand_messages
-from mover6_control.nodes.planner.goal_book import GoalBook
+from mover6_control.nodes.planner.goal_book import Goal, GoalBook
 from mover6_control.nodes.planner.handshake import DemandHandshake, HandshakeEnd, Pending
 from mover6_control.nodes.planner.status_publisher import PlannerStatus
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
@@ -51,7 +51,7 @@ STOPPED = ('stopped before any controller answered', 'stopped', PlannerResult.RE
 class Delivery:
     """A goal whose demand was sent: ``announced`` once 'planned' was said."""
 
-    goal: dict
+    goal: Goal
     motion: str
     announced: bool = False
     held: Optional[tuple] = None   # (text, reason, result) of an end said once announced
@@ -78,7 +78,7 @@ class DemandDelivery:
         self.lock = threading.Lock()     # Delivery.announced, held
         self.handshake = DemandHandshake(node, guard, self.logger, self.on_end, match_timeout)
 
-    def deliver(self, goal: dict, motion: str, plan: JointPlan, profile: str,
+    def deliver(self, goal: Goal, motion: str, plan: JointPlan, profile: str,
                 q_start: np.ndarray) -> None:
         """
         Publish the plan once a controller is there and the readers matched; say planned.
@@ -105,9 +105,9 @@ class DemandDelivery:
             self.status.refuse(motion, 'nobody subscribes to /joint_demands: is the controller '
                                'running?', 'no_controller', {}, goal)
             return
-        msg = demand_messages.make_demands(plan.q, goal['goal_id'], goal.get('profile', ''))
+        msg = demand_messages.make_demands(plan.q, goal.goal_id, goal.profile)
         delivery = Delivery(goal, motion)
-        self.handshake.send(goal['goal_id'], msg, delivery)
+        self.handshake.send(goal.goal_id, msg, delivery)
         # One timing model: the controller's law times the waypoints from the same start.
         try:
             plan = dataclasses.replace(plan, predicted_duration=predicted_duration(
@@ -116,7 +116,7 @@ class DemandDelivery:
             # Not a check (the controller times the demand and says if it refuses it): the
             # status keeps the planner's rough estimate.
             self.logger.warning(
-                f'goal {goal["goal_id"]}: the duration was not predicted ({err}); the '
+                f'goal {goal.goal_id}: the duration was not predicted ({err}); the '
                 f'estimate says {plan.predicted_duration:.2f} s')
         values = {'result': PlannerResult.PLANNED, 'motion': motion, 'waypoints': plan.n_waypoints,
                   'path_length': f'{plan.path_length:.6f}',
@@ -125,7 +125,7 @@ class DemandDelivery:
                   'orientation_error': f'{plan.final_orientation_error:.3e}'}
         text = (f'planned {motion} move: {plan.n_waypoints} waypoints, '
                 f'{plan.path_length * 1e3:.1f} mm, about {plan.predicted_duration:.2f} s')
-        self.logger.info(f'goal {goal["goal_id"]}: {text}')
+        self.logger.info(f'goal {goal.goal_id}: {text}')
         # The status first: the controller's refusal of the demand, or a stop, comes after it.
         self.status.publish('OK', text, values, goal)
         with self.lock:

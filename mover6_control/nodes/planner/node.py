@@ -41,6 +41,7 @@ delivery of demands (``delivery``, with its ``handshake``) and the planning thre
 (``planning_thread``); this module holds the callbacks.
 """
 
+import dataclasses
 import sys
 import time
 from typing import Callable, Optional
@@ -208,7 +209,7 @@ class PlannerNode(Node):
         try:
             profile = conversions.goal_profile_from_header(header)
             if profile:
-                goal['profile'] = profile      # forwarded with the demand
+                goal = dataclasses.replace(goal, profile=profile)   # forwarded with the demand
             plan_fn = prepare()
         except (Mover6Error, ValueError) as err:
             self.status.refuse(motion, str(err), 'invalid_goal', {}, goal)

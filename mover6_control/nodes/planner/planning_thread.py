@@ -15,7 +15,7 @@ from mover6_control.control.profiles import LawConfig
 from mover6_control.control.status import PlannerState
 from mover6_control.errors import Mover6Error, UnreachableError
 from mover6_control.nodes.planner.delivery import DemandDelivery
-from mover6_control.nodes.planner.goal_book import GoalBook
+from mover6_control.nodes.planner.goal_book import Goal, GoalBook
 from mover6_control.nodes.planner.joint_states import LatestJointStates
 from mover6_control.nodes.planner.status_publisher import PlannerStatus
 from mover6_control.nodes.runtime.job_thread import JobThread
@@ -61,7 +61,7 @@ class PlanningThread:
         """Start the planning thread."""
         self.jobs.start()
 
-    def put(self, goal: dict, motion: str, plan_fn: Callable, received: float) -> None:
+    def put(self, goal: Goal, motion: str, plan_fn: Callable, received: float) -> None:
         """Queue ``goal`` (shape ``motion``, plan function ``plan_fn(q, settings)``)."""
         self.jobs.put((goal, motion, plan_fn, received))
 
@@ -77,7 +77,7 @@ class PlanningThread:
             self.status.refuse(job[1], f'{type(err).__name__}: {err}', 'internal_error', {},
                                job[0])
 
-    def plan_goal(self, goal: dict, motion: str, plan_fn: Callable, received: float) -> None:
+    def plan_goal(self, goal: Goal, motion: str, plan_fn: Callable, received: float) -> None:
         """Plan one goal, then send its demand and say planned, or say why not."""
         if self.goals.stopped(goal):
             self.status.refuse(motion, 'stopped before it was planned', 'stopped', {}, goal)
@@ -90,7 +90,7 @@ class PlanningThread:
             # The profile's name is checked before anything is sent (an unknown one is refused
             # here, as it was by the prediction); the duration is predicted once the demand is
             # out (``deliver``): the prediction refuses nothing.
-            law = LawConfig(profile=goal.get('profile') or self.parameter('profile'))
+            law = LawConfig(profile=goal.profile or self.parameter('profile'))
         except UnreachableError as err:
             self.status.refuse(motion, str(err), err.reason, err.details, goal)
             return
@@ -99,7 +99,7 @@ class PlanningThread:
             return
         self.delivery.deliver(goal, motion, plan, law.profile, q_now)
 
-    def wait_for_states(self, goal: dict, motion: str, received: float) -> Optional[np.ndarray]:
+    def wait_for_states(self, goal: Goal, motion: str, received: float) -> Optional[np.ndarray]:
         """
         Return the current joint positions, waiting up to ``state_wait_timeout`` for them.
 
@@ -125,7 +125,7 @@ class PlanningThread:
                 return None
             if not said:
                 said = True
-                self.logger.info(f'goal {goal["goal_id"]}: waiting up to {left:.1f} s '
+                self.logger.info(f'goal {goal.goal_id}: waiting up to {left:.1f} s '
                                  f'for /joint_states ({problem})')
                 self.status.publish('WARN', f'goal waits for /joint_states: {problem}',
                                     {'result': WAITING, 'motion': motion,

@@ -12,6 +12,7 @@ from typing import Optional
 from mover6_control.control.status import PlannerResult, PlannerState
 from mover6_control.kinematics.rotations import matrix_to_euler_zyx
 from mover6_control.nodes.messages import conversions
+from mover6_control.nodes.planner.goal_book import Goal
 import numpy as np
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.publisher import Publisher
@@ -43,7 +44,7 @@ class PlannerStatus:
         else:
             self.publish('WARN', 'waiting for /joint_states', {})
 
-    def refuse(self, motion: str, text: str, reason: str, details: dict, goal: dict,
+    def refuse(self, motion: str, text: str, reason: str, details: dict, goal: Goal,
                result: PlannerResult = PlannerResult.REFUSED) -> None:
         """Report a goal refused (or ``result`` failed) with ``reason``: status and log."""
         values = {'result': result, 'motion': motion, 'reason': reason}
@@ -56,13 +57,13 @@ class PlannerStatus:
             values['closest_pose_xyzabc'] = ' '.join(
                 f'{v:.4f}' for v in list(T[:3, 3]) + list(matrix_to_euler_zyx(T[:3, :3])))
         word = 'refused' if result == PlannerResult.REFUSED else 'failed'
-        self.logger.error(f'goal {goal["goal_id"]} {word} ({reason}): {text}')
+        self.logger.error(f'goal {goal.goal_id} {word} ({reason}): {text}')
         self.publish('ERROR', f'goal {word} ({reason}): {text}', values, goal)
 
-    def publish(self, level: str, text: str, values: dict, goal: Optional[dict] = None) -> None:
+    def publish(self, level: str, text: str, values: dict, goal: Optional[Goal] = None) -> None:
         """Publish /planner/status: ``state``, then the goal it is about (if any), then values."""
         merged = {'state': self.state}
-        merged.update(goal or {})
+        merged.update(goal.values() if goal is not None else {})
         merged.update(values)
         with self.status_lock:
             self.publisher.publish(conversions.make_status('planner', level, text, merged))
