@@ -8,6 +8,7 @@ goal that ~/stop dropped is refused wherever it is. The node goes on reading sta
 ~/stop and the controller's answers while a goal is planned.
 """
 
+from dataclasses import dataclass
 import time
 from typing import Callable, Optional
 
@@ -26,6 +27,16 @@ from rclpy.impl.rcutils_logger import RcutilsLogger
 WAITING, READY = PlannerState.WAITING_FOR_STATES, PlannerState.READY
 # [s] how often a goal waiting for states looks again (stop, shutdown).
 STATES_POLL = 0.1
+
+
+@dataclass(frozen=True)
+class PlanningJob:
+    """A goal queued for planning: its shape ``motion``, ``plan_fn(q, settings)``, when it came."""
+
+    goal: Goal
+    motion: str
+    plan_fn: Callable
+    received: float          # [s, monotonic]
 
 
 class PlanningThread:
@@ -63,19 +74,19 @@ class PlanningThread:
 
     def put(self, goal: Goal, motion: str, plan_fn: Callable, received: float) -> None:
         """Queue ``goal`` (shape ``motion``, plan function ``plan_fn(q, settings)``)."""
-        self.jobs.put((goal, motion, plan_fn, received))
+        self.jobs.put(PlanningJob(goal, motion, plan_fn, received))
 
     def close(self, timeout: float) -> None:
         """End the thread (a goal being planned finishes first); wait ``timeout`` [s]."""
         self.jobs.close(timeout)
 
-    def take_job(self, job: tuple) -> None:
+    def take_job(self, job: PlanningJob) -> None:
         """Plan one queued goal; never raises (no goal ends without a status)."""
         try:
-            self.plan_goal(*job)
+            self.plan_goal(job.goal, job.motion, job.plan_fn, job.received)
         except Exception as err:  # noqa: B902 - no goal ends without a status
-            self.status.refuse(job[1], f'{type(err).__name__}: {err}', 'internal_error', {},
-                               job[0])
+            self.status.refuse(job.motion, f'{type(err).__name__}: {err}', 'internal_error', {},
+                               job.goal)
 
     def plan_goal(self, goal: Goal, motion: str, plan_fn: Callable, received: float) -> None:
         """Plan one goal, then send its demand and say planned, or say why not."""
