@@ -62,6 +62,8 @@ INPUT_CODES = {
     'unknown_joint': 'a joint name the arm does not have',
     'displacements': 'a JointJog carries displacements: only velocities are supported',
     'out_of_range': 'a value beyond what the arm takes (a jog speed beyond its limit)',
+    'in_collision': 'a collision parameter (keep-out box, table margin, tool) that puts the arm '
+                    'into collision where it stands',
 }
 
 

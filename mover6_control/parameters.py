@@ -184,6 +184,10 @@ SIM_MODES = ('rad_per_s', 'vendor_driver')
 # The collision check of the planner and the controller (mover6_control.collision): the same
 # parameters on both nodes. The tool volumes on the flange (collision.geometry.ToolVolume).
 TOOL_SHAPES = ('capsule', 'box', 'none')
+# [m] the smallest table margin the Mover6's body needs: collision.body_model.MIN_TABLE_MARGIN,
+# derived from its meshes (every vertex of links 1 to 6 is inside their shapes, so the shapes
+# kept above the table keep the real arm above it); written out here, a test checks they agree.
+BODY_MIN_TABLE_MARGIN = 0.0
 
 
 def _collision_specs(who):
@@ -198,13 +202,17 @@ def _collision_specs(who):
         P('tool_size', 'float_list', (0.06, 0.06, 0.08), 'm',
           'tool width (flange x), depth (flange y) and length (along the flange z axis, from '
           'the flange); a capsule is max(width, depth) across and at least that long (default: '
-          'a small gripper)', 0.001, 1.0, length=3),
+          'a small gripper); a tool that puts the arm in collision where it stands is refused',
+          0.001, 1.0, length=3),
         P('table_margin', 'float', 0.02, 'm',
-          'clearance every part of the arm and tool keeps above the table (z = 0 of base_link)',
-          0.0, 0.5),
+          'clearance every part of the arm and tool keeps above the table (z = 0 of base_link); '
+          "at least what the Mover6's body needs (its meshes inside the collision shapes: "
+          f'{BODY_MIN_TABLE_MARGIN * 1e3:g} mm); refused when the arm stands in it',
+          BODY_MIN_TABLE_MARGIN, 0.5),
         P('keep_out_boxes', 'float_list', (0.0,) * 6, 'm',
           'keep-out zones in base_link, 6 values per box: x, y, z min then x, y, z max, no max '
-          'below its min; a box without volume is none (default: none)', -5.0, 5.0,
+          'below its min; a box without volume is none (default: none); a box the arm stands '
+          'in is refused', -5.0, 5.0,
           multiple_of=6),
         P('collision_step', 'float', 0.01, 'rad',
           'largest joint step between two checked samples of a motion', 0.0005, 0.5),

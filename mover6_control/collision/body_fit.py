@@ -298,16 +298,42 @@ def derive_body(arm: ArmModel, mesh_dir: str, slabs: dict = BODY_SLABS,
                                       tuple(float(v) for v in p1), float(r)))
     for body, path, P in carried:
         check_carried(arm, body, path, P, [s for s in shapes if s.body == 0], margin)
-    for body in sorted(slabs):       # the fit's own check: every vertex inside by the margin
-        vertices, _ = load_vertices(os.path.join(mesh_dir, MESH_FILES[body]))
-        if body == 1 and carried:
-            vertices = vertices[vertices[:, AXES[slabs[1][0]]] >= slabs[1][1][0][0]]
-        inside = np.min([signed_distance(s.kind, s.p0, s.p1, s.radius, vertices)
-                         for s in shapes if s.body == body], axis=0)
-        if inside.max() > -margin + 1e-7:
-            raise MeshError(MESH_FILES[body], f'the fit leaves a vertex {inside.max() * 1e3:.2f} '
+    # The fit's own check: every vertex inside by the margin.
+    for body, worst in largest_outside(mesh_dir, shapes, slabs).items():
+        if worst > -margin + 1e-7:
+            raise MeshError(MESH_FILES[body], f'the fit leaves a vertex {worst * 1e3:.2f} '
                                               f'mm from its surface (less than {margin} m in)')
     return tuple(shapes)
+
+
+def largest_outside(mesh_dir: str, shapes, slabs: dict = BODY_SLABS) -> dict:
+    """
+    Return {body: the largest distance [m] of its mesh's vertices outside its shapes} (< 0: in).
+
+    A part carried by the base (link1's shaft) is left out: it is inside the base's shapes.
+    """
+    out = {}
+    for body in sorted(slabs):
+        vertices, _ = load_vertices(os.path.join(mesh_dir, MESH_FILES[body]))
+        first = slabs[body][1][0]
+        if first[1] == 'base':
+            vertices = vertices[vertices[:, AXES[slabs[body][0]]] >= first[0]]
+        out[body] = float(np.min([signed_distance(s.kind, s.p0, s.p1, s.radius, vertices)
+                                  for s in shapes if s.body == body], axis=0).max())
+    return out
+
+
+def min_table_margin(outside: dict) -> float:
+    """
+    Return the smallest table margin [m] the body needs, from ``largest_outside``'s figures.
+
+    The checker keeps every shape of the moving links at least the margin above the table; a
+    vertex is at most its link's largest outside distance below its shapes, so a margin of the
+    largest of them over links 1 to 6 (0 when every vertex is inside) keeps every vertex of the
+    real arm above the table. Rounded up to 0.1 mm.
+    """
+    worst = max(v for body, v in outside.items() if body > 0)
+    return float(np.ceil(max(worst, 0.0) * 1e4) / 1e4)
 
 
 def check_carried(arm: ArmModel, body: int, path: str, points: np.ndarray, base: list,

@@ -8,6 +8,11 @@ kind ('capsule' or 'cylinder'), segment start and end [m] in the body's frame, r
 
 EXCLUDED_PAIRS: the links that can never meet (``body_pairs``): bodies i, j, the smallest
 distance [m] at any angle of the two joints between them within the widest limits, and why.
+
+MIN_TABLE_MARGIN: the smallest table margin [m] the body needs (``body_fit.min_table_margin``):
+no real vertex of links 1 to 6 below the table while their shapes keep above it. The largest
+distance of each link's vertices outside its shapes (< 0: inside):
+link1 -1.0 mm, link2 -1.0 mm, link3 -1.0 mm, link4 -1.0 mm, link5 -1.0 mm, link6 -1.0 mm.
 """
 
 BODY_SHAPES = (
@@ -49,3 +54,5 @@ EXCLUDED_PAIRS = (
     (3, 5, 0.1723,
      'never closer than 172.3 mm at any joint4, joint5 in the limits'),
 )
+
+MIN_TABLE_MARGIN = 0.0

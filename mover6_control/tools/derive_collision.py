@@ -48,6 +48,7 @@ def body_model_text(mesh_dir: str = MESH_DIR) -> str:
     shapes = body_fit.derive_body(mover6(), mesh_dir)
     rows = [(s.name, s.body, s.kind, s.p0, s.p1, s.radius) for s in shapes]
     sweeps = excluded_pairs(rows)
+    outside = body_fit.largest_outside(mesh_dir, shapes)
     lines = ['"""',
              "The Mover6's collision shapes, derived from its maker's meshes (``body_fit``).",
              '',
@@ -64,6 +65,14 @@ def body_model_text(mesh_dir: str = MESH_DIR) -> str:
              'smallest',
              'distance [m] at any angle of the two joints between them within the widest limits, '
              'and why.',
+             '',
+             'MIN_TABLE_MARGIN: the smallest table margin [m] the body needs '
+             '(``body_fit.min_table_margin``):',
+             'no real vertex of links 1 to 6 below the table while their shapes keep above '
+             'it. The largest',
+             "distance of each link's vertices outside its shapes (< 0: inside):",
+             ', '.join(f'link{b} {v * 1e3:.1f} mm' for b, v in outside.items() if b > 0)
+             + '.',
              '"""',
              '',
              'BODY_SHAPES = (']
@@ -81,6 +90,8 @@ def body_model_text(mesh_dir: str = MESH_DIR) -> str:
         lines.append(f"     'never closer than {(p.closest - p.bound) * 1e3:.1f} mm at any "
                      f"{p.joints[0]}, {p.joints[1]} in the limits'),")
     lines.append(')')
+    lines.append('')
+    lines.append(f'MIN_TABLE_MARGIN = {body_fit.min_table_margin(outside)!r}')
     return '\n'.join(lines) + '\n'
 
 

@@ -57,7 +57,8 @@ from mover6_control.nodes.messages import cdr, conversions, demand_messages
 from mover6_control.nodes.runtime import params, shutdown
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.nodes.runtime.node_clock import now_ns
-from mover6_control.nodes.runtime.node_configs import collision_settings, config_from_parameters
+from mover6_control.nodes.runtime.node_configs import (check_where_it_stands, collision_settings,
+                                                       config_from_parameters, standing_check)
 from mover6_control.nodes.runtime.qos import STATUS_QOS, STREAM_READER_QOS
 from mover6_control.parameters import CONTROLLER
 from mover6_control.realtime import steady_interpreter
@@ -81,7 +82,9 @@ class ControllerNode(Node):
         self.guard = CallbackGuard(self)     # no callback ends the node (bad input: refused)
         # Refuses invalid values (each, and the whole config: check_config) before a set; an
         # accepted set goes to the core (at once, or after the motion).
+        self.standing, self.started = standing_check(), False   # the collision parameters
         params.declare(self, CONTROLLER, self.check_config, guard=self.guard)
+        self.started = True
         limit_set, config = config_from_parameters(lambda n: self.get_parameter(n).value)
         self.guard.after_set(self.on_parameters_set)
         self.lock = threading.RLock()        # the core's state and the goal ledger
@@ -159,11 +162,14 @@ class ControllerNode(Node):
         Raise saying why the parameters of ``get(name)`` make no valid controller config.
 
         ``params.declare`` calls it on the values a set would leave in force, before the set
-        is accepted: the config, the collision check's settings (tool size, keep-out boxes) and,
-        once the core exists, the config against the arm (one driver tick per joint ...).
+        is accepted: the config, the collision check's settings (tool size, keep-out boxes; none
+        that puts the arm in collision where it stands: the latest joint states, at start the
+        start configuration, ``node_configs.check_where_it_stands``) and, once the core exists,
+        the config against the arm (one driver tick per joint ...).
         """
         _, config = config_from_parameters(get)
-        collision_settings(get)
+        check_where_it_stands(self.standing, get, getattr(self, 'last_q', None),
+                              (lambda n: self.get_parameter(n).value) if self.started else None)
         core = getattr(self, 'core', None)
         if core is not None:
             core.check_config(config)

@@ -61,7 +61,9 @@ from mover6_control.nodes.planner.status_publisher import PlannerStatus
 from mover6_control.nodes.runtime import params, shutdown
 from mover6_control.nodes.runtime.callback_guard import CallbackGuard
 from mover6_control.nodes.runtime.node_clock import now_ns
-from mover6_control.nodes.runtime.node_configs import planner_settings_from_parameters
+from mover6_control.nodes.runtime.node_configs import (check_where_it_stands,
+                                                       planner_settings_from_parameters,
+                                                       standing_check)
 from mover6_control.nodes.runtime.qos import LATEST_READER_QOS, STATUS_QOS
 from mover6_control.parameters import PLANNER
 from mover6_control.planning.planner_core import (check_path_shape, PATH_MOTIONS,
@@ -85,8 +87,10 @@ class PlannerNode(Node):
         """Declare the parameters, build the arm and the parts, start the planning thread."""
         super().__init__('planner', **kwargs)
         self.guard = CallbackGuard(self)     # no callback ends the node (bad input: refused)
-        # Refuses invalid values, each and as the planner's settings, at start and later.
-        params.declare(self, PLANNER, planner_settings_from_parameters, guard=self.guard)
+        # Refuses invalid values, each and as the planner's settings, and collision parameters
+        # that put the arm in collision where it stands, at start and later.
+        self.standing, self.states = standing_check(), None
+        params.declare(self, PLANNER, self.check_config, guard=self.guard)
         limit_set = self.get_parameter('limit_set').value
         self.arm = mover6(limit_set)
         self._checker = None     # the collision checker of the latest settings
@@ -122,6 +126,18 @@ class PlannerNode(Node):
             f'planner: motion={self.get_parameter("motion").value}, '
             f'limit_set={limit_set}, frame={self.get_parameter("frame_id").value}; '
             'waiting for /joint_states')
+
+    def check_config(self, get: Callable[[str], object]) -> None:
+        """
+        Raise saying why the parameters of ``get(name)`` are no valid planner configuration.
+
+        The planner's settings, and the collision parameters where the arm stands (the latest
+        /joint_states; at start the start configuration): ``node_configs``.
+        """
+        planner_settings_from_parameters(get)
+        started = self.states is not None
+        check_where_it_stands(self.standing, get, self.states.q if started else None,
+                              (lambda n: self.get_parameter(n).value) if started else None)
 
     def frame_id(self) -> str:
         """Return the frame goals must be given in."""

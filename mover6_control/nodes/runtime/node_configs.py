@@ -9,15 +9,17 @@ raises ``InvalidInputError`` for one it cannot use. No ROS here: ``params`` decl
 parameters, this module reads them.
 """
 
-from typing import Callable
+from typing import Callable, Optional
 
 from mover6_control.collision.checker import CollisionSettings
+from mover6_control.collision.standing import StandingCheck
 from mover6_control.collision.geometry import ToolVolume
 from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.servo import ServoConfig
 from mover6_control.errors import InvalidInputError
-from mover6_control.kinematics.arm import LIMIT_SETS
+from mover6_control.kinematics.arm import LIMIT_SETS, mover6
+from mover6_control.parameters import SIM_BRIDGE
 from mover6_control.planning.planner_core import PlannerSettings
 
 
@@ -33,6 +35,30 @@ def collision_settings(get: Callable[[str], object]) -> CollisionSettings:
         tool=ToolVolume(get('tool_shape'), tuple(get('tool_size'))),
         table_margin=float(get('table_margin')), keep_out=tuple(get('keep_out_boxes')),
         max_joint_step=float(get('collision_step')))
+
+
+def standing_check() -> StandingCheck:
+    """
+    Return the ``StandingCheck`` of the Mover6, at its start configuration before any states.
+
+    The start configuration is the simulator's start and home configuration (``initial_q``'s
+    default); the joint limits do not change the arm's shapes.
+    """
+    return StandingCheck(mover6(), [SIM_BRIDGE['initial_q'].default])
+
+
+def check_where_it_stands(standing: StandingCheck, get: Callable[[str], object],
+                          q_now: Optional[object],
+                          in_force: Optional[Callable[[str], object]]) -> None:
+    """
+    Raise ``InvalidInputError`` when the collision parameters of ``get`` collide the arm.
+
+    The planner's and the controller's one check of their collision parameters against where
+    the arm stands (``collision.standing``): ``q_now`` the latest joint positions (None: none
+    yet), ``in_force`` the getter of the parameters in force (None: at start, none in force).
+    """
+    standing.check(collision_settings(get), q_now,
+                   None if in_force is None else collision_settings(in_force))
 
 
 def config_from_parameters(get: Callable[[str], object]) -> tuple[str, ControllerConfig]:

@@ -89,3 +89,38 @@ def test_the_reports_linear_goal_past_a_wall_52_mm_beside_the_arm_is_refused(sid
     Q = plan.q
     assert all(not walled.check_configurations(q[None]).free for q in Q)
     assert 'inside keep-out box 0' in walled.message(check)
+
+
+def test_the_minimum_table_margin_is_derived_from_the_meshes_and_is_the_parameters():
+    """body_model's constant is the derivation's, and the table_margin minimum of both nodes."""
+    from mover6_control.collision import body_model
+    from mover6_control.parameters import BODY_MIN_TABLE_MARGIN, CONTROLLER, PLANNER
+    shapes = [body_fit.FittedShape(*row) for row in body_model.BODY_SHAPES]
+    outside = body_fit.largest_outside(MESH_DIR, shapes)
+    assert body_fit.min_table_margin(outside) == body_model.MIN_TABLE_MARGIN
+    assert BODY_MIN_TABLE_MARGIN == body_model.MIN_TABLE_MARGIN
+    assert PLANNER['table_margin'].minimum == CONTROLLER['table_margin'].minimum \
+        == BODY_MIN_TABLE_MARGIN
+
+
+def test_at_the_minimum_table_margin_no_accepted_configuration_puts_a_vertex_below_the_table():
+    """2,000 configurations within the widest limits: each one the checker takes stays above."""
+    from mover6_control.collision.geometry import ToolVolume
+    from mover6_control.parameters import BODY_MIN_TABLE_MARGIN, PLANNER
+    from mover6_control.tools.derive_collision import widest_limits
+    checker = CollisionChecker(ARM, CollisionSettings(
+        tool=ToolVolume('none', PLANNER['tool_size'].default),
+        table_margin=BODY_MIN_TABLE_MARGIN))
+    shaft = body_fit.BODY_SLABS[1][1][0][0]     # link1's shaft turns inside the base's column
+    body = {b: V[V[:, 2] >= shaft] if b == 1 else V for b, V in MESHES.items() if b > 0}
+    rng = np.random.default_rng(4141)
+    lowest, taken = np.inf, 0
+    for q in rng.uniform(*widest_limits(), (2000, 6)):
+        if checker.check_configurations(q[None]).clearance['table'] < 0.0:
+            continue                     # refused for the table
+        taken += 1
+        T = _frames(q)
+        lowest = min(lowest, min(float((V @ T[b][:3, :3].T + T[b][:3, 3])[:, 2].min())
+                                 for b, V in body.items()))
+    assert taken > 500, taken
+    assert lowest >= BODY_MIN_TABLE_MARGIN + body_fit.MARGIN - 1e-6, lowest
