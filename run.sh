@@ -41,6 +41,7 @@ case "$cmd" in
         ;;
     launch) ensure; exec bash "$ROOT/scripts/launch.sh" "$@" ;;
     goal)   ensure; exec python -m mover6_control.tools.goal_cli "$@" ;;
+    program) ensure; exec python -m mover6_control.tools.program_cli "$@" ;;  # docs/programs.md
     record) ensure; exec python -m mover6_control.tools.record "$@" ;;
     report) ensure; exec python -m mover6_control.tools.report "$@" ;;
     generate) ensure; exec python -m mover6_control.tools.generate "$ROOT" "$@" ;;

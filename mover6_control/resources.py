@@ -27,6 +27,7 @@ EXECUTABLES = {
     'recorder': 'mover6_control.nodes.recorder.node',
     'first_run': 'mover6_control.tools.first_run',
     'console': 'mover6_control.nodes.console.node',
+    'program': 'mover6_control.tools.program_cli',
 }
 
 _SOURCE_CONFIG = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
