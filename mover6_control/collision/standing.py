@@ -26,7 +26,8 @@ from mover6_control.kinematics.arm import ArmModel
 import numpy as np
 
 # The parameter a contact of each kind comes from (a contact with the tool: the tool's).
-PARAMETER_OF_KIND = {'keep_out': 'keep_out_boxes', 'table': 'table_margin', 'self': 'collision_check'}
+PARAMETER_OF_KIND = {'keep_out': 'keep_out_boxes', 'table': 'table_margin',
+                     'self': 'collision_check'}
 
 
 class StandingCheck:

@@ -12,8 +12,8 @@ parameters, this module reads them.
 from typing import Callable, Optional
 
 from mover6_control.collision.checker import CollisionSettings
-from mover6_control.collision.standing import StandingCheck
 from mover6_control.collision.geometry import ToolVolume
+from mover6_control.collision.standing import StandingCheck
 from mover6_control.control.controller_config import ControllerConfig
 from mover6_control.control.profiles import LawConfig
 from mover6_control.control.servo import ServoConfig
