@@ -6,7 +6,8 @@ joint trajectory goal (time from start, positions, velocities): the controller f
 their times (cubic Hermite between them), so the arm runs the planned path and timing (scaled by
 the controller's speed scaling). Points sit at every time the motion's acceleration may jump
 (``break_times``), so the cubic pieces stay on it and within the limits; the accelerations at
-such a time are one-sided and are not sent. ``plan_lines`` is the plan as a user reads it: one line per motion
+such a time are one-sided and are not sent. ``plan_lines`` is the plan as a user reads it: one
+line per motion
 and action. ``teach_refusal`` says why a point cannot be taught from a joint state reading
 (stale, or the arm moving), or None.
 """
@@ -59,7 +60,7 @@ def break_times(trajectory) -> np.ndarray:
 def timed_points(motion: Motion, period: float = POINT_PERIOD,
                  min_gap: float = MIN_GAP) -> TimedPoints:
     """
-    Return ``motion`` as points every ``period`` [s] and at its ``break_times``, at rest at its end.
+    Return ``motion`` as points every ``period`` [s] and at its ``break_times``, resting at last.
 
     Points closer than ``min_gap`` [s] to the one before are left out; the first point is after
     time 0 (a first point at 0 would be the start state), the last at the motion's end.

@@ -23,7 +23,7 @@ import argparse
 import json
 import sys
 import time
-from typing import Optional, Sequence
+from typing import Optional, Sequence, TextIO
 
 from control_msgs.action import FollowJointTrajectory, GripperCommand
 from control_msgs.msg import SpeedScalingFactor
@@ -31,11 +31,11 @@ from mover6_control.control.timed_plan import peak, timed_spline, Timing
 from mover6_control.hardware.gripper import STROKE
 from mover6_control.kinematics.arm import ArmModel, mover6
 from mover6_control.nodes.messages import conversions
+from mover6_control.programs.limits import JointLimits
 from mover6_control.programs.points import load_points, Point
 from mover6_control.programs.program_error import ProgramError
 from mover6_control.programs.program_file import load_program
-from mover6_control.programs.program_plan import Motion, plan_program, PlannedProgram
-from mover6_control.programs.limits import JointLimits
+from mover6_control.programs.program_plan import Action, Motion, plan_program, PlannedProgram
 from mover6_control.programs.program_run import (end_of, plan_lines, reached_error,
                                                  refusal_lines, stretched, teach_refusal,
                                                  timed_points, TimedPoints)
@@ -48,6 +48,7 @@ import rclpy
 from rclpy.action import ActionClient
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_msgs.msg import UInt8MultiArray
 from trajectory_msgs.msg import JointTrajectoryPoint
@@ -105,7 +106,7 @@ class ProgramClient(Node):
             return None
         return self.q.copy()
 
-    def wait_future(self, future, timeout: float) -> bool:
+    def wait_future(self, future: Future, timeout: float) -> bool:
         """Spin until ``future`` is done or ``timeout`` [s]; return whether it is done."""
         return self.spinner.spin_until(future.done, timeout)
 
@@ -201,7 +202,7 @@ class ProgramRunner:
         if factor > 1.0:
             points = stretched(points, factor)
             self.say(f'step {motion.indices[0] + 1}: {factor:.3f} times slower than planned '
-                     '(the controller\'s interpolation between the points)')
+                     "(the controller's interpolation between the points)")
         sent = time.monotonic()
         future = client.trajectory.send_goal_async(trajectory_goal(client.arm, points))
         if not client.wait_future(future, SERVER_WAIT) or not future.result().accepted:
@@ -232,7 +233,7 @@ class ProgramRunner:
                  + ('' if ok else f': {answer.result.error_string}'))
         return ok
 
-    def action(self, item) -> bool:
+    def action(self, item: Action) -> bool:
         """Run a step that does not move the arm: speed (planned in), gripper, wait."""
         step, label = item.step, f'step {item.index + 1} {item.step.name}'
         if isinstance(step, GripperStep):
@@ -303,7 +304,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument('--speed', type=float,
                      help="set the controller's speed scaling to this fraction first (0-1]")
     run.add_argument('--step', action='store_true', help='wait for Enter before each step')
-    run.add_argument('--report', help='write the motions\' results to this file (JSON)')
+    run.add_argument('--report', help="write the motions' results to this file (JSON)")
     teach = sub.add_parser('teach', help='store the current joint positions as a point')
     teach.add_argument('name', help='the point name (letters, digits, underscores)')
     teach.add_argument('file', nargs='?', default='points.yaml', help='the points file')
@@ -329,7 +330,8 @@ def _start_at_rest(client: ProgramClient) -> tuple[Optional[np.ndarray], Optiona
     return q, problem
 
 
-def run(argv: Sequence[str], client: Optional[ProgramClient] = None, out=sys.stdout) -> int:
+def run(argv: Sequence[str], client: Optional[ProgramClient] = None,
+        out: TextIO = sys.stdout) -> int:
     """Run one command line; return its exit code."""
     args = build_parser().parse_args(list(argv))
     client = client or ProgramClient(mover6())
