@@ -47,6 +47,7 @@ from mover6_control.nodes.console.page_logic import GoalConvention
 from mover6_control.nodes.console.planner_settings import PlannerSettingsFollower
 from mover6_control.nodes.console.state_view import StateView
 from mover6_control.nodes.console.status_panel import PanelState, ShownStatus, StatusPanel
+from mover6_control.nodes.driver.report_publisher import BUS_STATUS
 from mover6_control.nodes.messages import conversions
 from mover6_control.nodes.messages.demand_messages import demands_from_msg
 from mover6_control.nodes.runtime import shutdown
@@ -147,11 +148,11 @@ class ConsoleNode(Node):
             self.actions.on_planner_status(status)
 
     def on_diagnostics(self, msg: DiagnosticArray) -> None:
-        """Keep a driver's bus and joint statuses (names 'driver' and 'driver: <joint>')."""
+        """Keep a driver's bus and joint statuses ('driver: bus' and 'driver: <joint>')."""
         for entry in msg.status:
             values = conversions.status_values(entry)
             level = conversions.status_level_name(entry)
-            if entry.name == 'driver':
+            if entry.name == BUS_STATUS:
                 with self.lock:
                     self.statuses['driver'] = ShownStatus(level, entry.message, values)
             elif entry.name.startswith('driver: '):

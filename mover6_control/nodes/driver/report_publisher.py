@@ -21,6 +21,9 @@ from mover6_control.nodes.driver.jog_intake import JogCounts
 from mover6_control.nodes.messages.conversions import make_joint_state, make_status
 from sensor_msgs.msg import JointState
 
+# The name of the bus's status on /diagnostics; each joint's is 'driver: <joint>'.
+BUS_STATUS = 'driver: bus'
+
 LEVELS = {ModuleState.FAULT: 'ERROR', ModuleState.ERROR: 'ERROR',
           ModuleState.DISCONNECTED: 'WARN', ModuleState.CONNECTED: 'WARN',
           ModuleState.ENABLED: 'OK', ModuleState.REFERENCED: 'OK',
@@ -134,7 +137,7 @@ class ReportPublisher:
         msg = DiagnosticArray()
         msg.header.stamp = self.node.get_clock().now().to_msg()
         msg.status.append(make_status(
-            'driver: bus', LEVELS[report.state], report.hold or f'arm {report.state}', {
+            BUS_STATUS, LEVELS[report.state], report.hold or f'arm {report.state}', {
                 'state': report.state, 'lifecycle': lifecycle, 'hold': report.hold,
                 'cycle_period': report.period,
                 'frames_dropped': report.frames_dropped, 'frames_bad': report.frames_bad,
