@@ -59,9 +59,9 @@ own stack comes from ``MOVER6_TICK_WATCHDOG``):
   does take from the XML profile) does not help either: Fast DDS picks shared memory per remote
   locator (``SHMLocator::is_shm_and_from_this_host``, the host id inside the locator), and the
   controller still opened a joining process's port. Left: a Fast DDS with
-  eProsima/Fast-DDS#6535 fixed, or discovery range ``SYSTEM_DEFAULT`` with an XML profile that
-  keeps UDP on the loopback interface and drops shared memory: the package's local
-  configuration, the ``local`` rows;
+  eProsima/Fast-DDS#6535 fixed, or the package's local configuration (its loopback-only Fast DDS
+  profile, which nodes refuse to start without: UDP on 127.0.0.1, no shared memory), the
+  ``local`` rows;
 - the shorter gaps (20-150 ms, ``ticks_over_30ms``) are the process waiting for a CPU on a
   loaded machine (two cores, load 4-11 during these runs; the watchdog then finds the tick
   thread anywhere in its Python code). ``tick_priority`` alone narrowed them (period error p50
